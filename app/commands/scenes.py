@@ -1,0 +1,37 @@
+"""`scenes` lists the shipped scenes; `show` draws one to a PNG."""
+from app.cli import print_json
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("scenes", help="list the shipped scenes")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.set_defaults(func=run_scenes)
+
+    p = subparsers.add_parser("show", help="draw a scene (obstacles, passage region, robot at start and goal)")
+    p.add_argument("scene", help="scene name or problem-file path")
+    p.add_argument("--png", required=True, help="output PNG file")
+    p.set_defaults(func=run_show)
+
+
+def run_scenes(args) -> int:
+    from app.scene import Scene, scene_names
+
+    scenes = [Scene(name).summary() for name in scene_names()]
+    if args.json:
+        print_json({"scenes": scenes})
+    else:
+        width = max(len(s["name"]) for s in scenes)
+        for s in scenes:
+            print(f"{s['name']:<{width}}  {s['dof']} DOF  {s['description']}")
+    return 0
+
+
+def run_show(args) -> int:
+    from app.draw import draw_scene
+    from app.oracle import CollisionOracle
+    from app.scene import Scene
+
+    oracle = CollisionOracle(Scene(args.scene))
+    draw_scene(oracle, args.png)
+    print(args.png)
+    return 0

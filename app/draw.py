@@ -1,0 +1,128 @@
+"""Matplotlib pictures of a scene, read from SceneGraph's collision shapes, so any scene draws without extra code.
+
+2D scenes are drawn as a top view (x-y), 3D scenes on 3D axes. `scene_figure` draws obstacles and the passage
+region; `draw_robot` adds the robot at a configuration; `save` writes the PNG atomically.
+"""
+import os
+import tempfile
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.patches import Circle, Polygon, Rectangle  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+
+from app.errors import UserError  # noqa: E402
+
+_BOX_FACES = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]]
+
+
+def _geometries(oracle, q, robot: bool):
+    """(shape, world pose) of the robot's or the environment's collision geometries at configuration q."""
+    from pydrake.geometry import Role
+
+    plant, context = oracle.plant, oracle._diag
+    plant.SetPositions(context, np.asarray(q, float))
+    query = oracle._query_port.Eval(context)
+    inspector = query.inspector()
+    for gid in inspector.GetAllGeometryIds(Role.kProximity):
+        if (gid in oracle._robot_geometries) == robot:
+            yield inspector.GetShape(gid), query.GetPoseInWorld(gid)
+
+
+def _box_corners(shape, pose) -> np.ndarray:
+    half = np.array([shape.width(), shape.depth(), shape.height()]) / 2
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    return (pose.rotation().matrix() @ (signs * half).T).T + pose.translation()
+
+
+def _draw_shape(ax, shape, pose, three_d: bool, **style):
+    from pydrake.geometry import Box, Capsule, Cylinder, Sphere
+
+    if isinstance(shape, Box):
+        corners = _box_corners(shape, pose)
+        if three_d:
+            ax.add_collection3d(Poly3DCollection([corners[f] for f in _BOX_FACES], **style))
+        else:  # top view: the box's outline in x-y is the hull of its corners
+            from scipy.spatial import ConvexHull
+
+            xy = corners[:, :2]
+            ax.add_patch(Polygon(xy[ConvexHull(xy).vertices], closed=True, **style))
+    elif isinstance(shape, (Cylinder, Sphere, Capsule)) and not three_d:
+        ax.add_patch(Circle(pose.translation()[:2], shape.radius(), **style))
+    elif three_d:
+        ax.scatter(*pose.translation(), s=8, color=style.get("facecolor", "k"))
+
+
+def scene_figure(oracle, title: str | None = None):
+    """A figure with the obstacles and the passage region drawn; returns (fig, ax)."""
+    scene = oracle.scene
+    three_d = scene.problem.view == "3d"
+    fig = plt.figure(figsize=(7, 6.5))
+    ax = fig.add_subplot(projection="3d") if three_d else fig.add_subplot()
+    for shape, pose in _geometries(oracle, scene.start, robot=False):
+        style = dict(facecolor=(0.45, 0.45, 0.5, 0.25 if three_d else 1.0), edgecolor=(0.3, 0.3, 0.35, 0.4))
+        _draw_shape(ax, shape, pose, three_d, **style)
+    for lo, hi in scene.passage_boxes:
+        if three_d:
+            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            ax.add_collection3d(Poly3DCollection([corners[f] for f in _BOX_FACES], facecolor=(1, 0.8, 0, 0.12),
+                                                 edgecolor=(0.9, 0.6, 0, 0.8), linestyle="--"))
+        else:
+            ax.add_patch(Rectangle(lo[:2], *(hi - lo)[:2], fill=True, facecolor=(1, 0.85, 0, 0.25),
+                                   edgecolor=(0.9, 0.6, 0), linestyle="--", linewidth=1.2))
+    bounds = _workspace_bounds(oracle)
+    if three_d:
+        ax.set(xlim=bounds[0], ylim=bounds[1], zlim=bounds[2], xlabel="x", ylabel="y", zlabel="z")
+        ax.set_box_aspect([b[1] - b[0] for b in bounds])
+    else:
+        ax.set(xlim=bounds[0], ylim=bounds[1], xlabel="x", ylabel="y", aspect="equal")
+    ax.set_title(title or f"{scene.name}: {scene.problem.description}", fontsize=9, wrap=True)
+    return fig, ax
+
+
+def _workspace_bounds(oracle):
+    """The box the obstacles and the robot's translational bounds span."""
+    points = [np.array(p) for lo, hi in oracle.scene.passage_boxes for p in (lo, hi)]
+    for shape, pose in _geometries(oracle, oracle.scene.start, robot=False):
+        points.append(pose.translation())
+    translational = ~oracle.scene.angular
+    points = np.array(points)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    k = min(int(translational.sum()), 3)
+    lo[:k] = np.minimum(lo[:k], oracle.lower[translational][:k])
+    hi[:k] = np.maximum(hi[:k], oracle.upper[translational][:k])
+    return list(zip(lo, hi))
+
+
+def draw_robot(ax, oracle, q, color="tab:blue", alpha=0.9):
+    three_d = oracle.scene.problem.view == "3d"
+    for shape, pose in _geometries(oracle, q, robot=True):
+        _draw_shape(ax, shape, pose, three_d, facecolor=color, edgecolor=color, alpha=alpha)
+
+
+def save(fig, path: str) -> None:
+    """Write the PNG via a temporary file so a failure leaves nothing half-written."""
+    target = Path(path)
+    if not target.parent.is_dir():
+        raise UserError(f"cannot write {path}: folder {target.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(suffix=".png", dir=target.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight")
+        os.replace(tmp, target)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def draw_scene(oracle, path: str) -> None:
+    """The scene with the robot at start (blue) and goal (green)."""
+    fig, ax = scene_figure(oracle)
+    draw_robot(ax, oracle, oracle.scene.start, color="tab:blue")
+    draw_robot(ax, oracle, oracle.scene.goal, color="tab:green")
+    save(fig, path)

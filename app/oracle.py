@@ -1,0 +1,251 @@
+"""The collision oracle: the one object samplers and planners talk to. It owns every Drake query and counts them.
+
+Two Drake paths, each where it is fastest (measured on the 9-DOF planar arm, see `python -m app bench oracle`):
+- one configuration: raw SceneGraph `QueryObject.HasCollisions` from a Python loop (about 4x cheaper than
+  `SceneGraphCollisionChecker.CheckConfigCollisionFree`, which computes padded distances);
+- a batch: `SceneGraphCollisionChecker.CheckConfigsCollisionFree`, whose C++ loop spreads over threads. pydrake holds
+  the GIL in `HasCollisions`, so Python threads cannot parallelise the raw path.
+Both see the same collision pairs: the scene's policy is applied to the checker (body pairs) and to the raw
+query context (geometry filter), and a test holds them to agreement.
+
+`checks` counts every configuration handed to Drake for a collision answer (the paper's gamma_c); an edge check
+counts the configurations it looked at. Configurations outside the bounds are rejected before Drake and not counted.
+"""
+from __future__ import annotations
+
+import logging
+import os
+
+import numpy as np
+
+from app.errors import UserError
+from app.scene import Scene
+
+# Below this many configurations the checker's batch set-up costs more than the raw loop saves.
+_BATCH_MIN = 8
+
+
+# Drake logs an INFO line per checker about its thread contexts; users should see one line on errors, nothing else.
+logging.getLogger("drake").setLevel(logging.WARNING)
+
+
+def default_threads() -> int:
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+class CollisionOracle:
+    def __init__(self, scene: Scene, threads: int | None = None):
+        from pydrake.common import Parallelism
+        from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+        from pydrake.planning import SceneGraphCollisionChecker
+
+        self.scene = scene
+        self.dim = scene.dim
+        self.lower, self.upper = scene.lower, scene.upper
+        self.weights = scene.weights
+        self.angular, self.continuous = scene.angular, scene.continuous
+        self.resolution = scene.resolution
+        # Continuous angles may take any finite value: huge finite bounds let one comparison serve every coordinate
+        # and still reject inf and NaN.
+        self._lo = np.where(self.continuous, -1e300, self.lower)
+        self._hi = np.where(self.continuous, 1e300, self.upper)
+        self.threads = threads or default_threads()
+        self._parallelism = Parallelism(self.threads)
+        self.checks = 0
+
+        # The checker takes ownership of the diagram; everything below goes through checker.model().
+        self.checker = SceneGraphCollisionChecker(
+            model=scene.diagram, robot_model_instances=scene.robot_instances, edge_step_size=scene.resolution,
+            env_collision_padding=0.0, self_collision_padding=0.0)
+        self.model = self.checker.model()
+        self.plant = self.model.plant()
+        scene_graph = self.model.scene_graph()
+        inspector = scene_graph.model_inspector()
+        robot_bodies = [self.plant.get_body(b) for inst in scene.robot_instances
+                        for b in self.plant.GetBodyIndices(inst)]
+        self._robot_geometries = {g for body in robot_bodies
+                                  for g in self.plant.GetCollisionGeometriesForBody(body)}
+
+        # Unfiltered context: says *what* a configuration touches (environment, self) for diagnostics.
+        self._diag_root = self.model.CreateDefaultContext()
+        self._diag = self.plant.GetMyContextFromRoot(self._diag_root)
+        # Policy context: the scene's collision pairs, used for every counted answer.
+        self._root = self.model.CreateDefaultContext()
+        self._ctx = self.plant.GetMyContextFromRoot(self._root)
+        if not scene.self_collisions:
+            for i, a in enumerate(robot_bodies):
+                for b in robot_bodies[i + 1:]:
+                    self.checker.SetCollisionFilteredBetween(a, b, True)
+            sg_context = scene_graph.GetMyMutableContextFromRoot(self._root)
+            geometries = GeometrySet(list(self._robot_geometries))
+            scene_graph.collision_filter_manager(sg_context).Apply(
+                CollisionFilterDeclaration().ExcludeWithin(geometries))
+        self._query_port = self.plant.get_geometry_query_input_port()
+        self._inspector = inspector
+        self._passage_frame = (self.plant.GetFrameByName(scene.passage_frame.name(), scene.passage_frame.model_instance())
+                               if scene.passage_frame is not None else None)
+
+    # ---- configuration space -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.checks = 0
+
+    def uniform(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """n configurations uniform in the bounds (no collision check)."""
+        return rng.uniform(self.lower, self.upper, size=(n, self.dim))
+
+    def wrap(self, Q: np.ndarray) -> np.ndarray:
+        """Continuous angles into [-pi, pi); other coordinates untouched."""
+        Q = np.array(Q, float, copy=True)
+        Q[..., self.continuous] = (Q[..., self.continuous] + np.pi) % (2 * np.pi) - np.pi
+        return Q
+
+    def within_bounds(self, Q: np.ndarray) -> np.ndarray:
+        """Inside the bounds and finite, per configuration."""
+        Q = np.atleast_2d(Q)
+        return ((Q >= self._lo) & (Q <= self._hi)).all(axis=1)
+
+    def difference(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """q2 - q1, taking the short way round on continuous angles."""
+        d = np.asarray(q2, float) - np.asarray(q1, float)
+        d[..., self.continuous] = (d[..., self.continuous] + np.pi) % (2 * np.pi) - np.pi
+        return d
+
+    def distance(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """Weighted configuration distance (broadcasts over leading axes)."""
+        return np.linalg.norm(self.difference(q1, q2) * self.weights, axis=-1)
+
+    def check_configuration(self, q, what: str = "configuration") -> np.ndarray:
+        """A user-supplied configuration as a float vector, or a UserError naming what is wrong."""
+        try:
+            q = np.asarray(q, float).reshape(-1)
+        except (TypeError, ValueError):
+            raise UserError(f"{what} must be {self.dim} numbers") from None
+        if q.shape != (self.dim,):
+            raise UserError(f"{what} has {q.shape[0]} values; {self.scene.name} needs {self.dim}")
+        if not np.all(np.isfinite(q)):
+            raise UserError(f"{what} has a value that is not a finite number")
+        return q
+
+    # ---- collision answers (counted) -----------------------------------------------------------------------
+    def _raw_free(self, q: np.ndarray) -> bool:
+        self.plant.SetPositions(self._ctx, q)
+        return not self._query_port.Eval(self._ctx).HasCollisions()
+
+    def is_free(self, q: np.ndarray) -> bool:
+        q = np.asarray(q, float)
+        if not ((q >= self._lo) & (q <= self._hi)).all():
+            return False
+        self.checks += 1
+        return self._raw_free(q)
+
+    def are_free(self, Q: np.ndarray) -> np.ndarray:
+        """Free flags for a batch (n, dim); the batch is spread over the oracle's threads."""
+        Q = np.atleast_2d(np.asarray(Q, float))
+        free = self.within_bounds(Q)
+        inside = np.flatnonzero(free)
+        self.checks += len(inside)
+        # On one thread the raw loop is cheapest; the checker's batch pays off once it can use a second core.
+        if self.threads == 1 or len(inside) < _BATCH_MIN:
+            for i in inside:
+                free[i] = self._raw_free(Q[i])
+        else:
+            free[inside] = self.checker.CheckConfigsCollisionFree(list(Q[inside]), parallelize=self._parallelism)
+        return free
+
+    def interpolate(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
+        """Points from q1 to q2 (both included) no more than `resolution` apart in the weighted metric."""
+        step = resolution or self.resolution
+        d = self.difference(q1, q2)
+        n = max(1, int(np.ceil(np.linalg.norm(d * self.weights) / step)))
+        t = np.linspace(0.0, 1.0, n + 1)[:, None]
+        return self.wrap(np.asarray(q1, float) + t * d)
+
+    def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
+        """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
+
+        Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
+        its first collision, so colliding edges cost few checks and every round is one batched call.
+        """
+        Q1, Q2 = np.atleast_2d(Q1), np.atleast_2d(Q2)
+        paths = [self.interpolate(a, b, resolution) for a, b in zip(Q1, Q2)]
+        orders = [_coarse_to_fine(len(p)) for p in paths]
+        free = np.ones(len(paths), bool)
+        cursor = np.zeros(len(paths), int)
+        chunk = 1
+        while True:
+            live = [i for i in range(len(paths)) if free[i] and cursor[i] < len(orders[i])]
+            if not live:
+                return free
+            batch, owner = [], []
+            for i in live:
+                take = orders[i][cursor[i]:cursor[i] + chunk]
+                cursor[i] += len(take)
+                batch.append(paths[i][take])
+                owner.extend([i] * len(take))
+            ok = self.are_free(np.concatenate(batch))
+            for i, good in zip(owner, ok):
+                free[i] &= good
+            chunk *= 2  # few points first (endpoints, midpoints), then ever finer
+
+    def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
+        return bool(self.edges_free(q1, q2, resolution)[0])
+
+    # ---- geometry (not counted: these are measurements, not collision answers) ------------------------------
+    def clearance(self, q: np.ndarray, max_distance: float = 10.0) -> float:
+        """Signed distance from the robot to whatever counts under the scene's policy (negative: penetration).
+
+        Pairs farther apart than `max_distance` are not computed, so the answer is capped there.
+        """
+        self.plant.SetPositions(self._ctx, np.asarray(q, float))
+        pairs = self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+        return min((p.distance for p in pairs), default=float(max_distance))
+
+    def contacts(self, q: np.ndarray, margin: float = 0.0) -> dict[str, bool]:
+        """What the robot touches (or comes within `margin` of) at q, regardless of the policy: environment, self."""
+        self.plant.SetPositions(self._diag, np.asarray(q, float))
+        query = self._query_port.Eval(self._diag)
+        pairs = query.ComputeSignedDistancePairwiseClosestPoints(max(margin, 1e-9))
+        touched = {"environment": False, "self": False}
+        for p in pairs:
+            if p.distance > margin:
+                continue
+            a, b = p.id_A in self._robot_geometries, p.id_B in self._robot_geometries
+            if a and b:
+                touched["self"] = True
+            elif a or b:
+                touched["environment"] = True
+        return touched
+
+    def frame_positions(self, Q: np.ndarray) -> np.ndarray:
+        """World position of the passage frame's origin for each configuration, (n, 3)."""
+        Q = np.atleast_2d(np.asarray(Q, float))
+        out = np.empty((len(Q), 3))
+        for i, q in enumerate(Q):
+            self.plant.SetPositions(self._ctx, q)
+            out[i] = self._passage_frame.CalcPoseInWorld(self._ctx).translation()
+        return out
+
+    def in_passage(self, Q: np.ndarray) -> np.ndarray:
+        """Whether each configuration puts the scene's passage frame inside a passage box."""
+        Q = np.atleast_2d(np.asarray(Q, float))
+        if self._passage_frame is None or not self.scene.passage_boxes or len(Q) == 0:
+            return np.zeros(len(Q), bool)
+        p = self.frame_positions(Q)
+        return np.any([np.all((p >= lo) & (p <= hi), axis=1) for lo, hi in self.scene.passage_boxes], axis=0)
+
+
+def _coarse_to_fine(n: int) -> np.ndarray:
+    """Indices 0..n-1 ordered endpoints first, then by bisection (van der Corput), so a collision shows up early."""
+    if n <= 2:
+        return np.arange(n)
+    order = [0, n - 1]
+    seen = {0, n - 1}
+    denominator = 2
+    while len(order) < n:
+        for k in range(1, denominator, 2):
+            i = int(round(k * (n - 1) / denominator))
+            if i not in seen:
+                seen.add(i)
+                order.append(i)
+        denominator *= 2
+    return np.array(order)

@@ -1,0 +1,194 @@
+"""A scene: Drake model directives (robot + obstacles) plus a problem file (bounds, start, goal, passage, metric).
+
+The problem file is loaded with Drake's typed YAML loader, so an unknown or misspelt key is an error rather than a
+silently ignored setting. Everything the rest of the pipeline needs about the robot's configuration space (which
+coordinates are angles, which wrap, how to weigh them) is read here once.
+"""
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app.errors import UserError
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES_DIR = ROOT / "scenes"
+PACKAGES = {"npp_robots": ROOT / "robots", "npp_scenes": SCENES_DIR}
+
+
+@dataclass
+class Box:
+    """An axis-aligned workspace box (world frame)."""
+
+    lo: list[float] = field(default_factory=list)
+    hi: list[float] = field(default_factory=list)
+
+
+@dataclass
+class PassageSpec:
+    """A sample counts as "in the passage" when the origin of `frame` lies in one of `boxes`."""
+
+    frame: str = ""
+    boxes: list[Box] = field(default_factory=list)
+
+
+@dataclass
+class ProblemFile:
+    description: str = ""
+    directives: str = ""  # a *.dmd.yaml file beside the problem file
+    robot: list[str] = field(default_factory=list)  # model instances that move; everything else is environment
+    # Which collisions count: "environment" (robot vs. obstacles) or "all" (also robot vs. itself).
+    collisions: str = "environment"
+    collisions_why: str = ""
+    lower: list[float] = field(default_factory=list)  # default: the model's joint limits
+    upper: list[float] = field(default_factory=list)
+    start: list[float] = field(default_factory=list)
+    goal: list[float] = field(default_factory=list)
+    # Metric weight per coordinate, so that metres and radians compare (an angle's weight is the lever arm it swings).
+    weights: list[float] = field(default_factory=list)
+    resolution: float = 0.5  # edge-check step in the weighted metric
+    passage: PassageSpec = field(default_factory=PassageSpec)
+    velocity_limits: list[float] = field(default_factory=list)  # default: the model's
+    acceleration_limits: list[float] = field(default_factory=list)  # default: 2x the velocity limits
+    view: str = "2d"  # how `show` draws it: "2d" top view or "3d"
+
+
+def scene_names() -> list[str]:
+    return sorted(p.stem for p in SCENES_DIR.glob("*.yaml") if not p.name.endswith(".dmd.yaml"))
+
+
+def scene_path(name_or_path: str) -> Path:
+    """A shipped scene's name, or the path of a problem file."""
+    candidate = Path(name_or_path)
+    if candidate.suffix == ".yaml":
+        if not candidate.is_file():
+            raise UserError(f"scene file not found: {name_or_path}")
+        return candidate.resolve()
+    path = SCENES_DIR / f"{name_or_path}.yaml"
+    if not path.is_file():
+        raise UserError(f"unknown scene '{name_or_path}' (known: {', '.join(scene_names())})")
+    return path
+
+
+def read_problem(path: Path) -> ProblemFile:
+    from pydrake.common.yaml import yaml_load_typed
+
+    try:
+        problem = yaml_load_typed(schema=ProblemFile, filename=str(path))
+    except Exception as exc:  # the loader raises RuntimeError, ValueError or yaml errors; all mean a bad file
+        detail = " ".join(str(exc).split())
+        raise UserError(f"bad scene file {path.name}: {detail[:300]}") from None
+    if problem.collisions not in ("environment", "all"):
+        raise UserError(f"bad scene file {path.name}: collisions must be 'environment' or 'all'")
+    if problem.view not in ("2d", "3d"):
+        raise UserError(f"bad scene file {path.name}: view must be '2d' or '3d'")
+    if not problem.directives or not problem.robot:
+        raise UserError(f"bad scene file {path.name}: 'directives' and 'robot' are required")
+    return problem
+
+
+class Scene:
+    """A loaded scene: the Drake RobotDiagram and the configuration-space facts read from it and the problem file."""
+
+    def __init__(self, name_or_path: str):
+        from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
+        from pydrake.multibody.tree import JointIndex
+        from pydrake.planning import RobotDiagramBuilder
+
+        self.path = scene_path(name_or_path)
+        self.name = self.path.stem
+        self.problem = problem = read_problem(self.path)
+        directives_path = self.path.parent / problem.directives
+        if not directives_path.is_file():
+            raise UserError(f"bad scene file {self.path.name}: directives file not found: {problem.directives}")
+
+        builder = RobotDiagramBuilder(time_step=0.0)
+        plant, parser = builder.plant(), builder.parser()
+        for package, directory in PACKAGES.items():
+            if not parser.package_map().Contains(package):
+                parser.package_map().Add(package, str(directory))
+        try:
+            ProcessModelDirectives(LoadModelDirectives(str(directives_path)), parser)
+        except Exception as exc:
+            raise UserError(f"cannot load {problem.directives}: {' '.join(str(exc).split())[:300]}") from None
+        for name in problem.robot:
+            if not plant.HasModelInstanceNamed(name):
+                raise UserError(f"bad scene file {self.path.name}: no model instance named '{name}'")
+        self.robot_instances = [plant.GetModelInstanceByName(n) for n in problem.robot]
+        plant.Finalize()
+        self.diagram = builder.Build()
+        self.plant = self.diagram.plant()
+
+        nq = self.plant.num_positions()
+        self.dim = nq
+        self.coordinate_names = [""] * nq
+        angular = np.zeros(nq, bool)
+        for i in range(self.plant.num_joints()):
+            joint = self.plant.get_joint(JointIndex(i))
+            for k in range(joint.num_positions()):
+                index = joint.position_start() + k
+                self.coordinate_names[index] = joint.name() if joint.num_positions() == 1 else f"{joint.name()}[{k}]"
+                angular[index] = joint.type_name() == "revolute"
+        model_lower, model_upper = self.plant.GetPositionLowerLimits(), self.plant.GetPositionUpperLimits()
+        self.angular = angular
+        # An angle with no joint limit wraps: it lives on a circle, and the metric takes the short way round.
+        self.continuous = angular & ~np.isfinite(model_lower) & ~np.isfinite(model_upper)
+        model_lower = np.where(self.continuous, -math.pi, model_lower)
+        model_upper = np.where(self.continuous, math.pi, model_upper)
+
+        self.lower = self._vector("lower", problem.lower, model_lower)
+        self.upper = self._vector("upper", problem.upper, model_upper)
+        if not np.all(np.isfinite(self.lower) & np.isfinite(self.upper)) or np.any(self.lower >= self.upper):
+            raise UserError(f"bad scene file {self.path.name}: bounds must be finite with lower < upper")
+        self.weights = self._vector("weights", problem.weights, np.ones(nq))
+        if np.any(self.weights <= 0):
+            raise UserError(f"bad scene file {self.path.name}: weights must be positive")
+        self.start = self._vector("start", problem.start, None)
+        self.goal = self._vector("goal", problem.goal, None)
+        if not problem.resolution > 0:
+            raise UserError(f"bad scene file {self.path.name}: resolution must be positive")
+        self.resolution = float(problem.resolution)
+        model_velocity = self.plant.GetVelocityUpperLimits()
+        self.velocity_limits = self._vector("velocity_limits", problem.velocity_limits, model_velocity)
+        self.acceleration_limits = self._vector("acceleration_limits", problem.acceleration_limits,
+                                                2.0 * self.velocity_limits)
+        self.self_collisions = problem.collisions == "all"
+
+        spec = problem.passage
+        if spec.frame and not self.plant.HasFrameNamed(spec.frame):
+            raise UserError(f"bad scene file {self.path.name}: passage frame '{spec.frame}' not in the model")
+        self.passage_frame = self.plant.GetFrameByName(spec.frame) if spec.frame else None
+        try:
+            self.passage_boxes = [(np.array(b.lo, float).reshape(3), np.array(b.hi, float).reshape(3))
+                                  for b in spec.boxes]
+        except ValueError:
+            raise UserError(f"bad scene file {self.path.name}: passage boxes need 3-vectors lo and hi") from None
+
+    def _vector(self, key: str, values: list[float], default: "np.ndarray | None") -> np.ndarray:
+        if not values:
+            if default is None:
+                raise UserError(f"bad scene file {self.path.name}: '{key}' is required")
+            return np.asarray(default, float).copy()
+        vector = np.asarray(values, float)
+        if vector.shape != (self.dim,) or not np.all(np.isfinite(vector)):
+            raise UserError(f"bad scene file {self.path.name}: '{key}' needs {self.dim} finite numbers, "
+                            f"got {len(values)}")
+        return vector
+
+    def summary(self) -> dict:
+        return {
+            "name": self.name,
+            "description": self.problem.description,
+            "dof": self.dim,
+            "coordinates": self.coordinate_names,
+            "lower": self.lower.tolist(),
+            "upper": self.upper.tolist(),
+            "start": self.start.tolist(),
+            "goal": self.goal.tolist(),
+            "collisions": self.problem.collisions,
+            "passage_frame": self.problem.passage.frame,
+            "passage_boxes": [dataclasses.asdict(b) for b in self.problem.passage.boxes],
+        }
