@@ -13,7 +13,6 @@ counts the configurations it looked at. Configurations outside the bounds are re
 """
 from __future__ import annotations
 
-import logging
 import os
 
 import numpy as np
@@ -25,8 +24,6 @@ from app.scene import Scene
 _BATCH_MIN = 8
 
 
-# Drake logs an INFO line per checker about its thread contexts; users should see one line on errors, nothing else.
-logging.getLogger("drake").setLevel(logging.WARNING)
 
 
 def default_threads() -> int:
@@ -35,10 +32,12 @@ def default_threads() -> int:
 
 class CollisionOracle:
     def __init__(self, scene: Scene, threads: int | None = None):
-        from pydrake.common import Parallelism
+        from pydrake.common import Parallelism, set_log_level
         from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
         from pydrake.planning import SceneGraphCollisionChecker
 
+        # Drake logs an INFO line per checker about its thread contexts; users should see only what matters.
+        set_log_level("warn")
         self.scene = scene
         self.dim = scene.dim
         self.lower, self.upper = scene.lower, scene.upper

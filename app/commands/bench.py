@@ -1,28 +1,11 @@
-"""`bench oracle`: the oracle's batched checks against raw SceneGraph HasCollisions, side by side in one run."""
-from app.cli import positive_int, print_json
+"""`bench KIND ...`: each benchmark lives in app/bench/KIND.py and registers its own sub-command."""
+from app.bench import oracle
+
+BENCHES = [oracle]
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("bench", help="benchmarks")
+    p = subparsers.add_parser("bench", help="benchmarks (figures side by side with their peers, in one run)")
     kinds = p.add_subparsers(dest="kind", required=True, parser_class=type(p))
-    o = kinds.add_parser("oracle", help="oracle checks/s vs raw HasCollisions on 1 and 2 threads")
-    o.add_argument("--scenes", default="bar,joint3d", help="comma-separated scene names")
-    o.add_argument("-n", type=positive_int, default=20000, help="configurations per measurement")
-    o.add_argument("--repeats", type=positive_int, default=5, help="runs per measurement (the median counts)")
-    o.add_argument("--seed", type=int, default=0)
-    o.add_argument("--json", action="store_true")
-    o.set_defaults(func=run_oracle)
-
-
-def run_oracle(args) -> int:
-    from app.bench.oracle import bench_oracle
-
-    rows = bench_oracle(args.scenes.split(","), n=args.n, repeats=args.repeats, seed=args.seed)
-    if args.json:
-        print_json({"oracle": rows})
-        return 0
-    print(f"{'scene':<10} {'raw k/s':>9} {'1 thread k/s':>13} {'ratio':>6} {'2 threads k/s':>14} {'ratio':>6}")
-    for r in rows:
-        print(f"{r['scene']:<10} {r['raw_per_s'] / 1e3:>9.1f} {r['oracle_1_per_s'] / 1e3:>13.1f} "
-              f"{r['ratio_1']:>6.2f} {r['oracle_2_per_s'] / 1e3:>14.1f} {r['ratio_2']:>6.2f}")
-    return 0
+    for bench in BENCHES:
+        bench.register(kinds)
