@@ -13,6 +13,7 @@ counts the configurations it looked at. Configurations outside the bounds are re
 """
 from __future__ import annotations
 
+import logging
 import os
 
 import numpy as np
@@ -32,12 +33,13 @@ def default_threads() -> int:
 
 class CollisionOracle:
     def __init__(self, scene: Scene, threads: int | None = None):
-        from pydrake.common import Parallelism, set_log_level
+        from pydrake.common import Parallelism
         from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
         from pydrake.planning import SceneGraphCollisionChecker
 
         # Drake logs an INFO line per checker about its thread contexts; users should see only what matters.
-        set_log_level("warn")
+        # (pydrake mirrors this logger's level into its C++ logger; it must be set after pydrake is imported.)
+        logging.getLogger("drake").setLevel(logging.WARNING)
         self.scene = scene
         self.dim = scene.dim
         self.lower, self.upper = scene.lower, scene.upper

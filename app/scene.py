@@ -94,26 +94,16 @@ class Scene:
     """A loaded scene: the Drake RobotDiagram and the configuration-space facts read from it and the problem file."""
 
     def __init__(self, name_or_path: str):
-        from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
         from pydrake.multibody.tree import JointIndex
         from pydrake.planning import RobotDiagramBuilder
 
         self.path = scene_path(name_or_path)
         self.name = self.path.stem
         self.problem = problem = read_problem(self.path)
-        directives_path = self.path.parent / problem.directives
-        if not directives_path.is_file():
-            raise UserError(f"bad scene file {self.path.name}: directives file not found: {problem.directives}")
 
         builder = RobotDiagramBuilder(time_step=0.0)
-        plant, parser = builder.plant(), builder.parser()
-        for package, directory in PACKAGES.items():
-            if not parser.package_map().Contains(package):
-                parser.package_map().Add(package, str(directory))
-        try:
-            ProcessModelDirectives(LoadModelDirectives(str(directives_path)), parser)
-        except Exception as exc:
-            raise UserError(f"cannot load {problem.directives}: {' '.join(str(exc).split())[:300]}") from None
+        plant = builder.plant()
+        self.add_models(builder.parser())
         for name in problem.robot:
             if not plant.HasModelInstanceNamed(name):
                 raise UserError(f"bad scene file {self.path.name}: no model instance named '{name}'")
@@ -166,6 +156,21 @@ class Scene:
                                   for b in spec.boxes]
         except ValueError:
             raise UserError(f"bad scene file {self.path.name}: passage boxes need 3-vectors lo and hi") from None
+
+    def add_models(self, parser) -> None:
+        """Load the scene's models (robot and obstacles) into `parser`'s plant, e.g. for a second diagram to view."""
+        from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
+
+        directives_path = self.path.parent / self.problem.directives
+        if not directives_path.is_file():
+            raise UserError(f"bad scene file {self.path.name}: directives file not found: {self.problem.directives}")
+        for package, directory in PACKAGES.items():
+            if not parser.package_map().Contains(package):
+                parser.package_map().Add(package, str(directory))
+        try:
+            ProcessModelDirectives(LoadModelDirectives(str(directives_path)), parser)
+        except Exception as exc:
+            raise UserError(f"cannot load {self.problem.directives}: {' '.join(str(exc).split())[:300]}") from None
 
     def _vector(self, key: str, values: list[float], default: "np.ndarray | None") -> np.ndarray:
         if not values:

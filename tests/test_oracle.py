@@ -1,0 +1,142 @@
+"""The collision oracle against an independent SceneGraph reference, and its counters."""
+import numpy as np
+import pytest
+
+from app.scene import scene_names
+
+SAMPLING_SCENES = ["bar", "bar-3link", "bar-5link", "joint", "joint3d", "teeth3d"]
+
+
+def reference_free(oracle, q) -> bool:
+    """Free under the scene's policy, computed another way: signed distances on the *unfiltered* context, keeping
+    robot-environment pairs (and robot-robot pairs only if the scene counts self-collision)."""
+    plant = oracle.plant
+    context = plant.GetMyContextFromRoot(oracle.model.CreateDefaultContext())
+    plant.SetPositions(context, q)
+    query = plant.get_geometry_query_input_port().Eval(context)
+    robot = oracle._robot_geometries
+    for pair in query.ComputeSignedDistancePairwiseClosestPoints(0.0):
+        a, b = pair.id_A in robot, pair.id_B in robot
+        counts = (a != b) or (a and b and oracle.scene.self_collisions)
+        if counts and pair.distance < 0:
+            return False
+    return True
+
+
+@pytest.mark.parametrize("name", SAMPLING_SCENES)
+def test_oracle_agrees_with_scenegraph_on_1000_configurations(oracles, name):
+    oracle = oracles(name)
+    Q = oracle.uniform(np.random.default_rng(7), 1000)
+    batch = oracle.are_free(Q)
+    single = np.array([oracle.is_free(q) for q in Q])
+    reference = np.array([reference_free(oracle, q) for q in Q])
+    assert np.array_equal(batch, reference)
+    assert np.array_equal(single, reference)
+    # Both answers occur, so agreement means something.
+    assert 0.05 < reference.mean() < 0.95
+
+
+def test_counters_are_exact(oracles):
+    oracle = oracles("bar")
+    rng = np.random.default_rng(1)
+    Q = oracle.uniform(rng, 50)
+    oracle.reset()
+    assert oracle.checks == 0
+    oracle.is_free(Q[0])
+    assert oracle.checks == 1
+    oracle.are_free(Q)
+    assert oracle.checks == 51
+    outside = Q[:5].copy()
+    outside[:, 0] = oracle.upper[0] + 1.0  # out of bounds: rejected before Drake, not counted
+    assert not oracle.are_free(outside).any()
+    assert not oracle.is_free(outside[0])
+    assert oracle.checks == 51
+    oracle.reset()
+    assert oracle.checks == 0
+
+
+def test_edge_check_counts_the_configurations_it_looked_at(oracles):
+    oracle = oracles("bar")
+    start = oracle.scene.start
+    free_end = start.copy()
+    free_end[1] += 10.0  # slide the arm sideways in open space
+    oracle.reset()
+    assert oracle.edge_free(start, free_end)
+    assert oracle.checks == len(oracle.interpolate(start, free_end))
+
+    through_wall = start.copy()
+    through_wall[0] = 50.0
+    through_wall[1] = 20.0  # the base inside the lower bar
+    oracle.reset()
+    assert not oracle.edge_free(start, through_wall)
+    assert 0 < oracle.checks < len(oracle.interpolate(start, through_wall))
+
+
+def test_edges_free_matches_pointwise_checks(oracles):
+    oracle = oracles("joint3d")
+    rng = np.random.default_rng(3)
+    A, B = oracle.uniform(rng, 40), oracle.uniform(rng, 40)
+    B = A + 0.1 * (B - A)  # short edges: a mix of free and colliding
+    flags = oracle.edges_free(A, B)
+    expected = np.array([oracle.are_free(oracle.interpolate(a, b)).all() for a, b in zip(A, B)])
+    assert np.array_equal(flags, expected)
+    assert 0 < flags.sum() < len(flags)
+
+
+def test_distance_takes_the_short_way_round_on_continuous_angles(oracles):
+    oracle = oracles("bar")
+    q1 = oracle.scene.start.copy()
+    q2 = q1.copy()
+    q1[2], q2[2] = np.pi - 0.1, -np.pi + 0.1
+    assert oracle.distance(q1, q2) == pytest.approx(0.2 * oracle.weights[2])
+    path = oracle.interpolate(q1, q2)
+    assert np.all(np.abs(path[:, 2]) > np.pi - 0.11)  # never swings through zero
+
+
+def test_clearance_is_signed(oracles):
+    oracle = oracles("bar")
+    start = oracle.scene.start
+    assert oracle.clearance(start) > 0
+    inside = start.copy()
+    inside[0], inside[1] = 50.0, 20.0
+    assert oracle.clearance(inside) < 0
+
+
+def test_contacts_tell_environment_from_self(oracles):
+    oracle = oracles("bar")
+    folded = oracle.scene.start.copy()
+    folded[3] = np.pi  # link 2 folds back onto link 1: self-contact, ignored by the environment-only policy
+    assert oracle.contacts(folded) == {"environment": False, "self": True}
+    assert oracle.is_free(folded)
+    in_wall = oracle.scene.start.copy()
+    in_wall[0], in_wall[1] = 50.0, 20.0
+    assert oracle.contacts(in_wall)["environment"]
+
+
+@pytest.mark.parametrize("name", SAMPLING_SCENES)
+def test_scene_start_goal_free_and_outside_the_passage(oracles, name):
+    oracle = oracles(name)
+    ends = np.array([oracle.scene.start, oracle.scene.goal])
+    assert oracle.are_free(ends).all()
+    assert not oracle.in_passage(ends).any()
+
+
+@pytest.mark.parametrize("name", SAMPLING_SCENES)
+def test_passage_is_narrow_for_uniform_sampling(oracles, name):
+    oracle = oracles(name)
+    Q = oracle.uniform(np.random.default_rng(11), 6000)
+    free = Q[oracle.are_free(Q)]
+    assert len(free) > 1000
+    assert oracle.in_passage(free).mean() < 0.02
+
+
+def test_in_passage_sees_the_frame_in_the_box(oracles):
+    oracle = oracles("bar")
+    q = oracle.scene.start.copy()
+    q[0], q[1] = 50.0, 50.0  # base in the gap, arm pointing along it
+    assert oracle.in_passage(q)[0]
+    assert oracle.is_free(q)
+
+
+def test_every_shipped_scene_is_listed():
+    assert set(SAMPLING_SCENES) <= set(scene_names())
