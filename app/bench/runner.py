@@ -1,0 +1,91 @@
+"""Runs a sweep of trials into the results store: on local cores (a process pool) or on a Dask cluster.
+
+A trial is a pure function of its TrialSpec (seeded), so where it runs does not change its row. Each worker
+process keeps one oracle per scene (building a Drake diagram per trial would dominate the cost) on one thread:
+the parallelism is across processes. Only trials the store does not hold yet are sent; rows are stored as they
+come back, so a killed sweep resumes where it stopped.
+"""
+import importlib
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor, as_completed
+
+from tqdm import tqdm
+
+from app.bench.store import ResultStore, TrialSpec
+from app.errors import UserError
+
+# experiment name -> "module:function" taking (oracle, spec) and returning a dict of metrics.
+EXPERIMENTS = {
+    "sampling": "app.bench.sampling:run_trial_spec",
+    "prm": "app.bench.plan:run_trial_spec",
+}
+
+_oracles = {}
+
+
+def _oracle(scene: str):
+    if scene not in _oracles:
+        from app.oracle import CollisionOracle
+        from app.scene import Scene
+
+        _oracles[scene] = CollisionOracle(Scene(scene), threads=1)
+    return _oracles[scene]
+
+
+def execute(spec: TrialSpec) -> tuple[TrialSpec, dict]:
+    """Run one trial in this process (top-level, so process pools and Dask can pickle it)."""
+    module, function = EXPERIMENTS[spec.experiment].split(":")
+    trial = getattr(importlib.import_module(module), function)
+    return spec, trial(_oracle(spec.scene), spec)
+
+
+def run_sweep(specs: list[TrialSpec], store: ResultStore, workers: int = 0, scheduler: str | None = None,
+              desc: str = "trials") -> int:
+    """Run the specs the store lacks; returns how many ran. workers=0: all local cores."""
+    pending = store.pending(specs)
+    if not pending:
+        return 0
+    progress = tqdm(total=len(pending), desc=desc, unit="trial", dynamic_ncols=True)
+    try:
+        for spec, metrics in _results(pending, workers or os.cpu_count() or 1, scheduler):
+            store.add(spec, metrics)
+            progress.update()
+    finally:
+        progress.close()
+    return len(pending)
+
+
+def _results(pending: list[TrialSpec], workers: int, scheduler: str | None):
+    if scheduler:
+        yield from _dask_results(pending, scheduler)
+    elif workers == 1:
+        for spec in pending:
+            yield execute(spec)
+    else:
+        # spawn, not fork: a forked child would inherit Drake's thread pools mid-state.
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+            futures = [pool.submit(execute, spec) for spec in pending]
+            try:
+                for future in as_completed(futures):
+                    yield future.result()
+            except BaseException:
+                for future in futures:
+                    future.cancel()
+                raise
+
+
+def _dask_results(pending: list[TrialSpec], scheduler: str):
+    try:
+        from distributed import Client, as_completed as dask_completed
+    except ImportError:
+        raise UserError("--scheduler needs Dask: pip install 'narrow-passage-planner[cluster]'") from None
+    try:
+        client = Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError) as exc:
+        raise UserError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    with client:
+        futures = client.map(execute, pending, pure=False)
+        for future in dask_completed(futures):
+            yield future.result()

@@ -1,0 +1,124 @@
+"""The results store: every trial is one row in an SQLite file, keyed by what defines it.
+
+A trial's key is a hash of its experiment, scene, method, step, seed and parameters, so a sweep that is killed and
+started again skips exactly the rows already written (INSERT OR IGNORE: never a duplicate) and runs the rest
+(never a lost trial). Each row is committed as it arrives; SQLite's journal keeps a killed write from leaving a
+half row. Reports are built from the store, not from memory.
+"""
+import hashlib
+import json
+import sqlite3
+import subprocess
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from app.scene import ROOT
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS trials (
+    key TEXT PRIMARY KEY,
+    experiment TEXT NOT NULL,
+    scene TEXT NOT NULL,
+    method TEXT NOT NULL,
+    step REAL NOT NULL,
+    seed INTEGER NOT NULL,
+    params TEXT NOT NULL,
+    metrics TEXT NOT NULL,
+    code_version TEXT NOT NULL,
+    finished REAL NOT NULL
+);
+CREATE INDEX IF NOT EXISTS trials_by_cell ON trials (experiment, scene, method, step);
+"""
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """What defines one trial. `params` holds everything else that changes the result (k, roadmap sizes...)."""
+
+    experiment: str
+    scene: str
+    method: str
+    step: float
+    seed: int
+    params: dict = field(default_factory=dict, hash=False, compare=False)
+
+    @property
+    def key(self) -> str:
+        text = json.dumps([self.experiment, self.scene, self.method, float(self.step), int(self.seed), self.params],
+                          sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def _plain(value):
+    """json.dumps fallback for numpy scalars and arrays, which trials return naturally."""
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
+
+
+def code_version() -> str:
+    """The git commit (with '+dirty' for uncommitted changes), or the package version outside a checkout."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True,
+                                text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        return commit + ("+dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            return version("narrow-passage-planner")
+        except PackageNotFoundError:
+            return "unknown"
+
+
+class ResultStore:
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._db = sqlite3.connect(self.path)
+        self._db.executescript(SCHEMA)
+        self._version = code_version()
+
+    def close(self) -> None:
+        self._db.close()
+
+    def done_keys(self) -> set[str]:
+        return {row[0] for row in self._db.execute("SELECT key FROM trials")}
+
+    def pending(self, specs: list[TrialSpec]) -> list[TrialSpec]:
+        done = self.done_keys()
+        return [s for s in specs if s.key not in done]
+
+    def add(self, spec: TrialSpec, metrics: dict) -> None:
+        with self._db:  # one transaction per row: a kill loses at most the row being written
+            self._db.execute(
+                "INSERT OR IGNORE INTO trials VALUES (?,?,?,?,?,?,?,?,?,?)",
+                (spec.key, spec.experiment, spec.scene, spec.method, float(spec.step), int(spec.seed),
+                 json.dumps(spec.params, sort_keys=True, default=_plain), json.dumps(metrics, default=_plain), self._version, time.time()))
+
+    def rows(self, experiment: str | None = None) -> list[dict]:
+        query = "SELECT experiment, scene, method, step, seed, params, metrics, code_version FROM trials"
+        args = ()
+        if experiment:
+            query += " WHERE experiment = ?"
+            args = (experiment,)
+        out = []
+        for experiment_, scene, method, step, seed, params, metrics, version in self._db.execute(
+                query + " ORDER BY experiment, scene, method, step, seed", args):
+            out.append({"experiment": experiment_, "scene": scene, "method": method, "step": step, "seed": seed,
+                        "params": json.loads(params), "metrics": json.loads(metrics), "code_version": version})
+        return out
+
+    def count(self) -> int:
+        return self._db.execute("SELECT COUNT(*) FROM trials").fetchone()[0]
+
+
+def spec_dict(spec: TrialSpec) -> dict:
+    return asdict(spec)

@@ -1,0 +1,12 @@
+"""A cheap deterministic trial for testing the store and runners: a few seeded collision checks."""
+import time
+
+import numpy as np
+
+
+def run(oracle, spec):
+    rng = np.random.default_rng(spec.seed)
+    oracle.reset()
+    free = oracle.are_free(oracle.uniform(rng, int(spec.params.get("n", 20))))
+    time.sleep(float(spec.params.get("sleep", 0.0)))
+    return {"free": int(free.sum()), "collision_checks": oracle.checks}
