@@ -133,7 +133,7 @@ def test_passage_is_narrow_for_uniform_sampling(oracles, name):
 def test_in_passage_sees_the_frame_in_the_box(oracles):
     oracle = oracles("bar")
     q = oracle.scene.start.copy()
-    q[0], q[1] = 50.0, 50.0  # base in the gap, arm pointing along it
+    q[0], q[1], q[2] = 50.0, 50.0, 0.0  # base in the gap, arm pointing along it
     assert oracle.in_passage(q)[0]
     assert oracle.is_free(q)
 
