@@ -1,6 +1,7 @@
 """The command line: listing, drawing, and one-line errors with the agreed exit codes."""
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -72,7 +73,7 @@ BAR = (SCENES_DIR / "bar.yaml").read_text()
 
 @pytest.mark.parametrize("text, expected", [
     (BAR + "colour: red\n", "colour"),  # unknown key
-    (BAR.replace("start: [10, 50, 0, 0, 0, 0, 0, 0, 0]", "start: [10, 50, 0]"), "'start' needs 9"),
+    (re.sub(r"(?m)^start: .*$", "start: [10, 50, 0]", BAR), "'start' needs 9"),
     (BAR.replace("resolution: 0.5", "resolution: [0.5"), "bad scene file"),  # malformed YAML
     (BAR.replace("resolution: 0.5", "resolution: fast"), "bad scene file"),  # wrong type
     (BAR.replace("collisions: environment", "collisions: some"), "collisions must be"),
