@@ -3,7 +3,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: plan test test-slow bench clean
+.PHONY: plan test test-slow browser-test bench clean
 
 $(STAMP): pyproject.toml
 	python3 -m venv $(VENV)
@@ -20,6 +20,12 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
+
+# The exported Meshcat page drawn by headless Chromium (WebGL via SwiftShader); screenshots in out/browser-*.png.
+browser-test: $(STAMP)
+	command -v chromium >/dev/null || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)
+	mkdir -p out
+	$(PY) -m pytest -q -m browser tests/test_browser.py
 
 bench: $(STAMP)
 	$(PY) -m app bench oracle

@@ -1,4 +1,4 @@
 """Command modules, in the order `--help` lists them. Each has `register(subparsers)`."""
-from app.commands import bench, scenes
+from app.commands import bench, scenes, view
 
-MODULES = [scenes, bench]
+MODULES = [scenes, view, bench]

@@ -1,0 +1,46 @@
+"""`view` shows a trajectory in Meshcat and/or exports it as a standalone HTML page.
+
+`add_arguments` and `publish_from_args` give any command (plan, run) the same --html / --meshcat / --frame flags.
+"""
+
+
+def add_arguments(p) -> None:
+    """The viewer flags, for any command that has a scene and a trajectory to show."""
+    p.add_argument("--html", metavar="FILE", help="write a standalone Meshcat page (robot animation, samples, path)")
+    p.add_argument("--meshcat", action="store_true",
+                   help="serve it on localhost, print the URL, wait for Enter (not when stdin is not a terminal)")
+    p.add_argument("--frame", help="robot frame whose positions draw samples and path (default: the passage frame)")
+    p.add_argument("--collision", action="store_true", help="also load the collision geometry (hidden at first)")
+
+
+def publish_from_args(args, scene, data):
+    """Show/export `data` (an app.viewer.ViewData) as the flags of `add_arguments` ask; None when none was given."""
+    from app.viewer import publish
+
+    return publish(scene, data, meshcat=args.meshcat, html=args.html, frame=args.frame, collision=args.collision)
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("view", help="show a trajectory in Meshcat and/or export a standalone HTML page")
+    p.add_argument("scene", help="scene name or problem-file path")
+    p.add_argument("--trajectory", required=True, metavar="FILE.json",
+                   help='{"times": [...], "positions": [[...], ...], optional "narrow", "on_path", "path"}')
+    add_arguments(p)
+    p.set_defaults(func=run_view)
+
+
+def run_view(args) -> int:
+    from app.errors import UserError
+    from app.scene import Scene
+    from app.viewer import load_view_data
+
+    if not args.html and not args.meshcat:
+        raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
+    scene = Scene(args.scene)
+    data = load_view_data(args.trajectory, scene.dim)
+    if data.positions is None:
+        raise UserError(f"{args.trajectory}: 'times' and 'positions' are required")
+    publish_from_args(args, scene, data)
+    if args.html:
+        print(args.html)
+    return 0

@@ -1,0 +1,447 @@
+"""A scene in Drake's Meshcat: the robot animated along a trajectory, narrow-passage samples, the path, the passage
+region; and the same as one standalone HTML page (`Meshcat.StaticHtml`, its JavaScript bundled, no CDN).
+
+The oracle's RobotDiagram belongs to its collision checker and is already built, so a MeshcatVisualizer cannot be added
+to it: the viewer builds a second diagram from the same scene files (`Scene.add_models`). Both plants load the same
+directives in the same order, so a configuration means the same thing to both.
+
+Colours follow the paper's figures: narrow-passage samples yellow, those on the path red. Samples and the path are drawn
+at the world position of one robot frame (default: the passage frame, else the tool frame, else the last body).
+
+Meshcat opens a server on localhost even to export HTML. Drake refuses that when DRAKE_ALLOW_NETWORK is set without
+"meshcat" in it; the viewer then raises a UserError saying so rather than overriding the user's setting.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from app.errors import UserError
+from app.scene import Scene
+
+YELLOW = (1.0, 0.85, 0.0, 1.0)  # narrow-passage samples
+RED = (0.9, 0.05, 0.05, 1.0)  # narrow-passage samples on the path
+ROBOT_COLOUR = (0.25, 0.55, 0.95, 1.0)  # for robot geometry without its own colour (ours have none)
+PATH_COLOUR = (0.55, 0.2, 0.75, 1.0)
+PASSAGE_COLOUR = (0.2, 0.8, 0.3, 0.25)
+ILLUSTRATION_PATH = "/drake/illustration"  # where MeshcatVisualizer puts the illustration geometry
+
+
+@dataclass
+class ViewData:
+    """What a viewer shows: a sampled trajectory and, optionally, narrow-passage samples and the path's waypoints."""
+
+    times: np.ndarray | None = None  # (N,)
+    positions: np.ndarray | None = None  # (N, dim)
+    narrow: np.ndarray | None = None  # (M, dim)
+    on_path: np.ndarray | None = None  # (M,) bool
+    path: np.ndarray | None = None  # (K, dim)
+
+    def to_json(self) -> dict:
+        out = {}
+        for key in ("times", "positions", "narrow", "on_path", "path"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = np.asarray(value).tolist()
+        return out
+
+
+def _matrix(value, key: str, dim: int, source: str) -> np.ndarray:
+    try:
+        array = np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise UserError(f"{source}: '{key}' must be a list of lists of numbers") from None
+    if array.ndim == 1 and array.size == 0:
+        array = array.reshape(0, dim)
+    if array.ndim != 2 or array.shape[1] != dim:
+        got = array.shape[1] if array.ndim == 2 else f"shape {array.shape}"
+        raise UserError(f"{source}: '{key}' needs rows of {dim} numbers (the scene's dimension), got {got}")
+    if not np.all(np.isfinite(array)):
+        raise UserError(f"{source}: '{key}' has a value that is not a finite number")
+    return array
+
+
+def parse_view_data(obj, dim: int, source: str = "trajectory") -> ViewData:
+    """Check a trajectory object {"times", "positions", optional "narrow", "on_path", "path"} against `dim`."""
+    if not isinstance(obj, dict):
+        raise UserError(f"{source}: expected a JSON object with 'times' and 'positions'")
+    unknown = set(obj) - {"times", "positions", "narrow", "on_path", "path"}
+    if unknown:
+        raise UserError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}")
+    data = ViewData()
+    if "times" in obj or "positions" in obj:
+        if "times" not in obj or "positions" not in obj:
+            raise UserError(f"{source}: 'times' and 'positions' go together")
+        data.positions = _matrix(obj["positions"], "positions", dim, source)
+        try:
+            data.times = np.asarray(obj["times"], float)
+        except (TypeError, ValueError):
+            raise UserError(f"{source}: 'times' must be a list of numbers") from None
+        if data.times.shape != (len(data.positions),):
+            raise UserError(f"{source}: {data.times.size} times for {len(data.positions)} positions")
+        if len(data.times) == 0:
+            raise UserError(f"{source}: the trajectory is empty")
+        if not np.all(np.isfinite(data.times)) or np.any(np.diff(data.times) < 0):
+            raise UserError(f"{source}: 'times' must be finite and non-decreasing")
+    if "narrow" in obj:
+        data.narrow = _matrix(obj["narrow"], "narrow", dim, source)
+        flags = obj.get("on_path", [False] * len(data.narrow))
+        if not isinstance(flags, list) or not all(isinstance(f, bool) for f in flags):
+            raise UserError(f"{source}: 'on_path' must be a list of true/false")
+        if len(flags) != len(data.narrow):
+            raise UserError(f"{source}: {len(flags)} 'on_path' flags for {len(data.narrow)} narrow samples")
+        data.on_path = np.array(flags, bool)
+    elif "on_path" in obj:
+        raise UserError(f"{source}: 'on_path' needs 'narrow'")
+    if "path" in obj:
+        data.path = _matrix(obj["path"], "path", dim, source)
+    return data
+
+
+def load_view_data(path: str, dim: int) -> ViewData:
+    """Read a trajectory JSON file; every problem with it is a UserError."""
+    file = Path(path)
+    if not file.is_file():
+        raise UserError(f"trajectory file not found: {path}")
+    try:
+        obj = json.loads(file.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"cannot read trajectory {file.name}: {' '.join(str(exc).split())[:200]}") from None
+    return parse_view_data(obj, dim, source=file.name)
+
+
+def check_output(path: str | os.PathLike) -> Path:
+    """An output file's path, refused early (before any work) if it cannot be written there."""
+    target = Path(path)
+    if not target.parent.is_dir():
+        raise UserError(f"cannot write {path}: folder {target.parent} does not exist")
+    if target.is_dir():
+        raise UserError(f"cannot write {path}: it is a folder")
+    return target
+
+
+def write_atomically(path: str | os.PathLike, text: str) -> Path:
+    """Write `text` to `path` through a temporary file beside it, so a reader never sees half a file."""
+    target = check_output(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror}") from None
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes the file private; the page is an ordinary output
+        os.replace(tmp, target)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(exc, OSError):
+            raise UserError(f"cannot write {path}: {exc.strerror}") from None
+        raise
+    return target
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def start_meshcat(port: int | None = None):
+    """A Meshcat server bound to localhost only."""
+    from pydrake.geometry import Meshcat, MeshcatParams
+
+    # Drake logs the URL at INFO; callers print it where it belongs. (pydrake mirrors this logger into C++.)
+    logging.getLogger("drake").setLevel(logging.WARNING)
+    params = MeshcatParams()
+    params.host = "localhost"
+    if port is not None:
+        params.port = port
+    try:
+        return Meshcat(params)
+    except RuntimeError as exc:
+        if "DRAKE_ALLOW_NETWORK" in str(exc):
+            raise UserError("Meshcat is disabled by DRAKE_ALLOW_NETWORK="
+                            f"{os.environ.get('DRAKE_ALLOW_NETWORK', '')!r}; add 'meshcat' to it "
+                            "(e.g. DRAKE_ALLOW_NETWORK=meshcat) to view or export HTML") from None
+        raise UserError(f"cannot start Meshcat: {' '.join(str(exc).split())[:200]}") from None
+
+
+def _rgba(colour):
+    from pydrake.geometry import Rgba
+
+    return Rgba(*colour)
+
+
+def _bounding_radius(shape) -> float:
+    """Radius of a sphere about the shape's origin that holds it (0 for shapes we do not know)."""
+    from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, Sphere
+
+    if isinstance(shape, Box):
+        return 0.5 * math.sqrt(shape.width() ** 2 + shape.depth() ** 2 + shape.height() ** 2)
+    if isinstance(shape, Sphere):
+        return shape.radius()
+    if isinstance(shape, Cylinder):
+        return math.hypot(shape.radius(), shape.length() / 2)
+    if isinstance(shape, Capsule):
+        return shape.radius() + shape.length() / 2
+    if isinstance(shape, Ellipsoid):
+        return max(shape.a(), shape.b(), shape.c())
+    return 0.0
+
+
+class Viewer:
+    """A scene in Meshcat. Keep the Viewer (it holds the Meshcat server) for as long as the page should be served."""
+
+    def __init__(self, scene: Scene | str, *, frame: str | None = None, collision: bool = False,
+                 meshcat=None, marker_size: float | None = None, obstacle_opacity: float | None = None):
+        from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
+        from pydrake.planning import RobotDiagramBuilder
+
+        self.scene = scene if isinstance(scene, Scene) else Scene(scene)
+        self.meshcat = meshcat if meshcat is not None else start_meshcat()
+
+        # Same directives, same order: model instance indices and position coordinates match the scene's plant.
+        builder = RobotDiagramBuilder(time_step=0.0)
+        self.scene.add_models(builder.parser())
+        builder.plant().Finalize()
+        params = MeshcatVisualizerParams(role=Role.kIllustration, prefix="illustration",
+                                         default_color=_rgba(ROBOT_COLOUR))
+        self._period = params.publish_period  # also the recording's 1/fps
+        self._visualizer = MeshcatVisualizer.AddToBuilder(
+            builder.builder(), builder.scene_graph(), self.meshcat, params)
+        if collision:  # hidden at first; the Meshcat controls toggle it
+            MeshcatVisualizer.AddToBuilder(
+                builder.builder(), builder.scene_graph(), self.meshcat,
+                MeshcatVisualizerParams(role=Role.kProximity, prefix="collision", visible_by_default=False,
+                                        default_color=_rgba((0.9, 0.3, 0.9, 0.4))))
+        self.diagram = builder.Build()
+        self.plant = self.diagram.plant()
+        self.dim = self.plant.num_positions()
+        self._context = self.diagram.CreateDefaultContext()
+        self._plant_context = self.plant.GetMyContextFromRoot(self._context)
+        self.frame = self._find_frame(frame)
+        self.frames_recorded = 0
+
+        self.plant.SetPositions(self._plant_context, self.scene.start)
+        self.diagram.ForcedPublish(self._context)  # sends the geometry and poses the robot at the start
+        self._centre, self._radius = self._extent()
+        self.marker_size = marker_size or 0.02 * self._radius
+        self._set_stage()
+        # In 3D, walls hide the robot behind them: see-through obstacles by default.
+        if obstacle_opacity is None:
+            obstacle_opacity = 0.4 if self.scene.problem.view == "3d" else 1.0
+        if obstacle_opacity < 1.0:
+            self._set_obstacle_opacity(obstacle_opacity)
+        self.show_passage()
+
+    # ---- set-up ----------------------------------------------------------------------------------------------
+    def _find_frame(self, name: str | None):
+        plant, robots = self.plant, self.scene.robot_instances
+        name = name or self.scene.problem.passage.frame or getattr(self.scene.problem, "tool_frame", "")
+        if not name:  # the robot's last body: an arm's tool, a mobile robot's base
+            return plant.get_body(plant.GetBodyIndices(robots[-1])[-1]).body_frame()
+        for instance in robots:
+            if plant.HasFrameNamed(name, instance):
+                return plant.GetFrameByName(name, instance)
+        if plant.HasFrameNamed(name):
+            return plant.GetFrameByName(name)
+        raise UserError(f"no frame named '{name}' in scene {self.scene.name}")
+
+    def _extent(self) -> tuple[np.ndarray, float]:
+        """Centre and radius of a sphere holding the scene's illustration geometry at the start configuration."""
+        from pydrake.geometry import Role
+
+        query = self.plant.get_geometry_query_input_port().Eval(self._plant_context)
+        inspector = query.inspector()
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for gid in inspector.GetAllGeometryIds(Role.kIllustration):
+            p = query.GetPoseInWorld(gid).translation()
+            r = _bounding_radius(inspector.GetShape(gid))
+            lo, hi = np.minimum(lo, p - r), np.maximum(hi, p + r)
+        for box_lo, box_hi in self.scene.passage_boxes:
+            lo, hi = np.minimum(lo, box_lo), np.maximum(hi, box_hi)
+        if not np.all(np.isfinite(lo)):
+            return np.zeros(3), 1.0
+        return (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
+
+    def _set_obstacle_opacity(self, opacity: float) -> None:
+        """Fade the environment's illustration geometry (MeshcatVisualizer's paths: prefix/frame/geometry)."""
+        from pydrake.geometry import Role
+
+        inspector = self.diagram.scene_graph().model_inspector()
+        robot_frames = {self.plant.GetBodyFrameIdOrThrow(b) for i in self.scene.robot_instances
+                        for b in self.plant.GetBodyIndices(i)}
+        for gid in inspector.GetAllGeometryIds(Role.kIllustration):
+            frame = inspector.GetFrameId(gid)
+            if frame in robot_frames:
+                continue
+            frame_path = ("" if frame == inspector.world_frame_id()
+                          else "/" + inspector.GetName(frame).replace("::", "/"))
+            path = f"{ILLUSTRATION_PATH}{frame_path}/{inspector.GetName(gid).replace('::', '/')}"
+            self.meshcat.SetProperty(path, "modulated_opacity", float(opacity))
+
+    def _set_stage(self) -> None:
+        """Camera framing the scene, brighter light (Meshcat's lights suit a 1 m scene), no grid at large scale."""
+        from pydrake.geometry import Meshcat
+
+        self.meshcat.SetProperty("/Lights/AmbientLight/<object>", "intensity", 0.8)
+        self.meshcat.SetProperty("/Lights/FillLight/<object>", "intensity", 0.8)
+        if self._radius > 5.0:  # Meshcat's grid and axes are metre-sized: specks in a 100-unit scene
+            self.meshcat.SetProperty("/Grid", "visible", False)
+            self.meshcat.SetProperty("/Axes", "visible", False)
+        r = self._radius
+        camera = Meshcat.PerspectiveCamera(fov=50.0, aspect=1.0, near=0.01 * r, far=20.0 * r)
+        self.meshcat.SetCamera(camera)
+        # A 2D scene is looked at from above (tilted a little to show depth), a 3D scene from an oblique corner.
+        direction = np.array([0.0, -0.35, 1.0]) if self.scene.problem.view == "2d" else np.array([-1.0, -1.3, 0.9])
+        direction /= np.linalg.norm(direction)
+        self.meshcat.SetCameraPose(self._centre + 1.8 * r * direction, self._centre)
+
+    # ---- drawing ---------------------------------------------------------------------------------------------
+    def _configurations(self, Q, what: str) -> np.ndarray:
+        Q = np.asarray(Q, float)
+        if Q.ndim == 1 and Q.size == 0:
+            Q = Q.reshape(0, self.dim)
+        if Q.ndim != 2 or Q.shape[1] != self.dim or not np.all(np.isfinite(Q)):
+            raise UserError(f"{what} must be rows of {self.dim} finite numbers for scene {self.scene.name}")
+        return Q
+
+    def frame_positions(self, Q) -> np.ndarray:
+        """World position of the viewer's frame for each configuration, (n, 3)."""
+        Q = self._configurations(Q, "configurations")
+        out = np.empty((len(Q), 3))
+        context = self.plant.CreateDefaultContext()
+        for i, q in enumerate(Q):
+            self.plant.SetPositions(context, q)
+            out[i] = self.frame.CalcPoseInWorld(context).translation()
+        return out
+
+    def _points(self, path: str, P: np.ndarray, colour) -> None:
+        from pydrake.perception import BaseField, Fields, PointCloud
+
+        cloud = PointCloud(len(P), Fields(BaseField.kXYZs))
+        cloud.mutable_xyzs()[:] = P.T
+        self.meshcat.SetObject(path, cloud, point_size=self.marker_size, rgba=_rgba(colour))
+
+    def show_samples(self, narrow_Q, on_path_mask=None) -> None:
+        """Narrow-passage samples: yellow, and red where `on_path_mask` is true."""
+        P = self.frame_positions(self._configurations(narrow_Q, "narrow samples"))
+        mask = np.zeros(len(P), bool) if on_path_mask is None else np.asarray(on_path_mask, bool).reshape(-1)
+        if mask.shape != (len(P),):
+            raise UserError(f"{mask.size} on-path flags for {len(P)} narrow samples")
+        self.meshcat.Delete("/samples")
+        if np.any(~mask):
+            self._points("/samples/narrow", P[~mask], YELLOW)
+        if np.any(mask):
+            self._points("/samples/on_path", P[mask], RED)
+
+    def show_path(self, Q, name: str = "path", colour=PATH_COLOUR) -> None:
+        """A polyline through the frame's positions at the configurations Q."""
+        P = self.frame_positions(self._configurations(Q, "path"))
+        if len(P) >= 2:
+            self.meshcat.SetLine(f"/{name}", np.asfortranarray(P.T), line_width=3.0, rgba=_rgba(colour))
+
+    def show_passage(self) -> None:
+        """The scene's passage region as translucent boxes."""
+        from pydrake.geometry import Box
+        from pydrake.math import RigidTransform
+
+        for i, (lo, hi) in enumerate(self.scene.passage_boxes):
+            size = np.maximum(hi - lo, 1e-6)
+            self.meshcat.SetObject(f"/passage/box{i}", Box(*size), _rgba(PASSAGE_COLOUR))
+            self.meshcat.SetTransform(f"/passage/box{i}", RigidTransform((lo + hi) / 2))
+
+    def set_configuration(self, q) -> None:
+        """Pose the robot (live, not recorded)."""
+        q = self._configurations(np.atleast_2d(q), "configuration")[0]
+        self.plant.SetPositions(self._plant_context, q)
+        self.diagram.ForcedPublish(self._context)
+
+    def animate(self, times, positions) -> int:
+        """Record the robot along (times (N,), positions (N, dim)) as Meshcat's animation; returns the frame count.
+
+        Times are shifted to start at 0. The recording has one frame per publish period of the visualizer (1/64 s);
+        samples closer than that share a frame, the last one winning.
+        """
+        positions = self._configurations(positions, "positions")
+        times = np.asarray(times, float).reshape(-1)
+        if times.shape != (len(positions),) or len(times) == 0:
+            raise UserError(f"{times.size} times for {len(positions)} positions")
+        if not np.all(np.isfinite(times)) or np.any(np.diff(times) < 0):
+            raise UserError("times must be finite and non-decreasing")
+        times = times - times[0]
+        self._visualizer.DeleteRecording()
+        self._visualizer.StartRecording(set_transforms_while_recording=False)
+        try:
+            for t, q in zip(times, positions):
+                self._context.SetTime(float(t))
+                self.plant.SetPositions(self._plant_context, q)
+                self.diagram.ForcedPublish(self._context)
+        finally:
+            self._visualizer.StopRecording()
+        self._visualizer.PublishRecording()
+        self.frames_recorded = int(round(times[-1] / self._period)) + 1
+        return self.frames_recorded
+
+    # ---- output ----------------------------------------------------------------------------------------------
+    def html(self) -> str:
+        return self.meshcat.StaticHtml()
+
+    def write_html(self, path: str | os.PathLike) -> Path:
+        """The standalone page, written atomically."""
+        return write_atomically(path, self.html())
+
+    def url(self) -> str:
+        return self.meshcat.web_url()
+
+
+def show(scene: Scene | str, data: ViewData, *, frame: str | None = None, collision: bool = False,
+         meshcat=None) -> Viewer:
+    """A Viewer with everything in `data` drawn and the trajectory (if any) recorded."""
+    viewer = Viewer(scene, frame=frame, collision=collision, meshcat=meshcat)
+    if data.narrow is not None and len(data.narrow):
+        viewer.show_samples(data.narrow, data.on_path)
+    if data.path is not None:
+        viewer.show_path(data.path)
+    elif data.positions is not None:
+        viewer.show_path(data.positions)
+    if data.positions is not None:
+        viewer.set_configuration(data.positions[0])
+        viewer.animate(data.times, data.positions)
+    return viewer
+
+
+def publish(scene: Scene | str, data: ViewData, *, meshcat: bool = False, html: str | None = None,
+            frame: str | None = None, collision: bool = False, wait: bool = True) -> Viewer | None:
+    """What `--meshcat` / `--html FILE` do for any command: export the page, serve it, wait for the user.
+
+    With `meshcat`, the URL goes to stderr (stdout may carry a command's JSON) and, when stdin is a terminal and
+    `wait` is true, the server stays up until Enter or Ctrl-C; otherwise (CI, pipes) it returns at once.
+    """
+    if not meshcat and not html:
+        return None
+    if html:
+        check_output(html)
+    viewer = show(scene, data, frame=frame, collision=collision)
+    if html:
+        viewer.write_html(html)
+    if meshcat:
+        print(f"meshcat: {viewer.url()}", file=sys.stderr, flush=True)
+        if wait and sys.stdin is not None and sys.stdin.isatty():
+            print("press Enter (or Ctrl-C) to quit the viewer", file=sys.stderr, flush=True)
+            try:
+                sys.stdin.readline()
+            except KeyboardInterrupt:
+                pass
+    return viewer

@@ -1,0 +1,118 @@
+"""Browser check: the exported page really draws the robot in headless Chromium (WebGL through SwiftShader).
+
+For a scene, one Viewer exports two pages: the real one, and the same page with the robot hidden (Meshcat's "visible"
+property on the robot's model instance). Chromium screenshots both. The check fails on a blank or broken page (no
+WebGL, a script error, a wrong camera): the real page must show many pixels of the robot's colour, the hidden one
+almost none, and the two screenshots must differ. Screenshots go to out/browser-<scene>.png (and -hidden.png).
+
+Run with `make browser-test`, which installs Chromium (Debian package `chromium`) when it is missing.
+"""
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.scene import ROOT
+
+OUT = ROOT / "out"
+WINDOW = (800, 600)
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+
+def find_browser() -> str | None:
+    explicit = os.environ.get("CHROMIUM")
+    if explicit:
+        return shutil.which(explicit)
+    return next((path for path in map(shutil.which, BROWSERS) if path), None)
+
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(find_browser() is None,
+                       reason="Chromium not installed (make browser-test installs the Debian package 'chromium')"),
+]
+
+
+def chromium_command(browser: str, page: Path, screenshot: Path, profile: str) -> list[str]:
+    return [
+        browser, "--headless", "--no-sandbox", "--disable-gpu",
+        # WebGL without a GPU: SwiftShader, asked for explicitly (Chromium is retiring the silent fallback).
+        "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
+        # Offline and quiet: no network, no updates, no first-run work, a fresh profile.
+        "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update",
+        "--disable-sync", "--disable-extensions", "--hide-scrollbars", f"--user-data-dir={profile}",
+        f"--window-size={WINDOW[0]},{WINDOW[1]}", "--virtual-time-budget=4000",
+        f"--screenshot={screenshot}", page.as_uri(),
+    ]
+
+
+def screenshot_all(pages: dict[Path, Path]) -> None:
+    """Screenshot every page in parallel (one Chromium each, fresh profiles)."""
+    browser = find_browser()
+    with tempfile.TemporaryDirectory(prefix="npp-chromium-") as profiles:
+        runs = []
+        for i, (page, shot) in enumerate(pages.items()):
+            shot.unlink(missing_ok=True)
+            command = chromium_command(browser, page, shot, os.path.join(profiles, str(i)))
+            runs.append((shot, subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                                stderr=subprocess.STDOUT, text=True)))
+        for shot, run in runs:
+            try:
+                output, _ = run.communicate(timeout=180)
+            except subprocess.TimeoutExpired:
+                run.kill()
+                output, _ = run.communicate()
+            assert shot.is_file(), f"Chromium wrote no screenshot (exit {run.returncode}):\n{output[-2000:]}"
+
+
+def robot_pixels(png: Path) -> int:
+    """Pixels of the robot's blue (app.viewer.ROBOT_COLOUR, shaded): blue well above red and above green.
+
+    Nothing else in the scene is that colour: obstacles and background are grey, samples yellow/red, the path purple
+    (its blue exceeds its red by only 0.2), the passage box green.
+    """
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(png).convert("RGB"), int)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    return int(np.count_nonzero((b > 100) & (b - r > 70) & (b - g > 20)))
+
+
+@pytest.mark.parametrize("scene", ["bar", "joint3d"])
+def test_exported_page_draws_the_robot_in_chromium(scene, oracles, monkeypatch, tmp_path):
+    from PIL import Image
+
+    from app.viewer import ILLUSTRATION_PATH, ViewData, show
+
+    monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # Drake reads it per Meshcat; conftest says "none"
+    oracle = oracles(scene)
+    # A third of the way from start to goal: in 3D scenes the robot stays on the camera's side of the (see-through)
+    # wall, so its colour is not blended, wherever the animation is when Chromium takes the screenshot.
+    start, goal = oracle.scene.start, oracle.scene.goal
+    Q = oracle.interpolate(start, start + 0.3 * (goal - start), resolution=1.0)
+    times = np.linspace(0.0, 1.0, len(Q))
+    viewer = show(oracle.scene, ViewData(times=times, positions=Q, narrow=Q[::4],
+                                         on_path=np.arange(len(Q[::4])) % 2 == 0))
+    page, hidden_page = tmp_path / f"{scene}.html", tmp_path / f"{scene}-hidden.html"
+    viewer.write_html(page)
+    for name in oracle.scene.problem.robot:
+        viewer.meshcat.SetProperty(f"{ILLUSTRATION_PATH}/{name}", "visible", False)
+    viewer.write_html(hidden_page)
+
+    OUT.mkdir(exist_ok=True)
+    shot, hidden_shot = OUT / f"browser-{scene}.png", OUT / f"browser-{scene}-hidden.png"
+    screenshot_all({page: shot, hidden_page: hidden_shot})
+
+    image = np.asarray(Image.open(shot).convert("RGB"), int)
+    hidden = np.asarray(Image.open(hidden_shot).convert("RGB"), int)
+    assert image.shape[:2] == (WINDOW[1], WINDOW[0])
+    assert image.std() > 5, f"{shot} is blank"
+    shown, not_shown = robot_pixels(shot), robot_pixels(hidden_shot)
+    assert shown >= 200, f"{shot}: only {shown} robot-coloured pixels; is WebGL drawing?"
+    assert not_shown <= 20, f"{hidden_shot}: {not_shown} robot-coloured pixels with the robot hidden"
+    changed = np.count_nonzero(np.abs(image - hidden).sum(axis=-1) > 30)
+    assert changed >= 200, f"hiding the robot changed only {changed} pixels"

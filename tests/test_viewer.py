@@ -1,0 +1,201 @@
+"""The Meshcat viewer: the standalone page, what it holds, the `view` command's errors, atomic writes.
+
+Tests run with DRAKE_ALLOW_NETWORK=none (conftest), which also disables Meshcat. Drake reads the variable each time a
+Meshcat is made, so tests that need one allow it with monkeypatch (in-process) or in a subprocess's environment.
+"""
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from app.errors import UserError
+from meshcat_page import commands
+
+FPS = 64  # MeshcatVisualizer's default publish period is 1/64 s: one recorded frame per period
+
+
+@pytest.fixture
+def meshcat_allowed(monkeypatch):
+    monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")
+
+
+def straight_trajectory(oracle, duration=2.0):
+    """start -> goal in a straight line (through the wall: the viewer does not care), times evenly spread."""
+    Q = oracle.interpolate(oracle.scene.start, oracle.scene.goal, resolution=2.0)
+    return np.linspace(0.0, duration, len(Q)), Q
+
+
+def write_trajectory(file, times, positions, **extra):
+    obj = {"times": np.asarray(times).tolist(), "positions": np.asarray(positions).tolist()}
+    obj.update({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in extra.items()})
+    file.write_text(json.dumps(obj))
+    return file
+
+
+def assert_one_line_error(capsys, code, returned):
+    err = capsys.readouterr().err
+    assert returned == code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:"), err
+    return lines[0]
+
+
+def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, oracles, meshcat_allowed, capsys):
+    oracle = oracles("bar")
+    times, Q = straight_trajectory(oracle, duration=2.0)
+    narrow = Q[::3]
+    on_path = [bool(i % 2) for i in range(len(narrow))]
+    trajectory = write_trajectory(tmp_path / "t.json", times, Q, narrow=narrow, on_path=on_path, path=Q[[0, -1]])
+    page = tmp_path / "bar.html"
+
+    assert main(["view", "bar", "--trajectory", str(trajectory), "--html", str(page)]) == 0
+    assert capsys.readouterr().out.strip() == str(page)
+    html = page.read_text()
+    assert html.lstrip().lower().startswith("<!doctype html") or html.lstrip().startswith("<html")
+    # Standalone: no script or stylesheet fetched from anywhere (the JavaScript is inlined).
+    assert not re.search(r"<script[^>]*\bsrc\s*=", html, re.I)
+    assert not re.search(r"<link[^>]*\bhref\s*=\s*[\"']?https?:", html, re.I)
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
+
+    cmds = commands(html)
+    objects = {c["path"] for c in cmds if c["type"] == "set_object"}
+    assert {"/samples/narrow", "/samples/on_path", "/path", "/passage/box0"} <= objects
+    assert any(p.startswith("/drake/illustration/arm/link7") for p in objects)
+    # The samples: yellow off the path, red on it, each point at the passage frame's world position.
+    clouds = {c["path"]: c["object"] for c in cmds if c["type"] == "set_object" and c["path"].startswith("/samples/")}
+    frame_xyz = oracle.frame_positions(narrow)
+    flags = np.array(on_path)
+    yellow = lambda r, g, b: r > 200 and g > 180 and b < 60  # noqa: E731
+    red = lambda r, g, b: r > 200 and g < 60 and b < 60  # noqa: E731
+    for path, is_colour, expected in [("/samples/narrow", yellow, frame_xyz[~flags]),
+                                      ("/samples/on_path", red, frame_xyz[flags])]:
+        cloud = clouds[path]
+        (material,) = cloud["materials"]
+        rgb = material["color"]
+        assert material["type"] == "PointsMaterial" and is_colour(rgb >> 16, (rgb >> 8) & 255, rgb & 255), hex(rgb)
+        kind, code, raw = cloud["geometries"][0]["data"]["attributes"]["position"]["array"]
+        xyz = np.frombuffer(raw, "<f4").reshape(-1, 3)
+        np.testing.assert_allclose(xyz, expected, atol=1e-3)
+    # The animation: every moving robot body has a track whose last key is the last frame (2 s at 64 fps).
+    (animation,) = [c for c in cmds if c["type"] == "set_animation"]
+    tracks = {a["path"]: a["clip"] for a in animation["animations"]}
+    assert "/drake/illustration/arm/link7" in tracks
+    clip = tracks["/drake/illustration/arm/link7"]
+    assert clip["fps"] == FPS
+    position = next(t for t in clip["tracks"] if t["name"] == ".position")
+    assert len(position["keys"]) == len(times)
+    assert position["keys"][-1]["time"] == round(times[-1] * FPS)
+    # The recorded base positions follow the trajectory (x goes from start to goal).
+    base = next(t for t in tracks["/drake/illustration/arm/base"]["tracks"] if t["name"] == ".position")
+    xs = [k["value"][0] for k in base["keys"]]
+    assert xs[0] == pytest.approx(oracle.scene.start[0]) and xs[-1] == pytest.approx(oracle.scene.goal[0])
+
+
+def test_viewer_frame_positions_agree_with_the_oracle(oracles, meshcat_allowed):
+    """The viewer's second diagram must read a configuration exactly as the oracle's does."""
+    from app.viewer import Viewer
+
+    oracle = oracles("joint3d")
+    viewer = Viewer(oracle.scene)
+    Q = oracle.uniform(np.random.default_rng(1), 20)
+    np.testing.assert_allclose(viewer.frame_positions(Q), oracle.frame_positions(Q), atol=1e-9)
+    with pytest.raises(UserError):
+        viewer.show_samples(Q[:4], [True, False])
+    with pytest.raises(UserError):
+        viewer.show_path(Q[:, :3])
+    with pytest.raises(UserError):
+        Viewer(oracle.scene, frame="no_such_frame", meshcat=viewer.meshcat)
+    assert viewer.url().startswith("http://localhost:")
+    # A 3D scene's obstacles are see-through, so the robot shows behind walls; the robot stays opaque.
+    opacity = {c["path"]: c["value"] for c in commands(viewer.html())
+               if c["type"] == "set_property" and c["property"] == "modulated_opacity"}
+    obstacles = [v for p, v in opacity.items() if p.startswith("/drake/illustration/obstacles/")]
+    robot = [v for p, v in opacity.items() if p.startswith("/drake/illustration/lbody/")]
+    assert obstacles and all(v < 1 for v in obstacles)
+    assert robot and all(v == 1 for v in robot)
+
+
+def test_wrong_dimension_is_exit_2_and_writes_nothing(tmp_path, oracles, meshcat_allowed, capsys):
+    times, Q = straight_trajectory(oracles("bar"))
+    trajectory = write_trajectory(tmp_path / "t.json", times, Q[:, :6])
+    page = tmp_path / "out.html"
+    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
+                                                  "--html", str(page)]))
+    assert "9" in line and "6" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
+
+
+@pytest.mark.parametrize("content, needle", [
+    (None, "not found"),
+    ('{"times": [0, 1], "positions": ', "cannot read"),
+    ('[1, 2]', "JSON object"),
+    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], "speed": 3}', "unknown key"),
+    ('{"times": [0, 1], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]]}', "times for"),
+    ('{"times": [1, 0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0, 0, 0, 0]]}', "non-decreasing"),
+    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, "x"]]}', "numbers"),
+    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], "narrow": [[1, 2]]}', "narrow"),
+    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], "narrow": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], '
+     '"on_path": [true, false]}', "on_path"),
+])
+def test_bad_trajectory_files_are_one_line_exit_2(tmp_path, capsys, content, needle):
+    trajectory = tmp_path / "t.json"
+    if content is not None:
+        trajectory.write_text(content)
+    page = tmp_path / "out.html"
+    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
+                                                  "--html", str(page)]))
+    assert needle in line
+    assert not page.exists()
+
+
+def test_meshcat_disabled_by_the_environment_is_a_clear_error(tmp_path, oracles, capsys):
+    """conftest sets DRAKE_ALLOW_NETWORK=none: the viewer says how to allow Meshcat rather than overriding it."""
+    assert os.environ["DRAKE_ALLOW_NETWORK"] == "none"
+    times, Q = straight_trajectory(oracles("bar"))
+    trajectory = write_trajectory(tmp_path / "t.json", times, Q)
+    page = tmp_path / "out.html"
+    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
+                                                  "--html", str(page)]))
+    assert "DRAKE_ALLOW_NETWORK" in line and "meshcat" in line
+    assert not page.exists()
+
+
+def test_html_into_a_missing_folder_is_exit_2(tmp_path, oracles, meshcat_allowed, capsys):
+    times, Q = straight_trajectory(oracles("bar"))
+    trajectory = write_trajectory(tmp_path / "t.json", times, Q)
+    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
+                                                  "--html", str(tmp_path / "missing" / "out.html")]))
+    assert "does not exist" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
+
+
+def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
+    from app.viewer import write_atomically
+
+    target = tmp_path / "page.html"
+    target.write_text("old")
+
+    with pytest.raises(TypeError):
+        write_atomically(target, object())  # f.write refuses it after the temporary file exists
+    assert target.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["page.html"]
+    write_atomically(target, "new")
+    assert target.read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["page.html"]
+
+
+def test_view_meshcat_does_not_wait_without_a_terminal(tmp_path, oracles):
+    """`--meshcat` with stdin not a terminal (CI): prints the localhost URL and exits instead of blocking."""
+    times, Q = straight_trajectory(oracles("bar"))
+    trajectory = write_trajectory(tmp_path / "t.json", times, Q)
+    env = dict(os.environ, DRAKE_ALLOW_NETWORK="meshcat")
+    result = subprocess.run([sys.executable, "-m", "app", "view", "bar", "--trajectory", str(trajectory),
+                             "--meshcat"], stdin=subprocess.DEVNULL, capture_output=True, text=True, env=env,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert re.search(r"^meshcat: http://localhost:\d+$", result.stderr, re.M), result.stderr
