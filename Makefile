@@ -3,7 +3,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: plan test test-slow browser-test bench clean
+.PHONY: plan test test-slow browser-test chromium bench clean
 
 $(STAMP): pyproject.toml
 	python3 -m venv $(VENV)
@@ -15,15 +15,18 @@ plan: $(STAMP)
 	mkdir -p out
 	$(PY) -m app show bar --png out/bar.png
 
-test: $(STAMP)
+# The browser check needs Debian's chromium; CI machines start without it.
+chromium:
+	command -v chromium >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null)
+
+test: $(STAMP) chromium
 	$(PY) -m pytest -q
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
 # The exported Meshcat page drawn by headless Chromium (WebGL via SwiftShader); screenshots in out/browser-*.png.
-browser-test: $(STAMP)
-	command -v chromium >/dev/null || (apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium)
+browser-test: $(STAMP) chromium
 	mkdir -p out
 	$(PY) -m pytest -q -m browser tests/test_browser.py
 
