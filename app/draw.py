@@ -39,6 +39,28 @@ def _box_corners(shape, pose) -> np.ndarray:
     return (pose.rotation().matrix() @ (signs * half).T).T + pose.translation()
 
 
+def _round_faces(shape, pose, segments: int = 16) -> list[np.ndarray]:
+    """Quads approximating a cylinder, sphere or capsule (all round about their z axis) in the world."""
+    from pydrake.geometry import Cylinder, Sphere
+
+    r = shape.radius()
+    arc = np.linspace(-np.pi / 2, np.pi / 2, 7)
+    if isinstance(shape, Cylinder):  # profile (radius, z) from the bottom centre to the top centre
+        h = shape.length() / 2
+        profile = [(0.0, -h), (r, -h), (r, h), (0.0, h)]
+    elif isinstance(shape, Sphere):
+        profile = list(zip(r * np.cos(arc), r * np.sin(arc)))
+    else:  # capsule: two half spheres joined by a cylinder
+        h = shape.length() / 2
+        profile = ([(r * np.cos(a), -h + r * np.sin(a)) for a in arc[:4]]
+                   + [(r * np.cos(a), h + r * np.sin(a)) for a in arc[3:]])
+    theta = np.linspace(0, 2 * np.pi, segments + 1)
+    rings = np.array([[(rho * np.cos(t), rho * np.sin(t), z) for t in theta] for rho, z in profile])
+    world = rings @ pose.rotation().matrix().T + pose.translation()
+    return [np.array([world[i, j], world[i, j + 1], world[i + 1, j + 1], world[i + 1, j]])
+            for i in range(len(profile) - 1) for j in range(segments)]
+
+
 def _draw_shape(ax, shape, pose, three_d: bool, **style):
     from pydrake.geometry import Box, Capsule, Cylinder, Sphere
 
@@ -53,6 +75,8 @@ def _draw_shape(ax, shape, pose, three_d: bool, **style):
             ax.add_patch(Polygon(xy[ConvexHull(xy).vertices], closed=True, **style))
     elif isinstance(shape, (Cylinder, Sphere, Capsule)) and not three_d:
         ax.add_patch(Circle(pose.translation()[:2], shape.radius(), **style))
+    elif isinstance(shape, (Cylinder, Sphere, Capsule)):
+        ax.add_collection3d(Poly3DCollection(_round_faces(shape, pose), **style))
     elif three_d:
         ax.scatter(*pose.translation(), s=8, color=style.get("facecolor", "k"))
 
@@ -85,10 +109,18 @@ def scene_figure(oracle, title: str | None = None):
 
 
 def _workspace_bounds(oracle):
-    """The box the obstacles and the robot's translational bounds span."""
+    """The box the obstacles, the robot at start and goal and the robot's translational bounds span."""
+    from pydrake.geometry import Box
+
     points = [np.array(p) for lo, hi in oracle.scene.passage_boxes for p in (lo, hi)]
     for shape, pose in _geometries(oracle, oracle.scene.start, robot=False):
         points.append(pose.translation())
+        if isinstance(shape, Box):
+            points.extend(_box_corners(shape, pose))
+    for q in (oracle.scene.start, oracle.scene.goal):
+        for shape, pose in _geometries(oracle, q, robot=True):
+            # copy: the pose is a view into SceneGraph's cache, which the next configuration overwrites
+            points.extend(_box_corners(shape, pose) if isinstance(shape, Box) else [np.array(pose.translation())])
     translational = ~oracle.scene.angular
     points = np.array(points)
     lo, hi = points.min(axis=0), points.max(axis=0)

@@ -36,6 +36,16 @@ class PassageSpec:
 
 
 @dataclass
+class ToolPose:
+    """A named pose of the scene's tool frame in the world: position (m) and roll-pitch-yaw (degrees, Drake's
+    convention R = Rz(yaw) Ry(pitch) Rx(roll)). Goals of arm scenes are reached from these by inverse kinematics."""
+
+    name: str = ""
+    xyz: list[float] = field(default_factory=list)
+    rpy_deg: list[float] = field(default_factory=list)
+
+
+@dataclass
 class ProblemFile:
     description: str = ""
     directives: str = ""  # a *.dmd.yaml file beside the problem file
@@ -54,6 +64,8 @@ class ProblemFile:
     velocity_limits: list[float] = field(default_factory=list)  # default: the model's
     acceleration_limits: list[float] = field(default_factory=list)  # default: 2x the velocity limits
     view: str = "2d"  # how `show` draws it: "2d" top view or "3d"
+    tool_frame: str = ""  # the frame `poses` are poses of (arm scenes); required when poses are given
+    poses: list[ToolPose] = field(default_factory=list)  # named tool poses, in file order (e.g. a weld seam)
 
 
 def scene_names() -> list[str]:
@@ -156,6 +168,26 @@ class Scene:
                                   for b in spec.boxes]
         except ValueError:
             raise UserError(f"bad scene file {self.path.name}: passage boxes need 3-vectors lo and hi") from None
+        self._read_poses(problem)
+
+    def _read_poses(self, problem: ProblemFile) -> None:
+        """`tool_frame` (a Frame or None) and `poses` (name -> RigidTransform of the tool frame in the world)."""
+        from pydrake.math import RigidTransform, RollPitchYaw
+
+        bad = f"bad scene file {self.path.name}"
+        if problem.tool_frame and not self.plant.HasFrameNamed(problem.tool_frame):
+            raise UserError(f"{bad}: tool frame '{problem.tool_frame}' not in the model")
+        if problem.poses and not problem.tool_frame:
+            raise UserError(f"{bad}: 'poses' need a 'tool_frame'")
+        self.tool_frame = self.plant.GetFrameByName(problem.tool_frame) if problem.tool_frame else None
+        self.poses = {}
+        for pose in problem.poses:
+            if not pose.name or pose.name in self.poses:
+                raise UserError(f"{bad}: every pose needs a unique name (got '{pose.name}')")
+            values = np.array(list(pose.xyz) + list(pose.rpy_deg), float)
+            if len(pose.xyz) != 3 or len(pose.rpy_deg) != 3 or not np.all(np.isfinite(values)):
+                raise UserError(f"{bad}: pose '{pose.name}' needs xyz and rpy_deg, 3 finite numbers each")
+            self.poses[pose.name] = RigidTransform(RollPitchYaw(np.radians(values[3:])), values[:3])
 
     def add_models(self, parser) -> None:
         """Load the scene's models (robot and obstacles) into `parser`'s plant, e.g. for a second diagram to view."""
@@ -196,4 +228,6 @@ class Scene:
             "collisions": self.problem.collisions,
             "passage_frame": self.problem.passage.frame,
             "passage_boxes": [dataclasses.asdict(b) for b in self.problem.passage.boxes],
+            "tool_frame": self.problem.tool_frame,
+            "poses": [p.name for p in self.problem.poses],
         }

@@ -1,0 +1,134 @@
+"""Writes the obstacle SDFs of the maze, tunnel, welding and window scenes from box lists (metres, world frame).
+
+Every obstacle is an axis-aligned box given by its corners, so the numbers below read like the scene descriptions in
+the problem files. Run `python scenes/make_issue5_obstacles.py` after changing a box; tests check the files match.
+"""
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+# ---- maze: 20 x 20 x 3 m, the quadrotor's safety hull is 0.70 m across and 0.29 m tall --------------------------
+MAZE_WINDOW = ((9.9, 14.575, 1.125), (10.1, 15.425, 1.875))  # 0.85 m wide, 0.75 m tall, in a 0.2 m wall at x = 10
+
+
+def maze_boxes():
+    (wx0, wy0, wz0), (wx1, wy1, wz1) = MAZE_WINDOW
+    h = 3.0
+    return [
+        # perimeter
+        ("north", (-0.2, 20.0, 0), (20.2, 20.2, h)),
+        ("south", (-0.2, -0.2, 0), (20.2, 0.0, h)),
+        ("west", (-0.2, 0.0, 0), (0.0, 20.0, h)),
+        ("east", (20.0, 0.0, 0), (20.2, 20.0, h)),
+        # the dividing wall x in [9.9, 10.1] with the one window
+        ("divider_south", (wx0, 0.0, 0), (wx1, wy0, h)),
+        ("divider_north", (wx0, wy1, 0), (wx1, 20.0, h)),
+        ("window_sill", (wx0, wy0, 0), (wx1, wy1, wz0)),
+        ("window_lintel", (wx0, wy0, wz1), (wx1, wy1, h)),
+        # west half: two walls make an S-shaped corridor from the start (2, 2) to the window
+        ("west_wall_1", (0.0, 6.4, 0), (7.0, 6.6, h)),
+        ("west_wall_2", (3.0, 12.9, 0), (9.9, 13.1, h)),
+        # east half: one wall makes the way from the window to the goal (13, 3) a U
+        ("east_wall_1", (10.1, 9.9, 0), (17.0, 10.1, h)),
+        # a few pillars in the open rooms
+        ("pillar_1", (4.5, 9.0, 0), (5.1, 9.6, h)),
+        ("pillar_2", (14.0, 15.5, 0), (14.6, 16.1, h)),
+        ("pillar_3", (13.0, 5.0, 0), (13.6, 5.6, h)),
+    ]
+
+
+# ---- tunnel: 20 x 5 x 5 m along x, a 1 m long constriction at x in [9.5, 10.5] ----------------------------------
+TUNNEL_OPENING = ((9.5, 3.0, 1.2), (10.5, 3.9, 2.0))  # 0.9 m wide, 0.8 m tall, 1 m long, off-centre (rubble)
+
+
+def tunnel_boxes():
+    (cx0, oy0, oz0), (cx1, oy1, oz1) = TUNNEL_OPENING
+    return [
+        ("floor", (0, 0, -0.2), (20, 5, 0)),
+        ("ceiling", (0, 0, 5), (20, 5, 5.2)),
+        ("side_south", (0, -0.2, -0.2), (20, 0, 5.2)),
+        ("side_north", (0, 5, -0.2), (20, 5.2, 5.2)),
+        ("constriction_south", (cx0, 0, 0), (cx1, oy0, 5)),
+        ("constriction_north", (cx0, oy1, 0), (cx1, 5, 5)),
+        ("constriction_floor", (cx0, oy0, 0), (cx1, oy1, oz0)),
+        ("constriction_roof", (cx0, oy0, oz1), (cx1, oy1, 5)),
+    ]
+
+
+# ---- welding: a ladder chassis beside the cart (cart at y = -0.73, arm base at z = 0.5) -------------------------
+def welding_boxes():
+    boxes = [
+        ("rail_near", (-1.3, -0.50, 0.30), (1.3, -0.42, 0.45)),
+        ("rail_far", (-1.3, 0.42, 0.30), (1.3, 0.50, 0.45)),
+        ("floor_pan", (-1.3, -0.42, 0.30), (1.3, 0.42, 0.32)),
+        ("stand_1", (-0.85, -0.55, 0.0), (-0.75, 0.55, 0.30)),
+        ("stand_2", (0.75, -0.55, 0.0), (0.85, 0.55, 0.30)),
+    ]
+    for i, x in enumerate((-1.0, -0.35, 0.35, 1.0)):
+        boxes.append((f"cross_member_{i + 1}", (x - 0.04, -0.42, 0.32), (x + 0.04, 0.42, 0.45)))
+    # a gusset bracket on the far rail and a bracket tube across the bay above the pan, for clutter
+    boxes.append(("gusset", (-0.31, 0.30, 0.32), (-0.21, 0.42, 0.45)))
+    boxes.append(("brace", (-0.31, -0.05, 0.52), (0.31, 0.05, 0.56)))
+    boxes.append(("brace_post_1", (-0.35, -0.03, 0.45), (-0.31, 0.03, 0.56)))
+    boxes.append(("brace_post_2", (0.31, -0.03, 0.45), (0.35, 0.03, 0.56)))
+    return boxes
+
+
+# ---- window: a wall in front of the cart (cart at the origin) with a 0.2 x 0.2 m opening into a cabinet ----------
+WINDOW_OPENING = ((0.40, -0.10, 0.58), (0.45, 0.10, 0.78))
+
+
+def window_boxes():
+    (x0, y0, z0), (x1, y1, z1) = WINDOW_OPENING
+    cabinet = ((x1, -0.16, 0.54), (0.78, 0.16, 0.82))  # outer corners; 0.02 m thick walls
+    (cx0, cy0, cz0), (cx1, cy1, cz1) = cabinet
+    t = 0.02
+    return [
+        ("wall_south", (x0, -0.6, 0.0), (x1, y0, 1.2)),
+        ("wall_north", (x0, y1, 0.0), (x1, 0.6, 1.2)),
+        ("wall_below", (x0, y0, 0.0), (x1, y1, z0)),
+        ("wall_above", (x0, y0, z1), (x1, y1, 1.2)),
+        ("cabinet_floor", (cx0, cy0, cz0), (cx1, cy1, cz0 + t)),
+        ("cabinet_top", (cx0, cy0, cz1 - t), (cx1, cy1, cz1)),
+        ("cabinet_south", (cx0, cy0, cz0), (cx1, cy0 + t, cz1)),
+        ("cabinet_north", (cx0, cy1 - t, cz0), (cx1, cy1, cz1)),
+        ("cabinet_back", (cx1 - t, cy0, cz0), (cx1, cy1, cz1)),
+        ("cabinet_stand", (cx0, cy0, 0.0), (cx1, cy1, cz0)),
+        ("object", (0.62, -0.03, 0.56), (0.68, 0.03, 0.70)),  # a 6 x 6 x 14 cm part
+        ("side_table", (-0.20, 0.25, 0.0), (0.30, 0.60, 0.40)),
+    ]
+
+
+def sdf(model: str, comment: str, boxes) -> str:
+    lines = ['<?xml version="1.0"?>', f"<!-- Generated by make_issue5_obstacles.py. {comment} -->", '<sdf version="1.9">',
+             f'  <model name="{model}">', "    <static>true</static>", '    <link name="obstacles">']
+    for name, lo, hi in boxes:
+        centre = " ".join(f"{(a + b) / 2:g}" for a, b in zip(lo, hi))
+        size = " ".join(f"{b - a:g}" for a, b in zip(lo, hi))
+        assert all(b > a for a, b in zip(lo, hi)), name
+        geometry = f"<pose>{centre} 0 0 0</pose><geometry><box><size>{size}</size></box></geometry>"
+        lines.append(f'      <collision name="{name}">{geometry}</collision>')
+        lines.append(f'      <visual name="{name}">{geometry}<material><diffuse>0.45 0.45 0.5 1</diffuse></material></visual>')
+    lines += ["    </link>", "  </model>", "</sdf>", ""]
+    return "\n".join(lines)
+
+
+FILES = {
+    "maze_obstacles.sdf": ("maze_obstacles", "Maze 20 x 20 x 3 m: walls, pillars, one 0.85 x 0.75 m window at x = 10.",
+                           maze_boxes),
+    "tunnel_obstacles.sdf": ("tunnel_obstacles", "Tunnel 20 x 5 x 5 m along x, 0.9 x 0.8 m constriction at x = 10.",
+                             tunnel_boxes),
+    "welding_obstacles.sdf": ("welding_obstacles", "Ladder chassis: rails, floor pan, cross members, brace.",
+                              welding_boxes),
+    "window_obstacles.sdf": ("window_obstacles", "Wall with a 0.2 x 0.2 m window into a cabinet; a side table.",
+                             window_boxes),
+}
+
+
+def main() -> None:
+    for filename, (model, comment, boxes) in FILES.items():
+        (HERE / filename).write_text(sdf(model, comment, boxes()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,95 @@
+"""Inverse kinematics: tool poses of the arm scenes to free configurations, checked by forward kinematics."""
+import math
+
+import numpy as np
+import pytest
+
+from app import ik
+from app.errors import InvalidEndpoint, UserError
+
+POSITION_TOLERANCE = ik.POSITION_TOLERANCE * (1 + 1e-6)
+ANGLE_TOLERANCE = ik.ANGLE_TOLERANCE * (1 + 1e-6)
+
+
+def tool_pose(oracle, q):
+    """The tool frame in the world at q, from the plant on a context of its own."""
+    plant = oracle.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    return plant.CalcRelativeTransform(context, plant.world_frame(), oracle.scene.tool_frame)
+
+
+def assert_reaches(oracle, q, X_target, position_tolerance=POSITION_TOLERANCE, angle_tolerance=ANGLE_TOLERANCE):
+    X = tool_pose(oracle, q)
+    assert np.linalg.norm(X.translation() - X_target.translation()) <= position_tolerance
+    R = X_target.rotation().matrix().T @ X.rotation().matrix()
+    angle = math.acos(np.clip((np.trace(R) - 1) / 2, -1, 1))
+    assert angle <= angle_tolerance
+
+
+@pytest.mark.parametrize("name", ["welding", "window"])
+def test_every_pose_solves_to_a_free_configuration_within_tolerance(oracles, name):
+    oracle = oracles(name)
+    oracle.reset()
+    solutions = ik.solve_poses(oracle, np.random.default_rng(0))
+    assert list(solutions) == list(oracle.scene.poses)
+    assert oracle.checks == 0  # IK is set-up work: the counter is left as it was
+    for pose, q in solutions.items():
+        assert oracle.within_bounds(q)[0]
+        assert oracle.is_free(q), pose
+        assert_reaches(oracle, q, oracle.scene.poses[pose])
+
+
+def test_weld_seam_solutions_form_a_chain(oracles):
+    """Each seam pose is solved nearest the previous one, so consecutive configurations stay close."""
+    oracle = oracles("welding")
+    solutions = list(ik.solve_poses(oracle, np.random.default_rng(1)).values())
+    steps = [oracle.distance(a, b) for a, b in zip(solutions, solutions[1:])]
+    assert max(steps) < 0.3  # weighted metric, metres of tool-tip travel; seam points are 0.075 m apart
+
+
+def test_the_problem_file_goals_reach_their_poses(oracles):
+    # goals are stored to 4 decimals, so allow a fraction of a millimetre more
+    assert_reaches(oracles("welding"), oracles("welding").scene.goal, oracles("welding").scene.poses["seam_0"],
+                   2e-3, math.radians(1))
+    assert_reaches(oracles("window"), oracles("window").scene.goal, oracles("window").scene.poses["reach"],
+                   2e-3, math.radians(1))
+
+
+def test_the_reference_is_preferred(oracles):
+    oracle = oracles("window")
+    goal = oracle.scene.goal  # itself a solution for "reach"
+    q = ik.solve_pose(oracle, "reach", np.random.default_rng(2), reference=goal)
+    assert oracle.distance(goal, q) < 0.05
+
+
+def test_a_pose_out_of_reach_is_an_invalid_endpoint(oracles):
+    from pydrake.math import RigidTransform
+
+    oracle = oracles("window")
+    with pytest.raises(InvalidEndpoint, match=r"pose '\[2.000, 0.000, 0.600\]' cannot be reached") as info:
+        ik.solve_pose(oracle, RigidTransform([2.0, 0.0, 0.6]), np.random.default_rng(0), seeds=16)
+    assert info.value.exit_code == 3
+
+
+@pytest.mark.slow
+def test_a_pose_reachable_only_in_collision_is_an_invalid_endpoint(oracles):
+    """The TCP inside the object on the cabinet floor: kinematically fine, never free."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    oracle = oracles("window")
+    inside = RigidTransform(RollPitchYaw(0, math.pi / 2, 0), [0.65, 0.0, 0.64])
+    with pytest.raises(InvalidEndpoint, match="cannot be reached collision-free"):
+        ik.solve_pose(oracle, inside, np.random.default_rng(0), seeds=16)
+
+
+def test_an_unknown_pose_name_is_a_user_error(oracles):
+    with pytest.raises(UserError, match="unknown pose 'nowhere'.*known: window, reach, place"):
+        ik.solve_pose(oracles("window"), "nowhere", np.random.default_rng(0))
+
+
+def test_a_scene_without_a_tool_frame_has_no_poses(oracles):
+    from pydrake.math import RigidTransform
+
+    with pytest.raises(UserError, match="no tool frame"):
+        ik.solve_pose(oracles("bar"), RigidTransform(), np.random.default_rng(0))
