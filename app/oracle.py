@@ -217,6 +217,22 @@ class CollisionOracle:
                 touched["environment"] = True
         return touched
 
+    def colliding_bodies(self, q: np.ndarray) -> list[tuple[str, str]]:
+        """The body pairs (scoped names, sorted) in collision at q under the scene's policy; for error messages."""
+        self.plant.SetPositions(self._ctx, np.asarray(q, float))
+        query = self._query_port.Eval(self._ctx)
+        try:
+            pairs = [(p.id_A, p.id_B) for p in query.ComputePointPairPenetration()]
+        except RuntimeError:  # a shape pair without penetration support: fall back to signed distances
+            pairs = [(p.id_A, p.id_B) for p in query.ComputeSignedDistancePairwiseClosestPoints(0.0)
+                     if p.distance < 0]
+        names = set()
+        for a, b in pairs:
+            bodies = sorted(self.plant.GetBodyFromFrameId(self._inspector.GetFrameId(g)).scoped_name().to_string()
+                            for g in (a, b))
+            names.add((bodies[0], bodies[1]))
+        return sorted(names)
+
     def frame_positions(self, Q: np.ndarray) -> np.ndarray:
         """World position of the passage frame's origin for each configuration, (n, 3)."""
         Q = np.atleast_2d(np.asarray(Q, float))

@@ -19,6 +19,7 @@ from app.errors import UserError
 EXPERIMENTS = {
     "sampling": "app.bench.sampling:run_trial_spec",
     "prm": "app.bench.plan:run_trial_spec",
+    "ompl": "app.bench.ompl:run_trial_spec",
 }
 
 _oracles = {}

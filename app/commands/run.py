@@ -1,0 +1,57 @@
+"""`run welding|window`: the scripted UR3 jobs, planned leg by leg into one trajectory, with a summary table."""
+import json
+
+from app.cli import non_negative_int, positive_float, print_json
+from app.commands.view import add_arguments, publish_from_args
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("run", help="scripted UR3 jobs: welding (seam point to point), window (reach, place)")
+    p.add_argument("job", help="welding or window (the scene of the same name)")
+    p.add_argument("--sampler", default="lfbs")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--narrow", type=non_negative_int, default=100, help="narrow-passage samples per planned leg")
+    p.add_argument("--uniform", type=non_negative_int, default=100, help="uniform samples per planned leg")
+    p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
+    p.add_argument("--budget", default="30s", help="per planned leg, e.g. 30s or 500kchecks")
+    p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
+    p.add_argument("--json", action="store_true")
+    add_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from app.oracle import CollisionOracle
+    from app.roadmap import parse_budget
+    from app.runs import ROUTES, run_job
+    from app.samplers import SAMPLERS
+    from app.scene import Scene
+    from app.errors import UserError
+    from app.viewer import check_output, write_atomically
+
+    if args.job not in ROUTES:
+        raise UserError(f"unknown job '{args.job}' (known: {', '.join(ROUTES)})")
+    if args.sampler not in SAMPLERS:
+        raise UserError(f"unknown sampler '{args.sampler}' (known: {', '.join(SAMPLERS)})")
+    budget = parse_budget(args.budget)
+    for target in (args.out, args.html):
+        if target:
+            check_output(target)
+    oracle = CollisionOracle(Scene(args.job))
+    result = run_job(oracle, args.job, sampler=args.sampler, seed=args.seed, narrow=args.narrow,
+                     uniform=args.uniform, step=args.step, budget=budget)
+    if args.out:
+        write_atomically(args.out, json.dumps(result.trajectory.to_json()))
+    if args.json:
+        print_json(result.to_json())
+    else:
+        print(f"{result.scene}: {len(result.legs)} legs, sampler {result.sampler}, seed {result.seed}")
+        print(f"{'leg':<20} {'method':<9} {'narrow':>7} {'on path':>8} {'checks':>8} {'plan s':>7} {'move s':>7}")
+        for leg in result.legs:
+            print(f"{leg.start + ' -> ' + leg.goal:<20} {leg.method:<9} {leg.narrow_samples:>7} "
+                  f"{leg.narrow_on_path:>8} {leg.collision_checks:>8} {leg.seconds:>7.2f} {leg.duration:>7.2f}")
+        s = result.seconds
+        print(f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
+              f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)")
+    publish_from_args(args, oracle.scene, result.view_data())
+    return 0

@@ -1,0 +1,120 @@
+"""Paths as polylines in configuration space: length, unwrapping, fine verification, shortcut smoothing.
+
+A path is an (n, dim) array of waypoints; its edges are straight in the scene's metric (the short way round on
+continuous angles), exactly as `oracle.interpolate` walks them. Smoothing never trusts a coarse check alone: a
+shortcut is screened at the planning resolution (batched, cheap rejections) and accepted only after a second check
+at the fine resolution, so the smoothed path is fine-checked by construction; `verify` then re-checks every edge.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# The fine check runs at this fraction of the planning resolution.
+FINE = 0.25
+
+
+def dedupe(P: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+    """Drop waypoints equal to their predecessor."""
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(P) < 2:
+        return P
+    keep = np.concatenate([[True], np.any(np.abs(np.diff(P, axis=0)) > tol, axis=1)])
+    return P[keep]
+
+
+def segment_lengths(oracle, P: np.ndarray) -> np.ndarray:
+    return oracle.distance(P[:-1], P[1:]) if len(P) > 1 else np.zeros(0)
+
+
+def path_length(oracle, P: np.ndarray) -> float:
+    return float(segment_lengths(oracle, P).sum())
+
+
+def unwrap(oracle, P: np.ndarray) -> np.ndarray:
+    """Waypoints with continuous angles unwrapped along the path: each step is the short-way difference, so a
+    trajectory through them moves exactly along the checked edges (no 2*pi jumps). Starts at P[0]."""
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(P) < 2:
+        return P.copy()
+    steps = oracle.difference(P[:-1], P[1:])
+    return P[0] + np.vstack([np.zeros((1, P.shape[1])), np.cumsum(steps, axis=0)])
+
+
+def verify(oracle, P: np.ndarray, resolution: float | None = None) -> np.ndarray:
+    """Free flag per edge, checked at `resolution` (default: FINE x the scene's)."""
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(P) < 2:
+        return np.ones(0, bool)
+    return oracle.edges_free(P[:-1], P[1:], resolution or FINE * oracle.resolution)
+
+
+def _point_at(oracle, P: np.ndarray, cum: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Configurations at arc lengths s along P, and the index of the segment each lies on."""
+    seg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(P) - 2)
+    length = cum[seg + 1] - cum[seg]
+    t = np.where(length > 0, (s - cum[seg]) / np.where(length > 0, length, 1.0), 0.0)
+    d = oracle.difference(P[seg], P[seg + 1])
+    return oracle.wrap(P[seg] + t[:, None] * d), seg
+
+
+def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, candidates: int = 8,
+             resolution: float | None = None) -> tuple[np.ndarray, dict]:
+    """Shorten P with a greedy pass over its waypoints, `rounds` rounds of random shortcuts, a last greedy pass.
+
+    Greedy: from each kept waypoint, jump to the farthest later waypoint it sees directly. Random: each round draws
+    `candidates` pairs of points anywhere along the path, screens their shortcuts in one batch, and takes the one
+    that saves most length. Screening is at `resolution` (default: the scene's); acceptance at FINE of it.
+    Deterministic for a given rng state.
+    """
+    coarse = resolution or oracle.resolution
+    fine = FINE * coarse
+    P = dedupe(P)
+    stats = {"greedy_removed": 0, "random_accepted": 0, "candidates_checked": 0,
+             "length_before": path_length(oracle, P)}
+    if len(P) > 2:
+        P = _greedy(oracle, P, coarse, fine, stats)
+    for _ in range(rounds):
+        if len(P) < 3:
+            break
+        seg_len = segment_lengths(oracle, P)
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        total = cum[-1]
+        if total <= 0:
+            break
+        s = np.sort(rng.uniform(0.0, total, size=(candidates, 2)), axis=1)
+        qa, ia = _point_at(oracle, P, cum, s[:, 0])
+        qb, ib = _point_at(oracle, P, cum, s[:, 1])
+        gain = (s[:, 1] - s[:, 0]) - oracle.distance(qa, qb)
+        useful = np.flatnonzero((ib > ia) & (gain > 1e-9 * total))
+        if not len(useful):
+            continue
+        stats["candidates_checked"] += len(useful)
+        free = oracle.edges_free(qa[useful], qb[useful], coarse)
+        for c in useful[free][np.argsort(-gain[useful[free]])]:
+            if oracle.edge_free(qa[c], qb[c], fine):
+                P = dedupe(np.vstack([P[:ia[c] + 1], qa[c], qb[c], P[ib[c] + 1:]]))
+                stats["random_accepted"] += 1
+                break
+    if len(P) > 2 and rounds:
+        # Random shortcuts leave two new waypoints each; a last greedy pass removes those that became redundant.
+        P = _greedy(oracle, P, coarse, fine, stats)
+    stats["length_after"] = path_length(oracle, P)
+    return P, stats
+
+
+def _greedy(oracle, P: np.ndarray, coarse: float, fine: float, stats: dict) -> np.ndarray:
+    out, i, n = [P[0]], 0, len(P)
+    while i < n - 1:
+        later = np.arange(n - 1, i + 1, -1)  # farthest first; i+1 is the path's own edge, free already
+        nxt = i + 1
+        if len(later):
+            stats["candidates_checked"] += len(later)
+            free = oracle.edges_free(np.repeat(P[i][None], len(later), axis=0), P[later], coarse)
+            for j in later[free]:
+                if oracle.edge_free(P[i], P[j], fine):
+                    nxt = int(j)
+                    break
+        stats["greedy_removed"] += nxt - i - 1
+        out.append(P[nxt])
+        i = nxt
+    return np.array(out)

@@ -1,0 +1,245 @@
+"""The planning pipeline, as one function the CLI, the viewer and the benchmarks share:
+
+    endpoints checked -> narrow + uniform samples -> roadmap (k-nearest, batched edge checks)
+    -> shortest path, its edges re-checked at 1/4 resolution -> shortcut smoothing -> Toppra per segment
+
+`plan(...)` returns a PlanResult on success and raises InvalidEndpoint (exit 3) for a bad start or goal, NoPath
+(exit 1, with `.details`) when the budget runs out unconnected, UserError (exit 2) for bad parameters.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from app.errors import InvalidEndpoint, NoPath, UserError
+from app.path import FINE, path_length, shortcut, unwrap, verify
+from app.timing import Trajectory, parameterize
+
+if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
+    from app.roadmap import Budget, Roadmap
+
+DEFAULTS = {"sampler": "lfbs", "narrow": 200, "uniform": 300, "k": 10, "seed": 0, "smooth_rounds": 50, "dt": 0.02}
+PHASES = ("sampling", "roadmap", "search", "smoothing", "timing")
+
+
+def default_step(oracle) -> float:
+    """A tenth of the scene's largest linear extent (10 for the 100-unit scenes); with no linear coordinate, a tenth
+    of the weighted diagonal of the bounds."""
+    linear = ~np.asarray(oracle.angular)
+    if linear.any():
+        return 0.1 * float(np.max((oracle.upper - oracle.lower)[linear]))
+    return 0.1 * float(np.linalg.norm((oracle.upper - oracle.lower) * oracle.weights))
+
+
+@dataclass
+class PlanResult:
+    success: bool
+    scene: str
+    sampler: str
+    seed: int
+    step: float
+    start: np.ndarray
+    goal: np.ndarray
+    path: np.ndarray  # smoothed waypoints, wrapped (every edge fine-checked)
+    roadmap_path: np.ndarray  # the roadmap's shortest path before smoothing
+    trajectory: Trajectory
+    collision_checks: int
+    checks: dict  # per phase
+    seconds: dict  # per phase and total
+    roadmap: dict
+    narrow_on_path: int
+    rounds: int
+    budget: str
+    smoothing: dict = field(default_factory=dict)
+    sampler_stats: dict = field(default_factory=dict)
+    # The roadmap itself (nodes `Q`, provenance `kinds`, networkx `graph`) and the roadmap path's node indices,
+    # for viewers; not part of the JSON.
+    graph: "Roadmap | None" = field(default=None, repr=False)
+    path_nodes: list = field(default_factory=list, repr=False)
+
+    def view_json(self) -> dict:
+        """The trajectory file `python -m app view --trajectory` reads: times, positions (unwrapped), the smoothed
+        path, the narrow-passage samples and which of them the roadmap path used."""
+        out = {"times": self.trajectory.times.tolist(), "positions": self.trajectory.positions.tolist(),
+               "path": self.path.tolist()}
+        if self.graph is not None:
+            from app.roadmap import NARROW
+
+            narrow = [i for i, kind in enumerate(self.graph.kinds) if kind == NARROW]
+            used = set(self.path_nodes)
+            out["narrow"] = self.graph.Q[narrow].tolist() if narrow else []
+            out["on_path"] = [i in used for i in narrow]
+        return out
+
+    def to_json(self) -> dict:
+        return {
+            "success": self.success, "scene": self.scene, "sampler": self.sampler, "seed": self.seed,
+            "step": self.step, "start": self.start.tolist(), "goal": self.goal.tolist(),
+            "path": self.path.tolist(), "roadmap_path": self.roadmap_path.tolist(),
+            "path_length": self.smoothing.get("length_after"), "roadmap_path_length": self.smoothing.get("raw_length"),
+            "trajectory": self.trajectory.to_json(), "collision_checks": self.collision_checks,
+            "checks": self.checks, "seconds": self.seconds, "roadmap": self.roadmap,
+            "narrow_on_path": self.narrow_on_path, "rounds": self.rounds, "budget": self.budget,
+            "smoothing": self.smoothing, "sampler_stats": self.sampler_stats,
+        }
+
+
+def check_endpoint(oracle, q, what: str) -> np.ndarray:
+    """A start or goal as a vector; wrong length or non-finite -> UserError, out of bounds or colliding ->
+    InvalidEndpoint naming the coordinate or the touching bodies."""
+    q = oracle.check_configuration(q, what)
+    if not oracle.within_bounds(q)[0]:
+        names = oracle.scene.coordinate_names
+        bad = [f"{names[i]}={q[i]:g} not in [{oracle.lower[i]:g}, {oracle.upper[i]:g}]"
+               for i in range(oracle.dim) if not (oracle._lo[i] <= q[i] <= oracle._hi[i])]
+        raise InvalidEndpoint(f"{what} is out of bounds: {'; '.join(bad)}")
+    if not oracle.is_free(q):
+        pairs = oracle.colliding_bodies(q)
+        touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
+        raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}")
+    return oracle.wrap(q)
+
+
+def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["narrow"],
+         uniform: int = DEFAULTS["uniform"], step: float | None = None, seed: int = DEFAULTS["seed"],
+         budget: Budget | None = None, k: int = DEFAULTS["k"], start=None, goal=None,
+         smooth_rounds: int = DEFAULTS["smooth_rounds"], dt: float = DEFAULTS["dt"],
+         sampler_params: dict | None = None, skip_connected: bool = True) -> PlanResult:
+    """Plan from start to goal (default: the scene's) on a PRM of `narrow` samples from `sampler` plus `uniform`
+    uniform free samples. With a budget, more samples of both kinds are added in rounds (a quarter of the first
+    round's counts each) until start and goal connect or the budget is spent; without one, there is one round."""
+    from app.roadmap import GOAL, NARROW, START, UNIFORM, Roadmap
+    from app.samplers import SAMPLERS, SamplerBudgetExceeded, make_sampler
+
+    if sampler not in SAMPLERS:
+        raise UserError(f"unknown sampler '{sampler}' (known: {', '.join(SAMPLERS)})")
+    for name, value in (("narrow", narrow), ("uniform", uniform), ("smooth_rounds", smooth_rounds)):
+        if not isinstance(value, (int, np.integer)) or value < 0:
+            raise UserError(f"{name} must be a non-negative whole number, got {value}")
+    if not isinstance(k, (int, np.integer)) or k < 1:
+        raise UserError(f"k must be a positive whole number, got {k}")
+    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        raise UserError(f"dt must be a positive finite number, got {dt}")
+    step = default_step(oracle) if step is None else float(step)
+    if not (math.isfinite(step) and step > 0):
+        raise UserError(f"step must be a positive finite number, got {step}")
+
+    clock0, checks0 = time.perf_counter(), oracle.checks
+    seconds = dict.fromkeys(PHASES, 0.0)
+    checks = dict.fromkeys(("endpoints",) + PHASES, 0)
+
+    def timed(phase, fn, *args, **kwargs):
+        t, c = time.perf_counter(), oracle.checks
+        out = fn(*args, **kwargs)
+        seconds[phase] += time.perf_counter() - t
+        checks[phase] += oracle.checks - c
+        return out
+
+    q_start = check_endpoint(oracle, oracle.scene.start if start is None else start, "start")
+    q_goal = check_endpoint(oracle, oracle.scene.goal if goal is None else goal, "goal")
+    checks["endpoints"] = oracle.checks - checks0
+
+    seeds = np.random.SeedSequence(seed).spawn(3)
+    rng_narrow, rng_uniform, rng_smooth = (np.random.default_rng(s) for s in seeds)
+    narrow_sampler = make_sampler(sampler, oracle, step=step, **(sampler_params or {}))
+    uniform_sampler = make_sampler("uniform", oracle, step=step)
+    sampler_stats = {"narrow": {}, "uniform": {}}
+
+    def draw(kind_sampler, count, rng, key):
+        if count <= 0:
+            return np.empty((0, oracle.dim))
+        if budget is not None and budget.checks is not None:  # a sampler may not overrun a check budget
+            kind_sampler.max_checks = min(kind_sampler.max_checks, max(1, budget.checks - (oracle.checks - checks0)))
+        try:
+            out = kind_sampler.sample(count, rng)
+        except SamplerBudgetExceeded as exc:  # a sampler that cannot find its samples is a planning failure
+            error = NoPath(f"no path on {oracle.scene.name}: {exc}")
+            error.details = {"roadmap": roadmap.stats(), "sampler": str(exc), "rounds": rounds,
+                             "collision_checks": oracle.checks - checks0}
+            raise error from None
+        finally:
+            for name, value in kind_sampler.stats.items():
+                if isinstance(value, (int, float)):
+                    sampler_stats[key][name] = sampler_stats[key].get(name, 0) + value
+        return out
+
+    roadmap = Roadmap(oracle, k=k, skip_connected=skip_connected)
+    s_node = int(roadmap.add(q_start, START, connect=False)[0])
+    g_node = int(roadmap.add(q_goal, GOAL, connect=False)[0])
+    rounds, path_nodes = 0, None
+    round_narrow, round_uniform = narrow, uniform
+    while True:
+        rounds += 1
+        N = timed("sampling", draw, narrow_sampler, round_narrow, rng_narrow, "narrow")
+        U = timed("sampling", draw, uniform_sampler, round_uniform, rng_uniform, "uniform")
+        new = np.concatenate([roadmap.add(N, NARROW, connect=False), roadmap.add(U, UNIFORM, connect=False)])
+        if rounds == 1:
+            new = np.concatenate([[s_node, g_node], new])
+        timed("roadmap", roadmap.connect, new)
+        path_nodes = timed("search", _search, oracle, roadmap, s_node, g_node)
+        if path_nodes is not None:
+            break
+        elapsed, spent = time.perf_counter() - clock0, oracle.checks - checks0
+        if budget is None or budget.spent(elapsed, spent) or (narrow == 0 and uniform == 0):
+            break
+        round_narrow, round_uniform = math.ceil(narrow / 4), math.ceil(uniform / 4)
+
+    if path_nodes is None:
+        stats = roadmap.stats()
+        sizes = roadmap.component_sizes(s_node, g_node)
+        elapsed, spent = time.perf_counter() - clock0, oracle.checks - checks0
+        error = NoPath(
+            f"no path from start to goal on {oracle.scene.name}: roadmap of {stats['nodes']} nodes "
+            f"({stats['narrow_nodes']} narrow-passage samples from {sampler}, {stats['uniform_nodes']} uniform) in "
+            f"{stats['components']} "
+            f"components, start and goal in different ones (sizes {sizes[0]} and {sizes[1]}); "
+            f"{stats['edges_tried']} edges tried, {spent} collision checks, {elapsed:.1f} s, {rounds} round(s)"
+            + (f", budget {budget} spent" if budget is not None else "; no --budget for more rounds"))
+        error.details = {"roadmap": stats, "components_of_start_goal": sizes, "collision_checks": spent,
+                         "seconds": elapsed, "rounds": rounds}
+        raise error
+
+    raw = roadmap.Q[path_nodes]
+    narrow_on_path = sum(roadmap.kinds[i] == NARROW for i in path_nodes)
+    smoothed, smooth_stats = timed("smoothing", shortcut, oracle, raw, rng_smooth, rounds=smooth_rounds)
+    # Every returned edge is re-checked at FINE x resolution; shortcuts were accepted at that resolution already,
+    # so a failure here means something is badly wrong: fall back to the (fine-checked) roadmap path.
+    ok = timed("smoothing", verify, oracle, smoothed)
+    smooth_stats["fell_back"] = not bool(ok.all())
+    if not ok.all():
+        smoothed = raw
+        if not timed("smoothing", verify, oracle, smoothed).all():
+            raise NoPath("the planned path failed its fine re-check")
+    smooth_stats["raw_length"] = path_length(oracle, raw)
+    smooth_stats["length_after"] = path_length(oracle, smoothed)
+
+    scene = oracle.scene
+    try:
+        trajectory = timed("timing", parameterize, oracle.plant, unwrap(oracle, smoothed), scene.velocity_limits,
+                           scene.acceleration_limits, dt)
+    except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
+        raise NoPath(f"path found on {scene.name} but not time-parameterized: {' '.join(str(exc).split())}") from None
+    seconds["total"] = time.perf_counter() - clock0
+    return PlanResult(
+        success=True, scene=scene.name, sampler=sampler, seed=int(seed), step=step, start=q_start, goal=q_goal,
+        path=smoothed, roadmap_path=raw, trajectory=trajectory, collision_checks=oracle.checks - checks0,
+        checks=checks, seconds=seconds, roadmap=roadmap.stats(), narrow_on_path=int(narrow_on_path),
+        rounds=rounds, budget=str(budget) if budget is not None else "none", smoothing=smooth_stats,
+        sampler_stats=sampler_stats, graph=roadmap, path_nodes=list(path_nodes))
+
+
+def _search(oracle, roadmap: Roadmap, a: int, b: int) -> list[int] | None:
+    """Shortest roadmap path whose every edge also passes the fine check; edges that fail it are dropped."""
+    while True:
+        nodes = roadmap.shortest_path(a, b)
+        if nodes is None:
+            return None
+        ok = verify(oracle, roadmap.Q[nodes], FINE * roadmap.resolution)
+        if ok.all():
+            return nodes
+        for i in np.flatnonzero(~ok):
+            roadmap.remove_edge(nodes[i], nodes[i + 1])

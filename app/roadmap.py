@@ -1,0 +1,246 @@
+"""The probabilistic roadmap: nodes with provenance, k-nearest connections, batched edge checks, search.
+
+Nearest neighbours use the scene's own configuration metric, exactly: coordinates are scaled by their weights, and
+every continuous angle becomes a periodic axis of length 2*pi*w in scipy's toroidal k-d tree (`cKDTree(boxsize=...)`;
+a box size of 0 leaves an axis flat). The tree's distance is then sqrt(sum (w_i * d_i)^2) with d_i the short way round
+on continuous angles -- the very number `oracle.distance` gives -- so no neighbour is missed or misranked across the
++-pi seam (embedding an angle as (w cos, w sin) would rank by chord length instead of arc length, which is not the
+metric the edges are checked and weighed in).
+
+Edges are checked by `oracle.edges_free`, coarse-to-fine and batched (one call per chunk of 32 new nodes), at the
+scene's resolution. A pair is tried at most once, and by default not at all when both nodes already share a
+component (Kavraki's PRM rule: such an edge adds no connectivity; it cut the checks on `bar` about 3x). Shortcut
+smoothing (app/path.py) then recovers the path quality a denser graph would have given.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+from scipy.spatial import cKDTree
+
+from app.errors import UserError
+
+START, GOAL, UNIFORM, NARROW = "start", "goal", "uniform", "narrow"
+
+
+# ---- budget ---------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Budget:
+    """When to stop adding samples: wall-clock seconds and/or collision checks (whichever runs out first)."""
+
+    seconds: float | None = None
+    checks: int | None = None
+
+    def spent(self, seconds: float, checks: int) -> bool:
+        return ((self.seconds is not None and seconds >= self.seconds)
+                or (self.checks is not None and checks >= self.checks))
+
+    def __str__(self) -> str:
+        parts = []
+        if self.seconds is not None:
+            parts.append(f"{self.seconds:g}s")
+        if self.checks is not None:
+            parts.append(f"{self.checks}checks")
+        return ",".join(parts) or "none"
+
+
+_BUDGET_PART = re.compile(r"^(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>s|min|k?checks|M?checks)$")
+
+
+def parse_budget(text: str) -> Budget:
+    """'30s', '2min', '200000checks', '200kchecks', '5Mchecks', or two joined by a comma: '30s,200kchecks'."""
+    seconds = checks = None
+    parts = [p.strip() for p in str(text).split(",")]
+    if not parts or not all(parts) or len(parts) > 2:
+        raise UserError(f"bad budget {text!r}: use e.g. 30s, 2min, 200000checks, 200kchecks or 30s,200kchecks")
+    for part in parts:
+        match = _BUDGET_PART.match(part)
+        if not match:
+            raise UserError(f"bad budget {part!r}: use e.g. 30s, 2min, 200000checks, 200kchecks or 30s,200kchecks")
+        number, unit = float(match["number"]), match["unit"]
+        if not math.isfinite(number) or number <= 0:
+            raise UserError(f"bad budget {part!r}: must be positive")
+        if unit in ("s", "min"):
+            if seconds is not None:
+                raise UserError(f"bad budget {text!r}: two time limits")
+            seconds = number * (60.0 if unit == "min" else 1.0)
+        else:
+            if checks is not None:
+                raise UserError(f"bad budget {text!r}: two check limits")
+            scale = {"k": 1_000, "M": 1_000_000}.get(unit[0], 1)
+            checks = int(round(number * scale))
+            if checks <= 0:
+                raise UserError(f"bad budget {part!r}: must be at least one check")
+    return Budget(seconds=seconds, checks=checks)
+
+
+# ---- the roadmap ----------------------------------------------------------------------------------------------------
+class Roadmap:
+    """An undirected PRM graph over configurations, each node remembering where it came from (its `kind`)."""
+
+    def __init__(self, oracle, k: int = 10, resolution: float | None = None, skip_connected: bool = True,
+                 chunk: int = 32):
+        if k < 1:
+            raise ValueError("k must be positive")
+        self.oracle = oracle
+        self.k = k
+        # Kavraki's rule: an edge between two nodes already in one component adds no connectivity, so it is not
+        # checked (components are refreshed every `chunk` new nodes, between batched edge checks). Off: every
+        # k-nearest edge is checked, a denser graph with shorter raw paths for many more collision checks.
+        self.skip_connected = skip_connected
+        self.chunk = max(1, int(chunk))
+        self._components = _UnionFind()
+        self.resolution = resolution or oracle.resolution
+        self.Q = np.empty((0, oracle.dim))
+        self.kinds: list[str] = []
+        self.graph = nx.Graph()
+        self.edges_tried = 0
+        self._tried: set[tuple[int, int]] = set()
+        self._tree: cKDTree | None = None
+        # Periodic axes for continuous angles, flat (0) elsewhere; the scaled embedding lives in [0, box).
+        w = oracle.weights
+        self._box = np.where(oracle.continuous, 2 * np.pi * w, 0.0)
+        self._embedded = np.empty((0, oracle.dim))
+
+    def __len__(self) -> int:
+        return len(self.Q)
+
+    # ---- metric embedding ---------------------------------------------------------------------------------------
+    def embed(self, Q: np.ndarray) -> np.ndarray:
+        """Weighted coordinates for the k-d tree: continuous angles mapped into [0, 2*pi*w), others (q - lower)*w."""
+        o = self.oracle
+        Q = np.atleast_2d(np.asarray(Q, float))
+        angle = np.mod(Q + np.pi, 2 * np.pi)
+        X = np.where(o.continuous, angle, Q - o.lower) * o.weights
+        # mod can return exactly 2*pi*w after scaling by rounding; the periodic tree wants [0, box).
+        periodic = o.continuous
+        X[:, periodic] = np.where(X[:, periodic] >= self._box[periodic], 0.0, X[:, periodic])
+        return X
+
+    def neighbours(self, Q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """(distances, indices) of the k nearest roadmap nodes to each row of Q (fewer columns if the map is small)."""
+        k = min(k, len(self))
+        d, i = self._tree.query(self.embed(Q), k=k)
+        return np.asarray(d).reshape(len(Q), k), np.asarray(i).reshape(len(Q), k)
+
+    # ---- building -----------------------------------------------------------------------------------------------
+    def add(self, Q: np.ndarray, kind: str, connect: bool = True) -> np.ndarray:
+        """Add configurations (assumed free) as nodes of one kind; connect each to its k nearest nodes.
+
+        Returns the new node indices.
+        """
+        Q = np.atleast_2d(np.asarray(Q, float)).reshape(-1, self.oracle.dim)
+        first = len(self.Q)
+        new = np.arange(first, first + len(Q))
+        if len(Q) == 0:
+            return new
+        self.Q = np.vstack([self.Q, self.oracle.wrap(Q)])
+        self.kinds.extend([kind] * len(Q))
+        self._components.grow(len(self.Q))
+        self._embedded = np.vstack([self._embedded, self.embed(Q)])
+        self._tree = cKDTree(self._embedded, boxsize=self._box)
+        for i in new:
+            self.graph.add_node(int(i))
+        if connect:
+            self.connect(new)
+        return new
+
+    def connect(self, nodes: np.ndarray) -> int:
+        """Try the edges from `nodes` to their k nearest neighbours not tried before; return how many were free.
+
+        Nodes go in chunks; each chunk's candidate edges are one `edges_free` batch.
+        """
+        nodes = np.asarray(nodes, int)
+        if len(self) < 2 or len(nodes) == 0:
+            return 0
+        step = self.chunk if self.skip_connected else len(nodes)
+        added = 0
+        for begin in range(0, len(nodes), step):
+            added += self._connect_chunk(nodes[begin:begin + step])
+        return added
+
+    def _connect_chunk(self, nodes: np.ndarray) -> int:
+        _, idx = self.neighbours(self.Q[nodes], self.k + 1)  # +1: a node is its own nearest neighbour
+        pairs = []
+        for a, row in zip(nodes, idx):
+            for b in row:
+                if a == b or b >= len(self):
+                    continue
+                key = (int(min(a, b)), int(max(a, b)))
+                if key in self._tried:
+                    continue
+                if self.skip_connected and self._components.same(*key):
+                    continue
+                self._tried.add(key)
+                pairs.append(key)
+        if not pairs:
+            return 0
+        P = np.array(pairs)
+        self.edges_tried += len(P)
+        free = self.oracle.edges_free(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution)
+        lengths = self.oracle.distance(self.Q[P[free, 0]], self.Q[P[free, 1]])
+        self.graph.add_weighted_edges_from((int(a), int(b), float(w)) for (a, b), w in zip(P[free], lengths))
+        for a, b in P[free]:
+            self._components.union(int(a), int(b))
+        return int(free.sum())
+
+    # ---- queries ------------------------------------------------------------------------------------------------
+    def connected(self, a: int, b: int) -> bool:
+        return nx.has_path(self.graph, a, b)
+
+    def components(self) -> int:
+        return nx.number_connected_components(self.graph)
+
+    def component_sizes(self, *nodes: int) -> list[int]:
+        return [len(nx.node_connected_component(self.graph, n)) for n in nodes]
+
+    def shortest_path(self, a: int, b: int) -> list[int] | None:
+        """Node indices of the shortest path by metric length, or None."""
+        try:
+            return nx.shortest_path(self.graph, a, b, weight="weight")
+        except nx.NetworkXNoPath:
+            return None
+
+    def remove_edge(self, a: int, b: int) -> None:
+        """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
+        if self.graph.has_edge(a, b):
+            self.graph.remove_edge(a, b)
+            self._components = _UnionFind()
+            self._components.grow(len(self.Q))
+            for u, v in self.graph.edges:
+                self._components.union(u, v)
+
+    def stats(self) -> dict:
+        counts = {kind: self.kinds.count(kind) for kind in (UNIFORM, NARROW)}
+        return {"nodes": len(self), "edges": self.graph.number_of_edges(), "components": self.components(),
+                "edges_tried": self.edges_tried, "uniform_nodes": counts[UNIFORM], "narrow_nodes": counts[NARROW],
+                "k": self.k, "skip_connected": self.skip_connected}
+
+
+class _UnionFind:
+    """Connected components under edge insertion, for the skip-connected rule."""
+
+    def __init__(self):
+        self.parent: list[int] = []
+
+    def grow(self, n: int) -> None:
+        self.parent.extend(range(len(self.parent), n))
+
+    def find(self, a: int) -> int:
+        parent = self.parent
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    def union(self, a: int, b: int) -> None:
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            self.parent[max(ra, rb)] = min(ra, rb)
+
+    def same(self, a: int, b: int) -> bool:
+        return self.find(a) == self.find(b)

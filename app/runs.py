@@ -1,0 +1,143 @@
+"""Scripted arm jobs: a route of named tool poses, each leg planned, all legs joined into one trajectory.
+
+- `welding`: home, then seam point to seam point along the weld.
+- `window`: home, through the window to the part, back out, place it on the table, home.
+
+Goals are the scene's tool poses solved to collision-free configurations by inverse kinematics (as one chain, so
+consecutive seam points get neighbouring arm postures). A leg whose straight joint-space move passes the fine
+check is taken as it is — a seam step of a few centimetres needs no roadmap — and any other leg goes to the PRM.
+Every leg is time-parameterized rest to rest, so the joined trajectory stops at each pose (where a welder
+strikes or a gripper closes).
+"""
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from app.errors import UserError
+from app.path import FINE, unwrap
+from app.planner import plan
+from app.timing import Trajectory, parameterize
+
+HOME = "home"
+ROUTES = {
+    "welding": lambda scene: [HOME] + list(scene.poses),
+    "window": lambda scene: [HOME, "window", "reach", "window", "place", HOME],
+}
+
+
+@dataclass
+class Leg:
+    start: str
+    goal: str
+    method: str  # "straight" or the sampler's name
+    narrow_samples: int
+    narrow_on_path: int
+    collision_checks: int
+    seconds: float
+    duration: float
+    path: np.ndarray
+    trajectory: Trajectory
+    narrow: np.ndarray  # the leg's narrow-passage samples (empty for a straight leg)
+    on_path: np.ndarray
+
+    def to_json(self) -> dict:
+        return {"from": self.start, "to": self.goal, "method": self.method, "narrow_samples": self.narrow_samples,
+                "narrow_on_path": self.narrow_on_path, "collision_checks": self.collision_checks,
+                "seconds": self.seconds, "duration": self.duration, "path": self.path.tolist()}
+
+
+@dataclass
+class RunResult:
+    scene: str
+    sampler: str
+    seed: int
+    legs: list
+    trajectory: Trajectory
+    seconds: dict  # ik, planning, total
+    collision_checks: int
+    configurations: dict  # pose name -> configuration
+
+    def to_json(self) -> dict:
+        return {"scene": self.scene, "sampler": self.sampler, "seed": self.seed,
+                "legs": [leg.to_json() for leg in self.legs], "trajectory": self.trajectory.to_json(),
+                "seconds": self.seconds, "collision_checks": self.collision_checks,
+                "configurations": {k: v.tolist() for k, v in self.configurations.items()}}
+
+    def view_data(self):
+        from app.viewer import ViewData
+
+        narrow = [leg.narrow for leg in self.legs if len(leg.narrow)]
+        on_path = [leg.on_path for leg in self.legs if len(leg.narrow)]
+        path = np.concatenate([leg.path if i == 0 else leg.path[1:] for i, leg in enumerate(self.legs)])
+        return ViewData(times=self.trajectory.times, positions=self.trajectory.positions,
+                        narrow=np.concatenate(narrow) if narrow else None,
+                        on_path=np.concatenate(on_path) if on_path else None, path=path)
+
+
+def route(oracle, job: str) -> list[str]:
+    if job not in ROUTES:
+        raise UserError(f"unknown job '{job}' (known: {', '.join(ROUTES)})")
+    names = ROUTES[job](oracle.scene)
+    missing = [n for n in names if n != HOME and n not in oracle.scene.poses]
+    if missing:
+        raise UserError(f"scene {oracle.scene.name} has no pose named {', '.join(missing)}")
+    return names
+
+
+def run_job(oracle, job: str, sampler: str = "lfbs", seed: int = 0, narrow: int = 100, uniform: int = 100,
+            step: float | None = None, budget=None, dt: float = 0.02) -> RunResult:
+    from app.ik import solve_poses
+    from app.roadmap import parse_budget
+
+    names = route(oracle, job)
+    clock, checks0 = time.perf_counter(), oracle.checks
+    rng = np.random.default_rng(seed)
+    home = oracle.wrap(oracle.scene.start)
+    poses = list(dict.fromkeys(n for n in names if n != HOME))
+    configurations = {HOME: home, **solve_poses(oracle, rng, poses, reference=home)}
+    ik_seconds = time.perf_counter() - clock
+
+    budget = parse_budget("30s") if budget is None else budget
+    legs = []
+    for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
+        qa, qb = configurations[a], configurations[b]
+        t, c = time.perf_counter(), oracle.checks
+        if oracle.edge_free(qa, qb, oracle.resolution * FINE):
+            path = np.array([qa, qb])
+            method, narrow_count, used, samples, on_path = "straight", 0, 0, np.empty((0, oracle.dim)), np.zeros(0, bool)
+            trajectory = parameterize(oracle.plant, unwrap(oracle, path), oracle.scene.velocity_limits,
+                                      oracle.scene.acceleration_limits, dt)
+        else:
+            result = plan(oracle, sampler=sampler, narrow=narrow, uniform=uniform, step=step, seed=seed * 1000 + i,
+                          budget=budget, start=qa, goal=qb, dt=dt)
+            view = result.view_json()
+            path, trajectory, method = result.path, result.trajectory, sampler
+            samples = np.array(view.get("narrow") or np.empty((0, oracle.dim)))
+            on_path = np.array(view.get("on_path") or [], bool)
+            narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
+        legs.append(Leg(a, b, method, int(narrow_count), int(used), oracle.checks - c, time.perf_counter() - t,
+                        trajectory.duration, path, trajectory, samples, on_path))
+
+    planning = time.perf_counter() - clock - ik_seconds
+    return RunResult(oracle.scene.name, sampler, seed, legs, join([leg.trajectory for leg in legs], oracle),
+                     {"ik": ik_seconds, "planning": planning, "total": time.perf_counter() - clock},
+                     oracle.checks - checks0, configurations)
+
+
+def join(trajectories: list[Trajectory], oracle) -> Trajectory:
+    """One trajectory from legs that each start where the previous one stopped (continuous angles may differ by
+    whole turns between a leg's end and the next leg's start: they are shifted to continue without a jump)."""
+    times, positions, waypoints, offset = [], [], [], 0.0
+    for k, leg in enumerate(trajectories):
+        P = leg.positions.copy()
+        if positions:
+            shift = positions[-1][-1] - P[0]
+            P += np.where(oracle.continuous, np.round(shift / (2 * np.pi)) * 2 * np.pi, 0.0)
+        skip = 1 if k else 0  # the joint instant appears once
+        times.append(leg.times[skip:] + offset)
+        positions.append(P[skip:])
+        waypoints.append(leg.waypoint_times[skip:] + offset)
+        offset += leg.duration
+    return Trajectory(times=np.concatenate(times), positions=np.concatenate(positions), duration=offset,
+                      dt=trajectories[0].dt, waypoint_times=np.concatenate(waypoints))
