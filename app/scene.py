@@ -68,6 +68,17 @@ class ProblemFile:
     poses: list[ToolPose] = field(default_factory=list)  # named tool poses, in file order (e.g. a weld seam)
 
 
+def robot_diagram_builder():
+    """Drake's RobotDiagramBuilder; Drake's refusal to start (e.g. DRAKE_ALLOW_NETWORK forbids fetching the
+    drake_models package it registers in every parser) becomes one line for the user."""
+    from pydrake.planning import RobotDiagramBuilder
+
+    try:
+        return RobotDiagramBuilder(time_step=0.0)
+    except RuntimeError as exc:
+        raise UserError(f"Drake cannot start its model parser: {' '.join(str(exc).split())}") from None
+
+
 def scene_names() -> list[str]:
     return sorted(p.stem for p in SCENES_DIR.glob("*.yaml") if not p.name.endswith(".dmd.yaml"))
 
@@ -107,13 +118,12 @@ class Scene:
 
     def __init__(self, name_or_path: str):
         from pydrake.multibody.tree import JointIndex
-        from pydrake.planning import RobotDiagramBuilder
 
         self.path = scene_path(name_or_path)
         self.name = self.path.stem
         self.problem = problem = read_problem(self.path)
 
-        builder = RobotDiagramBuilder(time_step=0.0)
+        builder = robot_diagram_builder()
         plant = builder.plant()
         self.add_models(builder.parser())
         for name in problem.robot:

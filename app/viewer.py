@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import UserError
-from app.scene import Scene
+from app.scene import Scene, robot_diagram_builder
 
 YELLOW = (1.0, 0.85, 0.0, 1.0)  # narrow-passage samples
 RED = (0.9, 0.05, 0.05, 1.0)  # narrow-passage samples on the path
@@ -206,13 +206,12 @@ class Viewer:
     def __init__(self, scene: Scene | str, *, frame: str | None = None, collision: bool = False,
                  meshcat=None, marker_size: float | None = None, obstacle_opacity: float | None = None):
         from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
-        from pydrake.planning import RobotDiagramBuilder
 
         self.scene = scene if isinstance(scene, Scene) else Scene(scene)
         self.meshcat = meshcat if meshcat is not None else start_meshcat()
 
         # Same directives, same order: model instance indices and position coordinates match the scene's plant.
-        builder = RobotDiagramBuilder(time_step=0.0)
+        builder = robot_diagram_builder()
         self.scene.add_models(builder.parser())
         builder.plant().Finalize()
         params = MeshcatVisualizerParams(role=Role.kIllustration, prefix="illustration",
