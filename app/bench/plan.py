@@ -69,7 +69,8 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
                 "collision_checks": oracle.checks - checks0, "nodes": d.get("roadmap", {}).get("nodes"),
                 "components": d.get("roadmap", {}).get("components"), "rounds": d.get("rounds")}
     s = r.seconds
-    return {"success": 1.0, "seconds": s["total"], "seconds_to_path": s["sampling"] + s["roadmap"] + s["search"],
+    return {"success": 1.0, "seconds": s["total"], "seconds_sampling": s["sampling"],
+            "seconds_to_path": s["sampling"] + s["roadmap"] + s["search"],
             "collision_checks": r.collision_checks, "nodes": r.roadmap["nodes"],
             "components": r.roadmap["components"], "rounds": r.rounds, "narrow_on_path": r.narrow_on_path,
             "path_length": r.smoothing["length_after"], "duration": r.trajectory.duration}

@@ -1,4 +1,4 @@
 """Command modules, in the order `--help` lists them. Each has `register(subparsers)`."""
-from app.commands import bench, scenes, view
+from app.commands import bench, plan, run, sample, scenes, view
 
-MODULES = [scenes, view, bench]
+MODULES = [scenes, sample, plan, run, view, bench]

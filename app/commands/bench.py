@@ -1,7 +1,7 @@
 """`bench KIND ...`: each benchmark lives in app/bench/KIND.py and registers its own sub-command."""
-from app.bench import oracle
+from app.bench import ompl, oracle, plan, sampling, uav
 
-BENCHES = [oracle]
+BENCHES = [oracle, sampling, plan, uav, ompl]
 
 
 def register(subparsers) -> None:

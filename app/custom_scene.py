@@ -1,0 +1,658 @@
+"""Bring your own robot and environment: any URDF/SDF robot (or a mesh as a free-flying rigid body) among mesh or
+SDF/URDF obstacles, turned into an ordinary Scene the oracle and planner accept.
+
+How: the inputs are written as Drake model directives + a problem file into a scene directory under the cache
+(`<cache>/scenes/<hash>/`) and loaded with the existing Scene class. `CustomScene` only adds the user's
+`--package-path` entries to the parser's package map before the directives are processed.
+
+Inputs (CLI flags of `plan`, or the same keys in a custom scene file, see `CustomSpec`):
+- robot: a .urdf/.sdf file, or a mesh (.obj/.stl/.dae/...) which becomes a free-flying rigid body.
+  A URDF/SDF robot whose root is not attached to the world is welded to it at the origin, unless `floating` is set:
+  then (as for a mesh) it is carried by prismatic x, y, z and revolute yaw, pitch, roll joints (R = Rz Ry Rx, as
+  robots/l_body.urdf), so its first six coordinates are x, y, z, yaw, pitch, roll.
+- env: mesh files (decomposed into validated convex pieces, see app.meshes) or .sdf/.urdf files; `env_pose`
+  x,y,z (m), roll,pitch,yaw (degrees) places them (once for all, or once per env).
+- bounds: per coordinate `lo..hi`, comma separated: either one per coordinate, or, for a floating robot, three for
+  x, y, z only (the angles then wrap on [-pi, pi); further joints keep their model limits). Default for a floating
+  robot: the environment's bounding box, grown by the robot's radius, and stretched to include start and goal;
+  for a jointed arm: its joint limits.
+"""
+
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app import meshes
+from app.errors import UserError
+from app.scene import PACKAGES, Scene
+
+ROBOT_SUFFIXES = {".urdf", ".sdf"}
+CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
+
+
+@dataclass
+class CustomSpec:
+    """The keys of a custom scene file (YAML); CLI flags map onto the same fields. Paths in a file are relative to it."""
+
+    description: str = ""
+    robot: str = ""  # .urdf/.sdf, or a mesh file (a free-flying body)
+    package_path: list[str] = field(default_factory=list)  # NAME=DIR
+    floating: bool = False  # carry a URDF/SDF robot's root in SE(3) instead of welding it to the world
+    env: list[str] = field(default_factory=list)  # mesh or .sdf/.urdf files
+    env_pose: list[float] = field(default_factory=list)  # 6 numbers (x,y,z m; roll,pitch,yaw deg), or 6 per env
+    start: list[float] = field(default_factory=list)
+    goal: list[float] = field(default_factory=list)
+    bounds: list[str] = field(default_factory=list)  # "lo..hi" per coordinate, or per x,y,z of a floating robot
+    collisions: str = "environment"
+    resolution: float = 0.0  # edge-check step in the weighted metric; 0: a quarter of the robot's smallest extent
+    mesh_method: str = "auto"  # auto | convex | coacd | faces
+    mesh_tolerance: float = 0.0  # 0: 0.2 % of each mesh's bounding-box diagonal
+
+
+class CustomScene(Scene):
+    """A Scene from generated files, loaded with the user's package paths in the package map."""
+
+    def __init__(self, problem_path: Path, packages: dict[str, Path], name: str, info: dict):
+        self.extra_packages = dict(packages)
+        self.info = info  # what was built: decompositions, timings
+        super().__init__(str(problem_path))
+        self.name = name
+
+    def add_models(self, parser) -> None:
+        for package, directory in self.extra_packages.items():
+            if not parser.package_map().Contains(package):
+                parser.package_map().Add(package, str(directory))
+        super().add_models(parser)
+
+
+# ---- parsing inputs -----------------------------------------------------------------------------------------------
+def parse_package_paths(items: list[str], base: Path | None = None) -> dict[str, Path]:
+    packages = {}
+    for item in items:
+        name, sep, directory = item.partition("=")
+        if not sep or not name.strip() or not directory.strip():
+            raise UserError(f"--package-path needs NAME=DIR, got '{item}'")
+        path = Path(directory.strip()).expanduser()
+        if base is not None and not path.is_absolute():
+            path = base / path
+        if not path.is_dir():
+            raise UserError(f"package '{name.strip()}': directory not found: {directory.strip()}")
+        packages[name.strip()] = path.resolve()
+    return packages
+
+
+def parse_bounds(items: list[str]) -> list[tuple[float, float]]:
+    """'lo..hi' items (or one comma-separated string of them) -> [(lo, hi), ...], finite with lo < hi."""
+    out = []
+    for item in ",".join(items).split(","):
+        if not item.strip():
+            continue
+        lo, sep, hi = item.partition("..")
+        try:
+            pair = (float(lo), float(hi))
+        except ValueError:
+            pair = None
+        if not sep or pair is None or not all(map(math.isfinite, pair)) or not pair[0] < pair[1]:
+            raise UserError(f"bad bounds item '{item.strip()}': need lo..hi with finite lo < hi")
+        out.append(pair)
+    return out
+
+
+def parse_poses(values: list[float], count: int) -> list[list[float]]:
+    values = [float(v) for v in values]
+    if not values:
+        return [[0.0] * 6] * count
+    if not all(map(math.isfinite, values)) or len(values) not in (6, 6 * count):
+        raise UserError(f"env pose needs 6 finite numbers x,y,z,roll,pitch,yaw (once, or once per env); "
+                        f"got {len(values)}")
+    if len(values) == 6:
+        return [values] * count
+    return [values[6 * i:6 * i + 6] for i in range(count)]
+
+
+def _kind(path: Path, what: str) -> str:
+    if not path.is_file():
+        raise UserError(f"{what} file not found: {path}")
+    suffix = path.suffix.lower()
+    if suffix in ROBOT_SUFFIXES:
+        return "model"
+    if suffix in meshes.MESH_SUFFIXES:
+        return "mesh"
+    raise UserError(f"{what} file {path.name}: unsupported type '{suffix}' (use .urdf, .sdf or a mesh: "
+                    f"{', '.join(sorted(meshes.MESH_SUFFIXES))})")
+
+
+# ---- probing models -----------------------------------------------------------------------------------------------
+def _parser_error(exc: Exception, path: Path) -> UserError:
+    text = " ".join(str(exc).split())
+    if "unknown package" in text:
+        import re
+
+        match = re.search(r"unknown package '([^']+)'", text)
+        name = match.group(1) if match else "?"
+        return UserError(f"cannot load {path.name}: unknown package '{name}' (add --package-path {name}=DIR)")
+    return UserError(f"cannot load {path.name}: {text[:300]}")
+
+
+def _new_builder(packages: dict[str, Path]):
+    from pydrake.planning import RobotDiagramBuilder
+
+    builder = RobotDiagramBuilder(time_step=0.0)
+    package_map = builder.parser().package_map()
+    for name, directory in {**{k: Path(v) for k, v in PACKAGES.items()}, **packages}.items():
+        if not package_map.Contains(name):
+            package_map.Add(name, str(directory))
+    return builder
+
+
+def probe_model(path: Path, packages: dict[str, Path]) -> dict:
+    """Parse a URDF/SDF on its own: the model's name, bodies not attached to the world (floating) and their names."""
+    builder = _new_builder(packages)
+    plant = builder.plant()
+    try:
+        instances = builder.parser().AddModels(str(path))
+        plant.Finalize()
+    except Exception as exc:  # pydrake raises RuntimeError (parse errors, unknown packages, bad meshes)
+        raise _parser_error(exc, path) from None
+    if len(instances) != 1:
+        raise UserError(f"{path.name}: expected one model, found {len(instances)}")
+    floating = sorted(plant.get_body(b).name() for b in plant.GetFloatingBaseBodies())
+    return {"name": plant.GetModelInstanceName(instances[0]), "floating": floating,
+            "positions": plant.num_positions(), "static": plant.num_bodies() <= 1}
+
+
+def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str]) -> dict:
+    """Load the robot part of the directives: coordinate names, limits, and the robot's size (for weights)."""
+    from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
+    from pydrake.multibody.tree import JointIndex
+
+    builder = _new_builder(packages)
+    plant = builder.plant()
+    try:
+        ProcessModelDirectives(LoadModelDirectives(str(directives)), builder.parser())
+        plant.Finalize()
+    except Exception as exc:
+        raise _parser_error(exc, directives) from None
+    nq = plant.num_positions()
+    names, kinds = [""] * nq, [""] * nq
+    for i in range(plant.num_joints()):
+        joint = plant.get_joint(JointIndex(i))
+        for k in range(joint.num_positions()):
+            names[joint.position_start() + k] = joint.name()
+            kinds[joint.position_start() + k] = joint.type_name()
+    if plant.GetFloatingBaseBodies():
+        raise UserError("the robot still has a free-floating body after welding its root; "
+                        "connect its parts with joints")
+    bad = sorted({k for k in kinds if k not in ("revolute", "prismatic")})
+    if bad:
+        raise UserError(f"robot joints of type {', '.join(bad)} are not supported (revolute and prismatic only)")
+    # Size: from the robot's collision geometry (oriented boxes) at the default configuration. `reach` is the
+    # largest distance of any of it from the robot's first body's origin (an angle's lever arm); `thin` the median
+    # over geometries of their smallest width (how far a step may move the robot without skipping a thin wall).
+    inspector = builder.scene_graph().model_inspector()
+    context = plant.CreateDefaultContext()
+    bodies = [plant.get_body(b) for inst in instances for b in plant.GetBodyIndices(plant.GetModelInstanceByName(inst))]
+    root = bodies[0].EvalPoseInWorld(context).translation()
+    corners, widths = [], []
+    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
+    for body in bodies:
+        X_WB = body.EvalPoseInWorld(context)
+        for geometry in plant.GetCollisionGeometriesForBody(body):
+            obb = inspector.GetObbInGeometryFrame(geometry)
+            if obb is None:
+                continue
+            X_WO = X_WB @ inspector.GetPoseInFrame(geometry) @ obb.pose()
+            local = signs * obb.half_width()
+            corners.append((X_WO.rotation().matrix() @ local.T).T + X_WO.translation())
+            widths.append(2 * float(np.min(obb.half_width())))
+    if not corners:
+        raise UserError("the robot has no collision geometry")
+    reach = float(np.max(np.linalg.norm(np.vstack(corners) - root, axis=1)))
+    thin = float(np.median(widths))
+    return {"names": names, "kinds": kinds, "lower": plant.GetPositionLowerLimits(),
+            "upper": plant.GetPositionUpperLimits(), "velocity": plant.GetVelocityUpperLimits(), "reach": reach,
+            "thin": thin}
+
+
+# ---- model files with meshes Drake cannot read ------------------------------------------------------------------
+def resolve_uri(uri: str, relative_to: Path, packages: dict[str, Path]) -> Path | None:
+    """package://NAME/rest, file:///abs, an absolute or a relative path -> a Path; None for other schemes."""
+    if uri.startswith("package://"):
+        name, _, rest = uri[len("package://"):].partition("/")
+        known = {**{k: Path(v) for k, v in PACKAGES.items()}, **packages}
+        if name not in known:
+            raise UserError(f"cannot load {relative_to.name}: unknown package '{name}' "
+                            f"(add --package-path {name}=DIR)")
+        return known[name] / rest
+    if uri.startswith("file://"):
+        return Path(uri[len("file://"):])
+    if "://" in uri:
+        return None
+    path = Path(uri)
+    return path if path.is_absolute() else relative_to.parent / path
+
+
+_MESH_REF = r'(filename\s*=\s*")([^"]+)(")|(<uri>\s*)([^<]+?)(\s*</uri>)'
+
+
+def _ref_parts(m) -> tuple[str, str, str]:
+    return (m.group(1), m.group(2), m.group(3)) if m.group(2) else (m.group(4), m.group(5), m.group(6))
+
+
+def convert_model_meshes(path: Path, packages: dict[str, Path], cache_dir: Path | None,
+                         decompose_options: dict | None = None, info: list | None = None) -> Path:
+    """`path` itself when nothing needs changing; else a rewritten copy in the cache where
+    - with `decompose_options` (environment models): each <collision> holding a mesh becomes one <collision> per
+      validated convex piece of it (app.meshes.decompose), since Drake would use the mesh's convex hull;
+    - mesh references Drake cannot read (.stl, .dae, ...) point to converted .obj files (for a robot's links that
+      means their convex hull, conservative, as usual);
+    - every other relative or package:// reference is made absolute (the copy lives elsewhere).
+    `info` collects what each decomposition did."""
+    import re
+
+    text = path.read_text(errors="replace")
+    refs = re.compile(_MESH_REF)
+    blocks = re.compile(r"<collision\b.*?</collision>", re.S)
+
+    def is_mesh(uri):
+        return Path(uri.split("?")[0]).suffix.lower() in meshes.MESH_SUFFIXES
+
+    def convertible(uri):
+        return Path(uri.split("?")[0]).suffix.lower() in meshes.CONVERTIBLE_SUFFIXES
+
+    decompose_here = decompose_options is not None and any(
+        is_mesh(_ref_parts(m)[1]) for b in blocks.finditer(text) for m in refs.finditer(b.group(0)))
+    if not decompose_here and not any(convertible(_ref_parts(m)[1]) for m in refs.finditer(text)):
+        return path
+
+    def resolved(uri):
+        target = resolve_uri(uri, path, packages)
+        if target is not None and is_mesh(uri) and not target.is_file():
+            raise UserError(f"cannot load {path.name}: mesh file not found: {uri}")
+        return target
+
+    def absolute(m):
+        head, uri, tail = _ref_parts(m)
+        target = resolved(uri)
+        if target is None:
+            return m.group(0)
+        if convertible(uri):
+            target = meshes.converted_obj(target, cache_dir)
+        return f"{head}{target if m.group(2) else f'file://{target}'}{tail}"
+
+    def split_collision(b):
+        block = b.group(0)
+        found = [m for m in refs.finditer(block) if is_mesh(_ref_parts(m)[1])]
+        if len(found) != 1:
+            return block
+        m = found[0]
+        target = resolved(_ref_parts(m)[1])
+        if target is None:
+            return block
+        decomposition = meshes.decompose(target, **decompose_options)
+        if info is not None:
+            info.append(_describe(target, decomposition))
+        copies = []
+        for k, piece in enumerate(decomposition.pieces):
+            head, _, tail = _ref_parts(m)
+            uri = str(piece) if m.group(2) else f"file://{piece}"
+            copy = block[:m.start()] + f"{head}{uri}{tail}" + block[m.end():]
+            copy = re.sub(r'(<collision\b[^>]*\bname\s*=\s*")([^"]*)(")', lambda n: f"{n.group(1)}{n.group(2)}_piece{k}"
+                          f"{n.group(3)}", copy, count=1)
+            copies.append(copy)
+        return "\n".join(copies)
+
+    if decompose_here:
+        text = blocks.sub(split_collision, text)
+    rewritten = refs.sub(absolute, text)  # (idempotent on the pieces' absolute .obj paths)
+    key = hashlib.sha256(rewritten.encode()).hexdigest()[:24]
+    out = (cache_dir or meshes.cache_root()) / "models" / key / path.name
+    _write(out, rewritten)
+    return out
+
+
+# ---- generated files ----------------------------------------------------------------------------------------------
+_INERTIAL = '<inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>'
+
+
+def carrier_urdf(name: str, body_xml: str = "") -> str:
+    """Prismatic x, y, z then revolute yaw, pitch, roll (no limits: the problem file's bounds rule), ending in a link
+    `body` holding `body_xml` (collision/visual elements)."""
+    links = ["origin", "px", "py", "pz", "yawed", "pitched", "body"]
+    axes = ["1 0 0", "0 1 0", "0 0 1", "0 0 1", "0 1 0", "1 0 0"]
+    out = [f'<?xml version="1.0"?>\n<robot name="{name}" xmlns:drake="http://drake.mit.edu">', '  <link name="origin"/>']
+    for link in links[1:-1]:
+        out.append(f'  <link name="{link}">{_INERTIAL}</link>')
+    out.append(f'  <link name="body">{_INERTIAL}\n{body_xml}  </link>')
+    for k, joint in enumerate(CARRIER_JOINTS):
+        kind = "prismatic" if k < 3 else "continuous"
+        limit = '<limit lower="-1e4" upper="1e4" effort="1" velocity="10"/>' if k < 3 else \
+            '<limit effort="1" velocity="10"/>'
+        out.append(f'  <joint name="{joint}" type="{kind}"><parent link="{links[k]}"/><child link="{links[k + 1]}"/>'
+                   f'<axis xyz="{axes[k]}"/>{limit}</joint>')
+    out.append("</robot>\n")
+    return "\n".join(out)
+
+
+def _mesh_elements_urdf(decomposition: meshes.Decomposition) -> str:
+    lines = [f'    <collision name="piece{i}"><geometry><mesh filename="{p}"><drake:declare_convex/></mesh>'
+             f'</geometry></collision>' for i, p in enumerate(decomposition.pieces)]
+    lines.append(f'    <visual><geometry><mesh filename="{decomposition.visual}"/></geometry></visual>')
+    return "\n".join(lines) + "\n"
+
+
+def env_sdf(name: str, decomposition: meshes.Decomposition, pose: list[float]) -> str:
+    """A static SDF model: the pieces as convex collision shapes, the original mesh as the visual, placed at pose."""
+    x, y, z, r, p, w = pose
+    rpy = " ".join(f"{math.radians(a):.17g}" for a in (r, p, w))
+    lines = ['<?xml version="1.0"?>', '<sdf version="1.9" xmlns:drake="http://drake.mit.edu">',
+             f'  <model name="{name}">', "    <static>true</static>", '    <link name="body">',
+             f"      <pose>{x:.17g} {y:.17g} {z:.17g} {rpy}</pose>"]
+    for i, piece in enumerate(decomposition.pieces):
+        lines.append(f'      <collision name="piece{i}"><geometry><mesh><uri>file://{piece}</uri>'
+                     f'<drake:declare_convex/></mesh></geometry></collision>')
+    lines.append(f'      <visual name="mesh"><geometry><mesh><uri>file://{decomposition.visual}</uri></mesh>'
+                 f'</geometry></visual>')
+    lines += ["    </link>", "  </model>", "</sdf>", ""]
+    return "\n".join(lines)
+
+
+def _quoted_uri(path: Path) -> str:
+    return json.dumps(f"file://{path}")  # a JSON string is a YAML double-quoted scalar
+
+
+def _pose_yaml(pose: list[float]) -> str:
+    x, y, z, r, p, w = pose
+    return (f"    X_PC:\n      translation: [{x!r}, {y!r}, {z!r}]\n"
+            f"      rotation: !Rpy {{ deg: [{r!r}, {p!r}, {w!r}] }}\n")
+
+
+def _world_box(bounds: np.ndarray, pose: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The world-frame box around a local box moved by pose (corners transformed)."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    X = RigidTransform(RollPitchYaw(np.radians(pose[3:])), pose[:3])
+    corners = np.array([[bounds[i][0], bounds[j][1], bounds[k][2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    world = (X.rotation().matrix() @ corners.T).T + X.translation()
+    return world.min(axis=0), world.max(axis=0)
+
+
+def _write(path: Path, text: str) -> None:
+    """Write only when different, via a temporary file and rename (other processes may read it meanwhile)."""
+    try:
+        if path.is_file() and path.read_text() == text:
+            return
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror or exc} "
+                        f"(set {meshes.CACHE_ENV} to a writable folder)") from None
+
+
+# ---- the builder --------------------------------------------------------------------------------------------------
+def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | None = None,
+                progress: bool = True) -> CustomScene:
+    """The Scene for `spec`. Relative paths are taken from `base` (the scene file's directory, or the cwd)."""
+    import time
+
+    started = time.perf_counter()
+    base = base or Path.cwd()
+
+    def resolve(p: str) -> Path:
+        path = Path(p).expanduser()
+        return (path if path.is_absolute() else base / path).resolve()
+
+    if not spec.robot:
+        raise UserError("a robot is required (--robot FILE.urdf|.sdf|MESH)")
+    if spec.collisions not in ("environment", "all"):
+        raise UserError("collisions must be 'environment' or 'all'")
+    if spec.mesh_method not in meshes.METHODS:
+        raise UserError(f"unknown mesh method '{spec.mesh_method}' (known: {', '.join(meshes.METHODS)})")
+    if spec.resolution < 0 or spec.mesh_tolerance < 0:
+        raise UserError("resolution and mesh tolerance must not be negative")
+    packages = parse_package_paths(spec.package_path, base)
+    robot_path = resolve(spec.robot)
+    robot_kind = _kind(robot_path, "robot")
+    env_paths = [resolve(p) for p in spec.env]
+    env_kinds = [_kind(p, "environment") for p in env_paths]
+    poses = parse_poses(spec.env_pose, len(env_paths)) if env_paths else []
+    if spec.env_pose and not env_paths:
+        raise UserError("an env pose needs an --env")
+    if not spec.start or not spec.goal:
+        raise UserError("start and goal are required (--start and --goal)")
+    bounds = parse_bounds(spec.bounds)
+    mesh_options = {"method": spec.mesh_method, "tolerance": spec.mesh_tolerance or None, "cache_dir": cache_dir,
+                    "progress": progress}
+    root = (cache_dir or meshes.cache_root())
+    info = {"robot": str(robot_path), "env": [str(p) for p in env_paths], "decompositions": []}
+
+    files: dict[str, str] = {}  # generated file name -> text
+    directives = ["directives:"]
+    robot_instances: list[str] = []
+    floating = robot_kind == "mesh" or spec.floating
+    if robot_kind == "mesh":
+        decomposition = meshes.decompose(robot_path, **mesh_options)
+        info["decompositions"].append(_describe(robot_path, decomposition))
+        files["robot.urdf"] = carrier_urdf("robot", _mesh_elements_urdf(decomposition))
+        directives += ["- add_model:", "    name: robot", "    file: file://@DIR@/robot.urdf",
+                       "- add_weld:", "    parent: world", "    child: robot::origin"]
+        robot_instances = ["robot"]
+    else:
+        robot_file = convert_model_meshes(robot_path, packages, cache_dir)
+        probe = probe_model(robot_file, packages)
+        robot_instances = ["robot"]
+        if floating:
+            if len(probe["floating"]) != 1:
+                raise UserError(f"{robot_path.name}: --floating needs one root body not attached to the world, "
+                                f"found {len(probe['floating'])}")
+            # The carrier first, so that its x, y, z, yaw, pitch, roll are the first six coordinates.
+            files["carrier.urdf"] = carrier_urdf("carrier")
+            directives += ["- add_model:", "    name: carrier", "    file: file://@DIR@/carrier.urdf",
+                           "- add_weld:", "    parent: world", "    child: carrier::origin",
+                           "- add_model:", "    name: robot", f"    file: {_quoted_uri(robot_file)}",
+                           "- add_weld:", "    parent: carrier::body", f"    child: robot::{probe['floating'][0]}"]
+            robot_instances = ["carrier", "robot"]
+        else:
+            directives += ["- add_model:", "    name: robot", f"    file: {_quoted_uri(robot_file)}"]
+            for body in probe["floating"]:
+                directives += ["- add_weld:", "    parent: world", f"    child: robot::{body}"]
+
+    robot_directives = list(directives)
+    env_lo, env_hi = [], []
+    for i, (path, kind, pose) in enumerate(zip(env_paths, env_kinds, poses)):
+        name = f"env{i}"
+        if kind == "mesh":
+            decomposition = meshes.decompose(path, **mesh_options)
+            info["decompositions"].append(_describe(path, decomposition))
+            files[f"{name}.sdf"] = env_sdf(name, decomposition, pose)
+            directives += ["- add_model:", f"    name: {name}", f"    file: file://@DIR@/{name}.sdf"]
+            lo, hi = _world_box(np.array(decomposition.extent()), pose)
+            env_lo.append(lo)
+            env_hi.append(hi)
+        else:
+            model_file = convert_model_meshes(path, packages, cache_dir, mesh_options, info["decompositions"])
+            probe = probe_model(model_file, packages)
+            directives += ["- add_model:", f"    name: {name}", f"    file: {_quoted_uri(model_file)}"]
+            if probe["floating"]:
+                directives += ["- add_weld:", "    parent: world", f"    child: {name}::{probe['floating'][0]}",
+                               _pose_yaml(pose).rstrip("\n")]
+                if len(probe["floating"]) > 1:
+                    raise UserError(f"{path.name}: an environment model must be static or one rigid body")
+            elif any(pose):
+                raise UserError(f"{path.name}: a static SDF model cannot be moved by --env-pose; "
+                                f"set its <pose> in the file")
+
+    # The robot part alone gives the coordinates (the environment adds none: static or welded).
+    key_text = "\n".join(directives) + "".join(files.values()) + repr(sorted(packages.items()))
+    scene_dir = root / "scenes" / hashlib.sha256(key_text.encode()).hexdigest()[:24]
+    for name, text in files.items():
+        _write(scene_dir / name, text)
+    _write(scene_dir / "robot.dmd.yaml", "\n".join(robot_directives).replace("@DIR@", str(scene_dir)) + "\n")
+    _write(scene_dir / "scene.dmd.yaml", "\n".join(directives).replace("@DIR@", str(scene_dir)) + "\n")
+    coords = probe_robot(scene_dir / "robot.dmd.yaml", packages, robot_instances)
+    nq = len(coords["names"])
+
+    start = _vector(spec.start, nq, "start", coords["names"])
+    goal = _vector(spec.goal, nq, "goal", coords["names"])
+    angular = np.array([k == "revolute" for k in coords["kinds"]])
+    lower = np.where(np.isfinite(coords["lower"]), coords["lower"], -math.pi)
+    upper = np.where(np.isfinite(coords["upper"]), coords["upper"], math.pi)
+    lower = np.where(angular | np.isfinite(coords["lower"]), lower, np.nan)
+    upper = np.where(angular | np.isfinite(coords["upper"]), upper, np.nan)
+    if floating:
+        lower[:3], upper[:3] = -1e4, 1e4
+        lower[3:6], upper[3:6] = -math.pi, math.pi
+    if bounds:
+        if len(bounds) == nq:
+            lower, upper = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
+        elif floating and len(bounds) == 3:
+            lower[:3], upper[:3] = [b[0] for b in bounds], [b[1] for b in bounds]
+        else:
+            raise UserError(f"--bounds needs {nq} lo..hi items (one per coordinate: {', '.join(coords['names'])})"
+                            + (" or 3 for x, y, z" if floating else "") + f"; got {len(bounds)}")
+    elif floating:
+        if not env_lo:
+            raise UserError("a floating robot with no environment needs --bounds for x, y, z")
+        margin = coords["reach"]
+        lo = np.minimum(np.min(env_lo, axis=0) - margin, np.minimum(start[:3], goal[:3]))
+        hi = np.maximum(np.max(env_hi, axis=0) + margin, np.maximum(start[:3], goal[:3]))
+        lower[:3], upper[:3] = lo, hi
+    if not np.all(np.isfinite(lower) & np.isfinite(upper)):
+        missing = [coords["names"][i] for i in range(nq) if not (np.isfinite(lower[i]) and np.isfinite(upper[i]))]
+        raise UserError(f"no limits for {', '.join(missing)}: give --bounds")
+
+    # Weights: an angle's weight is the lever arm it swings (the robot's radius or reach), metres weigh 1.
+    lever = max(coords["reach"], 1e-6)
+    weights = np.where(angular, lever, 1.0)
+    resolution = spec.resolution or max(0.25 * coords["thin"], 1e-3 * lever)
+    problem = {
+        "description": spec.description or f"{robot_path.name} among {', '.join(p.name for p in env_paths) or '-'}",
+        "directives": "scene.dmd.yaml", "robot": robot_instances, "collisions": spec.collisions,
+        "lower": lower.tolist(), "upper": upper.tolist(), "start": start.tolist(), "goal": goal.tolist(),
+        "weights": weights.tolist(), "resolution": float(resolution), "view": "3d",
+        # A joint without a velocity limit gets 1 (m/s or rad/s), so the trajectory has a sensible duration.
+        "velocity_limits": np.where(np.isfinite(coords["velocity"]) & (coords["velocity"] > 0),
+                                    coords["velocity"], 1.0).tolist(),
+    }
+    text = json.dumps(problem, indent=1) + "\n"  # JSON is YAML
+    problem_path = scene_dir / f"problem-{hashlib.sha256(text.encode()).hexdigest()[:16]}.yaml"
+    _write(problem_path, text)
+    info["prepare_seconds"] = time.perf_counter() - started
+    name = f"{robot_path.stem}-in-{'+'.join(p.stem for p in env_paths) or 'nothing'}"
+    load_started = time.perf_counter()
+    scene = CustomScene(problem_path, packages, name, info)
+    info["drake_load_seconds"] = time.perf_counter() - load_started
+    info["scene_dir"] = str(scene_dir)
+    return scene
+
+
+def _describe(path: Path, d: meshes.Decomposition) -> dict:
+    if len(d.pieces) > 400:
+        import sys
+
+        print(f"warning: {path.name} became {len(d.pieces)} convex pieces; Drake's set-up time grows with the square "
+              f"of that (about 5 s at 1000, 20 s at 2000): consider a larger --mesh-tolerance", file=sys.stderr)
+    return {"mesh": path.name, "method": d.method, "pieces": len(d.pieces), "from_cache": d.from_cache,
+            "seconds": round(d.seconds, 3), "validation": {k: d.validation.get(k) for k in
+                                                         ("ok", "tolerance", "near_surface_points", "free_points",
+                                                          "violations")}}
+
+
+def _vector(values, nq: int, what: str, names: list[str]) -> np.ndarray:
+    vector = np.asarray(values, float)
+    if vector.shape != (nq,) or not np.all(np.isfinite(vector)):
+        raise UserError(f"{what} needs {nq} finite numbers ({', '.join(names)}), got {len(values)}")
+    return vector
+
+
+# ---- entry points -------------------------------------------------------------------------------------------------
+def is_custom_scene_file(path: Path) -> bool:
+    """A YAML scene file whose `robot` is a file name (not a list of model instances) or that has an `env` key."""
+    from pydrake.common.yaml import yaml_load
+
+    try:
+        data = yaml_load(filename=str(path))
+    except Exception:
+        return False
+    return isinstance(data, dict) and (isinstance(data.get("robot"), str) or "env" in data)
+
+
+def read_spec(path: Path) -> CustomSpec:
+    from pydrake.common.yaml import yaml_load_typed
+
+    try:
+        return yaml_load_typed(schema=CustomSpec, filename=str(path))
+    except Exception as exc:
+        raise UserError(f"bad scene file {path.name}: {' '.join(str(exc).split())[:300]}") from None
+
+
+def load_scene(name_or_path: str, cache_dir: Path | None = None) -> Scene:
+    """A shipped scene, a problem file, or a custom scene file (robot/env keys): the one loader commands need."""
+    path = Path(name_or_path)
+    if path.suffix == ".yaml" and path.is_file() and is_custom_scene_file(path):
+        return build_scene(read_spec(path), base=path.resolve().parent, cache_dir=cache_dir)
+    return Scene(name_or_path)
+
+
+def add_arguments(parser, scene_optional: bool = True) -> None:
+    """The --robot/--env flags, for any command that takes a scene (`plan`, `prepare`)."""
+    group = parser.add_argument_group("bring your own robot and environment (instead of SCENE)")
+    group.add_argument("--robot", metavar="FILE", help="robot .urdf/.sdf, or a mesh (a free-flying rigid body)")
+    group.add_argument("--package-path", metavar="NAME=DIR", action="append", default=[],
+                       help="resolve package://NAME/... in the robot's files to DIR (repeatable)")
+    group.add_argument("--floating", action="store_true",
+                       help="carry a URDF/SDF robot's root in SE(3) (x, y, z, yaw, pitch, roll) instead of welding it")
+    group.add_argument("--env", metavar="FILE", action="append", default=[],
+                       help="obstacle mesh (.obj/.stl/.dae/...) or .sdf/.urdf (repeatable)")
+    group.add_argument("--env-pose", metavar="X,Y,Z,R,P,Y", action="append", default=[],
+                       help="place the environment: metres and roll,pitch,yaw in degrees (once, or once per --env; "
+                            "--env-pose=-1,... for a leading minus sign)")
+    group.add_argument("--bounds", metavar="LO..HI,...",
+                       help="lo..hi per coordinate, or for a floating robot per x,y,z only (write --bounds=-1..1,... "
+                            "when it starts with a minus sign)")
+    group.add_argument("--mesh-method", choices=meshes.METHODS, default="auto",
+                       help="convex decomposition of meshes (default auto: per mesh, validated)")
+    group.add_argument("--mesh-tolerance", type=float, default=0.0, metavar="M",
+                       help="how far a decomposition may reach beyond the mesh surface (default 0.2%% of its size)")
+    group.add_argument("--resolution", type=float, default=0.0, metavar="STEP",
+                       help="edge-check step (default: a quarter of the robot's smallest extent)")
+    group.add_argument("--self-collision", action="store_true",
+                       help="count the robot's collisions with itself too (default: only with the environment)")
+
+
+def spec_from_args(args) -> CustomSpec | None:
+    """A CustomSpec from parsed flags, or None when no --robot was given. `args.start`/`args.goal` are lists."""
+    if not getattr(args, "robot", None):
+        if getattr(args, "env", None):
+            raise UserError("--env needs --robot")
+        return None
+    pose = []
+    for text in args.env_pose:
+        try:
+            pose += [float(v) for v in text.split(",")]
+        except ValueError:
+            raise UserError(f"--env-pose needs numbers x,y,z,roll,pitch,yaw, got '{text}'") from None
+    return CustomSpec(robot=args.robot, package_path=list(args.package_path), floating=args.floating,
+                      env=list(args.env), env_pose=pose, start=list(args.start or []), goal=list(args.goal or []),
+                      bounds=[args.bounds] if args.bounds else [],
+                      collisions="all" if args.self_collision else "environment",
+                      resolution=args.resolution, mesh_method=args.mesh_method, mesh_tolerance=args.mesh_tolerance)
+
+
+def scene_from_args(args, scene: str | None = None) -> Scene:
+    """The scene a command works on: --robot/--env when given, else SCENE (a name or a scene file)."""
+    spec = spec_from_args(args)
+    if spec is not None:
+        if scene:
+            raise UserError("give either SCENE or --robot/--env, not both")
+        return build_scene(spec)
+    if not scene:
+        raise UserError("a SCENE (name or file) or --robot is required")
+    return load_scene(scene)

@@ -1,0 +1,39 @@
+"""The seven samplers, registered by name: the CLI, the benchmarks and the planner share this one table.
+
+Every sampler talks only to the collision oracle. `make_sampler(name, oracle, step=..., **params)` builds one;
+`sampler.sample(k, rng)` returns k free configurations and leaves its statistics in `sampler.stats`.
+"""
+from __future__ import annotations
+
+from functools import partial
+
+from app.errors import UserError
+from app.samplers.base import Sampler, SamplerBudgetExceeded
+from app.samplers.bridge import BridgeSampler
+from app.samplers.uniform import GaussianSampler, UniformSampler
+from app.samplers.walk import Walker
+
+SAMPLERS = {
+    "uniform": UniformSampler,
+    "gaussian": GaussianSampler,
+    "rbbs": BridgeSampler,
+    "rws": partial(Walker, step_law="gaussian", bridge=False, name="rws"),
+    "lfs": partial(Walker, step_law="levy", bridge=False, name="lfs"),
+    "rwbs": partial(Walker, step_law="gaussian", bridge=True, name="rwbs"),
+    "lfbs": partial(Walker, step_law="levy", bridge=True, name="lfbs"),
+}
+
+
+def make_sampler(name: str, oracle, **params) -> Sampler:
+    """The sampler registered as `name`, built on `oracle` with `params` (e.g. step=10)."""
+    try:
+        factory = SAMPLERS[name]
+    except KeyError:
+        raise UserError(f"unknown sampler '{name}' (known: {', '.join(SAMPLERS)})") from None
+    try:
+        return factory(oracle, **params)
+    except TypeError as exc:  # an unknown or misspelt parameter
+        raise UserError(f"sampler '{name}': {exc}") from None
+
+
+__all__ = ["SAMPLERS", "Sampler", "SamplerBudgetExceeded", "make_sampler"]

@@ -1,0 +1,133 @@
+"""What every sampler shares: the sampling loop with its budget and statistics, and bounded random steps.
+
+A sampler is built with the oracle and its parameters and answers `sample(k, rng)` with k free, in-bounds
+configurations. It works in rounds: each round makes a vectorised batch of candidates and asks the oracle about
+all of them in as few `are_free` calls as possible, and the loop stops as soon as k samples exist. Work done on
+candidates that are then not needed is still counted by the oracle (gamma_c is honest).
+
+Steps are measured in the oracle's weighted metric: a coordinate's weight is the lever arm it swings, so a
+displacement of `s` workspace units along an angle is s / weight radians.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from app.errors import UserError
+
+
+class SamplerBudgetExceeded(UserError):
+    """The sampler spent its collision-check budget before it had k samples."""
+
+    exit_code = 1
+
+
+def unit_directions(rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
+    """n directions uniform on the unit sphere of R^dim."""
+    g = rng.normal(size=(n, dim))
+    norm = np.sqrt(np.einsum("ij,ij->i", g, g))[:, None]
+    return g / np.where(norm > 0, norm, 1.0)
+
+
+class Sampler:
+    """Base class. Subclasses implement `_round(rng, need) -> (samples, bridges or None)`."""
+
+    name = ""
+    has_bridges = False
+
+    def __init__(self, oracle, step: float = 10.0, max_checks: int = 2_000_000, max_rounds: int = 100_000,
+                 redraws: int = 20):
+        if not np.isfinite(step) or step <= 0:
+            raise UserError(f"step must be a positive finite number, got {step}")
+        self.oracle = oracle
+        self.step = float(step)
+        self.max_checks = int(max_checks)  # collision checks one sample() call may spend
+        self.max_rounds = int(max_rounds)  # rounds one sample() call may run (guards rounds that check nothing)
+        self.redraws = int(redraws)  # how often an out-of-bounds step is redrawn before that proposal is dropped
+        self.stats: dict = {}
+        self.bridges: np.ndarray | None = None  # (k, 2, dim) colliding bridge endpoints of the last samples
+
+    # ---- the loop ------------------------------------------------------------------------------------------
+    def sample(self, k: int, rng: np.random.Generator) -> np.ndarray:
+        """k free, in-bounds configurations (continuous angles wrapped), shape (k, dim)."""
+        k = int(k)
+        if k <= 0:
+            raise UserError(f"k must be positive, got {k}")
+        oracle = self.oracle
+        self.stats = {"attempts": 0, "gave_up": 0, "rounds": 0, "checks": 0}
+        self._begin(rng)
+        samples, bridges, have = [], [], 0
+        start = oracle.checks
+        while have < k:
+            spent = oracle.checks - start
+            if spent > self.max_checks or self.stats["rounds"] >= self.max_rounds:
+                self.stats["checks"] = spent
+                raise SamplerBudgetExceeded(
+                    f"{self.name}: gave up after {spent} collision checks and {self.stats['rounds']} rounds "
+                    f"with {have} of {k} samples (raise max_checks or change the step)")
+            self.stats["rounds"] += 1
+            got, ends = self._round(rng, k - have)
+            if len(got):
+                got = got[:k - have]
+                samples.append(got)
+                if ends is not None:
+                    bridges.append(ends[:len(got)])
+                have += len(got)
+        self.stats["checks"] = oracle.checks - start
+        out = np.concatenate(samples)
+        self.bridges = np.concatenate(bridges) if bridges else None
+        return out
+
+    def _begin(self, rng: np.random.Generator) -> None:
+        """Reset per-call state (so the same seed gives the same samples whatever ran before)."""
+
+    def _round(self, rng: np.random.Generator, need: int):
+        raise NotImplementedError
+
+    # ---- helpers -------------------------------------------------------------------------------------------
+    def _batch_size(self, need: int, rate: float, low: int = 16, high: int = 1024) -> int:
+        """Candidates for one round: enough to give `need` samples at the observed yield `rate`, within limits."""
+        return int(np.clip(np.ceil(1.25 * need / max(rate, 1e-3)), low, high))
+
+    def _offsets(self, rng: np.random.Generator, n: int, length: float, exact: bool) -> np.ndarray:
+        """n configuration-space offsets of weighted length `length` (exact) or Gaussian with that rms length."""
+        dim = self.oracle.dim
+        if exact:
+            w = unit_directions(rng, n, dim) * length
+        else:
+            w = rng.normal(0.0, length / np.sqrt(dim), size=(n, dim))
+        return w / self.oracle.weights
+
+    def _propose(self, rng: np.random.Generator, Q: np.ndarray, draw, spare: int = 4):
+        """Q + draw(rng, n), wrapped; a proposal that leaves the bounds is redrawn, up to `redraws` times.
+
+        After a first try of one candidate per row, each redraw draws `spare` candidates per remaining row in one
+        call and keeps the first in bounds (fewer numpy calls than redrawing row by row). Returns the proposals
+        and a mask of those in bounds; each row still out of bounds after all redraws counts one gave_up.
+        """
+        oracle = self.oracle
+        n, dim = Q.shape
+        P = oracle.wrap(Q + draw(rng, n))  # first try: one candidate per row (most steps stay in bounds)
+        ok = oracle.within_bounds(P) if n else np.zeros(0, bool)
+        todo = np.flatnonzero(~ok)
+        for _ in range(-(-self.redraws // spare)):
+            if not len(todo):
+                break
+            C = oracle.wrap(Q[todo, None, :] + draw(rng, len(todo) * spare).reshape(len(todo), spare, dim))
+            good = oracle.within_bounds(C.reshape(-1, dim)).reshape(len(todo), spare)
+            found = good.any(axis=1)
+            first = good.argmax(axis=1)
+            hit = todo[found]
+            P[hit] = C[found, first[found]]
+            ok[hit] = True
+            todo = todo[~found]
+        P[todo] = Q[todo]
+        self.stats["gave_up"] += len(todo)
+        return P, ok
+
+    def _collides(self, Q: np.ndarray) -> np.ndarray:
+        """In bounds and in collision (one batched oracle call). Out of bounds is not a collision: no obstacle there."""
+        inside = self.oracle.within_bounds(Q) if len(Q) else np.zeros(0, bool)
+        hit = np.zeros(len(Q), bool)
+        if inside.any():
+            hit[inside] = ~self.oracle.are_free(Q[inside])
+        return hit

@@ -1,0 +1,188 @@
+"""app.meshes: conversion, the per-mesh method choice, validation (it must be able to fail) and the cache."""
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("trimesh")
+
+from app import meshes  # noqa: E402
+from app.errors import UserError  # noqa: E402
+from mesh_shapes import bent_sheet, open_u, u_boxes, u_channel  # noqa: E402
+
+
+def test_convex_hull_of_a_u_channel_fails_validation():
+    mesh = u_channel()
+    check = meshes.validate(mesh, [meshes.hull_piece(mesh.vertices)], meshes.default_tolerance(mesh))
+    assert not check.ok
+    assert check.violations > 100 and check.worst_depth > 0.5  # the hull fills the 2-wide slot
+
+
+def test_a_dropped_piece_fails_validation():
+    mesh = open_u()
+    tol = meshes.default_tolerance(mesh)
+    pieces = meshes.face_pieces(mesh, slab=tol / 2, thickness=tol / 5, progress=False)
+    assert meshes.validate(mesh, pieces, tol).ok
+    check = meshes.validate(mesh, pieces[1:], tol)
+    assert not check.ok and check.uncovered > 0 and check.violations == 0
+
+
+def test_thick_face_pieces_fail_validation():
+    """Pieces thicker than the tolerance reach into free space near the surface: the check sees it."""
+    mesh = bent_sheet()
+    tol = meshes.default_tolerance(mesh)
+    pieces = meshes.face_pieces(mesh, slab=tol / 2, thickness=4 * tol, progress=False)
+    check = meshes.validate(mesh, pieces, tol)
+    assert not check.ok and check.violations > 0
+
+
+def test_open_channel_takes_exact_faces_and_coplanar_triangles_merge(tmp_path):
+    path = tmp_path / "u.stl"
+    open_u().export(path)
+    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert d.method == "faces" and d.facts["closed"] is False
+    assert len(d.pieces) == 8  # 16 triangles: each wall rectangle's two triangles become one piece
+    assert d.validation["ok"] and d.validation["violations"] == 0
+
+
+def test_overlapping_closed_boxes_are_one_piece_each(tmp_path):
+    path = tmp_path / "u.stl"
+    u_boxes().export(path)  # three boxes in one mesh, touching: not watertight as a whole, each part closed
+    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert d.method == "convex" and len(d.pieces) == 3 and d.facts["components"] == 3
+    assert d.validation["ok"]
+
+
+def test_bent_sheet_takes_exact_faces_and_validates(tmp_path):
+    path = tmp_path / "sheet.obj"
+    bent_sheet().export(path)
+    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert d.method == "faces"
+    assert d.validation["ok"] and d.validation["near_surface_points"] > 1000 and d.validation["free_points"] > 1000
+    # every piece is thin: within tolerance of the sheet
+    for piece in meshes.load_pieces(d):
+        radial = np.linalg.norm(piece.vertices[:, 1:], axis=1)
+        assert np.all(np.abs(radial - 2.0) < d.validation["tolerance"])
+
+
+def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path):
+    path = tmp_path / "u.stl"
+    u_channel().export(path)
+    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert first.facts["closed"] and not first.facts["convex"]
+    assert first.method in ("coacd", "faces") and first.validation["ok"] and not first.from_cache
+    started = time.perf_counter()
+    again = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert again.from_cache and time.perf_counter() - started < 0.5
+    assert [p.read_bytes() for p in again.pieces] == [p.read_bytes() for p in first.pieces]
+
+
+def test_forced_convex_hull_is_refused(tmp_path):
+    path = tmp_path / "u.obj"
+    u_channel().export(path)
+    with pytest.raises(UserError, match="no valid convex decomposition"):
+        meshes.decompose(path, method="convex", cache_dir=tmp_path, progress=False)
+
+
+def test_damaged_cache_entry_is_rebuilt(tmp_path, capsys):
+    path = tmp_path / "u.stl"
+    open_u().export(path)
+    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    good = first.pieces[3].read_bytes()
+    first.pieces[3].write_bytes(good[: len(good) // 2])  # truncated
+    rebuilt = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert not rebuilt.from_cache and rebuilt.pieces[3].read_bytes() == good
+    assert "damaged" in capsys.readouterr().err
+    (rebuilt.directory / "manifest.json").write_text("{not json")
+    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+
+
+def test_a_changed_mesh_is_a_new_entry(tmp_path):
+    path = tmp_path / "m.stl"
+    u_boxes().export(path)
+    a = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    u_boxes(length=5.0).export(path)
+    b = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert a.directory != b.directory and not b.from_cache
+
+
+def test_collada_is_read(tmp_path):
+    path = tmp_path / "u.dae"
+    u_boxes().export(path)
+    mesh = meshes.load_mesh(path)
+    assert len(mesh.faces) == 36
+
+
+@pytest.mark.parametrize("content, suffix, message", [
+    (None, ".stl", "not found"),
+    (b"this is not a mesh at all\n", ".stl", "cannot read mesh"),
+    (b"<COLLADA><broken", ".dae", "cannot read mesh"),
+    (b"solid x\nendsolid x\n", ".stl", "cannot read mesh"),
+    (b"v 0 0 0\n", ".xyz", "unsupported mesh format"),
+])
+def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message):
+    path = tmp_path / f"bad{suffix}"
+    if content is not None:
+        path.write_bytes(content)
+    with pytest.raises(UserError, match=message) as info:
+        meshes.decompose(path, cache_dir=tmp_path, progress=False) if suffix != ".xyz" else meshes.load_mesh(path)
+    assert "\n" not in str(info.value)
+
+
+def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch):
+    """As measured on thin-walled scenes: CoACD's pieces put free space in collision -> validation rejects them."""
+    def hull_instead(parts, *args, **kwargs):
+        return [[meshes.hull_piece(p.vertices)] for p in parts]
+
+    monkeypatch.setattr(meshes, "coacd_pieces", hull_instead)
+    path = tmp_path / "u.stl"
+    u_channel().export(path)
+    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    manifest = __import__("json").loads((d.directory / "manifest.json").read_text())
+    assert [t["ok"] for t in manifest["tried"]] == [False, True]
+    assert manifest["tried"][0]["methods"]["coacd"] == 1 and d.method == "faces" and d.validation["ok"]
+
+
+def test_a_crashing_coacd_falls_back_to_exact_faces(tmp_path, monkeypatch):
+    def crash(*args, **kwargs):
+        raise meshes.MethodFailed("CoACD failed (exit code -11)")
+
+    monkeypatch.setattr(meshes, "coacd_pieces", crash)
+    path = tmp_path / "u.stl"
+    u_channel().export(path)
+    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert d.method == "faces" and d.validation["ok"]
+    assert "exit code -11" in " ".join(d.validation["notes"])
+
+
+def test_collada_units_are_applied(tmp_path):
+    path = tmp_path / "mm.dae"
+    u_boxes().export(path)
+    text = path.read_text()
+    path.write_text(text.replace("<asset>", '<asset><unit meter="0.001" name="millimeter"/>', 1))
+    mesh = meshes.load_mesh(path)
+    assert np.allclose(mesh.extents, [0.004, 0.003, 0.002])
+
+
+@pytest.mark.slow
+def test_a_2700_face_scene_builds_once_and_loads_fast(tmp_path):
+    """Timings on a generated COLLADA scene: 110 thin walls (closed boxes) + a finely curved open sheet."""
+    import trimesh
+
+    rng = np.random.default_rng(0)
+    parts = []
+    for _ in range(110):
+        T = trimesh.transformations.translation_matrix(rng.uniform(-10, 10, 3))
+        R = trimesh.transformations.rotation_matrix(rng.uniform(0, np.pi), [0, 0, 1])
+        parts.append(trimesh.creation.box([rng.uniform(1, 4), 0.1, 3], T @ R))
+    sheet = bent_sheet(radius=3, n_arc=700, width=6)
+    sheet.apply_translation([0, 0, 12])
+    path = tmp_path / "scene.dae"
+    trimesh.util.concatenate(parts + [sheet]).export(path)
+    started = time.perf_counter()
+    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    built = time.perf_counter() - started
+    assert first.validation["ok"] and len(first.pieces) < 200 and built < 60
+    started = time.perf_counter()
+    again = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert again.from_cache and time.perf_counter() - started < 0.5

@@ -1,0 +1,188 @@
+"""The seven samplers: free in-bounds samples, real bridges, heavy Lévy tails, reproducibility, honest counts, CLI."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from app.errors import UserError
+from app.samplers import SAMPLERS, SamplerBudgetExceeded, make_sampler
+from app.samplers.levy import hill_tail_index, levy_stable
+from app.samplers.walk import Walker
+
+NAMES = ["uniform", "gaussian", "rbbs", "rws", "lfs", "rwbs", "lfbs"]
+BRIDGED = ["rbbs", "rwbs", "lfbs"]
+SCENES = ["bar", "teeth3d"]
+
+
+def _check_samples(oracle, X, k):
+    assert X.shape == (k, oracle.dim)
+    assert np.all(np.isfinite(X))
+    assert oracle.within_bounds(X).all()
+    assert np.all(X[:, oracle.continuous] >= -np.pi) and np.all(X[:, oracle.continuous] < np.pi)
+    assert all(oracle.is_free(q) for q in X)  # independent re-check, one configuration at a time
+
+
+def test_registry_names_and_errors(oracles):
+    assert list(SAMPLERS) == NAMES
+    with pytest.raises(UserError, match="known: uniform, gaussian, rbbs, rws, lfs, rwbs, lfbs"):
+        make_sampler("levy", oracles("bar"))
+    with pytest.raises(UserError, match="sampler 'lfbs'"):
+        make_sampler("lfbs", oracles("bar"), stepsize=3)
+    with pytest.raises(UserError):
+        make_sampler("rws", oracles("bar"), step=float("nan"))
+
+
+def test_four_walkers_are_one_class_with_two_switches(oracles):
+    expected = {"rws": ("gaussian", False), "lfs": ("levy", False), "rwbs": ("gaussian", True),
+                "lfbs": ("levy", True)}
+    for name, (law, bridge) in expected.items():
+        s = make_sampler(name, oracles("bar"), step=5)
+        assert type(s) is Walker and (s.step_law, s.bridge, s.name) == (law, bridge, name)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("name", NAMES)
+def test_samples_are_free_and_in_bounds(oracles, scene, name):
+    oracle = oracles(scene)
+    k = 4 if name == "rbbs" else 8
+    sampler = make_sampler(name, oracle, step=10)
+    X = sampler.sample(k, np.random.default_rng(3))
+    _check_samples(oracle, X, k)
+    for key in ("gave_up", "attempts"):
+        assert isinstance(sampler.stats[key], int) and sampler.stats[key] >= 0
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("name", BRIDGED)
+def test_bridge_endpoints_collide_and_straddle_the_sample(oracles, scene, name):
+    oracle = oracles(scene)
+    k = 4 if name == "rbbs" else 8
+    sampler = make_sampler(name, oracle, step=10)
+    X = sampler.sample(k, np.random.default_rng(5))
+    ends = sampler.bridges
+    assert ends.shape == (k, 2, oracle.dim)
+    for q, (a, b) in zip(X, ends):
+        assert oracle.within_bounds(a).all() and oracle.within_bounds(b).all()
+        assert not oracle.is_free(a) and not oracle.is_free(b)
+        # the sample is the bridge's midpoint: b = extend(a, q) = q + (q - a), angles the short way round
+        far = oracle.wrap(q + oracle.difference(a, q))
+        assert np.allclose(oracle.difference(far, b), 0.0, atol=1e-9)
+
+
+def test_unbridged_samplers_report_no_bridges(oracles):
+    s = make_sampler("lfs", oracles("bar"), step=10)
+    s.sample(3, np.random.default_rng(0))
+    assert s.bridges is None
+
+
+def test_levy_draws_are_heavy_tailed_and_gaussian_ones_are_not():
+    rng = np.random.default_rng(7)
+    for alpha in (1.9, 1.1):
+        assert abs(hill_tail_index(levy_stable(rng, alpha, 200_000)) - alpha) < 0.2
+    assert hill_tail_index(rng.normal(size=200_000)) > 4.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(alpha=st.floats(0.3, 2.0), seed=st.integers(0, 2**32 - 1))
+def test_levy_draws_are_finite_for_any_alpha(alpha, seed):
+    x = levy_stable(np.random.default_rng(seed), alpha, 2000)
+    assert x.shape == (2000,) and np.all(np.isfinite(x))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_same_seed_same_samples(oracles, name):
+    oracle = oracles("bar")
+    k, step = (2, 20) if name == "rbbs" else (6, 10)  # long bridges are cheap ones
+    a = make_sampler(name, oracle, step=step).sample(k, np.random.default_rng(11))
+    sampler = make_sampler(name, oracle, step=step)
+    sampler.sample(2, np.random.default_rng(99))  # state left over from an earlier call must not matter
+    b = sampler.sample(k, np.random.default_rng(11))
+    assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("name", ["uniform", "gaussian", "lfs", "lfbs"])
+def test_reported_checks_match_the_oracle_counter(oracles, name):
+    from app.bench.sampling import run_trial
+
+    oracle = oracles("teeth3d")
+    before = oracle.checks
+    row = run_trial(oracle, name, 10.0, seed=2, k=5, keep_samples=True)
+    assert row["ok"] and row["collision_checks"] == oracle.checks - before > 0
+    assert len(row["samples"]) == 5
+
+
+def test_budget_is_bounded_and_reported(oracles):
+    oracle = oracles("bar")
+    sampler = make_sampler("rbbs", oracle, step=2, max_checks=500)
+    before = oracle.checks
+    with pytest.raises(SamplerBudgetExceeded, match="gave up after"):
+        sampler.sample(30, np.random.default_rng(0))
+    assert oracle.checks - before < 500 + 5000  # stops within one round of the budget
+
+
+@settings(max_examples=6, deadline=None)
+@given(step=st.floats(2.0, 20.0), seed=st.integers(0, 10_000), walkers=st.sampled_from([None, 1, 7, 64]),
+       name=st.sampled_from(["rws", "lfs", "rwbs", "lfbs"]))
+def test_walkers_free_in_bounds_for_any_step_and_pool(oracles, step, seed, walkers, name):
+    oracle = oracles("bar")
+    sampler = make_sampler(name, oracle, step=step, walkers=walkers)
+    X = sampler.sample(3, np.random.default_rng(seed))
+    _check_samples(oracle, X, 3)
+
+
+def test_walk_length_is_bounded_and_counted(oracles):
+    # One-step walks often do not end free: those are abandoned, and each abandonment is counted.
+    sampler = make_sampler("rws", oracles("bar"), step=5, max_steps=1, walkers=32)
+    sampler.sample(2, np.random.default_rng(0))
+    assert sampler.stats["gave_up"] > 0
+
+
+def test_proposals_never_leave_the_bounds(oracles):
+    oracle = oracles("bar")
+    sampler = make_sampler("lfs", oracle, step=20)
+    sampler.stats = {"gave_up": 0}
+    Q = oracle.uniform(np.random.default_rng(1), 500)
+    Q[:, 0] = oracle.upper[0]  # on the edge: about half the steps leave the bounds at first
+    P, ok = sampler._propose(np.random.default_rng(2), Q, sampler._draw)
+    assert oracle.within_bounds(P[ok]).all() and ok.mean() > 0.95
+
+
+def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(oracles):
+    oracle = oracles("bar")
+    lfbs = make_sampler("lfbs", oracle, step=10).sample(30, np.random.default_rng(0))
+    uniform = make_sampler("uniform", oracle).sample(1000, np.random.default_rng(0))
+    assert oracle.in_passage(uniform).mean() < 0.02
+    assert oracle.in_passage(lfbs).mean() >= 5 * max(oracle.in_passage(uniform).mean(), 0.01)
+
+
+# ---- CLI ---------------------------------------------------------------------------------------------------------
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True, env=dict(os.environ),
+                          timeout=120)
+
+
+@pytest.mark.parametrize("args", [
+    ["--sampler", "levy"], ["--sampler", "lfbs", "-k", "0"], ["--sampler", "lfbs", "--step", "nan"],
+])
+def test_cli_bad_input_is_one_line_exit_2(args):
+    result = _cli("sample", "bar", *args)
+    assert result.returncode == 2
+    assert result.stdout == "" and len(result.stderr.strip().splitlines()) == 1
+    assert result.stderr.startswith("error:")
+
+
+def test_cli_json(tmp_path):
+    png = tmp_path / "s.png"
+    result = _cli("sample", "bar", "--sampler", "lfbs", "-k", "5", "--step", "10", "--seed", "4", "--json",
+                  "--png", str(png))
+    assert result.returncode == 0, result.stderr
+    out = json.loads(result.stdout)
+    for key in ("scene", "sampler", "k", "step", "seed", "samples", "collision_checks", "seconds",
+                "passage_fraction", "gave_up"):
+        assert key in out
+    assert len(out["samples"]) == 5 and out["collision_checks"] > 0 and png.stat().st_size > 0
