@@ -1,10 +1,15 @@
 """The collision oracle: the one object samplers and planners talk to. It owns every Drake query and counts them.
 
-Two Drake paths, each where it is fastest (measured on the 9-DOF planar arm, see `python -m app bench oracle`):
-- one configuration: raw SceneGraph `QueryObject.HasCollisions` from a Python loop (about 4x cheaper than
-  `SceneGraphCollisionChecker.CheckConfigCollisionFree`, which computes padded distances);
-- a batch: `SceneGraphCollisionChecker.CheckConfigsCollisionFree`, whose C++ loop spreads over threads. pydrake holds
-  the GIL in `HasCollisions`, so Python threads cannot parallelise the raw path.
+Two Drake paths (measured on the 9-DOF planar arm, see `python -m app bench oracle`):
+- raw SceneGraph `QueryObject.HasCollisions` from a Python loop: about 16 us a configuration, free or not; always
+  used for one configuration (`CheckConfigCollisionFree` computes distances and costs several times more);
+- `SceneGraphCollisionChecker.CheckConfigsCollisionFree`, whose C++ loop spreads a batch over threads (pydrake
+  holds the GIL in `HasCollisions`, so Python threads cannot parallelise the raw path). On 2 threads it costs about
+  6 us per *free* configuration but 25-35 us per *colliding* one (it computes signed distances of penetrating
+  pairs), and it suffers most when other processes hold the cores.
+So no fixed choice fits both a walker's batches (mostly colliding proposals) and a roadmap's edge points (mostly
+free): `are_free` keeps a running cost per configuration for each path, takes the cheaper, and re-measures the
+other now and then, so it follows the caller's phase and the machine's load. Both paths give the same answers.
 Both see the same collision pairs: the scene's policy is applied to the checker (body pairs) and to the raw
 query context (geometry filter), and a test holds them to agreement.
 
@@ -15,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import os
+import time
 
 import numpy as np
 
@@ -23,6 +29,8 @@ from app.scene import Scene
 
 # Below this many configurations the checker's batch set-up costs more than the raw loop saves.
 _BATCH_MIN = 8
+# Every this many batch calls, the path not in favour is measured again.
+_PROBE_EVERY = 16
 
 
 
@@ -52,6 +60,8 @@ class CollisionOracle:
         self._hi = np.where(self.continuous, 1e300, self.upper)
         self.threads = threads or default_threads()
         self._parallelism = Parallelism(self.threads)
+        self._cost = {"batch": None, "raw": None}  # running seconds per configuration of each are_free path
+        self._batch_calls = 0
         self.checks = 0
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
@@ -145,13 +155,33 @@ class CollisionOracle:
         free = self.within_bounds(Q)
         inside = np.flatnonzero(free)
         self.checks += len(inside)
-        # On one thread the raw loop is cheapest; the checker's batch pays off once it can use a second core.
         if self.threads == 1 or len(inside) < _BATCH_MIN:
+            path = "raw"
+        else:
+            path = self._choose_path()
+        start = time.perf_counter()
+        if path == "raw":
             for i in inside:
                 free[i] = self._raw_free(Q[i])
         else:
             free[inside] = self.checker.CheckConfigsCollisionFree(list(Q[inside]), parallelize=self._parallelism)
+        if len(inside) >= _BATCH_MIN:
+            cost = (time.perf_counter() - start) / len(inside)
+            old = self._cost[path]
+            self._cost[path] = cost if old is None else 0.7 * old + 0.3 * cost
         return free
+
+    def _choose_path(self) -> str:
+        """The batch path with the lower running cost per configuration; each is tried first, and the other one
+        is re-measured every _PROBE_EVERY calls."""
+        self._batch_calls += 1
+        for path, cost in self._cost.items():
+            if cost is None:
+                return path
+        best = min(self._cost, key=self._cost.get)
+        if self._batch_calls % _PROBE_EVERY == 0:
+            return "batch" if best == "raw" else "raw"
+        return best
 
     def interpolate(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
         """Points from q1 to q2 (both included) no more than `resolution` apart in the weighted metric."""

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+import app  # noqa: F401  (before pydrake: it sets OpenMP's wait policy, see app/__init__.py)
+
 
 def _offline_drake_cache() -> Path:
     import pydrake

@@ -140,3 +140,24 @@ def test_in_passage_sees_the_frame_in_the_box(oracles):
 
 def test_every_shipped_scene_is_listed():
     assert set(SAMPLING_SCENES) <= set(scene_names())
+
+
+def test_both_batch_paths_give_the_same_answers_and_the_cheaper_is_chosen():
+    from app.oracle import CollisionOracle
+    from app.scene import Scene
+
+    oracle = CollisionOracle(Scene("bar"), threads=2)
+    Q = oracle.uniform(np.random.default_rng(5), 400)
+    answers = {}
+    for path in ("batch", "raw"):
+        oracle._cost = {"batch": None, "raw": None}
+        oracle._cost["raw" if path == "batch" else "batch"] = 1.0  # the other path looks dear: this one is taken
+        answers[path] = oracle.are_free(Q)
+    assert np.array_equal(answers["batch"], answers["raw"])
+    oracle._cost = {"batch": 5e-6, "raw": 2e-5}
+    oracle._batch_calls = 1
+    assert oracle._choose_path() == "batch"
+    oracle._cost = {"batch": 9e-5, "raw": 2e-5}
+    assert oracle._choose_path() == "raw"
+    oracle._batch_calls = 15  # the next call re-measures the path out of favour
+    assert oracle._choose_path() == "batch"
