@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 
 plan: $(STAMP)
 	mkdir -p out
-	$(PY) -m app show bar --png out/bar.png
+	$(PY) -m app run window --html out/window.html
 
 # The browser check needs Debian's chromium; CI machines start without it.
 chromium:
