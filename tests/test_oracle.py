@@ -113,11 +113,12 @@ def test_contacts_tell_environment_from_self(oracles):
     assert oracle.contacts(in_wall)["environment"]
 
 
-@pytest.mark.parametrize("name", SAMPLING_SCENES)
+@pytest.mark.parametrize("name", scene_names())
 def test_scene_start_goal_free_and_outside_the_passage(oracles, name):
     oracle = oracles(name)
     ends = np.array([oracle.scene.start, oracle.scene.goal])
     assert oracle.are_free(ends).all()
+    assert oracle.scene.passage_boxes
     assert not oracle.in_passage(ends).any()
 
 

@@ -122,15 +122,6 @@ def test_quadrotor_model_and_safety_hull(oracles):
     assert shape.radius() - reach >= 0.1 - 1e-9 and shape.length() / 2 - top >= 0.1 - 1e-9  # the margin
 
 
-@pytest.mark.parametrize("name", NEW_SCENES)
-def test_new_scene_start_goal_free_and_outside_the_passage(oracles, name):
-    oracle = oracles(name)
-    ends = np.array([oracle.scene.start, oracle.scene.goal])
-    assert oracle.are_free(ends).all()
-    assert not oracle.in_passage(ends).any()
-    assert oracle.scene.passage_boxes
-
-
 @pytest.mark.parametrize("name", ARM_SCENES)
 def test_arm_passage_is_rarely_hit_by_uniform_sampling(oracles, name):
     oracle = oracles(name)
