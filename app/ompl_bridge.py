@@ -98,6 +98,22 @@ class OmplProblem:
     def solution(self) -> np.ndarray:
         return np.array([self.to_q(s) for s in self.setup.getSolutionPath().getStates()])
 
+    def solution_for_oracle(self) -> np.ndarray:
+        """The solution with waypoints added so that our oracle's edges (which take the short way round on
+        continuous joints) follow OMPL's straight, unwrapped motions: check this one with oracle.edges_free."""
+        return straight_waypoints(self.oracle, self.solution())
+
+
+def straight_waypoints(oracle, path: np.ndarray) -> np.ndarray:
+    """Split each edge so no continuous joint turns by half a turn or more within a piece: the short way round
+    (our metric) and OMPL's linear interpolation are then the same motion."""
+    out = [path[0]]
+    for a, b in zip(path[:-1], path[1:]):
+        turn = np.max(np.abs(b - a)[oracle.continuous], initial=0.0)
+        pieces = max(1, int(np.ceil(turn / (0.5 * np.pi))))  # < pi per piece, with room to spare
+        out.extend(a + (b - a) * t for t in np.linspace(0.0, 1.0, pieces + 1)[1:])
+    return np.array(out)
+
 
 def _base():
     ob, _, _ = _ompl()

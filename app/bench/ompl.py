@@ -45,7 +45,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     success = problem.solve(spec.params["budget"])
     seconds = time.perf_counter() - start
     if success:  # OMPL's path is checked at OMPL's resolution; hold it to ours, as our planner's paths are held
-        path = problem.solution()
+        path = problem.solution_for_oracle()  # OMPL's own motions (it does not wrap angles), not short-way edges
         success = bool(oracle.edges_free(path[:-1], path[1:], oracle.resolution / 4).all())
     return {"success": float(success), "seconds": seconds, "collision_checks": oracle.checks}
 

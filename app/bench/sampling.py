@@ -80,6 +80,30 @@ def run_trial(oracle, sampler_name: str, step: float, seed: int, k: int = 30, ma
     return row
 
 
+def run_trial_spec(oracle, spec) -> dict:
+    """One sampling trial from a results-store TrialSpec (experiment "sampling"; method = sampler name).
+
+    params: k (default 30), max_checks (default none), margin (default twice the scene's resolution). The row
+    holds `censored` (the trial spent its check budget: collision_checks and seconds are then lower bounds and
+    passage_fraction is None) and `sample_checksum`, a hash of the samples that is the same wherever the trial ran.
+    """
+    import hashlib
+
+    p = spec.params
+    margin = p.get("margin")
+    margin = 2 * oracle.resolution if margin is None else float(margin)
+    oracle.reset()
+    row = run_trial(oracle, spec.method, spec.step, spec.seed, k=int(p.get("k", 30)), margin=margin,
+                    max_checks=p.get("max_checks"), keep_samples=True)
+    samples = np.round(np.asarray(row.pop("samples"), float), 9)
+    row.pop("bridges", None)
+    row["sample_checksum"] = hashlib.sha256(samples.tobytes()).hexdigest()[:16] if len(samples) else None
+    row["censored"] = not row["ok"]
+    if not np.isfinite(row["passage_fraction"]):
+        row["passage_fraction"] = None  # no samples: no fraction (JSON has no NaN)
+    return row
+
+
 def summarise(rows: list[dict]) -> list[dict]:
     """Median and 95 % interval (2.5 / 97.5 percentiles) of each metric per scene x sampler x step."""
     cells: dict[tuple, list[dict]] = {}

@@ -1,0 +1,469 @@
+"""`bench paper`: the paper's Section IV in one command -- every sweep into one results store, then DIR/report.md.
+
+Sweeps (each a list of TrialSpecs built deterministically from the options, run by `runner.run_sweep`, so a killed
+run started again with the same options skips every stored trial):
+
+1. sampling -- the seven samplers x bar, joint, joint3d, teeth3d x steps 2..20 x N trials, K_c = 30 samples each,
+   with a per-trial collision-check budget (a trial that spends it is censored: its t_eps and gamma_c are lower
+   bounds and it has no passage fraction);
+2. table1 -- RBBS and LFBS t_eps vs step on bar-3link, bar-5link and bar (the paper's Table 1; the bar cells are the
+   same trials as sweep 1 and are not run twice);
+3. prm -- the maze/tunnel LFBS-vs-RBBS PRM tables (`bench uav` specs);
+4. ur3 -- the scripted UR3 welding and window jobs (`app.runs.run_job`), timed (experiment "ur3").
+
+The report is built from the store alone (`--report-only` rebuilds it without running anything): the claims C1-C5
+judged by `app.bench.claims.judge`, markdown tables, and PNG figures next to report.md.
+"""
+from __future__ import annotations
+
+import os
+import platform
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app.bench.store import ResultStore, TrialSpec
+from app.cli import float_list, positive_int
+
+SAMPLING_SCENES = ["bar", "joint", "joint3d", "teeth3d"]
+TABLE1_SCENES = ["bar-3link", "bar-5link", "bar"]
+TABLE1_METHODS = ["rbbs", "lfbs"]
+STEPS = [2.0, 5.0, 10.0, 15.0, 20.0]
+QUICK_STEPS = [2.0, 10.0]
+PARTS = ["sampling", "table1", "prm", "ur3"]
+UR3_JOBS = ["welding", "window"]
+UR3_SAMPLERS = ["lfbs", "rbbs"]
+UR3_SIZE = {"narrow": 200, "uniform": 100, "budget": 30.0}  # the paper: 200 LFBS samples, a 100-node PRM
+PICTURE_STEPS = {"bar": 2.0, "joint": 10.0, "joint3d": 10.0, "teeth3d": 10.0}  # the paper's Figs. 3, 5, 6
+PAPER_TABLE1 = {"bar-3link": [6.9561, 6.1784, 6.3532, 6.4736, 6.8388],
+                "bar-5link": [7.4344, 7.60037, 7.9361, 9.9487, 12.005],
+                "bar": [10.923, 9.3731, 9.5287, 12.665, 17.128]}  # RBBS t_eps (s) at steps 2, 5, 10, 15, 20
+PAPER_UR3 = {"welding": 233.0, "window": 253.0}  # LFBS-PRM, average seconds
+
+
+def register(kinds) -> None:
+    from app.samplers import SAMPLERS
+
+    p = kinds.add_parser("paper", help="the paper's Section IV: all sweeps into one store, then DIR/report.md")
+    p.add_argument("--trials", type=positive_int, default=None,
+                   help="trials (seeds) per sampling cell (default 300, --quick 3)")
+    p.add_argument("--quick", action="store_true",
+                   help="a few minutes: 3 trials, steps 2 and 10, 2 PRM seeds, 1 UR3 run per job")
+    p.add_argument("--workers", type=int, default=0, help="local processes (default: all cores)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
+                   help="run the trials on this Dask scheduler instead of local processes")
+    p.add_argument("--out", default="out/paper", help="report folder, with results.sqlite (default out/paper)")
+    p.add_argument("--report-only", action="store_true", help="rebuild report.md from the store; run nothing")
+    p.add_argument("--parts", default=",".join(PARTS), help=f"sweeps to run (default {','.join(PARTS)})")
+    p.add_argument("--scenes", default=None,
+                   help=f"sampling-sweep scenes (default {','.join(SAMPLING_SCENES)})")
+    p.add_argument("--samplers", default=",".join(SAMPLERS), help="sampling-sweep samplers (default all seven)")
+    p.add_argument("--steps", type=float_list, default=None, help="steps (default 2,5,10,15,20; --quick 2,10)")
+    p.add_argument("--max-checks", type=positive_int, default=200_000,
+                   help="collision-check budget per sampling trial; a trial that spends it is censored")
+    p.add_argument("--prm-seeds", type=positive_int, default=None, help="seeds per PRM cell (default 30, --quick 2)")
+    p.add_argument("--ur3-runs", type=positive_int, default=None, help="runs per UR3 job (default 5, --quick 1)")
+    p.set_defaults(func=run)
+
+
+@dataclass
+class Config:
+    trials: int = 300
+    steps: list = field(default_factory=lambda: list(STEPS))
+    scenes: list = field(default_factory=lambda: list(SAMPLING_SCENES))
+    samplers: list = field(default_factory=list)
+    max_checks: int = 200_000
+    k: int = 30
+    prm_seeds: int = 30
+    ur3_runs: int = 5
+    parts: list = field(default_factory=lambda: list(PARTS))
+    quick: bool = False
+
+    @classmethod
+    def from_args(cls, args) -> "Config":
+        from app.errors import UserError
+        from app.samplers import SAMPLERS
+
+        quick = args.quick
+        config = cls(
+            trials=args.trials or (3 if quick else 300),
+            steps=list(args.steps or (QUICK_STEPS if quick else STEPS)),
+            scenes=_names(args.scenes) if args.scenes else list(SAMPLING_SCENES),
+            samplers=_names(args.samplers),
+            max_checks=args.max_checks,
+            prm_seeds=args.prm_seeds or (2 if quick else 30),
+            ur3_runs=args.ur3_runs or (1 if quick else 5),
+            parts=_names(args.parts),
+            quick=bool(quick))
+        bad = [s for s in config.samplers if s not in SAMPLERS] or [p for p in config.parts if p not in PARTS]
+        if bad or not config.samplers or not config.scenes:
+            raise UserError(f"unknown sampler or part '{bad[0]}' (samplers: {', '.join(SAMPLERS)}; parts: "
+                            f"{', '.join(PARTS)})" if bad else "need at least one scene and one sampler")
+        if any(not (a > 0) for a in config.steps):
+            raise UserError("steps must be positive")
+        return config
+
+
+def _names(text: str) -> list[str]:
+    return [s.strip() for s in text.split(",") if s.strip()]
+
+
+# ----------------------------------------------------------------------------------------------------- the sweeps
+
+def sampling_specs(scenes, samplers, steps, trials, k=30, max_checks=200_000) -> list[TrialSpec]:
+    params = {"k": int(k), "max_checks": int(max_checks)}
+    return [TrialSpec("sampling", scene, sampler, float(step), seed, dict(params))
+            for scene in scenes for sampler in samplers for step in steps for seed in range(trials)]
+
+
+def prm_specs(seeds: int) -> list[TrialSpec]:
+    """The maze/tunnel PRM cells of `bench uav` (the paper's steps and roadmap sizes), seeds 0..N-1."""
+    from app.bench.uav import specs
+
+    return specs(seeds)
+
+
+def ur3_specs(runs: int) -> list[TrialSpec]:
+    from app.bench.plan import default_step
+
+    return [TrialSpec("ur3", job, sampler, default_step(job), seed, dict(UR3_SIZE))
+            for job in UR3_JOBS for sampler in UR3_SAMPLERS for seed in range(runs)]
+
+
+def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
+    """Every sweep's specs, in a fixed order: the same options always give the same list (and keys)."""
+    out = []
+    if "sampling" in config.parts:
+        out.append(("sampling", sampling_specs(config.scenes, config.samplers, config.steps, config.trials,
+                                               config.k, config.max_checks)))
+    if "table1" in config.parts:
+        out.append(("table1", sampling_specs(TABLE1_SCENES, TABLE1_METHODS, config.steps, config.trials, config.k,
+                                             config.max_checks)))
+    if "prm" in config.parts:
+        out.append(("prm", prm_specs(config.prm_seeds)))
+    if "ur3" in config.parts:
+        out.append(("ur3", ur3_specs(config.ur3_runs)))
+    return out
+
+
+def run_ur3_trial(oracle, spec: TrialSpec) -> dict:
+    """One scripted UR3 job (experiment "ur3", scene = job): seconds total/ik/planning, checks, success."""
+    from app.errors import UserError
+    from app.roadmap import Budget
+    from app.runs import run_job
+
+    p = spec.params
+    oracle.reset()
+    start = time.perf_counter()
+    try:
+        r = run_job(oracle, spec.scene, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
+                    uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])))
+    except UserError as exc:  # NoPath, or IK finding no collision-free pose
+        return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_ik": None,
+                "seconds_planning": None, "collision_checks": oracle.checks, "error": str(exc)[:200]}
+    planned = [leg for leg in r.legs if leg.method != "straight"]
+    return {"success": 1.0, "seconds": r.seconds["total"], "seconds_ik": r.seconds["ik"],
+            "seconds_planning": r.seconds["planning"], "collision_checks": r.collision_checks,
+            "legs": len(r.legs), "planned_legs": len(planned), "duration": r.trajectory.duration}
+
+
+# --------------------------------------------------------------------------------------------------- the report
+
+def _sampling_rows(rows) -> list[dict]:
+    """Store rows of experiment "sampling" in the shape `sampling.summarise` reads."""
+    out = []
+    for r in rows:
+        if r["experiment"] != "sampling":
+            continue
+        m = dict(r["metrics"])
+        m.update(scene=r["scene"], sampler=r["method"], step=r["step"])
+        if m.get("passage_fraction") is None:
+            m["passage_fraction"] = float("nan")
+        out.append(m)
+    return out
+
+
+def _fmt(value, digits=3) -> str:
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return "–"
+    return f"{value:.{digits}g}" if abs(value) < 1000 else f"{value:.0f}"
+
+
+def _interval(cell: dict, key: str, digits=3, mark="") -> str:
+    v = cell[key]
+    if not np.isfinite(v["median"]):
+        return "–"
+    return f"{mark}{_fmt(v['median'], digits)} [{_fmt(v['lo'], digits)}, {_fmt(v['hi'], digits)}]"
+
+
+def machine() -> list[str]:
+    import sys
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        from importlib.metadata import version
+
+        drake = version("drake")
+    except Exception:  # noqa: BLE001 - a report line, never a failure
+        drake = "unknown"
+    return [f"{platform.node()}: {platform.system()} {platform.release()}, {cpu}, {os.cpu_count()} cores",
+            f"Python {sys.version.split()[0]}, Drake {drake}, numpy {np.__version__}"]
+
+
+def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[tuple[str, list[tuple[str, str]]]]:
+    """One seed's K_c samples per scene x sampler, as in the paper's Figs. 3, 5, 6 (drawn by `sample`'s code)."""
+    from app.bench.sampling import run_trial
+    from app.commands.sample import draw_samples
+    from app.oracle import CollisionOracle
+    from app.scene import Scene
+
+    out = []
+    for scene in scenes:
+        oracle = CollisionOracle(Scene(scene), threads=1)
+        step = PICTURE_STEPS.get(scene, 10.0)
+        pictures = []
+        for sampler in samplers:
+            r = run_trial(oracle, sampler, step, 0, k=30, max_checks=max_checks, keep_samples=True)
+            name = f"samples-{scene}-{sampler}.png"
+            note = "" if r["ok"] else f" — over the {max_checks}-check budget, no samples"
+            draw_samples(oracle, r["samples"], str(folder / name),
+                         title=f"{scene}: {sampler}, step {step:g}, seed 0{note}")
+            pictures.append((f"{sampler}{note}", name))
+        out.append((f"{scene} (step {step:g})", pictures))
+    return out
+
+
+def _figure_prm(table: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from app.draw import save
+
+    labels = sorted({(r["scene"], r["step"]) for r in table})
+    samplers = sorted({r["sampler"] for r in table})
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    x = np.arange(len(labels))
+    width = 0.8 / max(len(samplers), 1)
+    for n, sampler in enumerate(samplers):
+        cells = {(r["scene"], r["step"]): r for r in table if r["sampler"] == sampler}
+        ok = [cells[c]["success_rate"] if c in cells else np.nan for c in labels]
+        t = [cells[c]["median_t_prm"] if c in cells else np.nan for c in labels]
+        axes[0].bar(x + n * width, ok, width, label=sampler, color=f"C{n}")
+        axes[1].bar(x + n * width, t, width, label=sampler, color=f"C{n}")
+    for ax, title in zip(axes, ("PRM success rate", "median T_PRM (s)")):
+        ax.set_xticks(x + width * (len(samplers) - 1) / 2, [f"{s} a={a:g}" for s, a in labels], fontsize=8)
+        ax.set_title(title)
+        ax.grid(alpha=0.3, axis="y")
+    axes[0].set_ylim(0, 1.05)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    save(fig, str(path))
+
+
+def _ur3_table(rows) -> list[dict]:
+    cells = {}
+    for r in rows:
+        if r["experiment"] == "ur3":
+            cells.setdefault((r["scene"], r["method"]), []).append(r["metrics"])
+    out = []
+    for (job, sampler), metrics in sorted(cells.items()):
+        ok = [m for m in metrics if m["success"]]
+
+        def med(key):
+            values = [m[key] for m in ok if m.get(key) is not None]
+            return float(np.median(values)) if values else None
+
+        out.append({"job": job, "sampler": sampler, "runs": len(metrics), "successes": len(ok),
+                    "median_total": med("seconds"), "median_ik": med("seconds_ik"),
+                    "median_planning": med("seconds_planning"),
+                    "median_checks": float(np.median([m["collision_checks"] for m in metrics]))})
+    return out
+
+
+def build_report(store: ResultStore, folder: Path, config: Config | None = None, pictures: bool = True,
+                 wall_seconds: float | None = None) -> Path:
+    """report.md and its figures from what the store holds (every row of every experiment in it)."""
+    from app.bench import sampling, uav
+    from app.bench.claims import ALPHA, judge
+    from app.samplers import SAMPLERS
+
+    folder = Path(folder)
+    rows = store.rows()
+    lines = ["# Levy-flight narrow-passage PRM: the paper's Section IV, reproduced", ""]
+    lines += [f"Generated {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())} from `{store.path.name}` "
+              f"({len(rows)} trials). Rebuild with `python -m app bench paper --out {folder} --report-only`.", ""]
+    by_experiment = {}
+    for r in rows:
+        by_experiment[r["experiment"]] = by_experiment.get(r["experiment"], 0) + 1
+    versions = sorted({r["code_version"] for r in rows})
+    lines += ["## Machine, code, trials", ""]
+    lines += [f"- Machine: {m}" for m in machine()]
+    lines += [f"- Code version(s) of the stored trials: {', '.join(f'`{v}`' for v in versions) or '–'}",
+              f"- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items()))
+                                              or "none")]
+    if config is not None:
+        lines += [f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per sampling cell, steps "
+                  f"{', '.join(f'{a:g}' for a in config.steps)}, K_c = {config.k}, check budget "
+                  f"{config.max_checks} per sampling trial, {config.prm_seeds} seeds per PRM cell, "
+                  f"{config.ur3_runs} run(s) per UR3 job and sampler; parts: {', '.join(config.parts)}"]
+    if wall_seconds is not None:
+        lines.append(f"- Wall time of this run's sweeps: {wall_seconds:.0f} s")
+    if config is not None and config.quick:
+        lines.append("- **Quick run**: a handful of trials per cell. The verdicts below show the pipeline works; "
+                     "with so few trials most comparisons cannot reach significance, so they are not conclusive.")
+    lines += ["- Timings come from trials run side by side on the worker processes; they compare samplers "
+              "measured alike, not absolute speeds.", ""]
+
+    # Claims
+    lines += ["## Claims", "",
+              f"Each claim is a set of comparisons; one holds when the medians point the claimed way and, for "
+              f"distributions, a one-sided Mann-Whitney U test agrees at the {ALPHA:g} level. All hold: reproduced; "
+              "none: not reproduced; some: partly; no rows: no data (`app/bench/claims.py`).", "",
+              "| claim | verdict | statement |", "|---|---|---|"]
+    verdicts = judge(rows)
+    lines += [f"| {v.claim} | **{v.verdict}** | {v.text} |" for v in verdicts]
+    lines.append("")
+    for v in verdicts:
+        lines += [f"### {v.claim}: {v.verdict}", "", v.text, ""]
+        lines += [f"- {e}" for e in v.evidence] or ["- (no rows for this claim)"]
+        lines.append("")
+
+    # Sampling experiment
+    srows = _sampling_rows(rows)
+    summary = sampling.summarise(srows)
+    order = {name: i for i, name in enumerate(SAMPLERS)}
+    summary.sort(key=lambda s: (s["scene"], order.get(s["sampler"], 99), s["step"]))
+    censored = sum(bool(r.get("censored", not r.get("ok", True))) for r in srows)
+    lines += ["## Sampling experiment (Figs. 4 and 7)", "",
+              f"{len(srows)} trials of K_c samples each; {censored} of them spent their collision-check budget "
+              "(censored): for those t_eps and gamma_c are lower bounds (marked ≥ where any trial in the cell was "
+              "censored) and they have no passage fraction. Cells: median [2.5 %, 97.5 % of trials].", ""]
+    for scene in dict.fromkeys(s["scene"] for s in summary):
+        cells = [s for s in summary if s["scene"] == scene]
+        lines += [f"### {scene}", "",
+                  "| sampler | step | trials | censored | t_eps s | gamma_c | passage fraction |",
+                  "|---|---:|---:|---:|---|---|---|"]
+        for s in cells:
+            mark = "≥" if s["censored"] else ""
+            lines.append(f"| {s['sampler']} | {s['step']:g} | {s['trials']} | {s['censored']} | "
+                         f"{_interval(s, 'seconds', 3, mark)} | {_interval(s, 'collision_checks', 4, mark)} | "
+                         f"{_interval(s, 'passage_fraction', 2)} |")
+        name = f"sampling-{scene}.png"
+        sampling.figure(cells, str(folder / name))
+        lines += ["", f"![{scene}: metrics vs step]({name})", ""]
+
+    # Table 1
+    lines += ["## Table 1: t_eps (s) vs step, bar scenes", "",
+              "Median t_eps over trials (≥: some trials censored at the check budget, so a lower bound); the "
+              "paper's RBBS values in brackets.", ""]
+    steps = sorted({s["step"] for s in summary if s["scene"] in TABLE1_SCENES})
+    if steps:
+        for method in TABLE1_METHODS:
+            lines += [f"**{method.upper()}**", "", "| scene | " + " | ".join(f"a={a:g}" for a in steps) + " |",
+                      "|---|" + "---:|" * len(steps)]
+            for scene in TABLE1_SCENES:
+                cells = {s["step"]: s for s in summary if s["scene"] == scene and s["sampler"] == method}
+                if not cells:
+                    continue
+                out = []
+                for a in steps:
+                    s = cells.get(a)
+                    text = "–" if s is None else f"{'≥' if s['censored'] else ''}{s['seconds']['median']:.3f}"
+                    if method == "rbbs" and a in STEPS:
+                        text += f" ({PAPER_TABLE1[scene][STEPS.index(a)]:g})"
+                    out.append(text)
+                lines.append(f"| {scene} | " + " | ".join(out) + " |")
+            lines.append("")
+    else:
+        lines += ["No rows.", ""]
+
+    # Sample pictures
+    if pictures and config is not None:
+        picture_scenes = [s for s in config.scenes]
+        lines += ["## Sample pictures (Figs. 3, 5, 6)", "",
+                  "Seed 0, K_c = 30 samples (red: in the passage). bar at step 2, the others at step 10.", ""]
+        for title, items in _figure_sample_pictures(picture_scenes, config.samplers, config.max_checks, folder):
+            lines += [f"### {title}", ""]
+            lines += [f"![{label}]({name})" for label, name in items]
+            lines.append("")
+
+    # PRM
+    prm_rows = [r for r in rows if r["experiment"] == "prm" and r["scene"] in uav.PAPER]
+    lines += ["## Maze and tunnel: LFBS vs RBBS in a PRM (Tables on maze and tunnel)", ""]
+    if prm_rows:
+        table = uav.table(prm_rows)
+        lines += ["One PRM round (maze 200 narrow + 300 uniform, tunnel 100 + 200). t_eps = sampling time "
+                  "(successful runs), T_PRM = whole plan; medians; paper seconds in brackets.", "",
+                  "| scene | step | sampler | runs | success | t_eps s | T_PRM s | checks |",
+                  "|---|---:|---|---:|---:|---:|---:|---:|"]
+        for r in table:
+            paper = uav.PAPER_SECONDS.get((r["scene"], r["step"]))
+            pe, pt = ((paper[0], paper[1]) if r["sampler"] == "lfbs" else (paper[2], paper[3])) if paper else \
+                (None, None)
+            eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "–"
+            lines.append(f"| {r['scene']} | {r['step']:g} | {r['sampler']} | {r['runs']} | "
+                         f"{r['success_rate']:.0%} | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
+                         f"{r['median_checks']:.0f} |")
+        _figure_prm(table, folder / "prm.png")
+        lines += ["", "![PRM success and time](prm.png)", ""]
+    else:
+        lines += ["No rows.", ""]
+
+    # UR3
+    lines += ["## UR3 welding and window jobs (the paper's UR3 timing table)", ""]
+    ur3 = _ur3_table(rows)
+    if ur3:
+        lines += [f"`app.runs.run_job`: IK for the route's poses, then each leg straight or by PRM "
+                  f"({UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples per round, "
+                  f"{UR3_SIZE['budget']:g} s per leg). Medians over successful runs; the paper's LFBS average in "
+                  "brackets (Gazebo/MoveIt set-up, step 0.5).", "",
+                  "| job | sampler | runs | success | total s | IK s | planning s | checks |",
+                  "|---|---|---:|---:|---:|---:|---:|---:|"]
+        for r in ur3:
+            paper = f" ({PAPER_UR3[r['job']]:g})" if r["sampler"] == "lfbs" and r["job"] in PAPER_UR3 else ""
+            lines.append(f"| {r['job']} | {r['sampler']} | {r['runs']} | {r['successes']}/{r['runs']} | "
+                         f"{_fmt(r['median_total'])}{paper} | {_fmt(r['median_ik'])} | "
+                         f"{_fmt(r['median_planning'])} | {r['median_checks']:.0f} |")
+        lines.append("")
+    else:
+        lines += ["No rows.", ""]
+
+    path = folder / "report.md"
+    tmp = path.with_suffix(".md.tmp")
+    tmp.write_text("\n".join(lines) + "\n")
+    tmp.replace(path)
+    return path
+
+
+def run(args) -> int:
+    from app.bench.runner import run_sweep
+
+    config = Config.from_args(args)
+    folder = Path(args.out)
+    folder.mkdir(parents=True, exist_ok=True)
+    store = ResultStore(folder / "results.sqlite")
+    ran, wall = 0, None
+    if not args.report_only:
+        start = time.perf_counter()
+        seen = set()
+        for name, specs in sweeps(config):
+            specs = [s for s in specs if not (s.key in seen or seen.add(s.key))]  # table1's bar = sampling's bar
+            n = run_sweep(specs, store, workers=args.workers, scheduler=args.scheduler, desc=f"paper {name}")
+            print(f"{name}: {len(specs)} trials, {n} run now, {len(specs) - n} already stored", flush=True)
+            ran += n
+        wall = time.perf_counter() - start
+    path = build_report(store, folder, config, wall_seconds=wall)
+    print(f"{ran} trials run; {store.count()} in {store.path}")
+    print(path)
+    return 0

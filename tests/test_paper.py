@@ -1,0 +1,85 @@
+"""`bench paper`: deterministic sweeps, a report with the claim verdicts and figures, and a resumed run that runs
+nothing new. The default-run test uses a tiny configuration (one scene, two samplers, one trial per cell)."""
+import pytest
+
+from app.bench import paper
+from app.bench.runner import EXPERIMENTS
+from app.bench.store import ResultStore, TrialSpec
+from app.cli import main
+
+TINY = ["bench", "paper", "--quick", "--trials", "1", "--scenes", "bar-3link", "--samplers", "lfbs,rbbs",
+        "--parts", "sampling", "--max-checks", "20000", "--workers", "1"]
+
+
+def test_sweeps_are_deterministic_and_share_the_bar_cells():
+    config = paper.Config(trials=2, steps=[2.0, 10.0], samplers=["lfbs", "rbbs", "gaussian"], prm_seeds=1,
+                          ur3_runs=1)
+    first = [(name, [s.key for s in specs]) for name, specs in paper.sweeps(config)]
+    second = [(name, [s.key for s in specs]) for name, specs in paper.sweeps(config)]
+    assert first == second
+    assert [name for name, _ in first] == paper.PARTS
+    keys = dict(first)
+    assert len(keys["sampling"]) == 4 * 3 * 2 * 2
+    assert len(keys["table1"]) == 3 * 2 * 2 * 2
+    assert len(set(keys["sampling"]) & set(keys["table1"])) == 2 * 2 * 2  # bar x (rbbs, lfbs): the same trials
+    assert all(s.experiment == "ur3" for s in paper.ur3_specs(1))
+    assert EXPERIMENTS["ur3"] == "app.bench.paper:run_ur3_trial"
+
+
+def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
+    out = tmp_path / "paper"
+    assert main([*TINY, "--out", str(out)]) == 0
+    first = capsys.readouterr().out
+    assert "4 trials run" in first
+    report = (out / "report.md").read_text()
+    assert "## Claims" in report
+    for claim in ("C1", "C2", "C3", "C4", "C5"):
+        assert f"| {claim} | **" in report
+    assert "## Machine, code, trials" in report and "Trial" in report
+    assert "### bar-3link" in report
+    figures = sorted(p.name for p in out.glob("*.png"))
+    assert "sampling-bar-3link.png" in figures and "samples-bar-3link-lfbs.png" in figures
+    for name in figures:
+        assert f"]({name})" in report
+    store = ResultStore(out / "results.sqlite")
+    rows = store.rows("sampling")
+    assert len(rows) == 4 and {r["method"] for r in rows} == {"lfbs", "rbbs"}
+    assert all("censored" in r["metrics"] and "sample_checksum" in r["metrics"] for r in rows)
+    store.close()
+
+    assert main([*TINY, "--out", str(out)]) == 0  # killed or finished: the same options run nothing again
+    assert "0 trials run" in capsys.readouterr().out
+    assert ResultStore(out / "results.sqlite").count() == 4
+
+    (out / "report.md").unlink()
+    assert main([*TINY, "--out", str(out), "--report-only"]) == 0
+    assert "## Claims" in (out / "report.md").read_text()
+
+
+def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
+    from app.bench.sampling import run_trial_spec
+
+    oracle = oracles("bar-3link")
+    spec = TrialSpec("sampling", "bar-3link", "lfbs", 10.0, 3, {"k": 10, "max_checks": 50_000})
+    a, b = run_trial_spec(oracle, spec), run_trial_spec(oracle, spec)
+    for key in ("collision_checks", "passage_fraction", "sample_checksum", "censored"):
+        assert a[key] == b[key]
+    assert not a["censored"] and a["sample_checksum"]
+    starved = run_trial_spec(oracle, TrialSpec("sampling", "bar-3link", "rbbs", 2.0, 0, {"k": 30, "max_checks": 500}))
+    assert starved["censored"] and starved["passage_fraction"] is None and starved["collision_checks"] >= 500
+
+
+@pytest.mark.slow
+def test_ur3_trial_times_a_welding_job(oracles):
+    spec = paper.ur3_specs(1)[0]
+    metrics = paper.run_ur3_trial(oracles(spec.scene), spec)
+    assert metrics["success"] == 1.0
+    assert metrics["seconds"] >= metrics["seconds_planning"] > 0 and metrics["collision_checks"] > 0
+
+
+@pytest.mark.slow
+def test_quick_paper_run(tmp_path):
+    out = tmp_path / "paper"
+    assert main(["bench", "paper", "--quick", "--out", str(out)]) == 0
+    report = (out / "report.md").read_text()
+    assert "## Maze and tunnel" in report and "| maze |" in report and "| welding |" in report
