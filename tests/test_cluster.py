@@ -1,4 +1,13 @@
-"""A sweep on a Dask cluster stores the same rows as on the local process pool (timings aside)."""
+"""A sweep on a Dask cluster stores the same rows as on the local process pool (timings aside).
+
+The cluster runs in a child process: Dask's event-loop threads may trigger Python's garbage collector, and a
+Drake object left over from an earlier test being destroyed off the main thread aborts the whole interpreter.
+"""
+import os
+import subprocess
+import sys
+import textwrap
+
 import pytest
 
 from app.bench.paper import sampling_specs
@@ -22,13 +31,29 @@ def test_dask_cluster_and_local_pool_give_the_same_rows(tmp_path):
     local = ResultStore(tmp_path / "local.sqlite")
     assert run_sweep(specs, local, workers=2) == len(specs)
 
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
-    try:
-        remote = ResultStore(tmp_path / "dask.sqlite")
-        assert run_sweep(specs, remote, scheduler=cluster.scheduler_address) == len(specs)
-        assert run_sweep(specs, remote, scheduler=cluster.scheduler_address) == 0  # resumes: nothing left
-    finally:
-        cluster.close()
+    script = textwrap.dedent(f"""
+        import distributed
+        from app.bench.paper import sampling_specs
+        from app.bench.runner import run_sweep
+        from app.bench.store import ResultStore
+        if __name__ == "__main__":
+            specs = sampling_specs(["bar-3link"], ["lfbs", "gaussian"], [10.0], trials=3, max_checks=50_000)
+            cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                               dashboard_address=None)
+            try:
+                store = ResultStore({str(tmp_path / "dask.sqlite")!r})
+                first = run_sweep(specs, store, scheduler=cluster.scheduler_address)
+                again = run_sweep(specs, store, scheduler=cluster.scheduler_address)
+                print(first, again)
+            finally:
+                cluster.close()
+    """)
+    (tmp_path / "dask_sweep.py").write_text(script)
+    result = subprocess.run([sys.executable, str(tmp_path / "dask_sweep.py")], capture_output=True, text=True,
+                            env=os.environ.copy(), timeout=600)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.split() == [str(len(specs)), "0"]  # all ran once; the second sweep resumed to nothing
+    remote = ResultStore(tmp_path / "dask.sqlite")
 
     a, b = _by_key(local), _by_key(remote)
     assert len(a) == len(specs) and a.keys() == b.keys()
