@@ -5,9 +5,11 @@ construct one unless the download cache already holds it. We never use drake_mod
 private cache with an empty stand-in: a stray package://drake_models/... then fails with "file not found",
 immediately and offline, instead of downloading.
 """
+import atexit
 import hashlib
 import json
 import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -52,3 +54,22 @@ def oracles():
         return cache[name]
 
     return get
+
+
+# OMPL's nanobind bindings report "leaked" objects while the interpreter shuts down (harmless, and known: see
+# shared/notes/ompl-api.md). When OMPL was loaded, end the process right after pytest is done, so the test summary
+# stays the last thing printed.
+_exit_status = None
+
+
+def pytest_sessionfinish(session, exitstatus):
+    global _exit_status
+    _exit_status = int(exitstatus)
+
+
+@atexit.register
+def _end_before_ompl_reports_leaks():
+    if "ompl" in sys.modules and _exit_status is not None:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(_exit_status)
