@@ -6,7 +6,6 @@ parsed arguments and returning an exit code. Exit codes: 0 ok, 1 no path found, 
 import argparse
 import json
 import math
-import os
 import sys
 
 from app.errors import UserError
@@ -74,17 +73,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    code = _run(argv)
-    if "ompl" in sys.modules:
-        # OMPL's nanobind bindings report "leaked" objects at interpreter shutdown (harmless); a user should not
-        # read that after a clean run, so end here.
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    return code
-
-
-def _run(argv) -> int:
     try:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
