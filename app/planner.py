@@ -27,8 +27,11 @@ PHASES = ("sampling", "roadmap", "search", "smoothing", "timing")
 
 
 def default_step(oracle) -> float:
-    """A tenth of the scene's largest linear extent (10 for the 100-unit scenes); with no linear coordinate, a tenth
-    of the weighted diagonal of the bounds."""
+    """The scene file's `step` if it sets one; else a tenth of the scene's largest linear extent (10 for the 100-unit
+    scenes); with no linear coordinate, a tenth of the weighted diagonal of the bounds."""
+    scene = getattr(oracle, "scene", oracle)
+    if getattr(scene, "step", None):
+        return scene.step
     linear = ~np.asarray(oracle.angular)
     if linear.any():
         return 0.1 * float(np.max((oracle.upper - oracle.lower)[linear]))

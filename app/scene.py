@@ -60,6 +60,7 @@ class ProblemFile:
     # Metric weight per coordinate, so that metres and radians compare (an angle's weight is the lever arm it swings).
     weights: list[float] = field(default_factory=list)
     resolution: float = 0.5  # edge-check step in the weighted metric
+    step: float = 0.0  # default sampler step a for this scene (0: a tenth of its largest linear extent)
     passage: PassageSpec = field(default_factory=PassageSpec)
     velocity_limits: list[float] = field(default_factory=list)  # default: the model's
     acceleration_limits: list[float] = field(default_factory=list)  # default: 2x the velocity limits
@@ -163,6 +164,9 @@ class Scene:
         if not problem.resolution > 0:
             raise UserError(f"bad scene file {self.path.name}: resolution must be positive")
         self.resolution = float(problem.resolution)
+        if not (problem.step >= 0 and math.isfinite(problem.step)):
+            raise UserError(f"bad scene file {self.path.name}: step must be a non-negative number")
+        self.step = float(problem.step) or None
         model_velocity = self.plant.GetVelocityUpperLimits()
         self.velocity_limits = self._vector("velocity_limits", problem.velocity_limits, model_velocity)
         self.acceleration_limits = self._vector("acceleration_limits", problem.acceleration_limits,
