@@ -122,7 +122,7 @@ def test_scene_start_goal_free_and_outside_the_passage(oracles, name):
     assert not oracle.in_passage(ends).any()
 
 
-@pytest.mark.parametrize("name", SAMPLING_SCENES)
+@pytest.mark.parametrize("name", scene_names())
 def test_passage_is_narrow_for_uniform_sampling(oracles, name):
     oracle = oracles(name)
     Q = oracle.uniform(np.random.default_rng(11), 6000)

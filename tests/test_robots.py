@@ -122,15 +122,6 @@ def test_quadrotor_model_and_safety_hull(oracles):
     assert shape.radius() - reach >= 0.1 - 1e-9 and shape.length() / 2 - top >= 0.1 - 1e-9  # the margin
 
 
-@pytest.mark.parametrize("name", ARM_SCENES)
-def test_arm_passage_is_rarely_hit_by_uniform_sampling(oracles, name):
-    oracle = oracles(name)
-    Q = oracle.uniform(np.random.default_rng(11), 4000)
-    free = Q[oracle.are_free(Q)]
-    assert len(free) > 500
-    assert 0 <= oracle.in_passage(free).mean() < 0.02
-
-
 @pytest.mark.parametrize("name, side, up", [("maze", 0.1, 0.25), ("tunnel", 0.12, 0.28)])
 def test_uav_passage_is_narrow_but_open(oracles, name, side, up):
     oracle = oracles(name)
