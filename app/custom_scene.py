@@ -29,7 +29,7 @@ import numpy as np
 
 from app import meshes
 from app.errors import UserError
-from app.scene import PACKAGES, Scene
+from app.scene import PACKAGES, Scene, robot_diagram_builder
 
 ROBOT_SUFFIXES = {".urdf", ".sdf"}
 CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
@@ -140,9 +140,7 @@ def _parser_error(exc: Exception, path: Path) -> UserError:
 
 
 def _new_builder(packages: dict[str, Path]):
-    from pydrake.planning import RobotDiagramBuilder
-
-    builder = RobotDiagramBuilder(time_step=0.0)
+    builder = robot_diagram_builder()
     package_map = builder.parser().package_map()
     for name, directory in {**{k: Path(v) for k, v in PACKAGES.items()}, **packages}.items():
         if not package_map.Contains(name):

@@ -64,18 +64,6 @@ def _into_bounds(oracle, q) -> np.ndarray:
     return oracle.wrap(q)
 
 
-def _policy_context(oracle):
-    """A fresh root context whose SceneGraph sees the scene's collision pairs (as the oracle's counted answers do)."""
-    from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
-
-    root = oracle.model.CreateDefaultContext()
-    if not oracle.scene.self_collisions:
-        scene_graph = oracle.model.scene_graph()
-        scene_graph.collision_filter_manager(scene_graph.GetMyMutableContextFromRoot(root)).Apply(
-            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(list(oracle._robot_geometries))))
-    return root
-
-
 def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=None, seeds: int = 64,
                keep: int = 3, position_tolerance: float = POSITION_TOLERANCE,
                angle_tolerance: float = ANGLE_TOLERANCE, clearance: float = CLEARANCE) -> np.ndarray:
@@ -96,7 +84,7 @@ def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=
     checks_before = oracle.checks
 
     def attempt(seed_list, with_clearance: bool, colliding: list) -> list[np.ndarray]:
-        root = _policy_context(oracle)
+        root = oracle.policy_context()
         context = plant.GetMyMutableContextFromRoot(root)
         ik = InverseKinematics(plant, context, with_joint_limits=False)
         q = ik.q()

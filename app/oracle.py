@@ -42,7 +42,6 @@ def default_threads() -> int:
 class CollisionOracle:
     def __init__(self, scene: Scene, threads: int | None = None):
         from pydrake.common import Parallelism
-        from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
         from pydrake.planning import SceneGraphCollisionChecker
 
         # Drake logs an INFO line per checker about its thread contexts; users should see only what matters.
@@ -80,21 +79,29 @@ class CollisionOracle:
         # Unfiltered context: says *what* a configuration touches (environment, self) for diagnostics.
         self._diag_root = self.model.CreateDefaultContext()
         self._diag = self.plant.GetMyContextFromRoot(self._diag_root)
-        # Policy context: the scene's collision pairs, used for every counted answer.
-        self._root = self.model.CreateDefaultContext()
-        self._ctx = self.plant.GetMyContextFromRoot(self._root)
         if not scene.self_collisions:
             for i, a in enumerate(robot_bodies):
                 for b in robot_bodies[i + 1:]:
                     self.checker.SetCollisionFilteredBetween(a, b, True)
-            sg_context = scene_graph.GetMyMutableContextFromRoot(self._root)
-            geometries = GeometrySet(list(self._robot_geometries))
-            scene_graph.collision_filter_manager(sg_context).Apply(
-                CollisionFilterDeclaration().ExcludeWithin(geometries))
+        # Policy context: the scene's collision pairs, used for every counted answer.
+        self._root = self.policy_context()
+        self._ctx = self.plant.GetMyContextFromRoot(self._root)
         self._query_port = self.plant.get_geometry_query_input_port()
         self._inspector = inspector
         self._passage_frame = (self.plant.GetFrameByName(scene.passage_frame.name(), scene.passage_frame.model_instance())
                                if scene.passage_frame is not None else None)
+
+    def policy_context(self):
+        """A new root context of the model whose SceneGraph sees exactly the scene's collision pairs (the same
+        pairs the checker is told to filter), for any Drake query that must agree with the oracle's answers."""
+        from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+
+        root = self.model.CreateDefaultContext()
+        if not self.scene.self_collisions:
+            scene_graph = self.model.scene_graph()
+            scene_graph.collision_filter_manager(scene_graph.GetMyMutableContextFromRoot(root)).Apply(
+                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(list(self._robot_geometries))))
+        return root
 
     # ---- configuration space -------------------------------------------------------------------------------
     def reset(self) -> None:

@@ -447,9 +447,10 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
 
 
 def run(args) -> int:
-    from app.bench.runner import run_sweep
+    from app.bench.runner import connect, run_sweep
 
     config = Config.from_args(args)
+    scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder = Path(args.out)
     folder.mkdir(parents=True, exist_ok=True)
     store = ResultStore(folder / "results.sqlite")
@@ -459,7 +460,7 @@ def run(args) -> int:
         seen = set()
         for name, specs in sweeps(config):
             specs = [s for s in specs if not (s.key in seen or seen.add(s.key))]  # table1's bar = sampling's bar
-            n = run_sweep(specs, store, workers=args.workers, scheduler=args.scheduler, desc=f"paper {name}")
+            n = run_sweep(specs, store, workers=args.workers, scheduler=scheduler, desc=f"paper {name}")
             print(f"{name}: {len(specs)} trials, {n} run now, {len(specs) - n} already stored", flush=True)
             ran += n
         wall = time.perf_counter() - start

@@ -42,12 +42,29 @@ def execute(spec: TrialSpec) -> tuple[TrialSpec, dict]:
     return spec, trial(_oracle(spec.scene), spec)
 
 
-def run_sweep(specs: list[TrialSpec], store: ResultStore, workers: int = 0, scheduler: str | None = None,
+def connect(scheduler):
+    """A Dask client for a scheduler address (a client is passed through); one clear line if it is unreachable."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise UserError("--scheduler needs Dask: pip install 'narrow-passage-planner[cluster]'") from None
+    if isinstance(scheduler, Client):
+        return scheduler
+    try:
+        return Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise UserError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+
+
+def run_sweep(specs: list[TrialSpec], store: ResultStore, workers: int = 0, scheduler=None,
               desc: str = "trials") -> int:
-    """Run the specs the store lacks; returns how many ran. workers=0: all local cores."""
+    """Run the specs the store lacks; returns how many ran. workers=0: all local cores. `scheduler`: a Dask
+    scheduler address or a client from `connect` (connect first to fail before anything is written)."""
     pending = store.pending(specs)
     if not pending:
         return 0
+    if scheduler is not None:
+        scheduler = connect(scheduler)
     progress = tqdm(total=len(pending), desc=desc, unit="trial", dynamic_ncols=True)
     try:
         for spec, metrics in _results(pending, workers or os.cpu_count() or 1, scheduler):
@@ -58,9 +75,9 @@ def run_sweep(specs: list[TrialSpec], store: ResultStore, workers: int = 0, sche
     return len(pending)
 
 
-def _results(pending: list[TrialSpec], workers: int, scheduler: str | None):
-    if scheduler:
-        yield from _dask_results(pending, scheduler)
+def _results(pending: list[TrialSpec], workers: int, client):
+    if client is not None:
+        yield from _dask_results(pending, client)
     elif workers == 1:
         for spec in pending:
             yield execute(spec)
@@ -78,16 +95,9 @@ def _results(pending: list[TrialSpec], workers: int, scheduler: str | None):
                 raise
 
 
-def _dask_results(pending: list[TrialSpec], scheduler: str):
-    try:
-        from distributed import Client, as_completed as dask_completed
-    except ImportError:
-        raise UserError("--scheduler needs Dask: pip install 'narrow-passage-planner[cluster]'") from None
-    try:
-        client = Client(scheduler, timeout="10s")
-    except (OSError, TimeoutError) as exc:
-        raise UserError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
-    with client:
-        futures = client.map(execute, pending, pure=False)
-        for future in dask_completed(futures):
-            yield future.result()
+def _dask_results(pending: list[TrialSpec], client):
+    from distributed import as_completed as dask_completed
+
+    futures = client.map(execute, pending, pure=False)
+    for future in dask_completed(futures):
+        yield future.result()
