@@ -18,6 +18,7 @@ counts the configurations it looked at. Configurations outside the bounds are re
 """
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import time
@@ -198,15 +199,19 @@ class CollisionOracle:
         t = np.linspace(0.0, 1.0, n + 1)[:, None]
         return self.wrap(np.asarray(q1, float) + t * d)
 
-    def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
+    def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False,
+                   max_points: int | None = None) -> np.ndarray:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
 
         Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
         its first collision, so colliding edges cost few checks and every round is one batched call.
+        ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
+        max_points: a screen -- at most this many points per edge, coarsest first; True then only means that none
+        of them collides.
         """
         Q1, Q2 = np.atleast_2d(Q1), np.atleast_2d(Q2)
         paths = [self.interpolate(a, b, resolution) for a, b in zip(Q1, Q2)]
-        orders = [_coarse_to_fine(len(p)) for p in paths]
+        orders = [_coarse_to_fine(len(p))[2 if ends_free else 0:][:max_points] for p in paths]
         free = np.ones(len(paths), bool)
         cursor = np.zeros(len(paths), int)
         chunk = 1
@@ -288,8 +293,12 @@ class CollisionOracle:
         return np.any([np.all((p >= lo) & (p <= hi), axis=1) for lo, hi in self.scene.passage_boxes], axis=0)
 
 
+@functools.lru_cache(maxsize=4096)
 def _coarse_to_fine(n: int) -> np.ndarray:
-    """Indices 0..n-1 ordered endpoints first, then by bisection (van der Corput), so a collision shows up early."""
+    """Indices 0..n-1 ordered endpoints first, then by bisection (van der Corput), so a collision shows up early.
+
+    Cached: edges at one resolution come in few lengths, and building the order in Python cost more than the
+    collision checks of a short edge."""
     if n <= 2:
         return np.arange(n)
     order = [0, n - 1]
@@ -302,4 +311,6 @@ def _coarse_to_fine(n: int) -> np.ndarray:
                 seen.add(i)
                 order.append(i)
         denominator *= 2
-    return np.array(order)
+    out = np.array(order)
+    out.flags.writeable = False  # shared by every caller through the cache
+    return out

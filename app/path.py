@@ -1,9 +1,10 @@
 """Paths as polylines in configuration space: length, unwrapping, fine verification, shortcut smoothing.
 
 A path is an (n, dim) array of waypoints; its edges are straight in the scene's metric (the short way round on
-continuous angles), exactly as `oracle.interpolate` walks them. Smoothing never trusts a coarse check alone: a
-shortcut is screened at the planning resolution (batched, cheap rejections) and accepted only after a second check
-at the fine resolution, so the smoothed path is fine-checked by construction; `verify` then re-checks every edge.
+continuous angles), exactly as `oracle.interpolate` walks them. Shortcuts are checked at one resolution (batched,
+coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the planning resolution, `verify`s the
+result at FINE x that resolution, and smooths again at the fine resolution in the rare case a shortcut fails there
+(checking every accepted shortcut at the fine resolution doubled the cost of smoothing on the maze).
 """
 from __future__ import annotations
 
@@ -62,17 +63,16 @@ def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, 
     """Shorten P with a greedy pass over its waypoints, `rounds` rounds of random shortcuts, a last greedy pass.
 
     Greedy: from each kept waypoint, jump to the farthest later waypoint it sees directly. Random: each round draws
-    `candidates` pairs of points anywhere along the path, screens their shortcuts in one batch, and takes the one
-    that saves most length. Screening is at `resolution` (default: the scene's); acceptance at FINE of it.
-    Deterministic for a given rng state.
+    `candidates` pairs of points anywhere along the path, checks their shortcuts in one batch, and takes the free one
+    that saves most length. Shortcuts are checked at `resolution` (default: the scene's). Deterministic for a given
+    rng state.
     """
-    coarse = resolution or oracle.resolution
-    fine = FINE * coarse
+    resolution = resolution or oracle.resolution
     P = dedupe(P)
     stats = {"greedy_removed": 0, "random_accepted": 0, "candidates_checked": 0,
-             "length_before": path_length(oracle, P)}
+             "length_before": path_length(oracle, P), "resolution": resolution}
     if len(P) > 2:
-        P = _greedy(oracle, P, coarse, fine, stats)
+        P = _greedy(oracle, P, resolution, stats)
     for _ in range(rounds):
         if len(P) < 3:
             break
@@ -89,31 +89,28 @@ def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, 
         if not len(useful):
             continue
         stats["candidates_checked"] += len(useful)
-        free = oracle.edges_free(qa[useful], qb[useful], coarse)
-        for c in useful[free][np.argsort(-gain[useful[free]])]:
-            if oracle.edge_free(qa[c], qb[c], fine):
-                P = dedupe(np.vstack([P[:ia[c] + 1], qa[c], qb[c], P[ib[c] + 1:]]))
-                stats["random_accepted"] += 1
-                break
+        free = useful[oracle.edges_free(qa[useful], qb[useful], resolution)]
+        if len(free):
+            c = free[np.argmax(gain[free])]
+            P = dedupe(np.vstack([P[:ia[c] + 1], qa[c], qb[c], P[ib[c] + 1:]]))
+            stats["random_accepted"] += 1
     if len(P) > 2 and rounds:
         # Random shortcuts leave two new waypoints each; a last greedy pass removes those that became redundant.
-        P = _greedy(oracle, P, coarse, fine, stats)
+        P = _greedy(oracle, P, resolution, stats)
     stats["length_after"] = path_length(oracle, P)
     return P, stats
 
 
-def _greedy(oracle, P: np.ndarray, coarse: float, fine: float, stats: dict) -> np.ndarray:
+def _greedy(oracle, P: np.ndarray, resolution: float, stats: dict) -> np.ndarray:
     out, i, n = [P[0]], 0, len(P)
     while i < n - 1:
         later = np.arange(n - 1, i + 1, -1)  # farthest first; i+1 is the path's own edge, free already
         nxt = i + 1
         if len(later):
             stats["candidates_checked"] += len(later)
-            free = oracle.edges_free(np.repeat(P[i][None], len(later), axis=0), P[later], coarse)
-            for j in later[free]:
-                if oracle.edge_free(P[i], P[j], fine):
-                    nxt = int(j)
-                    break
+            free = later[oracle.edges_free(np.repeat(P[i][None], len(later), axis=0), P[later], resolution)]
+            if len(free):
+                nxt = int(free[0])
         stats["greedy_removed"] += nxt - i - 1
         out.append(P[nxt])
         i = nxt

@@ -1,7 +1,8 @@
 """The planning pipeline, as one function the CLI, the viewer and the benchmarks share:
 
-    endpoints checked -> narrow + uniform samples -> roadmap (k-nearest, batched edge checks)
-    -> shortest path, its edges re-checked at 1/4 resolution -> shortcut smoothing -> Toppra per segment
+    endpoints checked -> narrow + uniform samples, in rounds until start and goal connect -> roadmap (k-nearest;
+    lazy edge checks for a single query) -> shortest path -> shortcut smoothing -> the result re-checked at 1/4
+    resolution -> Toppra per segment
 
 `plan(...)` returns a PlanResult on success and raises InvalidEndpoint (exit 3) for a bad start or goal, NoPath
 (exit 1, with `.details`) when the budget runs out unconnected, UserError (exit 2) for bad parameters.
@@ -22,7 +23,7 @@ from app.timing import Trajectory, parameterize
 if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
     from app.roadmap import Budget, Roadmap
 
-DEFAULTS = {"sampler": "lfbs", "narrow": 200, "uniform": 300, "k": 10, "seed": 0, "smooth_rounds": 50, "dt": 0.02}
+DEFAULTS = {"sampler": "lfbs", "narrow": 200, "uniform": 300, "k": None, "seed": 0, "smooth_rounds": 50, "dt": 0.02}
 PHASES = ("sampling", "roadmap", "search", "smoothing", "timing")
 
 
@@ -109,12 +110,17 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
 
 def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["narrow"],
          uniform: int = DEFAULTS["uniform"], step: float | None = None, seed: int = DEFAULTS["seed"],
-         budget: Budget | None = None, k: int = DEFAULTS["k"], start=None, goal=None,
+         budget: Budget | None = None, k: int | None = DEFAULTS["k"], start=None, goal=None,
          smooth_rounds: int = DEFAULTS["smooth_rounds"], dt: float = DEFAULTS["dt"],
-         sampler_params: dict | None = None, skip_connected: bool = True) -> PlanResult:
-    """Plan from start to goal (default: the scene's) on a PRM of `narrow` samples from `sampler` plus `uniform`
-    uniform free samples. With a budget, more samples of both kinds are added in rounds (a quarter of the first
-    round's counts each) until start and goal connect or the budget is spent; without one, there is one round."""
+         sampler_params: dict | None = None, skip_connected: bool = True,
+         full_roadmap: bool = False) -> PlanResult:
+    """Plan from start to goal (default: the scene's) on a PRM of up to `narrow` samples from `sampler` plus
+    `uniform` uniform free samples.
+
+    Samples are added in rounds of a quarter of each count, and planning stops at the first round after which start
+    and goal connect (a single query needs no more roadmap than that). With `full_roadmap` the first round is the
+    whole `narrow` + `uniform` (the paper's protocol: a roadmap of fixed size, then the query). With a budget,
+    quarter rounds go on past those counts until start and goal connect or the budget is spent."""
     from app.roadmap import GOAL, NARROW, START, UNIFORM, Roadmap
     from app.samplers import SAMPLERS, SamplerBudgetExceeded, make_sampler
 
@@ -123,7 +129,7 @@ def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["nar
     for name, value in (("narrow", narrow), ("uniform", uniform), ("smooth_rounds", smooth_rounds)):
         if not isinstance(value, (int, np.integer)) or value < 0:
             raise UserError(f"{name} must be a non-negative whole number, got {value}")
-    if not isinstance(k, (int, np.integer)) or k < 1:
+    if k is not None and (not isinstance(k, (int, np.integer)) or k < 1):
         raise UserError(f"k must be a positive whole number, got {k}")
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise UserError(f"dt must be a positive finite number, got {dt}")
@@ -147,7 +153,7 @@ def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["nar
     checks["endpoints"] = oracle.checks - checks0
 
     seeds = np.random.SeedSequence(seed).spawn(3)
-    rng_narrow, rng_uniform, rng_smooth = (np.random.default_rng(s) for s in seeds)
+    rng_narrow, rng_uniform = (np.random.default_rng(s) for s in seeds[:2])
     narrow_sampler = make_sampler(sampler, oracle, step=step, **(sampler_params or {}))
     uniform_sampler = make_sampler("uniform", oracle, step=step)
     sampler_stats = {"narrow": {}, "uniform": {}}
@@ -157,8 +163,8 @@ def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["nar
             return np.empty((0, oracle.dim))
         if budget is not None and budget.checks is not None:  # a sampler may not overrun a check budget
             kind_sampler.max_checks = min(kind_sampler.max_checks, max(1, budget.checks - (oracle.checks - checks0)))
-        try:
-            out = kind_sampler.sample(count, rng)
+        try:  # resume: walkers still under way when a round ends go on in the next one
+            out = kind_sampler.sample(count, rng, resume=True)
         except SamplerBudgetExceeded as exc:  # a sampler that cannot find its samples is a planning failure
             error = NoPath(f"no path on {oracle.scene.name}: {exc}")
             error.details = {"roadmap": roadmap.stats(), "sampler": str(exc), "rounds": rounds,
@@ -170,28 +176,64 @@ def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["nar
                     sampler_stats[key][name] = sampler_stats[key].get(name, 0) + value
         return out
 
-    roadmap = Roadmap(oracle, k=k, skip_connected=skip_connected)
+    # A single query checks only the edges its candidate paths use; a full roadmap is checked whole (multi-query).
+    roadmap = Roadmap(oracle, k=k, skip_connected=skip_connected, lazy=not full_roadmap)
     s_node = int(roadmap.add(q_start, START, connect=False)[0])
     g_node = int(roadmap.add(q_goal, GOAL, connect=False)[0])
-    rounds, path_nodes = 0, None
-    round_narrow, round_uniform = narrow, uniform
+    fine = FINE * roadmap.resolution
+    fine_only = False  # set once an optimistic path has failed the fine re-check
+
+    def solve():
+        """(roadmap path, smoothed path, smoothing stats), or None while start and goal are not connected.
+
+        Optimistic first: the roadmap path and its shortcuts are checked at the planning resolution, and the
+        smoothed path is then re-checked at FINE x it. Should that fail (an edge that grazes an obstacle between
+        checked points), the planner goes on fine-only: roadmap paths must pass the fine check (more rounds if
+        none does yet) and shortcuts are checked at the fine resolution. Either way every returned edge has passed
+        the fine check."""
+        nonlocal fine_only
+        nodes = (timed("search", _search_fine, oracle, roadmap, s_node, g_node) if fine_only
+                 else timed("search", roadmap.shortest_path, s_node, g_node))
+        if nodes is None:
+            return None
+        smoothed, stats = timed("smoothing", shortcut, oracle, roadmap.Q[nodes], np.random.default_rng(seeds[2]),
+                                rounds=smooth_rounds, resolution=fine if fine_only else None)
+        stats["fine_only"] = fine_only
+        if fine_only or timed("smoothing", verify, oracle, smoothed, fine).all():
+            return nodes, smoothed, stats
+        fine_only = True
+        return solve()
+
+    rounds, found = 0, None
+    quarter_narrow, quarter_uniform = math.ceil(narrow / 4), math.ceil(uniform / 4)
+    round_narrow, round_uniform = (narrow, uniform) if full_roadmap else (quarter_narrow, quarter_uniform)
+    drawn_narrow = drawn_uniform = 0
     while True:
         rounds += 1
         N = timed("sampling", draw, narrow_sampler, round_narrow, rng_narrow, "narrow")
         U = timed("sampling", draw, uniform_sampler, round_uniform, rng_uniform, "uniform")
+        drawn_narrow, drawn_uniform = drawn_narrow + len(N), drawn_uniform + len(U)
         new = np.concatenate([roadmap.add(N, NARROW, connect=False), roadmap.add(U, UNIFORM, connect=False)])
         if rounds == 1:
             new = np.concatenate([[s_node, g_node], new])
         timed("roadmap", roadmap.connect, new)
-        path_nodes = timed("search", _search, oracle, roadmap, s_node, g_node)
-        if path_nodes is not None:
+        found = solve()
+        if found is not None:
             break
         elapsed, spent = time.perf_counter() - clock0, oracle.checks - checks0
-        if budget is None or budget.spent(elapsed, spent) or (narrow == 0 and uniform == 0):
+        if narrow == 0 and uniform == 0:
             break
-        round_narrow, round_uniform = math.ceil(narrow / 4), math.ceil(uniform / 4)
+        if budget is None:
+            if drawn_narrow >= narrow and drawn_uniform >= uniform:
+                break
+            round_narrow, round_uniform = min(quarter_narrow, narrow - drawn_narrow), \
+                min(quarter_uniform, uniform - drawn_uniform)
+        elif budget.spent(elapsed, spent):
+            break
+        else:
+            round_narrow, round_uniform = quarter_narrow, quarter_uniform
 
-    if path_nodes is None:
+    if found is None:
         stats = roadmap.stats()
         sizes = roadmap.component_sizes(s_node, g_node)
         elapsed, spent = time.perf_counter() - clock0, oracle.checks - checks0
@@ -206,17 +248,9 @@ def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["nar
                          "seconds": elapsed, "rounds": rounds}
         raise error
 
+    path_nodes, smoothed, smooth_stats = found
     raw = roadmap.Q[path_nodes]
     narrow_on_path = sum(roadmap.kinds[i] == NARROW for i in path_nodes)
-    smoothed, smooth_stats = timed("smoothing", shortcut, oracle, raw, rng_smooth, rounds=smooth_rounds)
-    # Every returned edge is re-checked at FINE x resolution; shortcuts were accepted at that resolution already,
-    # so a failure here means something is badly wrong: fall back to the (fine-checked) roadmap path.
-    ok = timed("smoothing", verify, oracle, smoothed)
-    smooth_stats["fell_back"] = not bool(ok.all())
-    if not ok.all():
-        smoothed = raw
-        if not timed("smoothing", verify, oracle, smoothed).all():
-            raise NoPath("the planned path failed its fine re-check")
     smooth_stats["raw_length"] = path_length(oracle, raw)
     smooth_stats["length_after"] = path_length(oracle, smoothed)
 
@@ -235,7 +269,7 @@ def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["nar
         sampler_stats=sampler_stats, graph=roadmap, path_nodes=list(path_nodes))
 
 
-def _search(oracle, roadmap: Roadmap, a: int, b: int) -> list[int] | None:
+def _search_fine(oracle, roadmap: Roadmap, a: int, b: int) -> list[int] | None:
     """Shortest roadmap path whose every edge also passes the fine check; edges that fail it are dropped."""
     while True:
         nodes = roadmap.shortest_path(a, b)

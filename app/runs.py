@@ -86,7 +86,8 @@ def route(oracle, job: str) -> list[str]:
 
 
 def run_job(oracle, job: str, sampler: str = "lfbs", seed: int = 0, narrow: int = 40, uniform: int = 40,
-            step: float | None = None, budget=None, dt: float = 0.02, smooth_rounds: int = 10) -> RunResult:
+            step: float | None = None, budget=None, dt: float = 0.02, smooth_rounds: int = 10,
+            full_roadmap: bool = False) -> RunResult:
     from app.ik import solve_poses
     from app.roadmap import parse_budget
 
@@ -110,7 +111,8 @@ def run_job(oracle, job: str, sampler: str = "lfbs", seed: int = 0, narrow: int 
                                       oracle.scene.acceleration_limits, dt)
         else:
             result = plan(oracle, sampler=sampler, narrow=narrow, uniform=uniform, step=step, seed=seed * 1000 + i,
-                          budget=budget, start=qa, goal=qb, dt=dt, smooth_rounds=smooth_rounds)
+                          budget=budget, start=qa, goal=qb, dt=dt, smooth_rounds=smooth_rounds,
+                          full_roadmap=full_roadmap)
             view = result.view_json()
             path, trajectory, method = result.path, result.trajectory, sampler
             samples = np.array(view.get("narrow") or np.empty((0, oracle.dim)))

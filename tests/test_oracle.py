@@ -83,6 +83,27 @@ def test_edges_free_matches_pointwise_checks(oracles):
     assert 0 < flags.sum() < len(flags)
 
 
+def test_a_screen_checks_the_coarsest_points_and_known_free_ends_are_skipped(oracles):
+    oracle = oracles("joint3d")
+    rng = np.random.default_rng(3)
+    A, B = oracle.uniform(rng, 60), oracle.uniform(rng, 60)
+    keep = oracle.are_free(A) & oracle.are_free(B)  # endpoints free, as roadmap nodes are
+    A, B = A[keep], B[keep]
+    full = oracle.edges_free(A, B)
+    oracle.reset()
+    screen = oracle.edges_free(A, B, max_points=1, ends_free=True)
+    assert oracle.checks == len(A)  # one point per edge: its midpoint
+    points = [oracle.interpolate(a, b) for a, b in zip(A, B)]
+    mids = np.array([p[round((len(p) - 1) / 2)] for p in points])
+    assert np.array_equal(screen, oracle.are_free(mids))
+    assert np.all(screen >= full)  # a screen only ever drops edges that collide
+    assert (screen > full).any()  # and lets some colliding ones through, for the full check to find
+    oracle.reset()
+    assert np.array_equal(oracle.edges_free(A, B, ends_free=True), full)
+    expected = sum(len(oracle.interpolate(a, b)) - 2 for a, b in zip(A[full], B[full]))
+    assert oracle.checks >= expected  # every free edge's inner points, not its ends
+
+
 def test_distance_takes_the_short_way_round_on_continuous_angles(oracles):
     oracle = oracles("bar")
     q1 = oracle.scene.start.copy()

@@ -157,8 +157,38 @@ def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
     result = planned("bar")
     assert result.narrow_on_path >= 1
     assert result.smoothing["length_after"] <= result.smoothing["raw_length"] + 1e-9
-    assert result.roadmap["nodes"] == 502 and result.roadmap["narrow_nodes"] == 200
     assert set(result.seconds) >= {"sampling", "roadmap", "search", "smoothing", "timing", "total"}
+
+
+def test_a_query_stops_at_the_first_round_that_connects_and_checks_edges_lazily(oracles, planned):
+    result = planned("bar")  # 200 + 300 samples at most, a quarter (50 + 75) per round
+    assert result.roadmap["narrow_nodes"] == 50 * result.rounds and result.roadmap["uniform_nodes"] == 75 * result.rounds
+    assert result.rounds < 4 and result.roadmap["lazy"]
+    assert result.roadmap["edges_unchecked"] > 0  # most candidate edges never lay on a candidate path
+    assert result.roadmap["edges_tried"] < result.roadmap["edges"] / 2
+    graph = result.graph.graph
+    assert all(graph[u][v]["checked"] for u, v in zip(result.path_nodes[:-1], result.path_nodes[1:]))
+
+
+def test_full_roadmap_builds_every_sample_and_checks_every_edge(oracles):
+    result = plan(oracles("bar"), **BAR, full_roadmap=True, smooth_rounds=0)
+    assert result.roadmap["nodes"] == 502 and result.roadmap["narrow_nodes"] == 200 and result.rounds == 1
+    assert not result.roadmap["lazy"] and result.roadmap["edges_unchecked"] == 0
+    assert result.roadmap["k"] == 19  # k-PRM*: e (1 + 1/9) ln 502 = 18.8, for 502 nodes in 9 dimensions
+
+
+def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
+    from app.oracle import CollisionOracle
+    from app.scene import Scene
+
+    # At a 2 m planning resolution the maze's 0.9 m thick walls (in configuration space) slip between checked
+    # points; the fine re-check at 0.5 m does not miss them.
+    oracle = CollisionOracle(Scene("maze"))
+    oracle.resolution = 2.0
+    result = plan(oracle, seed=0, smooth_rounds=10)
+    assert result.smoothing["fine_only"]
+    assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.5))
+    assert all(raw_free(oracle, q) for q in fine_points(oracle, result.roadmap_path, 0.5))
 
 
 def test_same_seed_same_path(oracles, planned):
@@ -217,7 +247,8 @@ def test_cli_plan_json_and_out(tmp_path):
     assert set(doc["trajectory"]) >= {"duration", "dt", "times", "positions"}
     written = json.loads(out.read_text())
     assert written["positions"] == doc["trajectory"]["positions"] and written["path"] == doc["path"]
-    assert len(written["narrow"]) == 60 and sum(written["on_path"]) == doc["narrow_on_path"]
+    assert len(written["narrow"]) == doc["roadmap"]["narrow_nodes"] == 15 * doc["rounds"]
+    assert sum(written["on_path"]) == doc["narrow_on_path"]
     from app.viewer import parse_view_data  # the file is what the viewer reads
 
     parse_view_data(written, 6)

@@ -152,9 +152,27 @@ def test_proposals_never_leave_the_bounds(oracles):
     assert oracle.within_bounds(P[ok]).all() and ok.mean() > 0.95
 
 
+def test_resumed_batches_carry_walkers_over_and_stay_reproducible(oracles):
+    oracle = oracles("bar")
+
+    def batches(resume):
+        sampler, rng = make_sampler("lfbs", oracle, step=10), np.random.default_rng(4)
+        before = oracle.checks
+        out = np.concatenate([sampler.sample(10, rng, resume=resume) for _ in range(4)])
+        return out, oracle.checks - before, sampler.stats
+
+    resumed, resumed_checks, stats = batches(True)
+    again, again_checks, _ = batches(True)
+    fresh, fresh_checks, _ = batches(False)
+    assert np.array_equal(resumed, again) and resumed_checks == again_checks
+    assert len(resumed) == 40 and oracle.are_free(resumed).all()
+    assert stats["checks"] < resumed_checks  # stats cover the last call alone
+    assert resumed_checks < fresh_checks  # fresh calls abandon their unfinished walkers every time
+
+
 def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(oracles):
     oracle = oracles("bar")
-    lfbs = make_sampler("lfbs", oracle, step=10).sample(30, np.random.default_rng(0))
+    lfbs = make_sampler("lfbs", oracle, step=10).sample(60, np.random.default_rng(0))
     uniform = make_sampler("uniform", oracle).sample(1000, np.random.default_rng(0))
     assert oracle.in_passage(uniform).mean() < 0.02
     assert oracle.in_passage(lfbs).mean() >= 5 * max(oracle.in_passage(uniform).mean(), 0.01)

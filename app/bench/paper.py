@@ -35,7 +35,8 @@ QUICK_STEPS = [2.0, 10.0]
 PARTS = ["sampling", "table1", "prm", "ur3"]
 UR3_JOBS = ["welding", "window"]
 UR3_SAMPLERS = ["lfbs", "rbbs"]
-UR3_SIZE = {"narrow": 200, "uniform": 100, "budget": 30.0}  # the paper: 200 LFBS samples, a 100-node PRM
+# The paper: 200 LFBS samples, a 100-node PRM, built whole before the query.
+UR3_SIZE = {"narrow": 200, "uniform": 100, "budget": 30.0, "full_roadmap": True}
 PICTURE_STEPS = {"bar": 2.0, "joint": 10.0, "joint3d": 10.0, "teeth3d": 10.0}  # the paper's Figs. 3, 5, 6
 PAPER_TABLE1 = {"bar-3link": [6.9561, 6.1784, 6.3532, 6.4736, 6.8388],
                 "bar-5link": [7.4344, 7.60037, 7.9361, 9.9487, 12.005],
@@ -159,7 +160,8 @@ def run_ur3_trial(oracle, spec: TrialSpec) -> dict:
     start = time.perf_counter()
     try:
         r = run_job(oracle, spec.scene, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
-                    uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])))
+                    uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])),
+                    full_roadmap=bool(p.get("full_roadmap", False)))
     except UserError as exc:  # NoPath, or IK finding no collision-free pose
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_ik": None,
                 "seconds_planning": None, "collision_checks": oracle.checks, "error": str(exc)[:200]}

@@ -1,6 +1,7 @@
 """`bench plan`: PRM success rate and time per narrow-passage sampler, at one fixed roadmap size, over many seeds.
 
-Each trial is one `app.planner.plan` call (narrow + uniform samples, one round, no budget) on a per-process oracle;
+Each trial is one `app.planner.plan` call (up to narrow + uniform samples, no budget; `--full-roadmap` for the
+paper's protocol of the whole roadmap first) on a per-process oracle;
 rows go to the results store (`experiment` "prm"), so a killed run resumes and the claims report can read them.
 `run_trial_spec` also serves other benchmarks: params {"mode": "budget", "budget": seconds} plans in rounds until
 connected or out of time (as `plan --budget 30s`).
@@ -13,7 +14,7 @@ from app.bench.store import ResultStore, TrialSpec
 from app.cli import non_negative_int, positive_float, positive_int, print_json
 
 SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]
-SIZE = {"narrow": 200, "uniform": 300, "k": 10, "smooth": 10}
+SIZE = {"narrow": 200, "uniform": 300, "k": None, "smooth": 10}  # k None: the planner's k-PRM*
 
 
 def register(kinds) -> None:
@@ -24,13 +25,16 @@ def register(kinds) -> None:
     p.add_argument("--narrow", type=non_negative_int, default=SIZE["narrow"],
                    help="narrow-passage samples per roadmap (uniform: that many more uniform samples)")
     p.add_argument("--uniform", type=non_negative_int, default=SIZE["uniform"], help="uniform samples per roadmap")
-    p.add_argument("-k", "--neighbours", type=positive_int, default=SIZE["k"])
+    p.add_argument("-k", "--neighbours", type=positive_int, default=SIZE["k"],
+                   help="k nearest neighbours (default: k-PRM*'s, as `plan`)")
     p.add_argument("--smooth", type=non_negative_int, default=SIZE["smooth"], help="random shortcut rounds")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument("--budget", type=positive_float, default=None, metavar="SECONDS",
                    help="instead of one round, add samples in rounds until connected or this many seconds pass")
+    p.add_argument("--full-roadmap", action="store_true",
+                   help="plan on the whole roadmap, every edge checked (the paper's protocol), not until connected")
     p.add_argument("--workers", type=positive_int, default=1,
-                   help="parallel processes (1 keeps timings clean; each oracle then uses one thread)")
+                   help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread each)")
     p.add_argument("--store", default="out/bench-plan.sqlite", help="results store (resumes a killed run)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
@@ -62,7 +66,8 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     checks0, start = oracle.checks, time.perf_counter()
     try:
         r = plan(oracle, sampler=spec.method, narrow=narrow, uniform=uniform, step=spec.step, seed=spec.seed,
-                 budget=budget, k=int(p.get("k", SIZE["k"])), smooth_rounds=int(p.get("smooth", SIZE["smooth"])))
+                 budget=budget, k=p.get("k", SIZE["k"]), smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
+                 full_roadmap=bool(p.get("full_roadmap", False)))
     except NoPath as exc:
         d = getattr(exc, "details", {})
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_to_path": None,
@@ -117,6 +122,8 @@ def run(args) -> int:
     params = {"narrow": args.narrow, "uniform": args.uniform, "k": args.neighbours, "smooth": args.smooth}
     if args.budget is not None:
         params.update(mode="budget", budget=args.budget)
+    if args.full_roadmap:
+        params["full_roadmap"] = True
     todo = specs(scenes, samplers, args.seeds, params, args.step)
     from pathlib import Path
 
@@ -131,9 +138,10 @@ def run(args) -> int:
     if args.json:
         print_json({"plan": table, "seeds": args.seeds, "params": params})
         return 0
-    rounds = f"rounds until connected or {args.budget:g} s" if args.budget is not None else "one round"
+    rounds = ("whole roadmap, every edge checked" if args.full_roadmap else "lazy, a quarter at a time until "
+              "connected") + (f", then rounds until connected or {args.budget:g} s" if args.budget is not None else "")
     print(f"{args.seeds} seeds; roadmap {args.narrow} narrow + {args.uniform} uniform (uniform row: all "
-          f"{args.narrow + args.uniform} uniform), k {args.neighbours}, {rounds}, {args.smooth} shortcut rounds")
+          f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {rounds}, {args.smooth} shortcut rounds")
     print(f"{'scene':<9} {'sampler':<9} {'success':>8} {'median s':>9} {'s to path':>10} {'median checks':>14} "
           f"{'narrow on path':>15}")
     for r in table:

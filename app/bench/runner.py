@@ -2,7 +2,8 @@
 
 A trial is a pure function of its TrialSpec (seeded), so where it runs does not change its row. Each worker
 process keeps one oracle per scene (building a Drake diagram per trial would dominate the cost) on one thread:
-the parallelism is across processes. Only trials the store does not hold yet are sent; rows are stored as they
+the parallelism is across processes. With one worker, trials run in this process on all the oracle's threads,
+as a plain `plan` would. Only trials the store does not hold yet are sent; rows are stored as they
 come back, so a killed sweep resumes where it stopped.
 """
 import importlib
@@ -26,20 +27,21 @@ EXPERIMENTS = {
 _oracles = {}
 
 
-def _oracle(scene: str):
-    if scene not in _oracles:
+def _oracle(scene: str, threads: int):
+    if (scene, threads) not in _oracles:
         from app.oracle import CollisionOracle
         from app.scene import Scene
 
-        _oracles[scene] = CollisionOracle(Scene(scene), threads=1)
-    return _oracles[scene]
+        _oracles[scene, threads] = CollisionOracle(Scene(scene), threads=threads)
+    return _oracles[scene, threads]
 
 
-def execute(spec: TrialSpec) -> tuple[TrialSpec, dict]:
-    """Run one trial in this process (top-level, so process pools and Dask can pickle it)."""
+def execute(spec: TrialSpec, threads: int = 1) -> tuple[TrialSpec, dict]:
+    """Run one trial in this process (top-level, so process pools and Dask can pickle it) on an oracle with
+    `threads` collision-checking threads (one per worker when several share the cores)."""
     module, function = EXPERIMENTS[spec.experiment].split(":")
     trial = getattr(importlib.import_module(module), function)
-    return spec, trial(_oracle(spec.scene), spec)
+    return spec, trial(_oracle(spec.scene, threads), spec)
 
 
 def connect(scheduler):
@@ -78,9 +80,11 @@ def run_sweep(specs: list[TrialSpec], store: ResultStore, workers: int = 0, sche
 def _results(pending: list[TrialSpec], workers: int, client):
     if client is not None:
         yield from _dask_results(pending, client)
-    elif workers == 1:
+    elif workers == 1:  # in this process, with all the cores a plain `plan` would use
+        from app.oracle import default_threads
+
         for spec in pending:
-            yield execute(spec)
+            yield execute(spec, default_threads())
     else:
         # spawn, not fork: a forked child would inherit Drake's thread pools mid-state.
         context = multiprocessing.get_context("spawn")

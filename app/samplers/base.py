@@ -44,17 +44,25 @@ class Sampler:
         self.max_rounds = int(max_rounds)  # rounds one sample() call may run (guards rounds that check nothing)
         self.redraws = int(redraws)  # how often an out-of-bounds step is redrawn before that proposal is dropped
         self.stats: dict = {}
+        self._begun = False  # _begin has run: there is state to resume from
         self.bridges: np.ndarray | None = None  # (k, 2, dim) colliding bridge endpoints of the last samples
 
     # ---- the loop ------------------------------------------------------------------------------------------
-    def sample(self, k: int, rng: np.random.Generator) -> np.ndarray:
-        """k free, in-bounds configurations (continuous angles wrapped), shape (k, dim)."""
+    def sample(self, k: int, rng: np.random.Generator, resume: bool = False) -> np.ndarray:
+        """k free, in-bounds configurations (continuous angles wrapped), shape (k, dim).
+
+        resume: carry on from the previous call (running yield estimates, walkers still under way) instead of
+        starting afresh, so drawing a roadmap's samples in batches wastes no work between batches. `stats` always
+        covers this call alone.
+        """
         k = int(k)
         if k <= 0:
             raise UserError(f"k must be positive, got {k}")
         oracle = self.oracle
         self.stats = {"attempts": 0, "gave_up": 0, "rounds": 0, "checks": 0}
-        self._begin(rng)
+        if not (resume and self._begun):
+            self._begin(rng)
+            self._begun = True
         samples, bridges, have = [], [], 0
         start = oracle.checks
         while have < k:

@@ -72,12 +72,14 @@ class Walker(Sampler):
         self._age = np.empty(0, int)  # steps each walker has taken
         self._reserve = np.empty((0, dim))  # colliding starts found but not yet walking
         self._hit_rate = 0.5  # running estimate of the colliding fraction of uniform draws
-        self.stats.update(steps=0)
 
     def _pool_size(self, need: int) -> int:
         if self.walkers:
             return int(self.walkers)
-        return int(np.clip(2 * need, 32, 256))
+        # Walk lengths are heavy-tailed, so a larger pool finishes its samples with shorter walks, which offsets
+        # the unfinished walks it leaves; 4x the need was as cheap in checks as 2x and faster in time (fuller
+        # batches) on bar, teeth3d, maze and window (10-12 seeds each).
+        return int(np.clip(4 * need, 32, 256))
 
     def _refill(self, rng, size: int) -> None:
         """Top the pool up to `size` walkers from colliding uniform configurations (checked in one call)."""
@@ -117,7 +119,7 @@ class Walker(Sampler):
         moved = ok & ~free  # q' collides: q <- q'. A free q' that failed the bridge test leaves q where it was.
         Q[moved] = P[moved]
         self._age += 1
-        self.stats["steps"] += len(Q)
+        self.stats["steps"] = self.stats.get("steps", 0) + len(Q)
         done = accept | (self._age >= self.max_steps)
         self.stats["gave_up"] += int((~accept & done).sum())
         self._Q, self._age = Q[~done], self._age[~done]
