@@ -2,7 +2,7 @@
 nothing new. The default-run test uses a tiny configuration (one scene, two samplers, one trial per cell)."""
 import pytest
 
-from app.bench import paper
+from app.bench import jobs, paper
 from app.bench.runner import EXPERIMENTS
 from app.bench.store import ResultStore, TrialSpec
 from app.cli import main
@@ -23,7 +23,7 @@ def test_sweeps_are_deterministic_and_share_the_bar_cells():
     assert len(keys["table1"]) == 3 * 2 * 2 * 2
     assert len(set(keys["sampling"]) & set(keys["table1"])) == 2 * 2 * 2  # bar x (rbbs, lfbs): the same trials
     assert all(s.experiment == "ur3" for s in paper.ur3_specs(1))
-    assert EXPERIMENTS["ur3"] == "app.bench.paper:run_ur3_trial"
+    assert EXPERIMENTS["ur3"] == "app.bench.jobs:run_trial_spec"
 
 
 def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
@@ -72,7 +72,7 @@ def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
 @pytest.mark.slow
 def test_ur3_trial_times_a_welding_job(oracles):
     spec = paper.ur3_specs(1)[0]
-    metrics = paper.run_ur3_trial(oracles(spec.scene), spec)
+    metrics = jobs.run_trial_spec(oracles(spec.scene), spec)
     assert metrics["success"] == 1.0
     assert metrics["seconds"] >= metrics["seconds_planning"] > 0 and metrics["collision_checks"] > 0
 

@@ -304,11 +304,23 @@ def test_cli_plan_html_shows_the_trajectory(tmp_path):
 def test_bench_plan_runs_and_resumes_from_its_store(tmp_path):
     store = tmp_path / "bench.sqlite"
     args = ["bench", "plan", "--seeds", "2", "--scenes", "joint3d", "--samplers", "uniform,lfbs", "--narrow", "10",
-            "--uniform", "10", "--smooth", "0", "--store", str(store), "--json"]
+            "--uniform", "10", "--smooth", "0", "--roadmap", "both", "--store", str(store), "--json"]
     result = run_app(*args)
     assert result.returncode == 0, result.stderr
-    table = {row["sampler"]: row for row in json.loads(result.stdout)["plan"]}
-    assert set(table) == {"uniform", "lfbs"} and all(row["runs"] == 2 for row in table.values())
+    table = {(row["sampler"], row["roadmap"]): row for row in json.loads(result.stdout)["plan"]}
+    assert set(table) == {(s, m) for s in ("uniform", "lfbs") for m in ("query", "full")}
+    assert all(row["runs"] == 2 for row in table.values())
     again = run_app(*args)  # everything is in the store already: same table, nothing re-run
     assert again.returncode == 0 and json.loads(again.stdout) == json.loads(result.stdout)
     assert_one_line_error(run_app("bench", "plan", "--samplers", "magic", "--store", str(store)), 2)
+
+
+def test_bench_jobs_times_query_and_full_roadmap_side_by_side(tmp_path):
+    args = ["bench", "jobs", "--jobs", "welding", "--seeds", "1", "--store", str(tmp_path / "jobs.sqlite")]
+    result = run_app(*args)
+    assert result.returncode == 0, result.stderr
+    rows = [line.split() for line in result.stdout.splitlines() if line.startswith("welding  ")]
+    assert [row[2] for row in rows] == ["full", "query"] and all(row[3] == "1/1" for row in rows)
+    assert "welding lfbs: the query mode takes" in result.stdout
+    assert_one_line_error(run_app("bench", "jobs", "--jobs", "parking", "--store", str(tmp_path / "x.sqlite")), 2)
+    assert not (tmp_path / "x.sqlite").exists()

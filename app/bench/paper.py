@@ -9,7 +9,8 @@ run started again with the same options skips every stored trial):
 2. table1 -- RBBS and LFBS t_eps vs step on bar-3link, bar-5link and bar (the paper's Table 1; the bar cells are the
    same trials as sweep 1 and are not run twice);
 3. prm -- the maze/tunnel LFBS-vs-RBBS PRM tables (`bench uav` specs);
-4. ur3 -- the scripted UR3 welding and window jobs (`app.runs.run_job`), timed (experiment "ur3").
+4. ur3 -- the scripted UR3 welding and window jobs (`app.runs.run_job`), timed (experiment "ur3", the trial of
+   `bench jobs`).
 
 The report is built from the store alone (`--report-only` rebuilds it without running anything): the claims C1-C5
 judged by `app.bench.claims.judge`, markdown tables, and PNG figures next to report.md.
@@ -149,28 +150,6 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
     return out
 
 
-def run_ur3_trial(oracle, spec: TrialSpec) -> dict:
-    """One scripted UR3 job (experiment "ur3", scene = job): seconds total/ik/planning, checks, success."""
-    from app.errors import UserError
-    from app.roadmap import Budget
-    from app.runs import run_job
-
-    p = spec.params
-    oracle.reset()
-    start = time.perf_counter()
-    try:
-        r = run_job(oracle, spec.scene, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
-                    uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])),
-                    full_roadmap=bool(p.get("full_roadmap", False)))
-    except UserError as exc:  # NoPath, or IK finding no collision-free pose
-        return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_ik": None,
-                "seconds_planning": None, "collision_checks": oracle.checks, "error": str(exc)[:200]}
-    planned = [leg for leg in r.legs if leg.method != "straight"]
-    return {"success": 1.0, "seconds": r.seconds["total"], "seconds_ik": r.seconds["ik"],
-            "seconds_planning": r.seconds["planning"], "collision_checks": r.collision_checks,
-            "legs": len(r.legs), "planned_legs": len(planned), "duration": r.trajectory.duration}
-
-
 # --------------------------------------------------------------------------------------------------- the report
 
 def _sampling_rows(rows) -> list[dict]:
@@ -273,30 +252,10 @@ def _figure_prm(table: list[dict], path: Path) -> None:
     save(fig, str(path))
 
 
-def _ur3_table(rows) -> list[dict]:
-    cells = {}
-    for r in rows:
-        if r["experiment"] == "ur3":
-            cells.setdefault((r["scene"], r["method"]), []).append(r["metrics"])
-    out = []
-    for (job, sampler), metrics in sorted(cells.items()):
-        ok = [m for m in metrics if m["success"]]
-
-        def med(key):
-            values = [m[key] for m in ok if m.get(key) is not None]
-            return float(np.median(values)) if values else None
-
-        out.append({"job": job, "sampler": sampler, "runs": len(metrics), "successes": len(ok),
-                    "median_total": med("seconds"), "median_ik": med("seconds_ik"),
-                    "median_planning": med("seconds_planning"),
-                    "median_checks": float(np.median([m["collision_checks"] for m in metrics]))})
-    return out
-
-
 def build_report(store: ResultStore, folder: Path, config: Config | None = None, pictures: bool = True,
                  wall_seconds: float | None = None) -> Path:
     """report.md and its figures from what the store holds (every row of every experiment in it)."""
-    from app.bench import sampling, uav
+    from app.bench import jobs, sampling, uav
     from app.bench.claims import ALPHA, judge
     from app.samplers import SAMPLERS
 
@@ -424,17 +383,18 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
 
     # UR3
     lines += ["## UR3 welding and window jobs (the paper's UR3 timing table)", ""]
-    ur3 = _ur3_table(rows)
+    ur3 = jobs.table(rows)
     if ur3:
         lines += [f"`app.runs.run_job`: IK for the route's poses, then each leg straight or by PRM "
-                  f"({UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples per round, "
+                  f"(a full roadmap of {UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples, "
                   f"{UR3_SIZE['budget']:g} s per leg). Medians over successful runs; the paper's LFBS average in "
                   "brackets (Gazebo/MoveIt set-up, step 0.5).", "",
-                  "| job | sampler | runs | success | total s | IK s | planning s | checks |",
-                  "|---|---|---:|---:|---:|---:|---:|---:|"]
+                  "| job | sampler | roadmap | runs | success | total s | IK s | planning s | checks |",
+                  "|---|---|---|---:|---:|---:|---:|---:|---:|"]
         for r in ur3:
             paper = f" ({PAPER_UR3[r['job']]:g})" if r["sampler"] == "lfbs" and r["job"] in PAPER_UR3 else ""
-            lines.append(f"| {r['job']} | {r['sampler']} | {r['runs']} | {r['successes']}/{r['runs']} | "
+            lines.append(f"| {r['job']} | {r['sampler']} | {r['roadmap']} | {r['runs']} | "
+                         f"{r['successes']}/{r['runs']} | "
                          f"{_fmt(r['median_total'])}{paper} | {_fmt(r['median_ik'])} | "
                          f"{_fmt(r['median_planning'])} | {r['median_checks']:.0f} |")
         lines.append("")

@@ -31,8 +31,9 @@ def register(kinds) -> None:
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument("--budget", type=positive_float, default=None, metavar="SECONDS",
                    help="instead of one round, add samples in rounds until connected or this many seconds pass")
-    p.add_argument("--full-roadmap", action="store_true",
-                   help="plan on the whole roadmap, every edge checked (the paper's protocol), not until connected")
+    p.add_argument("--roadmap", choices=["query", "full", "both"], default="query",
+                   help="query: the planner's default (lazy, a quarter at a time until connected); full: the whole "
+                        "roadmap, every edge checked (the paper's protocol); both: side by side")
     p.add_argument("--workers", type=positive_int, default=1,
                    help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread each)")
     p.add_argument("--store", default="out/bench-plan.sqlite", help="results store (resumes a killed run)")
@@ -92,15 +93,16 @@ def specs(scenes, samplers, seeds, params, step) -> list[TrialSpec]:
 def summarise(rows) -> list[dict]:
     cells = {}
     for r in rows:
-        cells.setdefault((r["scene"], r["method"]), []).append(r["metrics"])
+        mode = "full" if r["params"].get("full_roadmap") else "query"
+        cells.setdefault((r["scene"], r["method"], mode), []).append(r["metrics"])
     table = []
-    for (scene, method), metrics in cells.items():
+    for (scene, method, mode), metrics in cells.items():
         ok = np.array([m["success"] for m in metrics], bool)
         seconds = np.array([m["seconds"] for m in metrics])
         checks = np.array([m["collision_checks"] for m in metrics])
         to_path = np.array([m["seconds_to_path"] for m in metrics if m["success"]])
         narrow = np.array([m["narrow_on_path"] for m in metrics if m["success"]])
-        table.append({"scene": scene, "sampler": method, "runs": len(metrics), "successes": int(ok.sum()),
+        table.append({"scene": scene, "sampler": method, "roadmap": mode, "runs": len(metrics), "successes": int(ok.sum()),
                       "success_rate": float(ok.mean()), "median_seconds": float(np.median(seconds)),
                       "median_seconds_to_path": float(np.median(to_path)) if ok.any() else None,
                       "median_checks": float(np.median(checks)),
@@ -122,9 +124,11 @@ def run(args) -> int:
     params = {"narrow": args.narrow, "uniform": args.uniform, "k": args.neighbours, "smooth": args.smooth}
     if args.budget is not None:
         params.update(mode="budget", budget=args.budget)
-    if args.full_roadmap:
-        params["full_roadmap"] = True
-    todo = specs(scenes, samplers, args.seeds, params, args.step)
+    modes = ["query", "full"] if args.roadmap == "both" else [args.roadmap]
+    todo = []
+    for mode in modes:
+        todo += specs(scenes, samplers, args.seeds, {**params, "full_roadmap": True} if mode == "full" else params,
+                      args.step)
     from pathlib import Path
 
     Path(args.store).parent.mkdir(parents=True, exist_ok=True)
@@ -133,20 +137,28 @@ def run(args) -> int:
     wanted = {t.key for t in todo}
     rows = [r for r in store.rows() if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"], r["seed"],
                                                    r["params"]).key in wanted]
-    order = {(sc, sa): i for i, (sc, sa) in enumerate((sc, sa) for sc in scenes for sa in samplers)}
-    table = sorted(summarise(rows), key=lambda r: order.get((r["scene"], r["sampler"]), 1e9))
+    order = {key: i for i, key in enumerate((sc, sa, mode) for sc in scenes for sa in samplers for mode in modes)}
+    table = sorted(summarise(rows), key=lambda r: order.get((r["scene"], r["sampler"], r["roadmap"]), 1e9))
     if args.json:
         print_json({"plan": table, "seeds": args.seeds, "params": params})
         return 0
-    rounds = ("whole roadmap, every edge checked" if args.full_roadmap else "lazy, a quarter at a time until "
-              "connected") + (f", then rounds until connected or {args.budget:g} s" if args.budget is not None else "")
-    print(f"{args.seeds} seeds; roadmap {args.narrow} narrow + {args.uniform} uniform (uniform row: all "
-          f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {rounds}, {args.smooth} shortcut rounds")
-    print(f"{'scene':<9} {'sampler':<9} {'success':>8} {'median s':>9} {'s to path':>10} {'median checks':>14} "
-          f"{'narrow on path':>15}")
+    budget = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
+    print(f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
+          f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
+          f"query: lazy edges, a quarter of the samples at a time until connected; full: the whole roadmap, every "
+          f"edge checked{budget}")
+    print(f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
+          f"{'median checks':>14} {'narrow on path':>15}")
     for r in table:
         to_path = f"{r['median_seconds_to_path']:.2f}" if r["median_seconds_to_path"] is not None else "-"
         narrow = f"{r['median_narrow_on_path']:.0f}" if r["median_narrow_on_path"] is not None else "-"
-        print(f"{r['scene']:<9} {r['sampler']:<9} {r['success_rate']:>8.0%} {r['median_seconds']:>9.2f} "
-              f"{to_path:>10} {r['median_checks']:>14.0f} {narrow:>15}")
+        print(f"{r['scene']:<9} {r['sampler']:<9} {r['roadmap']:<8} {r['success_rate']:>8.0%} "
+              f"{r['median_seconds']:>9.2f} {to_path:>10} {r['median_checks']:>14.0f} {narrow:>15}")
+    cells = {(r["scene"], r["sampler"], r["roadmap"]): r for r in table}
+    for (scene, sampler, mode), r in cells.items():
+        full = cells.get((scene, sampler, "full"))
+        if mode == "query" and full:
+            print(f"{scene} {sampler}: query/full median time {r['median_seconds'] / full['median_seconds']:.2f}x, "
+                  f"checks {r['median_checks'] / full['median_checks']:.2f}x, success {r['success_rate']:.0%} vs "
+                  f"{full['success_rate']:.0%}")
     return 0

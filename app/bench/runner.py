@@ -21,7 +21,7 @@ EXPERIMENTS = {
     "sampling": "app.bench.sampling:run_trial_spec",
     "prm": "app.bench.plan:run_trial_spec",
     "ompl": "app.bench.ompl:run_trial_spec",
-    "ur3": "app.bench.paper:run_ur3_trial",
+    "ur3": "app.bench.jobs:run_trial_spec",
 }
 
 _oracles = {}

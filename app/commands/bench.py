@@ -1,7 +1,7 @@
 """`bench KIND ...`: each benchmark lives in app/bench/KIND.py and registers its own sub-command."""
-from app.bench import ompl, oracle, paper, plan, sampling, uav
+from app.bench import jobs, ompl, oracle, paper, plan, sampling, uav
 
-BENCHES = [oracle, sampling, plan, uav, ompl, paper]
+BENCHES = [oracle, sampling, plan, uav, jobs, ompl, paper]
 
 
 def register(subparsers) -> None:

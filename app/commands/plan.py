@@ -105,10 +105,13 @@ def write_trajectory(path: Path, result) -> None:
 
 def summary(r) -> str:
     m, s, t = r.roadmap, r.seconds, r.trajectory
+    edges = (f"{m['edges']} candidate edges ({m['edges_screened_out']} more screened out), {m['edges_tried']} "
+             f"checked in full (lazy)" if m["lazy"] else
+             f"{m['edges']} edges, {m['components']} components, {m['edges_tried']} edges tried")
     lines = [
         f"plan {r.scene}: path found with {r.sampler} (seed {r.seed}, step {r.step:g})",
         f"  roadmap   {m['nodes']} nodes ({m['narrow_nodes']} {r.sampler}, {m['uniform_nodes']} uniform), "
-        f"{m['edges']} edges, {m['components']} components, {m['edges_tried']} edges tried, {r.rounds} round(s)",
+        f"{edges}, {r.rounds} round(s)",
         f"  path      {len(r.roadmap_path)} roadmap nodes ({r.narrow_on_path} from {r.sampler}), length "
         f"{r.smoothing['raw_length']:.1f} -> {len(r.path)} waypoints, length {r.smoothing['length_after']:.1f} "
         f"after smoothing",
