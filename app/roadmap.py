@@ -13,8 +13,8 @@ Edges are checked by `oracle.edges_free`, coarse-to-fine and batched, at the sce
   a component (Kavraki's PRM rule: such an edge adds no connectivity; it cut the checks on `bar` about 3x).
 - lazy (a single query; Bohlin and Kavraki's Lazy PRM, ICRA 2000): k-nearest edges go into the graph unchecked, and
   `shortest_path` checks only the edges of the current shortest candidate path, drops those that collide and
-  searches again. Most edges of a roadmap are never on a candidate path: on the UR3 window scene this checks about
-  20x fewer points than eager connection; in the maze, where walls cut many candidate paths, about 2x fewer.
+  searches again. Most edges of a roadmap are never on a candidate path (`bench plan --roadmap both` and
+  `bench jobs` measure the query mode, lazy and stopping when connected, against the full roadmap).
 Shortcut smoothing (app/path.py) then recovers the path quality a denser graph would have given.
 """
 from __future__ import annotations
@@ -254,7 +254,6 @@ class Roadmap:
             for (u, v), ok in zip(P, free):
                 if ok:
                     self.graph[u][v]["checked"] = True
-                    self._components.union(int(u), int(v))
                 else:
                     self.graph.remove_edge(u, v)
 

@@ -12,9 +12,12 @@ import numpy as np
 
 from app.bench.store import ResultStore, TrialSpec
 from app.cli import non_negative_int, positive_float, positive_int, print_json
+from app.planner import DEFAULTS
 
 SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]
-SIZE = {"narrow": 200, "uniform": 300, "k": None, "smooth": 10}  # k None: the planner's k-PRM*
+# What a plain `plan` does: the same roadmap size, k (None: k-PRM*) and smoothing.
+SIZE = {"narrow": DEFAULTS["narrow"], "uniform": DEFAULTS["uniform"], "k": DEFAULTS["k"],
+        "smooth": DEFAULTS["smooth_rounds"]}
 
 
 def register(kinds) -> None:
