@@ -62,7 +62,7 @@ def _round_faces(shape, pose, segments: int = 16) -> list[np.ndarray]:
 
 
 def _draw_shape(ax, shape, pose, three_d: bool, **style):
-    from pydrake.geometry import Box, Capsule, Cylinder, Sphere
+    from pydrake.geometry import Box, Capsule, Convex, Cylinder, Mesh, Sphere
 
     if isinstance(shape, Box):
         corners = _box_corners(shape, pose)
@@ -77,6 +77,19 @@ def _draw_shape(ax, shape, pose, three_d: bool, **style):
         ax.add_patch(Circle(pose.translation()[:2], shape.radius(), **style))
     elif isinstance(shape, (Cylinder, Sphere, Capsule)):
         ax.add_collection3d(Poly3DCollection(_round_faces(shape, pose), **style))
+    elif isinstance(shape, (Convex, Mesh)):  # what Drake collides with: the convex hull (custom scenes' pieces)
+        hull = shape.GetConvexHull()
+        points = np.array([hull.vertex(i) for i in range(hull.num_vertices())])  # scaled already
+        world = points @ pose.rotation().matrix().T + pose.translation()
+        faces = [world[[face.vertex(j) for j in range(face.num_vertices())]]
+                 for face in (hull.element(i) for i in range(hull.num_faces()))]
+        if three_d:
+            ax.add_collection3d(Poly3DCollection(faces, **style))
+        else:
+            from scipy.spatial import ConvexHull
+
+            xy = world[:, :2]
+            ax.add_patch(Polygon(xy[ConvexHull(xy).vertices], closed=True, **style))
     elif three_d:
         ax.scatter(*pose.translation(), s=8, color=style.get("facecolor", "k"))
 

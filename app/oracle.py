@@ -91,6 +91,9 @@ class CollisionOracle:
         self._inspector = inspector
         self._passage_frame = (self.plant.GetFrameByName(scene.passage_frame.name(), scene.passage_frame.model_instance())
                                if scene.passage_frame is not None else None)
+        # What `frame_positions` tracks: the passage frame, or without one (a custom scene) the robot's last body.
+        last_body = self.plant.GetBodyIndices(scene.robot_instances[-1])[-1]
+        self._tracked_frame = self._passage_frame or self.plant.get_body(last_body).body_frame()
 
     def policy_context(self):
         """A new root context of the model whose SceneGraph sees exactly the scene's collision pairs (the same
@@ -276,12 +279,13 @@ class CollisionOracle:
         return sorted(names)
 
     def frame_positions(self, Q: np.ndarray) -> np.ndarray:
-        """World position of the passage frame's origin for each configuration, (n, 3)."""
+        """World position of the passage frame's origin (no passage declared: the robot's last body's) for each
+        configuration, (n, 3)."""
         Q = np.atleast_2d(np.asarray(Q, float))
         out = np.empty((len(Q), 3))
         for i, q in enumerate(Q):
             self.plant.SetPositions(self._ctx, q)
-            out[i] = self._passage_frame.CalcPoseInWorld(self._ctx).translation()
+            out[i] = self._tracked_frame.CalcPoseInWorld(self._ctx).translation()
         return out
 
     def in_passage(self, Q: np.ndarray) -> np.ndarray:

@@ -120,6 +120,39 @@ def test_custom_scene_file(files, cache):
         load_scene(str(files / "bad.yaml"), cache_dir=cache)
 
 
+def test_every_scene_command_takes_a_custom_scene_file(files, tmp_path, monkeypatch, capsys):
+    from app.cli import main
+
+    monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
+    scene_file = files / "byo_cli.yaml"
+    scene_file.write_text(
+        "robot: cube.obj\nenv: [channel.stl]\nbounds: ['-3.5..3.5', '-1.7..1.7', '0.8..2.2']\n"
+        f"start: {START}\ngoal: {GOAL}\n")
+    scene = str(scene_file)
+    assert main(["show", scene, "--png", str(tmp_path / "show.png")]) == 0
+    assert main(["sample", scene, "--sampler", "lfbs", "-k", "5", "--step", "0.5", "--png",
+                 str(tmp_path / "samples.png")]) == 0
+    assert "no passage region declared" in capsys.readouterr().out
+    assert main(["plan", scene, "--narrow", "60", "--uniform", "120", "--seed", "1", "--smooth", "5",
+                 "--out", str(tmp_path / "traj.json")]) == 0
+    monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # the viewer needs Meshcat even to export a page
+    assert main(["view", scene, "--trajectory", str(tmp_path / "traj.json"), "--html", str(tmp_path / "v.html")]) == 0
+    assert "cube" in (tmp_path / "v.html").read_text()
+
+
+
+def test_pictures_draw_mesh_pieces(channel_oracle):
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from app.draw import draw_robot, scene_figure
+
+    _, ax = scene_figure(channel_oracle)
+    obstacles = [c for c in ax.collections if isinstance(c, Poly3DCollection)]
+    assert len(obstacles) >= 3  # the channel's convex pieces (its floor and two walls at least)
+    draw_robot(ax, channel_oracle, np.array(IN_SLOT))
+    assert len([c for c in ax.collections if isinstance(c, Poly3DCollection)]) == len(obstacles) + 1  # the cube
+
+
 # ---- URDF robots and package paths ---------------------------------------------------------------------------------
 ARM = """<?xml version="1.0"?>
 <robot name="arm">

@@ -15,7 +15,7 @@ def _sampler_name(text: str) -> str:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("sample", help="draw k samples with one of the seven samplers")
-    p.add_argument("scene", help="scene name or problem-file path")
+    p.add_argument("scene", help="scene name, problem-file path or custom scene file")
     p.add_argument("--sampler", type=_sampler_name, required=True,
                    help="uniform, gaussian, rbbs, rws, lfs, rwbs or lfbs")
     p.add_argument("-k", type=positive_int, default=30, help="number of samples (default 30)")
@@ -32,9 +32,9 @@ def run(args) -> int:
     from app.bench.sampling import run_trial
     from app.oracle import CollisionOracle
     from app.samplers import SamplerBudgetExceeded
-    from app.scene import Scene
+    from app.custom_scene import load_scene
 
-    oracle = CollisionOracle(Scene(args.scene), threads=args.threads)
+    oracle = CollisionOracle(load_scene(args.scene), threads=args.threads)
     result = run_trial(oracle, args.sampler, args.step, args.seed, k=args.k, keep_samples=True)
     if not result["ok"]:
         raise SamplerBudgetExceeded(f"{args.sampler}: no {args.k} samples within {result['collision_checks']} "
@@ -55,9 +55,10 @@ def run(args) -> int:
     if args.json:
         print_json(out)
     else:
+        passage = (f"{100 * out['passage_fraction']:.0f} % in the passage" if oracle.scene.passage_boxes
+                   else "no passage region declared")
         print(f"{out['scene']} {out['sampler']}: {args.k} samples in {out['seconds']:.3f} s, "
-              f"{out['collision_checks']} collision checks, {100 * out['passage_fraction']:.0f} % in the passage, "
-              f"{out['gave_up']} gave up")
+              f"{out['collision_checks']} collision checks, {passage}, {out['gave_up']} gave up")
         if args.png:
             print(args.png)
     return 0

@@ -8,7 +8,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run_scenes)
 
     p = subparsers.add_parser("show", help="draw a scene (obstacles, passage region, robot at start and goal)")
-    p.add_argument("scene", help="scene name or problem-file path")
+    p.add_argument("scene", help="scene name, problem-file path or custom scene file")
     p.add_argument("--png", required=True, help="output PNG file")
     p.set_defaults(func=run_show)
 
@@ -29,9 +29,9 @@ def run_scenes(args) -> int:
 def run_show(args) -> int:
     from app.draw import draw_scene
     from app.oracle import CollisionOracle
-    from app.scene import Scene
+    from app.custom_scene import load_scene
 
-    oracle = CollisionOracle(Scene(args.scene))
+    oracle = CollisionOracle(load_scene(args.scene))
     draw_scene(oracle, args.png)
     print(args.png)
     return 0

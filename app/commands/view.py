@@ -22,7 +22,7 @@ def publish_from_args(args, scene, data):
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("view", help="show a trajectory in Meshcat and/or export a standalone HTML page")
-    p.add_argument("scene", help="scene name or problem-file path")
+    p.add_argument("scene", help="scene name, problem-file path or custom scene file")
     p.add_argument("--trajectory", required=True, metavar="FILE.json",
                    help='{"times": [...], "positions": [[...], ...], optional "narrow", "on_path", "path"}')
     add_arguments(p)
@@ -31,12 +31,12 @@ def register(subparsers) -> None:
 
 def run_view(args) -> int:
     from app.errors import UserError
-    from app.scene import Scene
+    from app.custom_scene import load_scene
     from app.viewer import load_view_data
 
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
-    scene = Scene(args.scene)
+    scene = load_scene(args.scene)
     data = load_view_data(args.trajectory, scene.dim)
     if data.positions is None:
         raise UserError(f"{args.trajectory}: 'times' and 'positions' are required")
