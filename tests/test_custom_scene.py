@@ -1,7 +1,5 @@
 """Bring your own robot and environment (app.custom_scene): a mesh robot flies through a non-convex mesh channel
 whose convex hull would block it, URDF robots with package paths, custom scene files, and bad input."""
-from pathlib import Path
-
 import numpy as np
 import pytest
 

@@ -271,7 +271,7 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
     lines += ["## Machine, code, trials", ""]
     lines += [f"- Machine: {m}" for m in machine()]
     lines += [f"- Code version(s) of the stored trials: {', '.join(f'`{v}`' for v in versions) or '–'}",
-              f"- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items()))
+              "- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items()))
                                               or "none")]
     if config is not None:
         lines += [f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per sampling cell, steps "

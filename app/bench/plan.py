@@ -38,7 +38,8 @@ def register(kinds) -> None:
                    help="query: the planner's default (lazy, a quarter at a time until connected); full: the whole "
                         "roadmap, every edge checked (the paper's protocol); both: side by side")
     p.add_argument("--workers", type=positive_int, default=1,
-                   help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread each)")
+                   help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread "
+                        "each)")
     p.add_argument("--store", default="out/bench-plan.sqlite", help="results store (resumes a killed run)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
@@ -105,7 +106,8 @@ def summarise(rows) -> list[dict]:
         checks = np.array([m["collision_checks"] for m in metrics])
         to_path = np.array([m["seconds_to_path"] for m in metrics if m["success"]])
         narrow = np.array([m["narrow_on_path"] for m in metrics if m["success"]])
-        table.append({"scene": scene, "sampler": method, "roadmap": mode, "runs": len(metrics), "successes": int(ok.sum()),
+        table.append({"scene": scene, "sampler": method, "roadmap": mode, "runs": len(metrics),
+                      "successes": int(ok.sum()),
                       "success_rate": float(ok.mean()), "median_seconds": float(np.median(seconds)),
                       "median_seconds_to_path": float(np.median(to_path)) if ok.any() else None,
                       "median_checks": float(np.median(checks)),

@@ -14,6 +14,8 @@ def register(subparsers) -> None:
     p.add_argument("--uniform", type=non_negative_int, default=40, help="uniform samples per planned leg")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument("--budget", default="30s", help="per planned leg, e.g. 30s or 500kchecks")
+    p.add_argument("--full-roadmap", action="store_true",
+                   help="per planned leg, draw every sample and check every edge before the query (as `plan`)")
     p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
     p.add_argument("--json", action="store_true")
     add_arguments(p)
@@ -39,7 +41,7 @@ def run(args) -> int:
             check_output(target)
     oracle = CollisionOracle(Scene(args.job))
     result = run_job(oracle, args.job, sampler=args.sampler, seed=args.seed, narrow=args.narrow,
-                     uniform=args.uniform, step=args.step, budget=budget)
+                     uniform=args.uniform, step=args.step, budget=budget, full_roadmap=args.full_roadmap)
     if args.out:
         write_atomically(args.out, json.dumps(result.trajectory.to_json()))
     if args.json:

@@ -1,0 +1,36 @@
+"""Independent checks for tests: collision answers asked of SceneGraph directly, and points along a polyline
+computed here, so a test does not grade the oracle's paths with the oracle's own code."""
+import math
+
+import numpy as np
+
+_contexts = {}
+
+
+def raw_free(oracle, q) -> bool:
+    """Free under the scene's policy, asked of SceneGraph directly on a context of our own (not the oracle's paths):
+    signed distances on the unfiltered geometry, keeping the pairs the scene counts."""
+    plant = oracle.plant
+    if id(oracle) not in _contexts:
+        _contexts[id(oracle)] = (oracle.model.CreateDefaultContext(),)
+    root = _contexts[id(oracle)][0]
+    context = plant.GetMyContextFromRoot(root)
+    plant.SetPositions(context, q)
+    query = plant.get_geometry_query_input_port().Eval(context)
+    robot = oracle._robot_geometries
+    for pair in query.ComputeSignedDistancePairwiseClosestPoints(0.0):
+        a, b = pair.id_A in robot, pair.id_B in robot
+        if ((a != b) or (a and b and oracle.scene.self_collisions)) and pair.distance < 0:
+            return False
+    return True
+
+
+def fine_points(oracle, P, resolution):
+    """Points along the polyline P, no more than `resolution` apart, computed here (short way on continuous angles)."""
+    out = [P[0]]
+    for a, b in zip(P[:-1], P[1:]):
+        d = np.asarray(b) - np.asarray(a)
+        d[oracle.continuous] = (d[oracle.continuous] + np.pi) % (2 * np.pi) - np.pi
+        n = max(1, math.ceil(np.linalg.norm(d * oracle.weights) / resolution))
+        out.extend(a + t * d for t in np.linspace(0, 1, n + 1)[1:])
+    return np.array(out)

@@ -1,0 +1,64 @@
+"""The scripted UR3 jobs (`run welding|window`): IK goals, legs planned or straight, one joined trajectory."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from app.path import FINE
+from app.runs import HOME, run_job
+from independent import fine_points, raw_free
+
+
+@pytest.fixture(scope="module")
+def window_run(oracles):
+    return run_job(oracles("window"), "window", seed=0)
+
+
+def test_window_route_goes_through_the_window_and_back(oracles, window_run):
+    oracle = oracles("window")
+    legs = [(leg.start, leg.goal) for leg in window_run.legs]
+    assert legs == [(HOME, "window"), ("window", "reach"), ("reach", "window"), ("window", "place"),
+                    ("place", HOME)]
+    assert any(leg.method == "lfbs" for leg in window_run.legs)  # at least one leg needed the planner
+    for a, b in zip(window_run.legs[:-1], window_run.legs[1:]):  # legs meet where the previous one stopped
+        assert oracle.distance(a.path[-1], b.path[0]) < 1e-9
+
+
+def test_every_leg_is_free_under_an_independent_fine_check(oracles, window_run):
+    oracle = oracles("window")
+    for leg in window_run.legs:
+        points = fine_points(oracle, leg.path, FINE * oracle.resolution)
+        assert all(raw_free(oracle, q) for q in points), f"{leg.start} -> {leg.goal}"
+
+
+def test_joined_trajectory_is_continuous_and_within_the_limits(oracles, window_run):
+    scene = oracles("window").scene
+    traj = window_run.trajectory
+    t, X = traj.times, traj.positions
+    assert np.all(np.diff(t) > 0) and abs(t[-1] - traj.duration) < 1e-9
+    assert traj.duration == pytest.approx(sum(leg.duration for leg in window_run.legs))
+    V = np.diff(X, axis=0) / np.diff(t)[:, None]
+    assert np.all(np.abs(V) <= scene.velocity_limits * (1 + 1e-3) + 1e-6)  # no jump where legs join
+    assert np.allclose(X[0], window_run.configurations[HOME]) and np.allclose(X[-1], X[0], atol=1e-9)
+
+
+def test_same_seed_same_run(oracles, window_run):
+    again = run_job(oracles("window"), "window", seed=0)
+    assert np.array_equal(again.trajectory.positions, window_run.trajectory.positions)
+
+
+def test_cli_run_prints_the_legs_and_rejects_an_unknown_job(tmp_path):
+    env = os.environ.copy()
+    out = tmp_path / "welding.json"
+    result = subprocess.run([sys.executable, "-m", "app", "run", "welding", "--json", "--out", str(out)],
+                            capture_output=True, text=True, env=env, timeout=300)
+    assert result.returncode == 0, result.stderr
+    doc = json.loads(result.stdout)
+    assert doc["legs"][0]["from"] == HOME and len(doc["legs"]) >= 2
+    assert json.loads(out.read_text())["duration"] == doc["trajectory"]["duration"]
+    bad = subprocess.run([sys.executable, "-m", "app", "run", "parking"], capture_output=True, text=True, env=env,
+                         timeout=300)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "unknown job 'parking'" in bad.stderr
