@@ -194,43 +194,47 @@ class CollisionOracle:
             return "batch" if best == "raw" else "raw"
         return best
 
+    def segments(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
+        """How many pieces each edge Q1[i] -> Q2[i] is cut into so that points are at most `resolution` apart."""
+        d = self.difference(np.atleast_2d(Q1), np.atleast_2d(Q2))
+        length = np.sqrt(np.einsum("ij,ij->i", d * self.weights, d * self.weights))
+        return np.maximum(1, np.ceil(length / (resolution or self.resolution))).astype(int)
+
     def interpolate(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
         """Points from q1 to q2 (both included) no more than `resolution` apart in the weighted metric."""
-        step = resolution or self.resolution
-        d = self.difference(q1, q2)
-        n = max(1, int(np.ceil(np.linalg.norm(d * self.weights) / step)))
-        t = np.linspace(0.0, 1.0, n + 1)[:, None]
-        return self.wrap(np.asarray(q1, float) + t * d)
+        n = int(self.segments(q1, q2, resolution)[0])
+        t = (np.arange(n + 1) / n)[:, None]  # the same fractions edges_free checks
+        return self.wrap(np.asarray(q1, float) + t * self.difference(q1, q2))
 
     def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False,
                    max_points: int | None = None) -> np.ndarray:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
 
         Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
-        its first collision, so colliding edges cost few checks and every round is one batched call.
+        its first collision, so colliding edges cost few checks and every round is one batched call. Only the points
+        a round checks are computed (a screen of a lazy roadmap's 100k candidate edges needs 3 points of each).
         ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
         max_points: a screen -- at most this many points per edge, coarsest first; True then only means that none
         of them collides.
         """
-        Q1, Q2 = np.atleast_2d(Q1), np.atleast_2d(Q2)
-        paths = [self.interpolate(a, b, resolution) for a, b in zip(Q1, Q2)]
-        orders = [_coarse_to_fine(len(p))[2 if ends_free else 0:][:max_points] for p in paths]
-        free = np.ones(len(paths), bool)
-        cursor = np.zeros(len(paths), int)
+        Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
+        D = self.difference(Q1, Q2)
+        n = self.segments(Q1, Q2, resolution)
+        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0:][:max_points] for k in n.tolist()]
+        free = np.ones(len(Q1), bool)
+        cursor = np.zeros(len(Q1), int)
         chunk = 1
         while True:
-            live = [i for i in range(len(paths)) if free[i] and cursor[i] < len(orders[i])]
+            live = [i for i in np.flatnonzero(free).tolist() if cursor[i] < len(orders[i])]
             if not live:
                 return free
-            batch, owner = [], []
-            for i in live:
-                take = orders[i][cursor[i]:cursor[i] + chunk]
-                cursor[i] += len(take)
-                batch.append(paths[i][take])
-                owner.extend([i] * len(take))
-            ok = self.are_free(np.concatenate(batch))
-            for i, good in zip(owner, ok):
-                free[i] &= good
+            takes = [orders[i][cursor[i]:cursor[i] + chunk] for i in live]
+            lengths = np.array([len(t) for t in takes])
+            cursor[live] += lengths
+            owner = np.repeat(live, lengths)
+            t = np.concatenate(takes) / n[owner]
+            ok = self.are_free(self.wrap(Q1[owner] + t[:, None] * D[owner]))
+            free[np.unique(owner[~ok])] = False
             chunk *= 2  # few points first (endpoints, midpoints), then ever finer
 
     def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
