@@ -191,10 +191,10 @@ def test_budget_adds_rounds_until_spent(oracles):
     assert info.value.details["roadmap"]["nodes"] > 10
 
 
-@pytest.mark.slow
 def test_joint3d_through_the_hole_with_a_budget(oracles):
+    # About 10 s: lazy edges and rounds until connected (a 500-node full roadmap fails; see `bench plan`).
     oracle = oracles("joint3d")
-    result = plan(oracle, sampler="lfbs", narrow=200, uniform=300, seed=0, budget=parse_budget("300s"))
+    result = plan(oracle, sampler="lfbs", narrow=200, uniform=300, seed=0, budget=parse_budget("120s"))
     points = fine_points(oracle, result.path, oracle.resolution / 8)
     assert all(raw_free(oracle, q) for q in points)
     assert oracle.in_passage(points).any()
