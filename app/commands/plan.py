@@ -20,17 +20,20 @@ def register(subparsers) -> None:
     p.add_argument("--uniform", type=non_negative_int, default=DEFAULTS["uniform"],
                    help=f"uniform free samples (default {DEFAULTS['uniform']})")
     p.add_argument("--step", type=positive_float, default=None,
-                   help="sampler base step a in the weighted metric (default: a tenth of the scene's extent)")
+                   help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
+                        "of the scene's extent)")
     p.add_argument("--seed", type=non_negative_int, default=DEFAULTS["seed"])
     p.add_argument("--budget", default=None,
                    help="keep adding samples in rounds past --narrow/--uniform until connected or this is spent: "
-                        "30s, 2min, 200000checks, 200kchecks, or both as 30s,200kchecks (default: stop at those counts)")
+                        "30s, 2min, 200000checks, 200kchecks, or both as 30s,200kchecks (default: stop at those "
+                        "counts)")
     p.add_argument("--full-roadmap", action="store_true",
                    help="build the whole roadmap (all --narrow + --uniform samples, every edge checked) before the "
                         "query, as in the paper; default: add samples a quarter at a time, check edges lazily, and "
                         "stop as soon as start and goal connect")
     p.add_argument("-k", "--neighbours", type=positive_int, default=DEFAULTS["k"],
-                   help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d dimensions)")
+                   help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d "
+                        "dimensions)")
     p.add_argument("--smooth", type=non_negative_int, default=DEFAULTS["smooth_rounds"],
                    help=f"random shortcut rounds after the greedy pass (default {DEFAULTS['smooth_rounds']})")
     p.add_argument("--dt", type=positive_float, default=DEFAULTS["dt"],
