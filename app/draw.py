@@ -61,6 +61,19 @@ def _round_faces(shape, pose, segments: int = 16) -> list[np.ndarray]:
             for i in range(len(profile) - 1) for j in range(segments)]
 
 
+def _top_view(ax, points: np.ndarray, **style) -> None:
+    """A solid's outline seen from above: the hull of its points in x-y (a line for an upright flat piece)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    xy = points[:, :2]
+    try:
+        ax.add_patch(Polygon(xy[ConvexHull(xy).vertices], closed=True, **style))
+    except QhullError:
+        along = (xy - xy.mean(axis=0)) @ np.linalg.svd(xy - xy.mean(axis=0))[2][0]  # position on the line
+        ends = xy[[np.argmin(along), np.argmax(along)]]
+        ax.plot(*ends.T, color=style.get("edgecolor", "k"))
+
+
 def _draw_shape(ax, shape, pose, three_d: bool, **style):
     from pydrake.geometry import Box, Capsule, Convex, Cylinder, Mesh, Sphere
 
@@ -68,11 +81,8 @@ def _draw_shape(ax, shape, pose, three_d: bool, **style):
         corners = _box_corners(shape, pose)
         if three_d:
             ax.add_collection3d(Poly3DCollection([corners[f] for f in _BOX_FACES], **style))
-        else:  # top view: the box's outline in x-y is the hull of its corners
-            from scipy.spatial import ConvexHull
-
-            xy = corners[:, :2]
-            ax.add_patch(Polygon(xy[ConvexHull(xy).vertices], closed=True, **style))
+        else:
+            _top_view(ax, corners, **style)
     elif isinstance(shape, (Cylinder, Sphere, Capsule)) and not three_d:
         ax.add_patch(Circle(pose.translation()[:2], shape.radius(), **style))
     elif isinstance(shape, (Cylinder, Sphere, Capsule)):
@@ -81,15 +91,12 @@ def _draw_shape(ax, shape, pose, three_d: bool, **style):
         hull = shape.GetConvexHull()
         points = np.array([hull.vertex(i) for i in range(hull.num_vertices())])  # scaled already
         world = points @ pose.rotation().matrix().T + pose.translation()
-        faces = [world[[face.vertex(j) for j in range(face.num_vertices())]]
-                 for face in (hull.element(i) for i in range(hull.num_faces()))]
         if three_d:
+            faces = [world[[face.vertex(j) for j in range(face.num_vertices())]]
+                     for face in (hull.element(i) for i in range(hull.num_faces()))]
             ax.add_collection3d(Poly3DCollection(faces, **style))
         else:
-            from scipy.spatial import ConvexHull
-
-            xy = world[:, :2]
-            ax.add_patch(Polygon(xy[ConvexHull(xy).vertices], closed=True, **style))
+            _top_view(ax, world, **style)
     elif three_d:
         ax.scatter(*pose.translation(), s=8, color=style.get("facecolor", "k"))
 

@@ -64,8 +64,9 @@ def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, 
 
     Greedy: from each kept waypoint, jump to the farthest later waypoint it sees directly. Random: each round draws
     `candidates` pairs of points anywhere along the path, checks their shortcuts in one batch, and takes the free one
-    that saves most length. Shortcuts are checked at `resolution` (default: the scene's). Deterministic for a given
-    rng state.
+    that saves most length. Shortcuts are checked at `resolution` (default: the scene's), and so are the pieces of
+    the edges they cut: if every edge of P passed a check at `resolution`, every edge of the result has. Deterministic
+    for a given rng state.
     """
     resolution = resolution or oracle.resolution
     P = dedupe(P)
@@ -90,10 +91,13 @@ def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, 
             continue
         stats["candidates_checked"] += len(useful)
         free = useful[oracle.edges_free(qa[useful], qb[useful], resolution)]
-        if len(free):
-            c = free[np.argmax(gain[free])]
-            P = dedupe(np.vstack([P[:ia[c] + 1], qa[c], qb[c], P[ib[c] + 1:]]))
-            stats["random_accepted"] += 1
+        for c in free[np.argsort(-gain[free], kind="stable")]:
+            # The shortcut also leaves a piece of each edge it cuts: points along a piece are not points the whole
+            # edge was checked at, so the pieces are checked too, and every edge of P stays checked at `resolution`.
+            if oracle.edges_free(np.array([P[ia[c]], qb[c]]), np.array([qa[c], P[ib[c] + 1]]), resolution).all():
+                P = dedupe(np.vstack([P[:ia[c] + 1], qa[c], qb[c], P[ib[c] + 1:]]))
+                stats["random_accepted"] += 1
+                break
     if len(P) > 2 and rounds:
         # Random shortcuts leave two new waypoints each; a last greedy pass removes those that became redundant.
         P = _greedy(oracle, P, resolution, stats)

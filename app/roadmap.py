@@ -268,6 +268,8 @@ class Roadmap:
                     self._components.union(u, v)
 
     def stats(self) -> dict:
+        """Sizes and counters. Lazy: `edges` and `components` are of the candidate graph (edges not known to
+        collide), `edges_tried` counts edges checked in full."""
         counts = {kind: self.kinds.count(kind) for kind in (UNIFORM, NARROW)}
         unchecked = sum(1 for *_, checked in self.graph.edges(data="checked") if not checked)
         return {"nodes": len(self), "edges": self.graph.number_of_edges(), "edges_unchecked": unchecked,

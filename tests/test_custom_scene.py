@@ -338,3 +338,15 @@ def test_sdf_environment_with_a_non_convex_mesh_is_decomposed(files, tmp_path, c
     assert scene.info["decompositions"][1]["mesh"] == "channel.stl"
     oracle = CollisionOracle(scene)
     assert oracle.is_free(np.array(IN_SLOT)) and not oracle.is_free(np.array([0.0, 1.25, 1.5, 0, 0, 0]))
+
+
+def test_an_upright_flat_piece_is_drawn_as_a_line_from_above():
+    import matplotlib.pyplot as plt
+
+    from app.draw import _top_view
+
+    fig, ax = plt.subplots()
+    _top_view(ax, np.array([[0, 0, 0], [1, 1, 0], [2, 2, 1], [0, 0, 1.0]]), edgecolor="k", facecolor="b")
+    assert len(ax.lines) == 1 and not ax.patches
+    assert np.allclose(sorted(map(tuple, np.array(ax.lines[0].get_xydata()))), [(0, 0), (2, 2)])
+    plt.close(fig)

@@ -161,6 +161,30 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.roadmap_path, 0.5))
 
 
+def test_shortcuts_keep_every_edge_checked_at_their_resolution():
+    """A shortcut leaves pieces of the edges it cuts; a piece's points are not the points its edge was checked at.
+    Here a thin wall sits between the fine points of the path's first edge, so an unchecked piece can hit it."""
+    from app.oracle import CollisionOracle
+    from app.path import shortcut, verify
+
+    oracle = CollisionOracle.__new__(CollisionOracle)  # the path code needs only the metric and are_free
+    oracle.continuous, oracle.weights, oracle.resolution, oracle.checks = np.zeros(2, bool), np.ones(2), 1.0, 0
+
+    def are_free(Q):
+        x, y = np.atleast_2d(Q).T
+        wall = (x >= 4.1) & (x <= 4.15) & (y >= -0.5) & (y <= 0.3)
+        block = (x >= 4.5) & (x <= 9.0) & (y >= 0.2) & (y <= 9.0)  # no direct line from the start to the end
+        return ~(wall | block)
+
+    oracle.are_free = are_free
+    P = np.array([[0.0, 0.0], [9.5, 0.0], [9.5, 10.0]])
+    assert verify(oracle, P, 0.25).all()
+    for seed in range(100):
+        smoothed, stats = shortcut(oracle, P, np.random.default_rng(seed), rounds=10, resolution=0.25)
+        assert verify(oracle, smoothed, 0.25).all(), seed
+    assert stats["length_after"] < stats["length_before"]
+
+
 def test_same_seed_same_path(oracles, planned):
     first = planned("joint3d")
     again = plan(oracles("joint3d"), **JOINT3D)

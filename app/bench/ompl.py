@@ -61,7 +61,7 @@ def specs(scenes, methods, seeds, budget, step) -> list[TrialSpec]:
             name = method.split(":", 1)[1] if experiment == "prm" else method
             params = {"budget": budget}
             if experiment == "prm":
-                params.update(mode="budget")
+                params.update(mode="budget", full_roadmap=False)  # our planner as `plan` runs it
             out.extend(TrialSpec(experiment, scene, name, a, seed, params) for seed in range(seeds))
     return out
 

@@ -72,7 +72,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     try:
         r = plan(oracle, sampler=spec.method, narrow=narrow, uniform=uniform, step=spec.step, seed=spec.seed,
                  budget=budget, k=p.get("k", SIZE["k"]), smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
-                 full_roadmap=bool(p.get("full_roadmap", False)))
+                 full_roadmap=bool(p.get("full_roadmap", True)))  # rows made before the key: one round
     except NoPath as exc:
         d = getattr(exc, "details", {})
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_to_path": None,
@@ -97,7 +97,7 @@ def specs(scenes, samplers, seeds, params, step) -> list[TrialSpec]:
 def summarise(rows) -> list[dict]:
     cells = {}
     for r in rows:
-        mode = "full" if r["params"].get("full_roadmap") else "query"
+        mode = "full" if r["params"].get("full_roadmap", True) else "query"  # rows made before the key: one round
         cells.setdefault((r["scene"], r["method"], mode), []).append(r["metrics"])
     table = []
     for (scene, method, mode), metrics in cells.items():
@@ -132,8 +132,7 @@ def run(args) -> int:
     modes = ["query", "full"] if args.roadmap == "both" else [args.roadmap]
     todo = []
     for mode in modes:
-        todo += specs(scenes, samplers, args.seeds, {**params, "full_roadmap": True} if mode == "full" else params,
-                      args.step)
+        todo += specs(scenes, samplers, args.seeds, {**params, "full_roadmap": mode == "full"}, args.step)
     from pathlib import Path
 
     Path(args.store).parent.mkdir(parents=True, exist_ok=True)

@@ -2,8 +2,8 @@
 
 Paper set-up: maze with 200 narrow + 300 PRM samples at steps 0.5 and 1; tunnel with 100 + 200 at steps 0.2, 0.5
 and 1. Columns as in the paper -- t_eps (sampling time) and T_PRM (whole plan) -- plus what the paper does not
-give: success rate over seeds and collision checks. Trials are `bench plan --full-roadmap` trials (the whole roadmap, every edge checked, no budget) in the
-same results store, so a killed run resumes.
+give: success rate over seeds and collision checks. Trials are `bench plan --roadmap full` trials (the whole
+roadmap, every edge checked, k = 10, no budget) in the same results store, so a killed run resumes.
 """
 import numpy as np
 
@@ -66,8 +66,8 @@ def run(args) -> int:
     if args.json:
         print_json({"uav": result, "seeds": args.seeds})
         return 0
-    print(f"{args.seeds} seeds per cell; whole roadmap, every edge checked (maze 200 + 300, tunnel 100 + 200 samples); t_eps = "
-          "narrow+uniform sampling time of successful runs, T_PRM = whole plan; paper's seconds in brackets")
+    print(f"{args.seeds} seeds per cell; whole roadmap, every edge checked, k 10 (maze 200 + 300, tunnel 100 + 200 "
+          "samples); t_eps = narrow+uniform sampling time of successful runs, T_PRM = whole plan; paper's seconds in brackets")
     print(f"{'scene':<7} {'step':>5} {'sampler':<8} {'success':>8} {'t_eps s':>9} {'T_PRM s':>9} {'checks':>9} "
           f"{'paper t_eps':>12} {'paper T_PRM':>12}")
     for r in result:
