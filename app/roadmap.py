@@ -239,7 +239,9 @@ class Roadmap:
         (lazy) edges on the path found are checked in one batch; those that collide are removed and the search
         runs again.
         """
-        if a not in self.graph or b not in self.graph:
+        # A bidirectional BFS first: rounds that do not connect yet end here, without an A* through the whole
+        # (large, in lazy rounds) component of a.
+        if a not in self.graph or b not in self.graph or not nx.has_path(self.graph, a, b):
             return None
         to_b = self.oracle.distance(self.Q, np.repeat(self.Q[b][None], len(self.Q), axis=0))
         while True:
