@@ -37,6 +37,18 @@ def test_sweep_stores_each_trial_once(tmp_path, monkeypatch):
     assert rows[0]["code_version"]
 
 
+def test_a_command_sweep_returns_only_its_own_rows(tmp_path, monkeypatch):
+    from app.bench.runner import sweep
+
+    monkeypatch.setitem(EXPERIMENTS, "toy", "toy_trials:run")
+    path = tmp_path / "new" / "r.sqlite"  # the folder is made
+    other = [TrialSpec("toy", "bar-3link", "uniform", 1.0, seed, {"n": 5, "sleep": 0.0}) for seed in range(3)]
+    assert len(sweep(other, path)) == 3
+    rows = sweep(toy_specs(4), path)
+    assert sorted(r["seed"] for r in rows) == [0, 1, 2, 3] and all(r["params"]["n"] == 20 for r in rows)
+    assert len(ResultStore(path).rows("toy")) == 7
+
+
 def test_a_killed_sweep_resumes_without_loss_or_duplicates(tmp_path):
     db = tmp_path / "r.sqlite"
     script = textwrap.dedent(f"""

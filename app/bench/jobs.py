@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import TrialSpec
 from app.cli import non_negative_int, positive_float, positive_int, print_json
 
 JOBS = ["welding", "window"]
@@ -79,7 +79,7 @@ def table(rows) -> list[dict]:
 
 def run(args) -> int:
     from app.bench.plan import default_step
-    from app.bench.runner import run_sweep
+    from app.bench.runner import sweep
     from app.errors import UserError
     from app.samplers import SAMPLERS
 
@@ -94,15 +94,7 @@ def run(args) -> int:
                       {"narrow": args.narrow, "uniform": args.uniform, "budget": args.budget,
                        "full_roadmap": MODES[mode]})
             for job in jobs for sampler in samplers for mode in modes for seed in range(args.seeds)]
-    from pathlib import Path
-
-    Path(args.store).parent.mkdir(parents=True, exist_ok=True)
-    store = ResultStore(args.store)
-    run_sweep(todo, store, workers=1, desc="bench jobs")
-    wanted = {t.key for t in todo}
-    rows = [r for r in store.rows("ur3") if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"],
-                                                        r["seed"], r["params"]).key in wanted]
-    result = table(rows)
+    result = table(sweep(todo, args.store, workers=1, desc="bench jobs"))
     if args.json:
         print_json({"jobs": result, "seeds": args.seeds})
         return 0

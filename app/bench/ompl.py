@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import TrialSpec
 from app.cli import positive_float, positive_int, print_json
 
 OMPL_METHODS = ["ompl-uniform", "ompl-obstacle", "ompl-gaussian", "ompl-bridge", "ompl+lfbs", "ompl+rbbs"]
@@ -84,19 +84,14 @@ def summarise(rows) -> list[dict]:
 
 
 def run(args) -> int:
-    from app.bench.runner import run_sweep
+    from app.bench.runner import sweep
     from app.ompl_bridge import _ompl
 
     _ompl()  # a missing OMPL is one clear line before anything runs
     scenes = [s.strip() for s in args.scenes.split(",")]
     methods = [m.strip() for m in args.methods.split(",")]
     todo = specs(scenes, methods, args.seeds, args.budget, args.step)
-    store = ResultStore(args.store)
-    run_sweep(todo, store, workers=args.workers, desc="bench ompl")
-    wanted = {t.key for t in todo}
-    rows = [r for r in store.rows() if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"], r["seed"],
-                                                   r["params"]).key in wanted]
-    table = summarise(rows)
+    table = summarise(sweep(todo, args.store, workers=args.workers, desc="bench ompl"))
     if args.json:
         print_json({"ompl": table, "budget_seconds": args.budget, "seeds": args.seeds})
         return 0

@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import TrialSpec
 from app.cli import non_negative_int, positive_float, positive_int, print_json
 from app.planner import DEFAULTS
 
@@ -116,7 +116,7 @@ def summarise(rows) -> list[dict]:
 
 
 def run(args) -> int:
-    from app.bench.runner import run_sweep
+    from app.bench.runner import sweep
     from app.errors import UserError
     from app.samplers import SAMPLERS as KNOWN
 
@@ -133,14 +133,7 @@ def run(args) -> int:
     todo = []
     for mode in modes:
         todo += specs(scenes, samplers, args.seeds, {**params, "full_roadmap": mode == "full"}, args.step)
-    from pathlib import Path
-
-    Path(args.store).parent.mkdir(parents=True, exist_ok=True)
-    store = ResultStore(args.store)
-    run_sweep(todo, store, workers=args.workers, desc="bench plan")
-    wanted = {t.key for t in todo}
-    rows = [r for r in store.rows() if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"], r["seed"],
-                                                   r["params"]).key in wanted]
+    rows = sweep(todo, args.store, workers=args.workers, desc="bench plan")
     order = {key: i for i, key in enumerate((sc, sa, mode) for sc in scenes for sa in samplers for mode in modes)}
     table = sorted(summarise(rows), key=lambda r: order.get((r["scene"], r["sampler"], r["roadmap"]), 1e9))
     if args.json:

@@ -77,6 +77,13 @@ def run_sweep(specs: list[TrialSpec], store: ResultStore, workers: int = 0, sche
     return len(pending)
 
 
+def sweep(specs: list[TrialSpec], store_path, workers: int = 1, desc: str = "trials") -> list[dict]:
+    """Run what `store_path` lacks of `specs` (a benchmark command's sweep) and return the rows of `specs`."""
+    store = ResultStore(store_path)
+    run_sweep(specs, store, workers=workers, desc=desc)
+    return store.rows_for(specs)
+
+
 def _results(pending: list[TrialSpec], workers: int, client):
     if client is not None:
         yield from _dask_results(pending, client)

@@ -103,6 +103,12 @@ class ResultStore:
                 (spec.key, spec.experiment, spec.scene, spec.method, float(spec.step), int(spec.seed),
                  json.dumps(spec.params, sort_keys=True, default=_plain), json.dumps(metrics, default=_plain), self._version, time.time()))
 
+    def rows_for(self, specs: list[TrialSpec]) -> list[dict]:
+        """The stored rows of exactly these trials (a store may hold other sweeps, or other parameters)."""
+        wanted = {s.key for s in specs}
+        return [r for r in self.rows() if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"], r["seed"],
+                                                     r["params"]).key in wanted]
+
     def rows(self, experiment: str | None = None) -> list[dict]:
         query = "SELECT experiment, scene, method, step, seed, params, metrics, code_version FROM trials"
         args = ()

@@ -7,7 +7,7 @@ roadmap, every edge checked, k = 10, no budget) in the same results store, so a 
 """
 import numpy as np
 
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import TrialSpec
 from app.cli import positive_int, print_json
 
 PAPER = {"maze": {"narrow": 200, "uniform": 300, "steps": [0.5, 1.0]},
@@ -54,15 +54,10 @@ def table(rows) -> list[dict]:
 
 
 def run(args) -> int:
-    from app.bench.runner import run_sweep
+    from app.bench.runner import sweep
 
     todo = specs(args.seeds)
-    store = ResultStore(args.store)
-    run_sweep(todo, store, workers=args.workers, desc="bench uav")
-    wanted = {t.key for t in todo}
-    rows = [r for r in store.rows("prm") if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"],
-                                                        r["seed"], r["params"]).key in wanted]
-    result = table(rows)
+    result = table(sweep(todo, args.store, workers=args.workers, desc="bench uav"))
     if args.json:
         print_json({"uav": result, "seeds": args.seeds})
         return 0
