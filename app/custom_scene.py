@@ -21,7 +21,6 @@ Inputs (CLI flags of `plan`, or the same keys in a custom scene file, see `Custo
 import hashlib
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +28,7 @@ import numpy as np
 
 from app import meshes
 from app.errors import UserError
+from app.io import write_atomically
 from app.scene import PACKAGES, Scene, robot_diagram_builder
 
 ROBOT_SUFFIXES = {".urdf", ".sdf"}
@@ -381,17 +381,15 @@ def _world_box(bounds: np.ndarray, pose: list[float]) -> tuple[np.ndarray, np.nd
 
 
 def _write(path: Path, text: str) -> None:
-    """Write only when different, via a temporary file and rename (other processes may read it meanwhile)."""
+    """Write only when different (other processes may read the file meanwhile)."""
     try:
         if path.is_file() and path.read_text() == text:
             return
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        tmp.write_text(text)
-        os.replace(tmp, path)
     except OSError as exc:
         raise UserError(f"cannot write {path}: {exc.strerror or exc} "
                         f"(set {meshes.CACHE_ENV} to a writable folder)") from None
+    write_atomically(path, text)
 
 
 # ---- the builder --------------------------------------------------------------------------------------------------

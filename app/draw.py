@@ -3,9 +3,6 @@
 2D scenes are drawn as a top view (x-y), 3D scenes on 3D axes. `scene_figure` draws obstacles and the passage
 region; `draw_robot` adds the robot at a configuration; `save` writes the PNG atomically.
 """
-import os
-import tempfile
-from pathlib import Path
 
 import matplotlib
 
@@ -15,7 +12,7 @@ import numpy as np  # noqa: E402
 from matplotlib.patches import Circle, Polygon, Rectangle  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-from app.errors import UserError  # noqa: E402
+from app.io import write_atomically  # noqa: E402
 
 _BOX_FACES = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]]
 
@@ -157,19 +154,11 @@ def draw_robot(ax, oracle, q, color="tab:blue", alpha=0.9):
 
 
 def save(fig, path: str) -> None:
-    """Write the PNG via a temporary file so a failure leaves nothing half-written."""
-    target = Path(path)
-    if not target.parent.is_dir():
-        raise UserError(f"cannot write {path}: folder {target.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=target.parent)
-    os.close(fd)
+    """Write the figure as a PNG, whole or not at all."""
     try:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        os.replace(tmp, target)
+        write_atomically(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight"))
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def draw_scene(oracle, path: str) -> None:

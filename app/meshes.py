@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import UserError
+from app.io import write_atomically
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
 DECOMPOSER_VERSION = "1"
@@ -688,10 +689,7 @@ def converted_obj(path: str | Path, cache_dir: Path | None = None) -> Path:
         return target
     mesh = load_mesh(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-    _write_obj(tmp, mesh.vertices, mesh.faces)
-    os.replace(tmp, target)
-    return target
+    return write_atomically(target, lambda tmp: _write_obj(tmp, mesh.vertices, mesh.faces))
 
 
 def _coacd_version() -> str | None:

@@ -16,14 +16,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from app.budget import Budget
 from app.errors import InvalidEndpoint, NoPath, UserError
 from app.path import FINE, path_length, shortcut, unwrap, verify
 from app.timing import Trajectory, parameterize
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
-    from app.roadmap import Budget, Roadmap
+    from app.roadmap import Roadmap
 
-DEFAULTS = {"sampler": "lfbs", "narrow": 200, "uniform": 300, "k": None, "seed": 0, "smooth_rounds": 50, "dt": 0.02}
 PHASES = ("sampling", "roadmap", "search", "smoothing", "timing")
 
 
@@ -37,6 +37,52 @@ def default_step(oracle) -> float:
     if linear.any():
         return 0.1 * float(np.max((oracle.upper - oracle.lower)[linear]))
     return 0.1 * float(np.linalg.norm((oracle.upper - oracle.lower) * oracle.weights))
+
+
+@dataclass(frozen=True)
+class PlanSettings:
+    """Everything a query may be told, validated once when built (a bad value raises UserError).
+
+    sampler: the narrow-passage sampler's registered name; narrow / uniform: how many samples of each (per round
+    a quarter, unless full_roadmap); step: the sampler's base step a (None: the scene's default); budget: keep
+    adding rounds past those counts until connected or spent; k: neighbours per node (None: k-PRM*'s);
+    smooth_rounds: random shortcut rounds; dt: trajectory sample period (s); sampler_params: extra keyword
+    arguments of the sampler (e.g. alpha_angle); skip_connected: Kavraki's rule for a full roadmap;
+    full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query)."""
+
+    sampler: str = "lfbs"
+    narrow: int = 200
+    uniform: int = 300
+    step: float | None = None
+    seed: int = 0
+    budget: Budget | None = None
+    k: int | None = None
+    smooth_rounds: int = 50
+    dt: float = 0.02
+    sampler_params: dict = field(default_factory=dict)
+    skip_connected: bool = True
+    full_roadmap: bool = False
+
+    def __post_init__(self):
+        from app.samplers import check_name
+
+        check_name(self.sampler)
+        for name in ("narrow", "uniform", "smooth_rounds", "seed"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise UserError(f"{name} must be a non-negative whole number, got {value!r}")
+        if self.k is not None and (isinstance(self.k, bool) or not isinstance(self.k, (int, np.integer))
+                                   or self.k < 1):
+            raise UserError(f"k must be a positive whole number, got {self.k!r}")
+        for name in ("dt", "step"):
+            value = getattr(self, name)
+            if value is None and name == "step":
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise UserError(f"{name} must be a positive finite number, got {value!r}")
+        if self.budget is not None and not isinstance(self.budget, Budget):
+            raise UserError(f"budget must be a Budget, got {self.budget!r}")
 
 
 @dataclass
@@ -108,34 +154,22 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
     return oracle.wrap(q)
 
 
-def plan(oracle, sampler: str = DEFAULTS["sampler"], narrow: int = DEFAULTS["narrow"],
-         uniform: int = DEFAULTS["uniform"], step: float | None = None, seed: int = DEFAULTS["seed"],
-         budget: Budget | None = None, k: int | None = DEFAULTS["k"], start=None, goal=None,
-         smooth_rounds: int = DEFAULTS["smooth_rounds"], dt: float = DEFAULTS["dt"],
-         sampler_params: dict | None = None, skip_connected: bool = True,
-         full_roadmap: bool = False) -> PlanResult:
-    """Plan from start to goal (default: the scene's) on a PRM of up to `narrow` samples from `sampler` plus
-    `uniform` uniform free samples.
+def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None) -> PlanResult:
+    """Plan from start to goal (default: the scene's) on a PRM of up to `settings.narrow` samples from
+    `settings.sampler` plus `settings.uniform` uniform free samples.
 
     Samples are added in rounds of a quarter of each count, and planning stops at the first round after which start
     and goal connect (a single query needs no more roadmap than that). With `full_roadmap` the first round is the
     whole `narrow` + `uniform` (the paper's protocol: a roadmap of fixed size, then the query). With a budget,
     quarter rounds go on past those counts until start and goal connect or the budget is spent."""
     from app.roadmap import GOAL, NARROW, START, UNIFORM, Roadmap
-    from app.samplers import SAMPLERS, SamplerBudgetExceeded, make_sampler
+    from app.samplers import SamplerBudgetExceeded, make_sampler
 
-    if sampler not in SAMPLERS:
-        raise UserError(f"unknown sampler '{sampler}' (known: {', '.join(SAMPLERS)})")
-    for name, value in (("narrow", narrow), ("uniform", uniform), ("smooth_rounds", smooth_rounds)):
-        if not isinstance(value, (int, np.integer)) or value < 0:
-            raise UserError(f"{name} must be a non-negative whole number, got {value}")
-    if k is not None and (not isinstance(k, (int, np.integer)) or k < 1):
-        raise UserError(f"k must be a positive whole number, got {k}")
-    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise UserError(f"dt must be a positive finite number, got {dt}")
-    step = default_step(oracle) if step is None else float(step)
-    if not (math.isfinite(step) and step > 0):
-        raise UserError(f"step must be a positive finite number, got {step}")
+    s = settings or PlanSettings()
+    sampler, narrow, uniform, seed, budget = s.sampler, s.narrow, s.uniform, s.seed, s.budget
+    k, smooth_rounds, dt, sampler_params = s.k, s.smooth_rounds, s.dt, s.sampler_params
+    skip_connected, full_roadmap = s.skip_connected, s.full_roadmap
+    step = default_step(oracle) if s.step is None else float(s.step)
 
     clock0, checks0 = time.perf_counter(), oracle.checks
     seconds = dict.fromkeys(PHASES, 0.0)

@@ -21,37 +21,16 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
 
 import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
 
+from app.budget import Budget
 from app.errors import UserError
 
 START, GOAL, UNIFORM, NARROW = "start", "goal", "uniform", "narrow"
 SCREEN = 3  # points of a lazy candidate edge checked when it is added: its midpoint and quarter points
-
-
-# ---- budget ---------------------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Budget:
-    """When to stop adding samples: wall-clock seconds and/or collision checks (whichever runs out first)."""
-
-    seconds: float | None = None
-    checks: int | None = None
-
-    def spent(self, seconds: float, checks: int) -> bool:
-        return ((self.seconds is not None and seconds >= self.seconds)
-                or (self.checks is not None and checks >= self.checks))
-
-    def __str__(self) -> str:
-        parts = []
-        if self.seconds is not None:
-            parts.append(f"{self.seconds:g}s")
-        if self.checks is not None:
-            parts.append(f"{self.checks}checks")
-        return ",".join(parts) or "none"
 
 
 _BUDGET_PART = re.compile(r"^(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>s|min|k?checks|M?checks)$")

@@ -10,16 +10,19 @@ Every leg is time-parameterized rest to rest, so the joined trajectory stops at 
 strikes or a gripper closes).
 """
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from app.errors import UserError
 from app.path import FINE, unwrap
-from app.planner import plan
+from app.budget import Budget
+from app.planner import PlanSettings, plan
 from app.timing import Trajectory, parameterize
 
 HOME = "home"
+# A leg of a job is short: smaller roadmap rounds and fewer shortcut rounds than a scene's default query.
+JOB_SETTINGS = PlanSettings(narrow=40, uniform=40, smooth_rounds=10, budget=Budget(seconds=30.0))
 ROUTES = {
     "welding": lambda scene: [HOME] + list(scene.poses),
     "window": lambda scene: [HOME, "window", "reach", "window", "place", HOME],
@@ -85,11 +88,12 @@ def route(oracle, job: str) -> list[str]:
     return names
 
 
-def run_job(oracle, job: str, sampler: str = "lfbs", seed: int = 0, narrow: int = 40, uniform: int = 40,
-            step: float | None = None, budget=None, dt: float = 0.02, smooth_rounds: int = 10,
-            full_roadmap: bool = False) -> RunResult:
+def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResult:
+    """The job's route, leg by leg: a straight move where it is free at the fine resolution, else `plan` with
+    `settings` (leg i seeded settings.seed * 1000 + i)."""
     from app.ik import solve_poses
-    from app.roadmap import parse_budget
+
+    seed, sampler = settings.seed, settings.sampler
 
     names = route(oracle, job)
     clock, checks0 = time.perf_counter(), oracle.checks
@@ -99,7 +103,6 @@ def run_job(oracle, job: str, sampler: str = "lfbs", seed: int = 0, narrow: int 
     configurations = {HOME: home, **solve_poses(oracle, rng, poses, reference=home)}
     ik_seconds = time.perf_counter() - clock
 
-    budget = parse_budget("30s") if budget is None else budget
     legs = []
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
@@ -108,11 +111,9 @@ def run_job(oracle, job: str, sampler: str = "lfbs", seed: int = 0, narrow: int 
             path = np.array([qa, qb])
             method, narrow_count, used, samples, on_path = "straight", 0, 0, np.empty((0, oracle.dim)), np.zeros(0, bool)
             trajectory = parameterize(oracle.plant, unwrap(oracle, path), oracle.scene.velocity_limits,
-                                      oracle.scene.acceleration_limits, dt)
+                                      oracle.scene.acceleration_limits, settings.dt)
         else:
-            result = plan(oracle, sampler=sampler, narrow=narrow, uniform=uniform, step=step, seed=seed * 1000 + i,
-                          budget=budget, start=qa, goal=qb, dt=dt, smooth_rounds=smooth_rounds,
-                          full_roadmap=full_roadmap)
+            result = plan(oracle, replace(settings, seed=seed * 1000 + i), start=qa, goal=qb)
             view = result.view_json()
             path, trajectory, method = result.path, result.trajectory, sampler
             samples = np.array(view.get("narrow") or np.empty((0, oracle.dim)))

@@ -18,13 +18,13 @@ import logging
 import math
 import os
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from app.errors import UserError
+from app.io import check_output, write_atomically
 from app.scene import Scene, robot_diagram_builder
 
 YELLOW = (1.0, 0.85, 0.0, 1.0)  # narrow-passage samples
@@ -116,45 +116,6 @@ def load_view_data(path: str, dim: int) -> ViewData:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise UserError(f"cannot read trajectory {file.name}: {' '.join(str(exc).split())[:200]}") from None
     return parse_view_data(obj, dim, source=file.name)
-
-
-def check_output(path: str | os.PathLike) -> Path:
-    """An output file's path, refused early (before any work) if it cannot be written there."""
-    target = Path(path)
-    if not target.parent.is_dir():
-        raise UserError(f"cannot write {path}: folder {target.parent} does not exist")
-    if target.is_dir():
-        raise UserError(f"cannot write {path}: it is a folder")
-    return target
-
-
-def write_atomically(path: str | os.PathLike, text: str) -> Path:
-    """Write `text` to `path` through a temporary file beside it, so a reader never sees half a file."""
-    target = check_output(path)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    except OSError as exc:
-        raise UserError(f"cannot write {path}: {exc.strerror}") from None
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes the file private; the page is an ordinary output
-        os.replace(tmp, target)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        if isinstance(exc, OSError):
-            raise UserError(f"cannot write {path}: {exc.strerror}") from None
-        raise
-    return target
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def start_meshcat(port: int | None = None):

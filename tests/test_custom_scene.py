@@ -68,9 +68,9 @@ def test_the_decomposition_not_the_hull_is_used(channel_oracle):
 
 
 def test_plan_goes_through_the_channel(channel_oracle):
-    from app.planner import plan
+    from app.planner import PlanSettings, plan
 
-    result = plan(channel_oracle, narrow=60, uniform=120, seed=1, budget=None, smooth_rounds=10)
+    result = plan(channel_oracle, PlanSettings(narrow=60, uniform=120, seed=1, smooth_rounds=10))
     path = result.path
     assert np.allclose(path[0], START) and np.allclose(path[-1], GOAL)
     # Densify the path: where it crosses x = 0 it is inside the slot.
@@ -234,10 +234,10 @@ def test_bad_input_is_a_one_line_user_error(files, cache, change, message):
 
 
 def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):
-    from app.planner import plan
+    from app.planner import PlanSettings, plan
 
     with pytest.raises(InvalidEndpoint):
-        plan(channel_oracle, start=[0.0, 1.25, 1.5, 0, 0, 0], narrow=5, uniform=5)
+        plan(channel_oracle, PlanSettings(narrow=5, uniform=5), start=[0.0, 1.25, 1.5, 0, 0, 0])
 
 
 def test_cli_flags(files, arm_package, tmp_path, monkeypatch, capsys):

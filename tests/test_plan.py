@@ -11,8 +11,9 @@ import pytest
 
 from app.errors import InvalidEndpoint, NoPath, UserError
 from app.path import unwrap
-from app.planner import plan
-from app.roadmap import Budget, Roadmap, parse_budget
+from app.planner import PlanSettings, plan
+from app.budget import Budget
+from app.roadmap import Roadmap, parse_budget
 from independent import fine_points, raw_free
 
 # The bar crossing needs the narrow samples: with 500 uniform samples alone it succeeds in under 10 % of seeds
@@ -20,8 +21,8 @@ from independent import fine_points, raw_free
 BAR = {"sampler": "lfbs", "narrow": 200, "uniform": 300, "seed": 0}
 # joint3d's own start and goal need the 10 x 10 hole and thousands of samples (see the slow test); here a plan on
 # the near side of the wall with large turns on all three continuous angles, one of them across the +-pi seam.
-JOINT3D = {"sampler": "lfbs", "narrow": 60, "uniform": 90, "seed": 1,
-           "start": [20, 25, 75, 0, 0, 0], "goal": [25, 70, 30, 3.0, -1.2, -3.0]}
+JOINT3D = {"sampler": "lfbs", "narrow": 60, "uniform": 90, "seed": 1}
+JOINT3D_ENDS = {"start": [20, 25, 75, 0, 0, 0], "goal": [25, 70, 30, 3.0, -1.2, -3.0]}
 
 
 def run_app(*args):
@@ -49,8 +50,8 @@ def planned(oracles):
 
     def get(name):
         if name not in cache:
-            params = dict(BAR if name == "bar" else JOINT3D)
-            cache[name] = plan(oracles(name), **params)
+            params, ends = (BAR, {}) if name == "bar" else (JOINT3D, JOINT3D_ENDS)
+            cache[name] = plan(oracles(name), PlanSettings(**params), **ends)
         return cache[name]
 
     return get
@@ -141,7 +142,7 @@ def test_a_query_stops_at_the_first_round_that_connects_and_checks_edges_lazily(
 
 
 def test_full_roadmap_builds_every_sample_and_checks_every_edge(oracles):
-    result = plan(oracles("bar"), **BAR, full_roadmap=True, smooth_rounds=0)
+    result = plan(oracles("bar"), PlanSettings(**BAR, full_roadmap=True, smooth_rounds=0))
     assert result.roadmap["nodes"] == 502 and result.roadmap["narrow_nodes"] == 200 and result.rounds == 1
     assert not result.roadmap["lazy"] and result.roadmap["edges_unchecked"] == 0
     assert result.roadmap["k"] == 19  # k-PRM*: e (1 + 1/9) ln 502 = 18.8, for 502 nodes in 9 dimensions
@@ -155,7 +156,7 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
     # points; the fine re-check at 0.5 m does not miss them.
     oracle = CollisionOracle(Scene("maze"))
     oracle.resolution = 2.0
-    result = plan(oracle, seed=0, smooth_rounds=10)
+    result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
     assert result.smoothing["fine_only"]
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.5))
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.roadmap_path, 0.5))
@@ -187,7 +188,7 @@ def test_shortcuts_keep_every_edge_checked_at_their_resolution():
 
 def test_same_seed_same_path(oracles, planned):
     first = planned("joint3d")
-    again = plan(oracles("joint3d"), **JOINT3D)
+    again = plan(oracles("joint3d"), PlanSettings(**JOINT3D), **JOINT3D_ENDS)
     assert np.array_equal(first.path, again.path)
     assert np.array_equal(first.trajectory.positions, again.trajectory.positions)
     assert first.collision_checks == again.collision_checks
@@ -196,22 +197,23 @@ def test_same_seed_same_path(oracles, planned):
 def test_endpoint_errors_in_the_api(oracles):
     oracle = oracles("bar")
     with pytest.raises(InvalidEndpoint, match=r"start is in collision: .*obstacles::"):
-        plan(oracle, start=[50, 30, 0, 0, 0, 0, 0, 0, 0], narrow=0, uniform=1)
+        plan(oracle, PlanSettings(narrow=0, uniform=1), start=[50, 30, 0, 0, 0, 0, 0, 0, 0])
     with pytest.raises(InvalidEndpoint, match=r"goal is out of bounds: base_x=150"):
-        plan(oracle, goal=[150, 50, 0, 0, 0, 0, 0, 0, 0], narrow=0, uniform=1)
+        plan(oracle, PlanSettings(narrow=0, uniform=1), goal=[150, 50, 0, 0, 0, 0, 0, 0, 0])
     with pytest.raises(UserError, match="needs 9"):
-        plan(oracle, start=[1, 2, 3], narrow=0, uniform=1)
+        plan(oracle, PlanSettings(narrow=0, uniform=1), start=[1, 2, 3])
 
 
 def test_no_path_says_what_was_tried(oracles):
     with pytest.raises(NoPath, match=r"roadmap of 12 nodes .* components, start and goal in different ones") as info:
-        plan(oracles("joint3d"), sampler="uniform", narrow=0, uniform=10, seed=0)
+        plan(oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=10, seed=0))
     assert info.value.details["roadmap"]["nodes"] == 12
 
 
 def test_budget_adds_rounds_until_spent(oracles):
     with pytest.raises(NoPath, match=r"budget 8000checks spent") as info:
-        plan(oracles("joint3d"), sampler="uniform", narrow=0, uniform=8, seed=0, budget=parse_budget("8000checks"))
+        plan(oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=8, seed=0,
+                                               budget=parse_budget("8000checks")))
     assert info.value.details["rounds"] > 1
     assert info.value.details["roadmap"]["nodes"] > 10
 
@@ -219,7 +221,7 @@ def test_budget_adds_rounds_until_spent(oracles):
 def test_joint3d_through_the_hole_with_a_budget(oracles):
     # About 10 s: lazy edges and rounds until connected (a 500-node full roadmap fails; see `bench plan`).
     oracle = oracles("joint3d")
-    result = plan(oracle, sampler="lfbs", narrow=200, uniform=300, seed=0, budget=parse_budget("120s"))
+    result = plan(oracle, PlanSettings(sampler="lfbs", narrow=200, uniform=300, seed=0, budget=parse_budget("120s")))
     points = fine_points(oracle, result.path, oracle.resolution / 8)
     assert all(raw_free(oracle, q) for q in points)
     assert oracle.in_passage(points).any()
@@ -228,7 +230,7 @@ def test_joint3d_through_the_hole_with_a_budget(oracles):
 # ---- the command line ----------------------------------------------------------------------------------------------
 def test_cli_plan_json_and_out(tmp_path):
     out = tmp_path / "traj.json"
-    start, goal = ",".join(map(str, JOINT3D["start"])), ",".join(map(str, JOINT3D["goal"]))
+    start, goal = ",".join(map(str, JOINT3D_ENDS["start"])), ",".join(map(str, JOINT3D_ENDS["goal"]))
     result = run_app("plan", "joint3d", "--narrow", "60", "--uniform", "90", "--seed", "1", "--start", start,
                      "--goal", goal, "--json", "--out", str(out))
     assert result.returncode == 0, result.stderr

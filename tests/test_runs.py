@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from app.path import FINE
-from app.runs import HOME, run_job
+from app.runs import HOME, JOB_SETTINGS, run_job
 from independent import fine_points, raw_free
 
 
 @pytest.fixture(scope="module")
 def window_run(oracles):
-    return run_job(oracles("window"), "window", seed=0)
+    return run_job(oracles("window"), "window", JOB_SETTINGS)
 
 
 def test_window_route_goes_through_the_window_and_back(oracles, window_run):
@@ -46,7 +46,7 @@ def test_joined_trajectory_is_continuous_and_within_the_limits(oracles, window_r
 
 
 def test_same_seed_same_run(oracles, window_run):
-    again = run_job(oracles("window"), "window", seed=0)
+    again = run_job(oracles("window"), "window", JOB_SETTINGS)
     assert np.array_equal(again.trajectory.positions, window_run.trajectory.positions)
 
 

@@ -175,7 +175,7 @@ def test_html_into_a_missing_folder_is_exit_2(tmp_path, oracles, meshcat_allowed
 
 
 def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
-    from app.viewer import write_atomically
+    from app.io import write_atomically
 
     target = tmp_path / "page.html"
     target.write_text("old")

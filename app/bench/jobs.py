@@ -7,6 +7,7 @@ Trials are experiment "ur3" in the results store (`bench paper` times the paper'
 so a killed run resumes.
 """
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -35,16 +36,17 @@ def register(kinds) -> None:
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One scripted UR3 job (experiment "ur3", scene = job): seconds total/ik/planning, checks, success."""
     from app.errors import UserError
-    from app.roadmap import Budget
-    from app.runs import run_job
+    from app.budget import Budget
+    from app.runs import JOB_SETTINGS, run_job
 
     p = spec.params
     oracle.reset()
     start = time.perf_counter()
     try:
-        r = run_job(oracle, spec.scene, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
-                    uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])),
-                    full_roadmap=bool(p.get("full_roadmap", True)))  # rows made before the key: full
+        settings = replace(JOB_SETTINGS, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
+                           uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])),
+                           full_roadmap=bool(p.get("full_roadmap", True)))  # rows made before the key: full
+        r = run_job(oracle, spec.scene, settings)  # rows made before the key: full
     except UserError as exc:  # NoPath, or IK finding no collision-free pose
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_ik": None,
                 "seconds_planning": None, "collision_checks": oracle.checks, "error": str(exc)[:200]}

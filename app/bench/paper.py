@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from app.bench.store import ResultStore, TrialSpec
+from app.io import write_atomically
 from app.cli import float_list, positive_int
 
 SAMPLING_SCENES = ["bar", "joint", "joint3d", "teeth3d"]
@@ -402,11 +403,7 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
     else:
         lines += ["No rows.", ""]
 
-    path = folder / "report.md"
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text("\n".join(lines) + "\n")
-    tmp.replace(path)
-    return path
+    return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
 
 
 def run(args) -> int:

@@ -12,12 +12,12 @@ import numpy as np
 
 from app.bench.store import TrialSpec
 from app.cli import non_negative_int, positive_float, positive_int, print_json
-from app.planner import DEFAULTS
+from app.planner import PlanSettings
 
 SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]
 # What a plain `plan` does: the same roadmap size, k (None: k-PRM*) and smoothing.
-SIZE = {"narrow": DEFAULTS["narrow"], "uniform": DEFAULTS["uniform"], "k": DEFAULTS["k"],
-        "smooth": DEFAULTS["smooth_rounds"]}
+SIZE = {"narrow": PlanSettings.narrow, "uniform": PlanSettings.uniform, "k": PlanSettings.k,
+        "smooth": PlanSettings.smooth_rounds}
 
 
 def register(kinds) -> None:
@@ -59,8 +59,8 @@ def default_step(scene) -> float:
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One plan: success, seconds (whole pipeline), seconds to a path, checks, roadmap and path facts."""
     from app.errors import NoPath
+    from app.budget import Budget
     from app.planner import plan
-    from app.roadmap import Budget
 
     p = spec.params
     budget = Budget(seconds=float(p["budget"])) if p.get("mode") == "budget" else None
@@ -70,9 +70,10 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         narrow, uniform = 0, narrow + uniform
     checks0, start = oracle.checks, time.perf_counter()
     try:
-        r = plan(oracle, sampler=spec.method, narrow=narrow, uniform=uniform, step=spec.step, seed=spec.seed,
-                 budget=budget, k=p.get("k", SIZE["k"]), smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
-                 full_roadmap=bool(p.get("full_roadmap", True)))  # rows made before the key: one round
+        r = plan(oracle, PlanSettings(sampler=spec.method, narrow=narrow, uniform=uniform, step=spec.step,
+                                      seed=spec.seed, budget=budget, k=p.get("k", SIZE["k"]),
+                                      smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
+                                      full_roadmap=bool(p.get("full_roadmap", True))))  # rows made before the key: one round
     except NoPath as exc:
         d = getattr(exc, "details", {})
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_to_path": None,

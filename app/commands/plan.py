@@ -1,28 +1,29 @@
 """`plan SCENE ...`: PRM with narrow-passage samples, shortcut smoothing and Toppra timing (app.planner.plan)."""
 import json
-import os
-import tempfile
 from pathlib import Path
 
 from app.cli import float_list, non_negative_int, positive_float, positive_int, print_json
 from app.errors import UserError
-from app.planner import DEFAULTS
+from app.io import check_output, write_atomically
+from app.planner import PlanSettings
+
+DEFAULTS = PlanSettings()
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("plan", help="plan a path (PRM + narrow-passage samples) and time it with Toppra")
     p.add_argument("scene", nargs="?",
                    help="scene name, problem-file path or custom scene file (or --robot/--env instead)")
-    p.add_argument("--sampler", default=DEFAULTS["sampler"],
-                   help=f"narrow-passage sampler (default {DEFAULTS['sampler']})")
-    p.add_argument("--narrow", type=non_negative_int, default=DEFAULTS["narrow"],
-                   help=f"samples from --sampler (default {DEFAULTS['narrow']})")
-    p.add_argument("--uniform", type=non_negative_int, default=DEFAULTS["uniform"],
-                   help=f"uniform free samples (default {DEFAULTS['uniform']})")
+    p.add_argument("--sampler", default=DEFAULTS.sampler,
+                   help=f"narrow-passage sampler (default {DEFAULTS.sampler})")
+    p.add_argument("--narrow", type=non_negative_int, default=DEFAULTS.narrow,
+                   help=f"samples from --sampler (default {DEFAULTS.narrow})")
+    p.add_argument("--uniform", type=non_negative_int, default=DEFAULTS.uniform,
+                   help=f"uniform free samples (default {DEFAULTS.uniform})")
     p.add_argument("--step", type=positive_float, default=None,
                    help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
                         "of the scene's extent)")
-    p.add_argument("--seed", type=non_negative_int, default=DEFAULTS["seed"])
+    p.add_argument("--seed", type=non_negative_int, default=DEFAULTS.seed)
     p.add_argument("--budget", default=None,
                    help="keep adding samples in rounds past --narrow/--uniform until connected or this is spent: "
                         "30s, 2min, 200000checks, 200kchecks, or both as 30s,200kchecks (default: stop at those "
@@ -31,13 +32,13 @@ def register(subparsers) -> None:
                    help="build the whole roadmap (all --narrow + --uniform samples, every edge checked) before the "
                         "query, as in the paper; default: add samples a quarter at a time, check edges lazily, and "
                         "stop as soon as start and goal connect")
-    p.add_argument("-k", "--neighbours", type=positive_int, default=DEFAULTS["k"],
+    p.add_argument("-k", "--neighbours", type=positive_int, default=DEFAULTS.k,
                    help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d "
                         "dimensions)")
-    p.add_argument("--smooth", type=non_negative_int, default=DEFAULTS["smooth_rounds"],
-                   help=f"random shortcut rounds after the greedy pass (default {DEFAULTS['smooth_rounds']})")
-    p.add_argument("--dt", type=positive_float, default=DEFAULTS["dt"],
-                   help=f"trajectory sample period in seconds (default {DEFAULTS['dt']})")
+    p.add_argument("--smooth", type=non_negative_int, default=DEFAULTS.smooth_rounds,
+                   help=f"random shortcut rounds after the greedy pass (default {DEFAULTS.smooth_rounds})")
+    p.add_argument("--dt", type=positive_float, default=DEFAULTS.dt,
+                   help=f"trajectory sample period in seconds (default {DEFAULTS.dt})")
     p.add_argument("--start", type=float_list, default=None, help="comma-separated start configuration")
     p.add_argument("--goal", type=float_list, default=None, help="comma-separated goal configuration")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -57,24 +58,20 @@ def run(args) -> int:
     from app.oracle import CollisionOracle
     from app.planner import plan
     from app.roadmap import parse_budget
-    from app.samplers import SAMPLERS
     from app.custom_scene import scene_from_args
 
     # Everything that can be wrong with the input is found before the (slow) planning starts.
-    if args.sampler not in SAMPLERS:
-        raise UserError(f"unknown sampler '{args.sampler}' (known: {', '.join(SAMPLERS)})")
     budget = parse_budget(args.budget) if args.budget is not None else None
+    settings = PlanSettings(sampler=args.sampler, narrow=args.narrow, uniform=args.uniform, step=args.step,
+                            seed=args.seed, budget=budget, k=args.neighbours, smooth_rounds=args.smooth, dt=args.dt,
+                            full_roadmap=args.full_roadmap)
     out = Path(args.out) if args.out else None
     if out is not None and (out.is_dir() or not out.parent.is_dir()):
         raise UserError(f"cannot write --out {args.out}: " + ("is a folder" if out.is_dir() else "no such folder"))
     if args.html:
-        from app.viewer import check_output
-
         check_output(args.html)
     oracle = CollisionOracle(scene_from_args(args, args.scene))
-    result = plan(oracle, sampler=args.sampler, narrow=args.narrow, uniform=args.uniform, step=args.step,
-                  seed=args.seed, budget=budget, k=args.neighbours, start=args.start, goal=args.goal,
-                  smooth_rounds=args.smooth, dt=args.dt, full_roadmap=args.full_roadmap)
+    result = plan(oracle, settings, start=args.start, goal=args.goal)
     if out is not None:
         write_trajectory(out, result)
     if args.json:
@@ -90,20 +87,8 @@ def run(args) -> int:
 
 
 def write_trajectory(path: Path, result) -> None:
-    """The trajectory as JSON in the format `view --trajectory` reads, atomically: a temp file, then os.replace."""
-    doc = result.view_json()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(doc, f, separators=(",", ":"))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; the result is an ordinary file
-        os.replace(tmp, path)
-    except OSError as exc:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise UserError(f"cannot write --out {path}: {exc.strerror or exc}") from None
+    """The trajectory as JSON in the format `view --trajectory` reads."""
+    write_atomically(path, json.dumps(result.view_json(), separators=(",", ":")))
 
 
 def summary(r) -> str:

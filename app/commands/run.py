@@ -1,5 +1,6 @@
 """`run welding|window`: the scripted UR3 jobs, planned leg by leg into one trajectory, with a summary table."""
 import json
+from dataclasses import replace
 
 from app.cli import non_negative_int, positive_float, print_json
 from app.commands.view import add_arguments, publish_from_args
@@ -25,23 +26,20 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from app.oracle import CollisionOracle
     from app.roadmap import parse_budget
-    from app.runs import ROUTES, run_job
-    from app.samplers import SAMPLERS
+    from app.runs import JOB_SETTINGS, ROUTES, run_job
     from app.scene import Scene
     from app.errors import UserError
-    from app.viewer import check_output, write_atomically
+    from app.io import check_output, write_atomically
 
     if args.job not in ROUTES:
         raise UserError(f"unknown job '{args.job}' (known: {', '.join(ROUTES)})")
-    if args.sampler not in SAMPLERS:
-        raise UserError(f"unknown sampler '{args.sampler}' (known: {', '.join(SAMPLERS)})")
-    budget = parse_budget(args.budget)
+    settings = replace(JOB_SETTINGS, sampler=args.sampler, seed=args.seed, narrow=args.narrow, uniform=args.uniform,
+                       step=args.step, budget=parse_budget(args.budget), full_roadmap=args.full_roadmap)
     for target in (args.out, args.html):
         if target:
             check_output(target)
     oracle = CollisionOracle(Scene(args.job))
-    result = run_job(oracle, args.job, sampler=args.sampler, seed=args.seed, narrow=args.narrow,
-                     uniform=args.uniform, step=args.step, budget=budget, full_roadmap=args.full_roadmap)
+    result = run_job(oracle, args.job, settings)
     if args.out:
         write_atomically(args.out, json.dumps(result.trajectory.to_json()))
     if args.json:

@@ -24,16 +24,20 @@ SAMPLERS = {
 }
 
 
+def check_name(name: str) -> str:
+    """`name` if a sampler is registered under it; else UserError listing the known names."""
+    if name not in SAMPLERS:
+        raise UserError(f"unknown sampler '{name}' (known: {', '.join(SAMPLERS)})")
+    return name
+
+
 def make_sampler(name: str, oracle, **params) -> Sampler:
     """The sampler registered as `name`, built on `oracle` with `params` (e.g. step=10)."""
-    try:
-        factory = SAMPLERS[name]
-    except KeyError:
-        raise UserError(f"unknown sampler '{name}' (known: {', '.join(SAMPLERS)})") from None
+    factory = SAMPLERS[check_name(name)]
     try:
         return factory(oracle, **params)
     except TypeError as exc:  # an unknown or misspelt parameter
         raise UserError(f"sampler '{name}': {exc}") from None
 
 
-__all__ = ["SAMPLERS", "Sampler", "SamplerBudgetExceeded", "make_sampler"]
+__all__ = ["SAMPLERS", "Sampler", "SamplerBudgetExceeded", "check_name", "make_sampler"]
