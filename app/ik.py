@@ -59,9 +59,9 @@ def _into_bounds(oracle, q) -> np.ndarray:
     configuration); continuous angles wrapped as the oracle wraps them."""
     q = np.array(q, float)
     turn = 2 * math.pi
-    limited = oracle.angular & ~oracle.continuous
-    q[limited] = oracle.lower[limited] + np.mod(q[limited] - oracle.lower[limited], turn)
-    return oracle.wrap(q)
+    limited = oracle.space.angular & ~oracle.space.continuous
+    q[limited] = oracle.space.lower[limited] + np.mod(q[limited] - oracle.space.lower[limited], turn)
+    return oracle.space.wrap(q)
 
 
 def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=None, seeds: int = 64,
@@ -79,7 +79,7 @@ def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=
     frame = frame or scene.tool_frame
     if frame is None:
         raise UserError(f"scene {scene.name} names no tool frame, so it has no tool poses to reach")
-    reference = scene.start if reference is None else oracle.check_configuration(reference, "reference")
+    reference = scene.start if reference is None else oracle.space.check_configuration(reference, "reference")
     plant = oracle.plant
     checks_before = oracle.checks
 
@@ -98,10 +98,10 @@ def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=
                                     frameBbar=frame, R_BbarB=RotationMatrix(), theta_bound=0.9 * angle_tolerance)
         # Translations are bounded; angles are not (SNOPT converges three times as often without them): a revolute
         # joint's kinematics repeat every 2 pi, so a solution is shifted into the bounds afterwards.
-        prog.AddBoundingBoxConstraint(np.where(oracle.angular, -np.inf, oracle.lower),
-                                      np.where(oracle.angular, np.inf, oracle.upper), q)
+        prog.AddBoundingBoxConstraint(np.where(oracle.space.angular, -np.inf, oracle.space.lower),
+                                      np.where(oracle.space.angular, np.inf, oracle.space.upper), q)
         # Small, so it picks among nearby solutions without fighting the constraints.
-        prog.AddQuadraticErrorCost(1e-2 * np.diag(oracle.weights ** 2), reference, q)
+        prog.AddQuadraticErrorCost(1e-2 * np.diag(oracle.space.weights ** 2), reference, q)
         if with_clearance:
             ik.AddMinimumDistanceLowerBoundConstraint(clearance, 0.05)
         found = []
@@ -122,19 +122,19 @@ def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=
         return found
 
     colliding: list[np.ndarray] = []
-    first = [reference] + [rng.uniform(oracle.lower, oracle.upper) for _ in range(seeds - 1)]
+    first = [reference] + [rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds - 1)]
     try:
         found = attempt(first, False, colliding)
         if not found and colliding:
             # The pose is reachable but every solution found collides: push those (and a few fresh seeds) clear.
-            second = colliding[:keep] + [rng.uniform(oracle.lower, oracle.upper) for _ in range(seeds // 16)]
+            second = colliding[:keep] + [rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds // 16)]
             found = attempt(second, True, [])
     finally:
         oracle.checks = checks_before
     if not found:
         raise InvalidEndpoint(f"pose '{label}' cannot be reached collision-free by {frame.name()} "
                               f"(tolerance {position_tolerance * 1000:g} mm, {math.degrees(angle_tolerance):g} deg)")
-    return min(found, key=lambda c: float(oracle.distance(reference, c)))
+    return min(found, key=lambda c: float(oracle.space.distance(reference, c)))
 
 
 def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **options) -> dict[str, np.ndarray]:
@@ -152,6 +152,6 @@ def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **
             again = solve_pose(oracle, names[i], rng, chain[i + 1], **options)
         except InvalidEndpoint:
             continue
-        if oracle.distance(again, chain[i + 1]) < oracle.distance(chain[i], chain[i + 1]):
+        if oracle.space.distance(again, chain[i + 1]) < oracle.space.distance(chain[i], chain[i + 1]):
             chain[i] = again
     return dict(zip(names, chain))

@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from app.errors import UserError
+from app.cspace import ConfigurationSpace
 from app.scene import Scene
 
 # Below this many configurations the checker's batch set-up costs more than the raw loop saves.
@@ -49,15 +49,7 @@ class CollisionOracle:
         # (pydrake mirrors this logger's level into its C++ logger; it must be set after pydrake is imported.)
         logging.getLogger("drake").setLevel(logging.WARNING)
         self.scene = scene
-        self.dim = scene.dim
-        self.lower, self.upper = scene.lower, scene.upper
-        self.weights = scene.weights
-        self.angular, self.continuous = scene.angular, scene.continuous
-        self.resolution = scene.resolution
-        # Continuous angles may take any finite value: huge finite bounds let one comparison serve every coordinate
-        # and still reject inf and NaN.
-        self._lo = np.where(self.continuous, -1e300, self.lower)
-        self._hi = np.where(self.continuous, 1e300, self.upper)
+        self.space = ConfigurationSpace.of(scene)
         self.threads = threads or default_threads()
         self._parallelism = Parallelism(self.threads)
         self._cost = {"batch": None, "raw": None}  # running seconds per configuration of each are_free path
@@ -107,46 +99,23 @@ class CollisionOracle:
                 CollisionFilterDeclaration().ExcludeWithin(GeometrySet(list(self._robot_geometries))))
         return root
 
-    # ---- configuration space -------------------------------------------------------------------------------
     def reset(self) -> None:
         self.checks = 0
 
-    def uniform(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """n configurations uniform in the bounds (no collision check)."""
-        return rng.uniform(self.lower, self.upper, size=(n, self.dim))
+    # Until every caller uses `space` directly: the configuration-space facts, read through.
+    dim = property(lambda self: self.space.dim)
+    lower = property(lambda self: self.space.lower)
+    upper = property(lambda self: self.space.upper)
+    weights = property(lambda self: self.space.weights)
+    angular = property(lambda self: self.space.angular)
+    continuous = property(lambda self: self.space.continuous)
+    resolution = property(lambda self: self.space.resolution)
 
-    def wrap(self, Q: np.ndarray) -> np.ndarray:
-        """Continuous angles into [-pi, pi); other coordinates untouched."""
-        Q = np.array(Q, float, copy=True)
-        Q[..., self.continuous] = (Q[..., self.continuous] + np.pi) % (2 * np.pi) - np.pi
-        return Q
-
-    def within_bounds(self, Q: np.ndarray) -> np.ndarray:
-        """Inside the bounds and finite, per configuration."""
-        Q = np.atleast_2d(Q)
-        return ((Q >= self._lo) & (Q <= self._hi)).all(axis=1)
-
-    def difference(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
-        """q2 - q1, taking the short way round on continuous angles."""
-        d = np.asarray(q2, float) - np.asarray(q1, float)
-        d[..., self.continuous] = (d[..., self.continuous] + np.pi) % (2 * np.pi) - np.pi
-        return d
-
-    def distance(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
-        """Weighted configuration distance (broadcasts over leading axes)."""
-        return np.linalg.norm(self.difference(q1, q2) * self.weights, axis=-1)
-
-    def check_configuration(self, q, what: str = "configuration") -> np.ndarray:
-        """A user-supplied configuration as a float vector, or a UserError naming what is wrong."""
-        try:
-            q = np.asarray(q, float).reshape(-1)
-        except (TypeError, ValueError):
-            raise UserError(f"{what} must be {self.dim} numbers") from None
-        if q.shape != (self.dim,):
-            raise UserError(f"{what} has {q.shape[0]} values; {self.scene.name} needs {self.dim}")
-        if not np.all(np.isfinite(q)):
-            raise UserError(f"{what} has a value that is not a finite number")
-        return q
+    def __getattr__(self, name):
+        if name in ("uniform", "wrap", "within_bounds", "difference", "distance", "segments", "interpolate",
+                    "check_configuration"):
+            return getattr(self.space, name)
+        raise AttributeError(name)
 
     # ---- collision answers (counted) -----------------------------------------------------------------------
     def _raw_free(self, q: np.ndarray) -> bool:
@@ -155,7 +124,7 @@ class CollisionOracle:
 
     def is_free(self, q: np.ndarray) -> bool:
         q = np.asarray(q, float)
-        if not ((q >= self._lo) & (q <= self._hi)).all():
+        if not self.space.within_bounds(q)[0]:
             return False
         self.checks += 1
         return self._raw_free(q)
@@ -163,7 +132,7 @@ class CollisionOracle:
     def are_free(self, Q: np.ndarray) -> np.ndarray:
         """Free flags for a batch (n, dim); the batch is spread over the oracle's threads."""
         Q = np.atleast_2d(np.asarray(Q, float))
-        free = self.within_bounds(Q)
+        free = self.space.within_bounds(Q)
         inside = np.flatnonzero(free)
         self.checks += len(inside)
         if self.threads == 1 or len(inside) < _BATCH_MIN:
@@ -194,18 +163,6 @@ class CollisionOracle:
             return "batch" if best == "raw" else "raw"
         return best
 
-    def segments(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
-        """How many pieces each edge Q1[i] -> Q2[i] is cut into so that points are at most `resolution` apart."""
-        d = self.difference(np.atleast_2d(Q1), np.atleast_2d(Q2))
-        length = np.sqrt(np.einsum("ij,ij->i", d * self.weights, d * self.weights))
-        return np.maximum(1, np.ceil(length / (resolution or self.resolution))).astype(int)
-
-    def interpolate(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
-        """Points from q1 to q2 (both included) no more than `resolution` apart in the weighted metric."""
-        n = int(self.segments(q1, q2, resolution)[0])
-        t = (np.arange(n + 1) / n)[:, None]  # the same fractions edges_free checks
-        return self.wrap(np.asarray(q1, float) + t * self.difference(q1, q2))
-
     def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False,
                    max_points: int | None = None) -> np.ndarray:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
@@ -217,9 +174,10 @@ class CollisionOracle:
         max_points: a screen -- at most this many points per edge, coarsest first; True then only means that none
         of them collides.
         """
+        space = self.space
         Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
-        D = self.difference(Q1, Q2)
-        n = self.segments(Q1, Q2, resolution)
+        D = space.difference(Q1, Q2)
+        n = space.segments(Q1, Q2, resolution)
         orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0:][:max_points] for k in n.tolist()]
         free = np.ones(len(Q1), bool)
         cursor = np.zeros(len(Q1), int)
@@ -233,7 +191,7 @@ class CollisionOracle:
             cursor[live] += lengths
             owner = np.repeat(live, lengths)
             t = np.concatenate(takes) / n[owner]
-            ok = self.are_free(self.wrap(Q1[owner] + t[:, None] * D[owner]))
+            ok = self.are_free(space.wrap(Q1[owner] + t[:, None] * D[owner]))
             free[np.unique(owner[~ok])] = False
             chunk *= 2  # few points first (endpoints, midpoints), then ever finer
 

@@ -1,7 +1,7 @@
-"""Paths as polylines in configuration space: length, unwrapping, fine verification, shortcut smoothing.
+"""Paths as polylines in configuration space: length, fine verification, shortcut smoothing.
 
 A path is an (n, dim) array of waypoints; its edges are straight in the scene's metric (the short way round on
-continuous angles), exactly as `oracle.interpolate` walks them. Shortcuts are checked at one resolution (batched,
+continuous angles), exactly as `oracle.space.interpolate` walks them. Shortcuts are checked at one resolution (batched,
 coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the planning resolution, `verify`s the
 result at FINE x that resolution, and smooths again at the fine resolution in the rare case a shortcut fails there
 (checking every accepted shortcut at the fine resolution doubled the cost of smoothing on the maze).
@@ -24,21 +24,11 @@ def dedupe(P: np.ndarray, tol: float = 1e-12) -> np.ndarray:
 
 
 def segment_lengths(oracle, P: np.ndarray) -> np.ndarray:
-    return oracle.distance(P[:-1], P[1:]) if len(P) > 1 else np.zeros(0)
+    return oracle.space.distance(P[:-1], P[1:]) if len(P) > 1 else np.zeros(0)
 
 
 def path_length(oracle, P: np.ndarray) -> float:
     return float(segment_lengths(oracle, P).sum())
-
-
-def unwrap(oracle, P: np.ndarray) -> np.ndarray:
-    """Waypoints with continuous angles unwrapped along the path: each step is the short-way difference, so a
-    trajectory through them moves exactly along the checked edges (no 2*pi jumps). Starts at P[0]."""
-    P = np.atleast_2d(np.asarray(P, float))
-    if len(P) < 2:
-        return P.copy()
-    steps = oracle.difference(P[:-1], P[1:])
-    return P[0] + np.vstack([np.zeros((1, P.shape[1])), np.cumsum(steps, axis=0)])
 
 
 def verify(oracle, P: np.ndarray, resolution: float | None = None) -> np.ndarray:
@@ -46,7 +36,7 @@ def verify(oracle, P: np.ndarray, resolution: float | None = None) -> np.ndarray
     P = np.atleast_2d(np.asarray(P, float))
     if len(P) < 2:
         return np.ones(0, bool)
-    return oracle.edges_free(P[:-1], P[1:], resolution or FINE * oracle.resolution)
+    return oracle.edges_free(P[:-1], P[1:], resolution or FINE * oracle.space.resolution)
 
 
 def _point_at(oracle, P: np.ndarray, cum: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -54,8 +44,8 @@ def _point_at(oracle, P: np.ndarray, cum: np.ndarray, s: np.ndarray) -> tuple[np
     seg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(P) - 2)
     length = cum[seg + 1] - cum[seg]
     t = np.where(length > 0, (s - cum[seg]) / np.where(length > 0, length, 1.0), 0.0)
-    d = oracle.difference(P[seg], P[seg + 1])
-    return oracle.wrap(P[seg] + t[:, None] * d), seg
+    d = oracle.space.difference(P[seg], P[seg + 1])
+    return oracle.space.wrap(P[seg] + t[:, None] * d), seg
 
 
 def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, candidates: int = 8,
@@ -68,7 +58,7 @@ def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, 
     the edges they cut: if every edge of P passed a check at `resolution`, every edge of the result has. Deterministic
     for a given rng state.
     """
-    resolution = resolution or oracle.resolution
+    resolution = resolution or oracle.space.resolution
     P = dedupe(P)
     stats = {"greedy_removed": 0, "random_accepted": 0, "candidates_checked": 0,
              "length_before": path_length(oracle, P), "resolution": resolution}
@@ -85,7 +75,7 @@ def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, 
         s = np.sort(rng.uniform(0.0, total, size=(candidates, 2)), axis=1)
         qa, ia = _point_at(oracle, P, cum, s[:, 0])
         qb, ib = _point_at(oracle, P, cum, s[:, 1])
-        gain = (s[:, 1] - s[:, 0]) - oracle.distance(qa, qb)
+        gain = (s[:, 1] - s[:, 0]) - oracle.space.distance(qa, qb)
         useful = np.flatnonzero((ib > ia) & (gain > 1e-9 * total))
         if not len(useful):
             continue

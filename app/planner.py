@@ -1,11 +1,10 @@
-"""The planning pipeline, as one function the CLI, the viewer and the benchmarks share:
+"""The planner: a query on a lazy PRM whose key samples come from a narrow-passage sampler.
 
     endpoints checked -> narrow + uniform samples, in rounds until start and goal connect -> roadmap (k-nearest;
     lazy edge checks for a single query) -> shortest path -> shortcut smoothing -> the result re-checked at 1/4
     resolution -> Toppra per segment
 
-`plan(...)` returns a PlanResult on success and raises InvalidEndpoint (exit 3) for a bad start or goal, NoPath
-(exit 1, with `.details`) when the budget runs out unconnected, UserError (exit 2) for bad parameters.
+`plan(oracle, PlanSettings(...))` runs one `Query` through those phases and returns a PlanResult.
 """
 from __future__ import annotations
 
@@ -18,7 +17,7 @@ import numpy as np
 
 from app.budget import Budget
 from app.errors import InvalidEndpoint, NoPath, UserError
-from app.path import FINE, path_length, shortcut, unwrap, verify
+from app.path import FINE, path_length, shortcut, verify
 from app.timing import Trajectory, parameterize
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
@@ -27,16 +26,16 @@ if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when plan
 PHASES = ("sampling", "roadmap", "search", "smoothing", "timing")
 
 
-def default_step(oracle) -> float:
-    """The scene file's `step` if it sets one; else a tenth of the scene's largest linear extent (10 for the 100-unit
-    scenes); with no linear coordinate, a tenth of the weighted diagonal of the bounds."""
-    scene = getattr(oracle, "scene", oracle)
-    if getattr(scene, "step", None):
+def default_step(scene) -> float:
+    """A scene's default sampler step: its file's `step` if set; else a tenth of its largest linear extent (10 for
+    the 100-unit scenes); with no linear coordinate, a tenth of the weighted diagonal of the bounds."""
+    if scene.step:
         return scene.step
-    linear = ~np.asarray(oracle.angular)
+    extent = np.asarray(scene.upper) - np.asarray(scene.lower)
+    linear = ~np.asarray(scene.angular)
     if linear.any():
-        return 0.1 * float(np.max((oracle.upper - oracle.lower)[linear]))
-    return 0.1 * float(np.linalg.norm((oracle.upper - oracle.lower) * oracle.weights))
+        return 0.1 * float(np.max(extent[linear]))
+    return 0.1 * float(np.linalg.norm(extent * scene.weights))
 
 
 @dataclass(frozen=True)
@@ -141,176 +140,236 @@ class PlanResult:
 def check_endpoint(oracle, q, what: str) -> np.ndarray:
     """A start or goal as a vector; wrong length or non-finite -> UserError, out of bounds or colliding ->
     InvalidEndpoint naming the coordinate or the touching bodies."""
-    q = oracle.check_configuration(q, what)
-    if not oracle.within_bounds(q)[0]:
-        names = oracle.scene.coordinate_names
-        bad = [f"{names[i]}={q[i]:g} not in [{oracle.lower[i]:g}, {oracle.upper[i]:g}]"
-               for i in range(oracle.dim) if not (oracle._lo[i] <= q[i] <= oracle._hi[i])]
+    q = oracle.space.check_configuration(q, what)
+    bad = oracle.space.out_of_bounds(q)
+    if bad:
         raise InvalidEndpoint(f"{what} is out of bounds: {'; '.join(bad)}")
     if not oracle.is_free(q):
         pairs = oracle.colliding_bodies(q)
         touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
         raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}")
-    return oracle.wrap(q)
+    return oracle.space.wrap(q)
 
 
 def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None) -> PlanResult:
-    """Plan from start to goal (default: the scene's) on a PRM of up to `settings.narrow` samples from
-    `settings.sampler` plus `settings.uniform` uniform free samples.
+    """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()).
 
-    Samples are added in rounds of a quarter of each count, and planning stops at the first round after which start
-    and goal connect (a single query needs no more roadmap than that). With `full_roadmap` the first round is the
-    whole `narrow` + `uniform` (the paper's protocol: a roadmap of fixed size, then the query). With a budget,
-    quarter rounds go on past those counts until start and goal connect or the budget is spent."""
-    from app.roadmap import GOAL, NARROW, START, UNIFORM, Roadmap
-    from app.samplers import SamplerBudgetExceeded, make_sampler
+    Returns a PlanResult; raises InvalidEndpoint for a bad start or goal, NoPath (with `.details`) when the
+    samples or the budget run out before start and goal connect, UserError for bad parameters."""
+    return Query(oracle, settings or PlanSettings(), start=start, goal=goal).solve()
 
-    s = settings or PlanSettings()
-    sampler, narrow, uniform, seed, budget = s.sampler, s.narrow, s.uniform, s.seed, s.budget
-    k, smooth_rounds, dt, sampler_params = s.k, s.smooth_rounds, s.dt, s.sampler_params
-    skip_connected, full_roadmap = s.skip_connected, s.full_roadmap
-    step = default_step(oracle) if s.step is None else float(s.step)
 
-    clock0, checks0 = time.perf_counter(), oracle.checks
-    seconds = dict.fromkeys(PHASES, 0.0)
-    checks = dict.fromkeys(("endpoints",) + PHASES, 0)
+class Query:
+    """One planning query in explicit phases, as OMPL splits its PRM (setup / grow / solve):
 
-    def timed(phase, fn, *args, **kwargs):
-        t, c = time.perf_counter(), oracle.checks
+    setup (the constructor): endpoints checked, samplers made, start and goal put in the roadmap;
+    `grow()`: one round of narrow and uniform samples, added and connected to their k nearest neighbours;
+    `search()`: the shortest roadmap path whose edges are free, or None while start and goal are apart;
+    `smooth(nodes)`: shortcuts of that path, checked at the planning resolution (fine-only: the fine one);
+    `recheck(path)`: the smoothed path checked again at FINE x the resolution;
+    `time(path)`: Toppra under the scene's limits; `solve()`: the loop that runs them and returns the result.
+
+    Rounds are a quarter of `narrow` and `uniform` each, and the loop stops at the first round after which start
+    and goal connect: a single query needs no more roadmap than that. With `full_roadmap` the first round is the
+    whole `narrow` + `uniform` (the paper's protocol). With a budget, quarter rounds go on past those counts until
+    start and goal connect or the budget is spent."""
+
+    def __init__(self, oracle, settings: PlanSettings, *, start=None, goal=None):
+        # The roadmap and samplers pull in scipy and networkx: imported when a query is made, not at CLI start-up.
+        from app.roadmap import GOAL, START, Roadmap
+        from app.samplers import make_sampler
+
+        self.oracle, self.settings = oracle, settings
+        self.step = default_step(oracle.scene) if settings.step is None else float(settings.step)
+        self._clock0, self._checks0 = time.perf_counter(), oracle.checks
+        self.seconds = dict.fromkeys(PHASES, 0.0)
+        self.checks = dict.fromkeys(("endpoints",) + PHASES, 0)
+
+        self.start = check_endpoint(oracle, oracle.scene.start if start is None else start, "start")
+        self.goal = check_endpoint(oracle, oracle.scene.goal if goal is None else goal, "goal")
+        self.checks["endpoints"] = oracle.checks - self._checks0
+
+        seeds = np.random.SeedSequence(settings.seed).spawn(3)
+        self._rngs = {"narrow": np.random.default_rng(seeds[0]), "uniform": np.random.default_rng(seeds[1])}
+        self._smoothing_seed = seeds[2]
+        self._samplers = {"narrow": make_sampler(settings.sampler, oracle, step=self.step, **settings.sampler_params),
+                          "uniform": make_sampler("uniform", oracle, step=self.step)}
+        self.sampler_stats = {"narrow": {}, "uniform": {}}
+        self.drawn = {"narrow": 0, "uniform": 0}
+        self.rounds = 0
+        # A single query checks only the edges its candidate paths use; a full roadmap is checked whole.
+        self.roadmap = Roadmap(oracle, k=settings.k, skip_connected=settings.skip_connected,
+                               lazy=not settings.full_roadmap)
+        self.start_node = int(self.roadmap.add(self.start, START, connect=False)[0])
+        self.goal_node = int(self.roadmap.add(self.goal, GOAL, connect=False)[0])
+        self.fine = FINE * self.roadmap.resolution
+        # Set once an optimistic path has failed the fine re-check: from then on roadmap paths must pass the fine
+        # check and shortcuts are checked at the fine resolution.
+        self.fine_only = False
+
+    # ---- bookkeeping ----------------------------------------------------------------------------------------------
+    def _timed(self, phase: str, fn, *args, **kwargs):
+        t, c = time.perf_counter(), self.oracle.checks
         out = fn(*args, **kwargs)
-        seconds[phase] += time.perf_counter() - t
-        checks[phase] += oracle.checks - c
+        self.seconds[phase] += time.perf_counter() - t
+        self.checks[phase] += self.oracle.checks - c
         return out
 
-    q_start = check_endpoint(oracle, oracle.scene.start if start is None else start, "start")
-    q_goal = check_endpoint(oracle, oracle.scene.goal if goal is None else goal, "goal")
-    checks["endpoints"] = oracle.checks - checks0
+    def elapsed(self) -> tuple[float, int]:
+        """Seconds and collision checks spent since the query was made."""
+        return time.perf_counter() - self._clock0, self.oracle.checks - self._checks0
 
-    seeds = np.random.SeedSequence(seed).spawn(3)
-    rng_narrow, rng_uniform = (np.random.default_rng(s) for s in seeds[:2])
-    narrow_sampler = make_sampler(sampler, oracle, step=step, **(sampler_params or {}))
-    uniform_sampler = make_sampler("uniform", oracle, step=step)
-    sampler_stats = {"narrow": {}, "uniform": {}}
+    # ---- grow -------------------------------------------------------------------------------------------------------
+    def round_sizes(self) -> tuple[int, int] | None:
+        """How many narrow and uniform samples the next round draws, or None when the query may draw no more."""
+        s = self.settings
+        if self.rounds == 0 and s.full_roadmap:
+            return s.narrow, s.uniform
+        quarter = math.ceil(s.narrow / 4), math.ceil(s.uniform / 4)
+        if self.rounds == 0:
+            return quarter
+        if s.narrow == 0 and s.uniform == 0:
+            return None
+        if s.budget is None:
+            if self.drawn["narrow"] >= s.narrow and self.drawn["uniform"] >= s.uniform:
+                return None
+            return min(quarter[0], s.narrow - self.drawn["narrow"]), min(quarter[1], s.uniform - self.drawn["uniform"])
+        return None if s.budget.spent(*self.elapsed()) else quarter
 
-    def draw(kind_sampler, count, rng, key):
+    def _draw(self, kind: str, count: int) -> np.ndarray:
+        """`count` samples from the narrow or uniform sampler, resuming its walkers; a sampler that cannot find
+        them within its check cap (or the budget's) makes the query fail."""
+        from app.samplers import SamplerBudgetExceeded
+
         if count <= 0:
-            return np.empty((0, oracle.dim))
+            return np.empty((0, self.oracle.space.dim))
+        sampler, budget = self._samplers[kind], self.settings.budget
         if budget is not None and budget.checks is not None:  # a sampler may not overrun a check budget
-            kind_sampler.max_checks = min(kind_sampler.max_checks, max(1, budget.checks - (oracle.checks - checks0)))
+            sampler.max_checks = min(sampler.max_checks, max(1, budget.checks - self.elapsed()[1]))
         try:  # resume: walkers still under way when a round ends go on in the next one
-            out = kind_sampler.sample(count, rng, resume=True)
-        except SamplerBudgetExceeded as exc:  # a sampler that cannot find its samples is a planning failure
-            error = NoPath(f"no path on {oracle.scene.name}: {exc}")
-            error.details = {"roadmap": roadmap.stats(), "sampler": str(exc), "rounds": rounds,
-                             "collision_checks": oracle.checks - checks0}
-            raise error from None
+            return sampler.sample(count, self._rngs[kind], resume=True)
+        except SamplerBudgetExceeded as exc:
+            raise self._failure(f"no path on {self.oracle.scene.name}: {exc}", sampler=str(exc)) from None
         finally:
-            for name, value in kind_sampler.stats.items():
+            totals = self.sampler_stats[kind]
+            for name, value in sampler.stats.items():
                 if isinstance(value, (int, float)):
-                    sampler_stats[key][name] = sampler_stats[key].get(name, 0) + value
-        return out
+                    totals[name] = totals.get(name, 0) + value
 
-    # A single query checks only the edges its candidate paths use; a full roadmap is checked whole (multi-query).
-    roadmap = Roadmap(oracle, k=k, skip_connected=skip_connected, lazy=not full_roadmap)
-    s_node = int(roadmap.add(q_start, START, connect=False)[0])
-    g_node = int(roadmap.add(q_goal, GOAL, connect=False)[0])
-    fine = FINE * roadmap.resolution
-    fine_only = False  # set once an optimistic path has failed the fine re-check
+    def grow(self, narrow: int, uniform: int) -> np.ndarray:
+        """One round: draw the samples, add them as nodes (the first round also connects start and goal) and
+        connect the new nodes to their neighbours. Returns the new nodes."""
+        from app.roadmap import NARROW, UNIFORM
 
-    def solve():
-        """(roadmap path, smoothed path, smoothing stats), or None while start and goal are not connected.
+        self.rounds += 1
+        N = self._timed("sampling", self._draw, "narrow", narrow)
+        U = self._timed("sampling", self._draw, "uniform", uniform)
+        self.drawn["narrow"] += len(N)
+        self.drawn["uniform"] += len(U)
+        new = np.concatenate([self.roadmap.add(N, NARROW, connect=False), self.roadmap.add(U, UNIFORM, connect=False)])
+        if self.rounds == 1:
+            new = np.concatenate([[self.start_node, self.goal_node], new])
+        self._timed("roadmap", self.roadmap.connect, new)
+        return new
 
-        Optimistic first: the roadmap path and its shortcuts are checked at the planning resolution, and the
-        smoothed path is then re-checked at FINE x it. Should that fail (an edge that grazes an obstacle between
-        checked points), the planner goes on fine-only: roadmap paths must pass the fine check (more rounds if
-        none does yet) and shortcuts are checked at the fine resolution. Either way every returned edge has passed
-        the fine check."""
-        nonlocal fine_only
-        nodes = (timed("search", _search_fine, oracle, roadmap, s_node, g_node) if fine_only
-                 else timed("search", roadmap.shortest_path, s_node, g_node))
-        if nodes is None:
-            return None
-        smoothed, stats = timed("smoothing", shortcut, oracle, roadmap.Q[nodes], np.random.default_rng(seeds[2]),
-                                rounds=smooth_rounds, resolution=fine if fine_only else None)
-        stats["fine_only"] = fine_only
-        if fine_only or timed("smoothing", verify, oracle, smoothed, fine).all():
-            return nodes, smoothed, stats
-        fine_only = True
-        return solve()
+    # ---- solve ------------------------------------------------------------------------------------------------------
+    def search(self) -> list[int] | None:
+        """Node indices of the shortest start-goal path whose edges are checked free (fine-only: at the fine
+        resolution too; edges failing it are dropped), or None while start and goal are apart."""
+        roadmap = self.roadmap
+        while True:
+            nodes = self._timed("search", roadmap.shortest_path, self.start_node, self.goal_node)
+            if nodes is None or not self.fine_only:
+                return nodes
+            ok = self._timed("search", verify, self.oracle, roadmap.Q[nodes], self.fine)
+            if ok.all():
+                return nodes
+            for i in np.flatnonzero(~ok):
+                roadmap.remove_edge(nodes[i], nodes[i + 1])
 
-    rounds, found = 0, None
-    quarter_narrow, quarter_uniform = math.ceil(narrow / 4), math.ceil(uniform / 4)
-    round_narrow, round_uniform = (narrow, uniform) if full_roadmap else (quarter_narrow, quarter_uniform)
-    drawn_narrow = drawn_uniform = 0
-    while True:
-        rounds += 1
-        N = timed("sampling", draw, narrow_sampler, round_narrow, rng_narrow, "narrow")
-        U = timed("sampling", draw, uniform_sampler, round_uniform, rng_uniform, "uniform")
-        drawn_narrow, drawn_uniform = drawn_narrow + len(N), drawn_uniform + len(U)
-        new = np.concatenate([roadmap.add(N, NARROW, connect=False), roadmap.add(U, UNIFORM, connect=False)])
-        if rounds == 1:
-            new = np.concatenate([[s_node, g_node], new])
-        timed("roadmap", roadmap.connect, new)
-        found = solve()
-        if found is not None:
-            break
-        elapsed, spent = time.perf_counter() - clock0, oracle.checks - checks0
-        if narrow == 0 and uniform == 0:
-            break
-        if budget is None:
-            if drawn_narrow >= narrow and drawn_uniform >= uniform:
+    def smooth(self, nodes: list[int]) -> tuple[np.ndarray, dict]:
+        """The roadmap path shortened (same seed, same shortcuts), at the fine resolution when fine-only."""
+        path, stats = self._timed("smoothing", shortcut, self.oracle, self.roadmap.Q[nodes],
+                                  np.random.default_rng(self._smoothing_seed), rounds=self.settings.smooth_rounds,
+                                  resolution=self.fine if self.fine_only else None)
+        stats["fine_only"] = self.fine_only
+        return path, stats
+
+    def recheck(self, path: np.ndarray) -> bool:
+        """Whether every edge of `path` passes the fine check (an edge may graze an obstacle between the points
+        the planning resolution looked at)."""
+        return bool(self._timed("smoothing", verify, self.oracle, path, self.fine).all())
+
+    def connect_and_smooth(self) -> tuple[list[int], np.ndarray, dict] | None:
+        """(roadmap path, smoothed path, smoothing stats) once start and goal connect, else None.
+
+        Optimistic first (planning resolution, then the fine re-check); if the re-check fails the query turns
+        fine-only and tries again, so every returned edge has passed the fine check."""
+        while True:
+            nodes = self.search()
+            if nodes is None:
+                return None
+            path, stats = self.smooth(nodes)
+            if self.fine_only or self.recheck(path):
+                return nodes, path, stats
+            self.fine_only = True
+
+    def time(self, path: np.ndarray) -> Trajectory:
+        scene = self.oracle.scene
+        try:
+            return self._timed("timing", parameterize, self.oracle.plant, self.oracle.space.unwrap(path),
+                               scene.velocity_limits, scene.acceleration_limits, self.settings.dt)
+        except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
+            raise NoPath(f"path found on {scene.name} but not time-parameterized: "
+                         f"{' '.join(str(exc).split())}") from None
+
+    def solve(self) -> PlanResult:
+        """Grow round by round until start and goal connect, then smooth, re-check and time the path."""
+        sizes = self.round_sizes()
+        found = None
+        while sizes is not None:
+            self.grow(*sizes)
+            found = self.connect_and_smooth()
+            if found is not None:
                 break
-            round_narrow, round_uniform = min(quarter_narrow, narrow - drawn_narrow), \
-                min(quarter_uniform, uniform - drawn_uniform)
-        elif budget.spent(elapsed, spent):
-            break
-        else:
-            round_narrow, round_uniform = quarter_narrow, quarter_uniform
+            sizes = self.round_sizes()
+        if found is None:
+            raise self._not_connected()
+        return self._result(*found)
 
-    if found is None:
-        stats = roadmap.stats()
-        sizes = roadmap.component_sizes(s_node, g_node)
-        elapsed, spent = time.perf_counter() - clock0, oracle.checks - checks0
-        error = NoPath(
-            f"no path from start to goal on {oracle.scene.name}: roadmap of {stats['nodes']} nodes "
-            f"({stats['narrow_nodes']} narrow-passage samples from {sampler}, {stats['uniform_nodes']} uniform) in "
-            f"{stats['components']} "
-            f"components, start and goal in different ones (sizes {sizes[0]} and {sizes[1]}); "
-            f"{stats['edges_tried']} edges tried, {spent} collision checks, {elapsed:.1f} s, {rounds} round(s)"
-            + (f", budget {budget} spent" if budget is not None else "; no --budget for more rounds"))
-        error.details = {"roadmap": stats, "components_of_start_goal": sizes, "collision_checks": spent,
-                         "seconds": elapsed, "rounds": rounds}
-        raise error
+    # ---- answers ----------------------------------------------------------------------------------------------------
+    def _failure(self, message: str, **details) -> NoPath:
+        seconds, spent = self.elapsed()
+        error = NoPath(message)
+        error.details = {"roadmap": self.roadmap.stats(), "rounds": self.rounds, "collision_checks": spent,
+                         "seconds": seconds, **details}
+        return error
 
-    path_nodes, smoothed, smooth_stats = found
-    raw = roadmap.Q[path_nodes]
-    narrow_on_path = sum(roadmap.kinds[i] == NARROW for i in path_nodes)
-    smooth_stats["raw_length"] = path_length(oracle, raw)
-    smooth_stats["length_after"] = path_length(oracle, smoothed)
+    def _not_connected(self) -> NoPath:
+        stats, s = self.roadmap.stats(), self.settings
+        sizes = self.roadmap.component_sizes(self.start_node, self.goal_node)
+        seconds, spent = self.elapsed()
+        return self._failure(
+            f"no path from start to goal on {self.oracle.scene.name}: roadmap of {stats['nodes']} nodes "
+            f"({stats['narrow_nodes']} narrow-passage samples from {s.sampler}, {stats['uniform_nodes']} uniform) in "
+            f"{stats['components']} components, start and goal in different ones (sizes {sizes[0]} and {sizes[1]}); "
+            f"{stats['edges_tried']} edges tried, {spent} collision checks, {seconds:.1f} s, {self.rounds} round(s)"
+            + (f", budget {s.budget} spent" if s.budget is not None else "; no budget for more rounds"),
+            components_of_start_goal=sizes)
 
-    scene = oracle.scene
-    try:
-        trajectory = timed("timing", parameterize, oracle.plant, unwrap(oracle, smoothed), scene.velocity_limits,
-                           scene.acceleration_limits, dt)
-    except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
-        raise NoPath(f"path found on {scene.name} but not time-parameterized: {' '.join(str(exc).split())}") from None
-    seconds["total"] = time.perf_counter() - clock0
-    return PlanResult(
-        success=True, scene=scene.name, sampler=sampler, seed=int(seed), step=step, start=q_start, goal=q_goal,
-        path=smoothed, roadmap_path=raw, trajectory=trajectory, collision_checks=oracle.checks - checks0,
-        checks=checks, seconds=seconds, roadmap=roadmap.stats(), narrow_on_path=int(narrow_on_path),
-        rounds=rounds, budget=str(budget) if budget is not None else "none", smoothing=smooth_stats,
-        sampler_stats=sampler_stats, graph=roadmap, path_nodes=list(path_nodes))
+    def _result(self, nodes: list[int], path: np.ndarray, stats: dict) -> PlanResult:
+        from app.roadmap import NARROW
 
-
-def _search_fine(oracle, roadmap: Roadmap, a: int, b: int) -> list[int] | None:
-    """Shortest roadmap path whose every edge also passes the fine check; edges that fail it are dropped."""
-    while True:
-        nodes = roadmap.shortest_path(a, b)
-        if nodes is None:
-            return None
-        ok = verify(oracle, roadmap.Q[nodes], FINE * roadmap.resolution)
-        if ok.all():
-            return nodes
-        for i in np.flatnonzero(~ok):
-            roadmap.remove_edge(nodes[i], nodes[i + 1])
+        roadmap, s = self.roadmap, self.settings
+        raw = roadmap.Q[nodes]
+        stats["raw_length"] = path_length(self.oracle, raw)
+        stats["length_after"] = path_length(self.oracle, path)
+        trajectory = self.time(path)
+        self.seconds["total"] = self.elapsed()[0]
+        return PlanResult(
+            success=True, scene=self.oracle.scene.name, sampler=s.sampler, seed=int(s.seed), step=self.step,
+            start=self.start, goal=self.goal, path=path, roadmap_path=raw, trajectory=trajectory,
+            collision_checks=self.elapsed()[1], checks=self.checks, seconds=self.seconds, roadmap=roadmap.stats(),
+            narrow_on_path=int(sum(roadmap.kinds[i] == NARROW for i in nodes)), rounds=self.rounds,
+            budget=str(s.budget) if s.budget is not None else "none", smoothing=stats,
+            sampler_stats=self.sampler_stats, graph=roadmap, path_nodes=list(nodes))

@@ -3,7 +3,7 @@
 Nearest neighbours use the scene's own configuration metric, exactly: coordinates are scaled by their weights, and
 every continuous angle becomes a periodic axis of length 2*pi*w in scipy's toroidal k-d tree (`cKDTree(boxsize=...)`;
 a box size of 0 leaves an axis flat). The tree's distance is then sqrt(sum (w_i * d_i)^2) with d_i the short way round
-on continuous angles -- the very number `oracle.distance` gives -- so no neighbour is missed or misranked across the
+on continuous angles -- the very number `ConfigurationSpace.distance` gives -- so no neighbour is missed or misranked across the
 +-pi seam (embedding an angle as (w cos, w sin) would rank by chord length instead of arc length, which is not the
 metric the edges are checked and weighed in).
 
@@ -78,6 +78,7 @@ class Roadmap:
         if k is not None and k < 1:
             raise ValueError("k must be positive")
         self.oracle = oracle
+        self.space = oracle.space
         self.k = k  # None: k-PRM*'s, growing with the roadmap (`prm_star_k`)
         self.k_used = k or 0
         self.lazy = lazy
@@ -87,8 +88,8 @@ class Roadmap:
         self.skip_connected = skip_connected
         self.chunk = max(1, int(chunk))
         self._components = _UnionFind()
-        self.resolution = resolution or oracle.resolution
-        self.Q = np.empty((0, oracle.dim))
+        self.resolution = resolution or oracle.space.resolution
+        self.Q = np.empty((0, oracle.space.dim))
         self.kinds: list[str] = []
         self.graph = nx.Graph()
         self.edges_tried = 0  # checked in full
@@ -96,9 +97,9 @@ class Roadmap:
         self._tried: set[tuple[int, int]] = set()
         self._tree: cKDTree | None = None
         # Periodic axes for continuous angles, flat (0) elsewhere; the scaled embedding lives in [0, box).
-        w = oracle.weights
-        self._box = np.where(oracle.continuous, 2 * np.pi * w, 0.0)
-        self._embedded = np.empty((0, oracle.dim))
+        w = oracle.space.weights
+        self._box = np.where(oracle.space.continuous, 2 * np.pi * w, 0.0)
+        self._embedded = np.empty((0, oracle.space.dim))
 
     def __len__(self) -> int:
         return len(self.Q)
@@ -106,12 +107,12 @@ class Roadmap:
     # ---- metric embedding ---------------------------------------------------------------------------------------
     def embed(self, Q: np.ndarray) -> np.ndarray:
         """Weighted coordinates for the k-d tree: continuous angles mapped into [0, 2*pi*w), others (q - lower)*w."""
-        o = self.oracle
+        space = self.space
         Q = np.atleast_2d(np.asarray(Q, float))
         angle = np.mod(Q + np.pi, 2 * np.pi)
-        X = np.where(o.continuous, angle, Q - o.lower) * o.weights
+        X = np.where(space.continuous, angle, Q - space.lower) * space.weights
         # mod can return exactly 2*pi*w after scaling by rounding; the periodic tree wants [0, box).
-        periodic = o.continuous
+        periodic = space.continuous
         X[:, periodic] = np.where(X[:, periodic] >= self._box[periodic], 0.0, X[:, periodic])
         return X
 
@@ -127,12 +128,12 @@ class Roadmap:
 
         Returns the new node indices.
         """
-        Q = np.atleast_2d(np.asarray(Q, float)).reshape(-1, self.oracle.dim)
+        Q = np.atleast_2d(np.asarray(Q, float)).reshape(-1, self.space.dim)
         first = len(self.Q)
         new = np.arange(first, first + len(Q))
         if len(Q) == 0:
             return new
-        self.Q = np.vstack([self.Q, self.oracle.wrap(Q)])
+        self.Q = np.vstack([self.Q, self.space.wrap(Q)])
         self.kinds.extend([kind] * len(Q))
         self._components.grow(len(self.Q))
         self._embedded = np.vstack([self._embedded, self.embed(Q)])
@@ -158,7 +159,7 @@ class Roadmap:
         return added
 
     def _connect_chunk(self, nodes: np.ndarray) -> int:
-        self.k_used = self.k or prm_star_k(len(self), self.oracle.dim)
+        self.k_used = self.k or prm_star_k(len(self), self.space.dim)
         _, idx = self.neighbours(self.Q[nodes], self.k_used + 1)  # +1: a node is its own nearest neighbour
         pairs = []
         for a, row in zip(nodes, idx):
@@ -194,7 +195,7 @@ class Roadmap:
         return self.oracle.edges_free(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True)
 
     def _add_edges(self, P: np.ndarray, checked: bool) -> None:
-        lengths = self.oracle.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else []
+        lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else []
         self.graph.add_edges_from((int(a), int(b), {"weight": float(w), "checked": checked})
                                   for (a, b), w in zip(P, lengths))
         if checked:
@@ -222,7 +223,7 @@ class Roadmap:
         # (large, in lazy rounds) component of a.
         if a not in self.graph or b not in self.graph or not nx.has_path(self.graph, a, b):
             return None
-        to_b = self.oracle.distance(self.Q, np.repeat(self.Q[b][None], len(self.Q), axis=0))
+        to_b = self.space.distance(self.Q, np.repeat(self.Q[b][None], len(self.Q), axis=0))
         while True:
             try:
                 nodes = nx.astar_path(self.graph, a, b, heuristic=lambda u, _: to_b[u], weight="weight")

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.errors import UserError
-from app.path import FINE, unwrap
+from app.path import FINE
 from app.budget import Budget
 from app.planner import PlanSettings, plan
 from app.timing import Trajectory, parameterize
@@ -98,7 +98,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     names = route(oracle, job)
     clock, checks0 = time.perf_counter(), oracle.checks
     rng = np.random.default_rng(seed)
-    home = oracle.wrap(oracle.scene.start)
+    home = oracle.space.wrap(oracle.scene.start)
     poses = list(dict.fromkeys(n for n in names if n != HOME))
     configurations = {HOME: home, **solve_poses(oracle, rng, poses, reference=home)}
     ik_seconds = time.perf_counter() - clock
@@ -107,16 +107,16 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
         t, c = time.perf_counter(), oracle.checks
-        if oracle.edge_free(qa, qb, oracle.resolution * FINE):
+        if oracle.edge_free(qa, qb, oracle.space.resolution * FINE):
             path = np.array([qa, qb])
-            method, narrow_count, used, samples, on_path = "straight", 0, 0, np.empty((0, oracle.dim)), np.zeros(0, bool)
-            trajectory = parameterize(oracle.plant, unwrap(oracle, path), oracle.scene.velocity_limits,
+            method, narrow_count, used, samples, on_path = "straight", 0, 0, np.empty((0, oracle.space.dim)), np.zeros(0, bool)
+            trajectory = parameterize(oracle.plant, oracle.space.unwrap(path), oracle.scene.velocity_limits,
                                       oracle.scene.acceleration_limits, settings.dt)
         else:
             result = plan(oracle, replace(settings, seed=seed * 1000 + i), start=qa, goal=qb)
             view = result.view_json()
             path, trajectory, method = result.path, result.trajectory, sampler
-            samples = np.array(view.get("narrow") or np.empty((0, oracle.dim)))
+            samples = np.array(view.get("narrow") or np.empty((0, oracle.space.dim)))
             on_path = np.array(view.get("on_path") or [], bool)
             narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
         legs.append(Leg(a, b, method, int(narrow_count), int(used), oracle.checks - c, time.perf_counter() - t,
@@ -136,7 +136,7 @@ def join(trajectories: list[Trajectory], oracle) -> Trajectory:
         P = leg.positions.copy()
         if positions:
             shift = positions[-1][-1] - P[0]
-            P += np.where(oracle.continuous, np.round(shift / (2 * np.pi)) * 2 * np.pi, 0.0)
+            P += np.where(oracle.space.continuous, np.round(shift / (2 * np.pi)) * 2 * np.pi, 0.0)
         skip = 1 if k else 0  # the joint instant appears once
         times.append(leg.times[skip:] + offset)
         positions.append(P[skip:])

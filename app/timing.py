@@ -6,7 +6,7 @@ so the joint velocity would jump there. Here each straight segment is parameteri
 path is then exactly the polyline that was collision-checked -- no blend leaves it -- and velocities and
 accelerations stay within the limits everywhere, at the cost of a stop per waypoint (smoothing keeps them few).
 
-Waypoints must be unwrapped first (`app.path.unwrap`), so that continuous angles take the short way.
+Waypoints must be unwrapped first (`ConfigurationSpace.unwrap`), so that continuous angles take the short way.
 """
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """The planner: roadmap metric, budget syntax, collision-free paths under an independent fine check, Toppra timing
 within the limits, reproducibility, and the command line's exit codes."""
+import dataclasses
 import json
 import math
 import os
@@ -10,7 +11,6 @@ import numpy as np
 import pytest
 
 from app.errors import InvalidEndpoint, NoPath, UserError
-from app.path import unwrap
 from app.planner import PlanSettings, plan
 from app.budget import Budget
 from app.roadmap import Roadmap, parse_budget
@@ -109,7 +109,7 @@ def test_trajectory_respects_limits_and_joins_start_to_goal(oracles, planned, na
     assert t[0] == 0 and math.isclose(t[-1], traj.duration) and np.all(np.diff(t) > 0)
     assert np.allclose(X[0], result.start)
     assert same_configuration(oracle, X[-1], result.goal)
-    assert np.allclose(X[-1], unwrap(oracle, result.path)[-1])  # unwrapped: ends where the path's steps lead
+    assert np.allclose(X[-1], oracle.space.unwrap(result.path)[-1])  # unwrapped: ends where the path's steps lead
     V = np.diff(X, axis=0) / np.diff(t)[:, None]
     assert np.all(np.abs(V) <= scene.velocity_limits * 1.01 + 1e-9)
     mid = 0.5 * (t[1:] + t[:-1])
@@ -155,7 +155,7 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
     # At a 2 m planning resolution the maze's 0.9 m thick walls (in configuration space) slip between checked
     # points; the fine re-check at 0.5 m does not miss them.
     oracle = CollisionOracle(Scene("maze"))
-    oracle.resolution = 2.0
+    oracle.space = dataclasses.replace(oracle.space, resolution=2.0)
     result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
     assert result.smoothing["fine_only"]
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.5))
@@ -165,11 +165,14 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
 def test_shortcuts_keep_every_edge_checked_at_their_resolution():
     """A shortcut leaves pieces of the edges it cuts; a piece's points are not the points its edge was checked at.
     Here a thin wall sits between the fine points of the path's first edge, so an unchecked piece can hit it."""
+    from app.cspace import ConfigurationSpace
     from app.oracle import CollisionOracle
     from app.path import shortcut, verify
 
     oracle = CollisionOracle.__new__(CollisionOracle)  # the path code needs only the metric and are_free
-    oracle.continuous, oracle.weights, oracle.resolution, oracle.checks = np.zeros(2, bool), np.ones(2), 1.0, 0
+    oracle.space = ConfigurationSpace(lower=np.full(2, -20.0), upper=np.full(2, 20.0), weights=np.ones(2),
+                                      angular=np.zeros(2, bool), continuous=np.zeros(2, bool), resolution=1.0)
+    oracle.checks = 0
 
     def are_free(Q):
         x, y = np.atleast_2d(Q).T

@@ -39,6 +39,7 @@ class Sampler:
         if not np.isfinite(step) or step <= 0:
             raise UserError(f"step must be a positive finite number, got {step}")
         self.oracle = oracle
+        self.space = oracle.space
         self.step = float(step)
         self.max_checks = int(max_checks)  # collision checks one sample() call may spend
         self.max_rounds = int(max_rounds)  # rounds one sample() call may run (guards rounds that check nothing)
@@ -98,12 +99,12 @@ class Sampler:
 
     def _offsets(self, rng: np.random.Generator, n: int, length: float, exact: bool) -> np.ndarray:
         """n configuration-space offsets of weighted length `length` (exact) or Gaussian with that rms length."""
-        dim = self.oracle.dim
+        dim = self.space.dim
         if exact:
             w = unit_directions(rng, n, dim) * length
         else:
             w = rng.normal(0.0, length / np.sqrt(dim), size=(n, dim))
-        return w / self.oracle.weights
+        return w / self.space.weights
 
     def _propose(self, rng: np.random.Generator, Q: np.ndarray, draw, spare: int = 4):
         """Q + draw(rng, n), wrapped; a proposal that leaves the bounds is redrawn, up to `redraws` times.
@@ -114,14 +115,14 @@ class Sampler:
         """
         oracle = self.oracle
         n, dim = Q.shape
-        P = oracle.wrap(Q + draw(rng, n))  # first try: one candidate per row (most steps stay in bounds)
-        ok = oracle.within_bounds(P) if n else np.zeros(0, bool)
+        P = oracle.space.wrap(Q + draw(rng, n))  # first try: one candidate per row (most steps stay in bounds)
+        ok = oracle.space.within_bounds(P) if n else np.zeros(0, bool)
         todo = np.flatnonzero(~ok)
         for _ in range(-(-self.redraws // spare)):
             if not len(todo):
                 break
-            C = oracle.wrap(Q[todo, None, :] + draw(rng, len(todo) * spare).reshape(len(todo), spare, dim))
-            good = oracle.within_bounds(C.reshape(-1, dim)).reshape(len(todo), spare)
+            C = oracle.space.wrap(Q[todo, None, :] + draw(rng, len(todo) * spare).reshape(len(todo), spare, dim))
+            good = oracle.space.within_bounds(C.reshape(-1, dim)).reshape(len(todo), spare)
             found = good.any(axis=1)
             first = good.argmax(axis=1)
             hit = todo[found]
@@ -134,7 +135,7 @@ class Sampler:
 
     def _collides(self, Q: np.ndarray) -> np.ndarray:
         """In bounds and in collision (one batched oracle call). Out of bounds is not a collision: no obstacle there."""
-        inside = self.oracle.within_bounds(Q) if len(Q) else np.zeros(0, bool)
+        inside = self.space.within_bounds(Q) if len(Q) else np.zeros(0, bool)
         hit = np.zeros(len(Q), bool)
         if inside.any():
             hit[inside] = ~self.oracle.are_free(Q[inside])

@@ -18,13 +18,13 @@ class BridgeSampler(Sampler):
         oracle = self.oracle
         n = self._batch_size(need, self._rate, low=64, high=1024)
         self.stats["attempts"] += n
-        A = oracle.uniform(rng, n)
+        A = oracle.space.uniform(rng, n)
         A = A[self._collides(A)]
         B, ok = self._propose(rng, A, lambda r, m: self._offsets(r, m, self.step, exact=True))
         A, B = A[ok], B[ok]
         hit = self._collides(B)
         A, B = A[hit], B[hit]
-        M = oracle.wrap(A + 0.5 * oracle.difference(A, B))
+        M = oracle.space.wrap(A + 0.5 * oracle.space.difference(A, B))
         free = oracle.are_free(M)
         self._rate = max(free.sum() / n, 0.002)
         return M[free], np.stack([A[free], B[free]], axis=1)

@@ -16,7 +16,7 @@ class UniformSampler(Sampler):
 
     def _round(self, rng, need):
         n = self._batch_size(need, self._rate)
-        Q = self.oracle.uniform(rng, n)
+        Q = self.space.uniform(rng, n)
         free = self.oracle.are_free(Q)
         self.stats["attempts"] += n
         self._rate = max(free.mean(), 0.01) if n else self._rate
@@ -39,7 +39,7 @@ class GaussianSampler(Sampler):
     def _round(self, rng, need):
         oracle = self.oracle
         n = self._batch_size(need, self._rate, low=32, high=512)
-        Q1 = oracle.uniform(rng, n)
+        Q1 = oracle.space.uniform(rng, n)
         Q2, ok = self._propose(rng, Q1, lambda r, m: self._offsets(r, m, self.sigma, exact=False))
         Q1, Q2 = Q1[ok], Q2[ok]  # a pair whose second point left the bounds is dropped (bounds are no obstacle)
         free = oracle.are_free(np.concatenate([Q1, Q2]))

@@ -41,7 +41,7 @@ class Walker(Sampler):
         self.walkers = walkers  # pool size; None: sized to what is still needed (see _pool_size)
         self.name = name or {("gaussian", False): "rws", ("levy", False): "lfs",
                              ("gaussian", True): "rwbs", ("levy", True): "lfbs"}[(step_law, self.bridge)]
-        self._angular = np.asarray(oracle.angular, bool)
+        self._angular = np.asarray(oracle.space.angular, bool)
 
     # ---- steps ---------------------------------------------------------------------------------------------
     def _draw(self, rng: np.random.Generator, n: int) -> np.ndarray:
@@ -53,21 +53,21 @@ class Walker(Sampler):
         # units, with one L ~ S(alpha) per step for the translational coordinates (so they move on a line) and an
         # independent L ~ S(alpha_angle) per angle. An angle's linear move delta (radians) then goes through the
         # paper's law theta' = 2 pi (1 - e^f) with f = -delta / (2 pi), which is delta for small moves.
-        dim, ang = oracle.dim, self._angular
+        dim, ang = oracle.space.dim, self._angular
         m = int(ang.sum())
         G = rng.standard_normal((n, dim + 2 + 2 * m))  # direction, (U, V) for the length, (U, V) per angle
         u = G[:, :dim] / np.sqrt(np.einsum("ij,ij->i", G[:, :dim], G[:, :dim]))[:, None]
         length = a * (1.0 + np.abs(mantegna(G[:, dim:dim + 1], G[:, dim + 1:dim + 2], self.alpha)))
-        d = u * length / oracle.weights
+        d = u * length / oracle.space.weights
         if m:
             L = mantegna(G[:, dim + 2:dim + 2 + m], G[:, dim + 2 + m:], self.alpha_angle)
-            delta = u[:, ang] * a * (1.0 + np.abs(L)) / oracle.weights[ang]
+            delta = u[:, ang] * a * (1.0 + np.abs(L)) / oracle.space.weights[ang]
             d[:, ang] = 2 * np.pi * (1.0 - np.exp(np.minimum(-delta / (2 * np.pi), _EXP_CLIP)))
         return d
 
     # ---- the lockstep walk ---------------------------------------------------------------------------------
     def _begin(self, rng):
-        dim = self.oracle.dim
+        dim = self.space.dim
         self._Q = np.empty((0, dim))  # current (colliding) position of each walker
         self._age = np.empty(0, int)  # steps each walker has taken
         self._reserve = np.empty((0, dim))  # colliding starts found but not yet walking
@@ -88,7 +88,7 @@ class Walker(Sampler):
             return
         if len(self._reserve) < missing:
             n = int(np.clip(np.ceil(1.2 * (missing - len(self._reserve)) / max(self._hit_rate, 0.02)), 8, 4096))
-            C = self.oracle.uniform(rng, n)
+            C = self.space.uniform(rng, n)
             hit = self._collides(C)
             self._hit_rate = max(hit.mean(), 0.02)
             self._reserve = np.concatenate([self._reserve, C[hit]])
@@ -103,7 +103,7 @@ class Walker(Sampler):
         self._refill(rng, self._pool_size(need))
         Q = self._Q
         if not len(Q):
-            return np.empty((0, oracle.dim)), None
+            return np.empty((0, oracle.space.dim)), None
         P, ok = self._propose(rng, Q, self._draw)  # out of bounds after all redraws: the walker stays this step
         free = np.zeros(len(Q), bool)
         free[ok] = oracle.are_free(P[ok])
@@ -111,7 +111,7 @@ class Walker(Sampler):
         if self.bridge:
             # extend(q, q'): q' is the midpoint of q q''. q'' out of bounds is no collision (no obstacle there).
             cand = np.flatnonzero(free)
-            R = oracle.wrap(P[cand] + oracle.difference(Q[cand], P[cand]))
+            R = oracle.space.wrap(P[cand] + oracle.space.difference(Q[cand], P[cand]))
             hit = self._collides(R)
             accept = np.zeros(len(Q), bool)
             accept[cand[hit]] = True

@@ -1,0 +1,113 @@
+"""The configuration space: bounds, metric and straight motions, in numpy alone (no Drake).
+
+Coordinates are a robot's joint positions. Each has a weight -- the lever arm it swings, so that metres and radians
+compare -- and an angle without joint limits is *continuous*: it lives on a circle, wraps into [-pi, pi), and
+differences take the short way round. Every distance, step and interpolation in the project is measured here, so
+samplers, roadmap, path and timing agree on what "straight" and "how far" mean.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from app.errors import UserError
+
+
+@dataclass(frozen=True, eq=False)
+class ConfigurationSpace:
+    lower: np.ndarray  # (dim,) bounds; continuous angles get [-pi, pi] for sampling
+    upper: np.ndarray
+    weights: np.ndarray  # (dim,) metric weight per coordinate, positive
+    angular: np.ndarray  # (dim,) bool: revolute coordinates
+    continuous: np.ndarray  # (dim,) bool: angles without limits, which wrap
+    resolution: float  # the edge-check step in the weighted metric
+    names: list[str] = field(default_factory=list)  # coordinate names, for messages
+
+    def __post_init__(self):
+        # Continuous angles may take any finite value: huge finite bounds let one comparison serve every coordinate
+        # and still reject inf and NaN.
+        object.__setattr__(self, "_lo", np.where(self.continuous, -1e300, self.lower))
+        object.__setattr__(self, "_hi", np.where(self.continuous, 1e300, self.upper))
+
+    @classmethod
+    def of(cls, scene) -> ConfigurationSpace:
+        """The space a Scene (or a custom scene) declares."""
+        return cls(lower=np.asarray(scene.lower, float), upper=np.asarray(scene.upper, float),
+                   weights=np.asarray(scene.weights, float), angular=np.asarray(scene.angular, bool),
+                   continuous=np.asarray(scene.continuous, bool), resolution=float(scene.resolution),
+                   names=list(scene.coordinate_names))
+
+    @property
+    def dim(self) -> int:
+        return len(self.lower)
+
+    # ---- points ---------------------------------------------------------------------------------------------
+    def uniform(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """n configurations uniform in the bounds."""
+        return rng.uniform(self.lower, self.upper, size=(n, self.dim))
+
+    def wrap(self, Q: np.ndarray) -> np.ndarray:
+        """Continuous angles into [-pi, pi); other coordinates untouched (a copy)."""
+        Q = np.array(Q, float, copy=True)
+        Q[..., self.continuous] = (Q[..., self.continuous] + np.pi) % (2 * np.pi) - np.pi
+        return Q
+
+    def within_bounds(self, Q: np.ndarray) -> np.ndarray:
+        """Inside the bounds and finite, per configuration."""
+        Q = np.atleast_2d(Q)
+        return ((Q >= self._lo) & (Q <= self._hi)).all(axis=1)
+
+    def out_of_bounds(self, q: np.ndarray) -> list[str]:
+        """Each coordinate of q outside its bounds, as 'name=value not in [lo, hi]'."""
+        q = np.asarray(q, float)
+        return [f"{self._name(i)}={q[i]:g} not in [{self.lower[i]:g}, {self.upper[i]:g}]"
+                for i in range(self.dim) if not (self._lo[i] <= q[i] <= self._hi[i])]
+
+    def check_configuration(self, q, what: str = "configuration") -> np.ndarray:
+        """A user-supplied configuration as a float vector of the right length, or a UserError naming the fault."""
+        try:
+            q = np.asarray(q, float).reshape(-1)
+        except (TypeError, ValueError):
+            raise UserError(f"{what} must be {self.dim} numbers") from None
+        if q.shape != (self.dim,):
+            raise UserError(f"{what} has {q.shape[0]} values; the robot needs {self.dim}")
+        if not np.all(np.isfinite(q)):
+            raise UserError(f"{what} has a value that is not a finite number")
+        return q
+
+    # ---- metric -----------------------------------------------------------------------------------------------
+    def difference(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """q2 - q1, taking the short way round on continuous angles (broadcasts)."""
+        d = np.asarray(q2, float) - np.asarray(q1, float)
+        d[..., self.continuous] = (d[..., self.continuous] + np.pi) % (2 * np.pi) - np.pi
+        return d
+
+    def distance(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """Weighted configuration distance (broadcasts over leading axes)."""
+        return np.linalg.norm(self.difference(q1, q2) * self.weights, axis=-1)
+
+    # ---- straight motions ---------------------------------------------------------------------------------------
+    def segments(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
+        """How many pieces each edge Q1[i] -> Q2[i] is cut into so that points are at most `resolution` apart."""
+        d = self.difference(np.atleast_2d(Q1), np.atleast_2d(Q2)) * self.weights
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return np.maximum(1, np.ceil(length / (resolution or self.resolution))).astype(int)
+
+    def interpolate(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
+        """Points from q1 to q2 (both included) no more than `resolution` apart in the weighted metric."""
+        n = int(self.segments(q1, q2, resolution)[0])
+        t = (np.arange(n + 1) / n)[:, None]  # the same fractions an edge check looks at
+        return self.wrap(np.asarray(q1, float) + t * self.difference(q1, q2))
+
+    def unwrap(self, P: np.ndarray) -> np.ndarray:
+        """Waypoints with continuous angles unwrapped along the path: each step is the short-way difference, so a
+        trajectory through them moves exactly along the checked edges (no 2*pi jumps). Starts at P[0]."""
+        P = np.atleast_2d(np.asarray(P, float))
+        if len(P) < 2:
+            return P.copy()
+        steps = self.difference(P[:-1], P[1:])
+        return P[0] + np.vstack([np.zeros((1, P.shape[1])), np.cumsum(steps, axis=0)])
+
+    def _name(self, i: int) -> str:
+        return self.names[i] if i < len(self.names) and self.names[i] else f"q[{i}]"
