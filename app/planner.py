@@ -18,7 +18,8 @@ import numpy as np
 from app.budget import Budget
 from app.errors import InvalidEndpoint, NoPath, UserError
 from app.path import FINE, path_length, shortcut, verify
-from app.timing import Trajectory, parameterize
+from app.timing import parameterize
+from app.trajectory import Trajectory, TrajectoryFile
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
     from app.roadmap import Roadmap
@@ -110,19 +111,20 @@ class PlanResult:
     graph: "Roadmap | None" = field(default=None, repr=False)
     path_nodes: list = field(default_factory=list, repr=False)
 
-    def view_json(self) -> dict:
-        """The trajectory file `python -m app view --trajectory` reads: times, positions (unwrapped), the smoothed
-        path, the narrow-passage samples and which of them the roadmap path used."""
-        out = {"times": self.trajectory.times.tolist(), "positions": self.trajectory.positions.tolist(),
-               "path": self.path.tolist()}
-        if self.graph is not None:
-            from app.roadmap import NARROW
+    def narrow_samples(self) -> tuple[np.ndarray, np.ndarray]:
+        """The narrow-passage samples in the roadmap (M, dim), and which of them the roadmap path used (M,)."""
+        from app.roadmap import NARROW
 
-            narrow = [i for i, kind in enumerate(self.graph.kinds) if kind == NARROW]
-            used = set(self.path_nodes)
-            out["narrow"] = self.graph.Q[narrow].tolist() if narrow else []
-            out["on_path"] = [i in used for i in narrow]
-        return out
+        if self.graph is None:
+            return np.empty((0, len(self.start))), np.zeros(0, bool)
+        narrow = [i for i, kind in enumerate(self.graph.kinds) if kind == NARROW]
+        used = set(self.path_nodes)
+        return self.graph.Q[narrow].reshape(-1, len(self.start)), np.array([i in used for i in narrow], bool)
+
+    def trajectory_file(self) -> TrajectoryFile:
+        """What `plan --out` writes: the trajectory with the narrow-passage samples."""
+        narrow, on_path = self.narrow_samples()
+        return TrajectoryFile(scene=self.scene, trajectory=self.trajectory, narrow=narrow, on_path=on_path)
 
     def to_json(self) -> dict:
         return {
@@ -318,7 +320,8 @@ class Query:
         scene = self.oracle.scene
         try:
             return self._timed("timing", parameterize, self.oracle.plant, self.oracle.space.unwrap(path),
-                               scene.velocity_limits, scene.acceleration_limits, self.settings.dt)
+                               scene.velocity_limits, scene.acceleration_limits, self.settings.dt,
+                               self.oracle.space.names)
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
             raise NoPath(f"path found on {scene.name} but not time-parameterized: "
                          f"{' '.join(str(exc).split())}") from None

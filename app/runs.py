@@ -18,7 +18,8 @@ from app.errors import UserError
 from app.path import FINE
 from app.budget import Budget
 from app.planner import PlanSettings, plan
-from app.timing import Trajectory, parameterize
+from app.timing import parameterize
+from app.trajectory import Trajectory, TrajectoryFile
 
 HOME = "home"
 # A leg of a job is short: smaller roadmap rounds and fewer shortcut rounds than a scene's default query.
@@ -62,21 +63,18 @@ class RunResult:
     configurations: dict  # pose name -> configuration
 
     def to_json(self) -> dict:
-        return {"scene": self.scene, "sampler": self.sampler, "seed": self.seed,
+        return {"success": True, "scene": self.scene, "sampler": self.sampler, "seed": self.seed,
                 "legs": [leg.to_json() for leg in self.legs], "trajectory": self.trajectory.to_json(),
                 "seconds": self.seconds, "collision_checks": self.collision_checks,
                 "configurations": {k: v.tolist() for k, v in self.configurations.items()}}
 
-    def view_data(self):
-        from app.viewer import ViewData
-
+    def trajectory_file(self) -> TrajectoryFile:
+        """What `run --out` writes: the joined trajectory with every planned leg's narrow-passage samples."""
         narrow = [leg.narrow for leg in self.legs if len(leg.narrow)]
         on_path = [leg.on_path for leg in self.legs if len(leg.narrow)]
-        path = np.concatenate([leg.path if i == 0 else leg.path[1:] for i, leg in enumerate(self.legs)])
-        return ViewData(times=self.trajectory.times, positions=self.trajectory.positions,
-                        narrow=np.concatenate(narrow) if narrow else None,
-                        on_path=np.concatenate(on_path) if on_path else None, path=path)
-
+        return TrajectoryFile(scene=self.scene, trajectory=self.trajectory,
+                              narrow=np.concatenate(narrow) if narrow else None,
+                              on_path=np.concatenate(on_path) if on_path else None)
 
 def route(oracle, job: str) -> list[str]:
     if job not in ROUTES:
@@ -111,13 +109,11 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
             path = np.array([qa, qb])
             method, narrow_count, used, samples, on_path = "straight", 0, 0, np.empty((0, oracle.space.dim)), np.zeros(0, bool)
             trajectory = parameterize(oracle.plant, oracle.space.unwrap(path), oracle.scene.velocity_limits,
-                                      oracle.scene.acceleration_limits, settings.dt)
+                                      oracle.scene.acceleration_limits, settings.dt, oracle.space.names)
         else:
             result = plan(oracle, replace(settings, seed=seed * 1000 + i), start=qa, goal=qb)
-            view = result.view_json()
             path, trajectory, method = result.path, result.trajectory, sampler
-            samples = np.array(view.get("narrow") or np.empty((0, oracle.space.dim)))
-            on_path = np.array(view.get("on_path") or [], bool)
+            samples, on_path = result.narrow_samples()
             narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
         legs.append(Leg(a, b, method, int(narrow_count), int(used), oracle.checks - c, time.perf_counter() - t,
                         trajectory.duration, path, trajectory, samples, on_path))
@@ -129,18 +125,23 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
 
 
 def join(trajectories: list[Trajectory], oracle) -> Trajectory:
-    """One trajectory from legs that each start where the previous one stopped (continuous angles may differ by
-    whole turns between a leg's end and the next leg's start: they are shifted to continue without a jump)."""
-    times, positions, waypoints, offset = [], [], [], 0.0
+    """One trajectory from legs that each start where the previous one stopped, at rest (continuous angles may
+    differ by whole turns between a leg's end and the next leg's start: they are shifted to continue without a
+    jump)."""
+    parts = {key: [] for key in ("times", "positions", "velocities", "accelerations", "waypoints", "waypoint_times")}
+    offset, end = 0.0, None
     for k, leg in enumerate(trajectories):
-        P = leg.positions.copy()
-        if positions:
-            shift = positions[-1][-1] - P[0]
-            P += np.where(oracle.space.continuous, np.round(shift / (2 * np.pi)) * 2 * np.pi, 0.0)
+        shift = np.zeros(oracle.space.dim)
+        if end is not None:
+            shift = np.where(oracle.space.continuous, np.round((end - leg.positions[0]) / (2 * np.pi)) * 2 * np.pi, 0.0)
         skip = 1 if k else 0  # the joint instant appears once
-        times.append(leg.times[skip:] + offset)
-        positions.append(P[skip:])
-        waypoints.append(leg.waypoint_times[skip:] + offset)
+        parts["times"].append(leg.times[skip:] + offset)
+        parts["positions"].append(leg.positions[skip:] + shift)
+        parts["velocities"].append(leg.velocities[skip:])
+        parts["accelerations"].append(leg.accelerations[skip:])
+        parts["waypoints"].append(leg.waypoints[skip:] + shift)
+        parts["waypoint_times"].append(leg.waypoint_times[skip:] + offset)
         offset += leg.duration
-    return Trajectory(times=np.concatenate(times), positions=np.concatenate(positions), duration=offset,
-                      dt=trajectories[0].dt, waypoint_times=np.concatenate(waypoints))
+        end = leg.positions[-1] + shift
+    return Trajectory(joint_names=trajectories[0].joint_names, certified=all(t.certified for t in trajectories),
+                      **{key: np.concatenate(value) for key, value in parts.items()})

@@ -10,22 +10,9 @@ Waypoints must be unwrapped first (`ConfigurationSpace.unwrap`), so that continu
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-
-@dataclass
-class Trajectory:
-    times: np.ndarray  # (n,) from 0 to duration; uniform dt except possibly the last interval
-    positions: np.ndarray  # (n, dim), continuous angles unwrapped (no 2*pi jumps)
-    duration: float
-    dt: float
-    waypoint_times: np.ndarray  # arrival time at each waypoint (the trajectory stops there)
-
-    def to_json(self) -> dict:
-        return {"duration": self.duration, "dt": self.dt, "times": self.times.tolist(),
-                "positions": self.positions.tolist(), "waypoint_times": self.waypoint_times.tolist()}
+from app.trajectory import Trajectory
 
 
 def _segment(plant, qa: np.ndarray, qb: np.ndarray, v: np.ndarray, a: np.ndarray):
@@ -49,8 +36,8 @@ def _segment(plant, qa: np.ndarray, qb: np.ndarray, v: np.ndarray, a: np.ndarray
 
 
 def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acceleration_limits: np.ndarray,
-                 dt: float = 0.02) -> Trajectory:
-    """Rest-to-rest Toppra per segment of the (unwrapped) waypoints, sampled every dt."""
+                 dt: float = 0.02, joint_names: list[str] | None = None) -> Trajectory:
+    """Rest-to-rest Toppra per segment of the (unwrapped) waypoints, sampled every dt (and at the end)."""
     W = np.atleast_2d(np.asarray(waypoints, float))
     v = np.asarray(velocity_limits, float)
     a = np.asarray(acceleration_limits, float)
@@ -64,7 +51,7 @@ def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acce
             arrivals.append(t)
             continue
         traj = _segment(plant, qa, qb, v, a)
-        segments.append((t, traj, qb))
+        segments.append((t, traj))
         t += traj.end_time()
         arrivals.append(t)
     duration = t
@@ -72,17 +59,22 @@ def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acce
     times = np.arange(n + 1) * dt
     if duration - times[-1] > 1e-9:
         times = np.append(times, duration)
-    positions = np.empty((len(times), W.shape[1]))
-    positions[:] = W[0]
+    dim = W.shape[1]
+    positions = np.tile(W[0], (len(times), 1))
+    velocities, accelerations = np.zeros((len(times), dim)), np.zeros((len(times), dim))
     starts = np.array([s[0] for s in segments]) if segments else np.zeros(0)
     for i, time in enumerate(times):
         if not segments:
             continue
         k = int(np.clip(np.searchsorted(starts, time, side="right") - 1, 0, len(segments) - 1))
-        t0, traj, qb = segments[k]
+        t0, traj = segments[k]
         local = min(time - t0, traj.end_time())
         positions[i] = traj.value(local).ravel()
+        velocities[i] = traj.EvalDerivative(local, 1).ravel()
+        accelerations[i] = traj.EvalDerivative(local, 2).ravel()
     if segments:
         positions[-1] = W[-1]  # exactly the goal, not Toppra's last evaluation of it
-    return Trajectory(times=times, positions=positions, duration=float(duration), dt=float(dt),
-                      waypoint_times=np.array(arrivals))
+        velocities[-1] = 0.0  # and at rest there
+    names = list(joint_names) if joint_names is not None else [f"q[{i}]" for i in range(dim)]
+    return Trajectory(joint_names=names, times=times, positions=positions, velocities=velocities,
+                      accelerations=accelerations, waypoints=W.copy(), waypoint_times=np.array(arrivals))

@@ -13,7 +13,6 @@ Meshcat opens a server on localhost even to export HTML. Drake refuses that when
 """
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
@@ -26,6 +25,7 @@ import numpy as np
 from app.errors import UserError
 from app.io import check_output, write_atomically
 from app.scene import Scene, robot_diagram_builder
+from app.trajectory import TrajectoryFile
 
 YELLOW = (1.0, 0.85, 0.0, 1.0)  # narrow-passage samples
 RED = (0.9, 0.05, 0.05, 1.0)  # narrow-passage samples on the path
@@ -45,77 +45,10 @@ class ViewData:
     on_path: np.ndarray | None = None  # (M,) bool
     path: np.ndarray | None = None  # (K, dim)
 
-    def to_json(self) -> dict:
-        out = {}
-        for key in ("times", "positions", "narrow", "on_path", "path"):
-            value = getattr(self, key)
-            if value is not None:
-                out[key] = np.asarray(value).tolist()
-        return out
-
-
-def _matrix(value, key: str, dim: int, source: str) -> np.ndarray:
-    try:
-        array = np.asarray(value, float)
-    except (TypeError, ValueError):
-        raise UserError(f"{source}: '{key}' must be a list of lists of numbers") from None
-    if array.ndim == 1 and array.size == 0:
-        array = array.reshape(0, dim)
-    if array.ndim != 2 or array.shape[1] != dim:
-        got = array.shape[1] if array.ndim == 2 else f"shape {array.shape}"
-        raise UserError(f"{source}: '{key}' needs rows of {dim} numbers (the scene's dimension), got {got}")
-    if not np.all(np.isfinite(array)):
-        raise UserError(f"{source}: '{key}' has a value that is not a finite number")
-    return array
-
-
-def parse_view_data(obj, dim: int, source: str = "trajectory") -> ViewData:
-    """Check a trajectory object {"times", "positions", optional "narrow", "on_path", "path"} against `dim`."""
-    if not isinstance(obj, dict):
-        raise UserError(f"{source}: expected a JSON object with 'times' and 'positions'")
-    unknown = set(obj) - {"times", "positions", "narrow", "on_path", "path"}
-    if unknown:
-        raise UserError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}")
-    data = ViewData()
-    if "times" in obj or "positions" in obj:
-        if "times" not in obj or "positions" not in obj:
-            raise UserError(f"{source}: 'times' and 'positions' go together")
-        data.positions = _matrix(obj["positions"], "positions", dim, source)
-        try:
-            data.times = np.asarray(obj["times"], float)
-        except (TypeError, ValueError):
-            raise UserError(f"{source}: 'times' must be a list of numbers") from None
-        if data.times.shape != (len(data.positions),):
-            raise UserError(f"{source}: {data.times.size} times for {len(data.positions)} positions")
-        if len(data.times) == 0:
-            raise UserError(f"{source}: the trajectory is empty")
-        if not np.all(np.isfinite(data.times)) or np.any(np.diff(data.times) < 0):
-            raise UserError(f"{source}: 'times' must be finite and non-decreasing")
-    if "narrow" in obj:
-        data.narrow = _matrix(obj["narrow"], "narrow", dim, source)
-        flags = obj.get("on_path", [False] * len(data.narrow))
-        if not isinstance(flags, list) or not all(isinstance(f, bool) for f in flags):
-            raise UserError(f"{source}: 'on_path' must be a list of true/false")
-        if len(flags) != len(data.narrow):
-            raise UserError(f"{source}: {len(flags)} 'on_path' flags for {len(data.narrow)} narrow samples")
-        data.on_path = np.array(flags, bool)
-    elif "on_path" in obj:
-        raise UserError(f"{source}: 'on_path' needs 'narrow'")
-    if "path" in obj:
-        data.path = _matrix(obj["path"], "path", dim, source)
-    return data
-
-
-def load_view_data(path: str, dim: int) -> ViewData:
-    """Read a trajectory JSON file; every problem with it is a UserError."""
-    file = Path(path)
-    if not file.is_file():
-        raise UserError(f"trajectory file not found: {path}")
-    try:
-        obj = json.loads(file.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UserError(f"cannot read trajectory {file.name}: {' '.join(str(exc).split())[:200]}") from None
-    return parse_view_data(obj, dim, source=file.name)
+    @classmethod
+    def of(cls, file: TrajectoryFile) -> ViewData:
+        t = file.trajectory
+        return cls(times=t.times, positions=t.positions, narrow=file.narrow, on_path=file.on_path, path=t.waypoints)
 
 
 def start_meshcat(port: int | None = None):

@@ -115,12 +115,19 @@ def test_trajectory_respects_limits_and_joins_start_to_goal(oracles, planned, na
     mid = 0.5 * (t[1:] + t[:-1])
     A = np.diff(V, axis=0) / np.diff(mid)[:, None]
     assert np.all(np.abs(A) <= scene.acceleration_limits * 1.05 + 1e-6)
+    dt = PlanSettings().dt
     # No 2*pi jumps: consecutive samples are close in every coordinate.
-    assert np.all(np.abs(np.diff(X, axis=0)) <= scene.velocity_limits * traj.dt * 1.01 + 1e-9)
+    assert np.all(np.abs(np.diff(X, axis=0)) <= scene.velocity_limits * dt * 1.01 + 1e-9)
+    # The velocities and accelerations it reports are within the limits and are the motion's own.
+    assert np.all(np.abs(traj.velocities) <= scene.velocity_limits * (1 + 1e-6) + 1e-9)
+    assert np.all(np.abs(traj.accelerations) <= scene.acceleration_limits * (1 + 1e-6) + 1e-9)
+    assert np.allclose(0.5 * (traj.velocities[1:] + traj.velocities[:-1]), V,
+                       atol=float(np.max(scene.acceleration_limits)) * dt)
+    assert np.allclose(traj.velocities[[0, -1]], 0) and traj.joint_names == scene.coordinate_names
     # It stops at every waypoint (the corner rule): velocity ~0 around each arrival time.
     for arrival in traj.waypoint_times[1:-1]:
         i = int(np.argmin(np.abs(t - arrival)))
-        assert np.all(np.abs(V[max(i - 1, 0)]) <= scene.acceleration_limits * 2 * traj.dt + 1e-6)
+        assert np.all(np.abs(V[max(i - 1, 0)]) <= scene.acceleration_limits * 2 * dt + 1e-6)
 
 
 def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
@@ -243,14 +250,14 @@ def test_cli_plan_json_and_out(tmp_path):
         assert key in doc
     assert doc["success"] is True and doc["sampler"] == "lfbs"
     assert set(doc["roadmap"]) >= {"nodes", "edges", "components"}
-    assert set(doc["trajectory"]) >= {"duration", "dt", "times", "positions"}
+    assert set(doc["trajectory"]) >= {"joint_names", "time_from_start", "positions", "velocities", "accelerations"}
     written = json.loads(out.read_text())
-    assert written["positions"] == doc["trajectory"]["positions"] and written["path"] == doc["path"]
-    assert len(written["narrow"]) == doc["roadmap"]["narrow_nodes"] == 15 * doc["rounds"]
-    assert sum(written["on_path"]) == doc["narrow_on_path"]
-    from app.viewer import parse_view_data  # the file is what the viewer reads
+    assert written["positions"] == doc["trajectory"]["positions"] and written["waypoints"] == doc["path"]
+    assert len(written["narrow_samples"]) == doc["roadmap"]["narrow_nodes"] == 15 * doc["rounds"]
+    assert sum(written["narrow_on_path"]) == doc["narrow_on_path"]
+    from app.trajectory import TrajectoryFile  # the file is what the viewer reads
 
-    parse_view_data(written, 6)
+    TrajectoryFile.from_json(written, 6)
     assert [p.name for p in tmp_path.iterdir()] == ["traj.json"]  # no temp file left behind
 
 

@@ -58,7 +58,8 @@ def test_cli_run_prints_the_legs_and_rejects_an_unknown_job(tmp_path):
     assert result.returncode == 0, result.stderr
     doc = json.loads(result.stdout)
     assert doc["legs"][0]["from"] == HOME and len(doc["legs"]) >= 2
-    assert json.loads(out.read_text())["duration"] == doc["trajectory"]["duration"]
+    assert doc["success"] is True
+    assert json.loads(out.read_text())["time_from_start"] == doc["trajectory"]["time_from_start"]
     bad = subprocess.run([sys.executable, "-m", "app", "run", "parking"], capture_output=True, text=True, env=env,
                          timeout=300)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "unknown job 'parking'" in bad.stderr

@@ -30,10 +30,24 @@ def straight_trajectory(oracle, duration=2.0):
     return np.linspace(0.0, duration, len(Q)), Q
 
 
+def trajectory_doc(times, positions, narrow=None, on_path=None, path=None) -> dict:
+    """A trajectory file's object (app/trajectory.py's schema) for a motion through `positions`."""
+    from app.trajectory import SCHEMA
+
+    times, positions = np.asarray(times, float), np.asarray(positions, float)
+    waypoints = positions[[0, -1]] if path is None else np.asarray(path, float)
+    doc = {"schema": SCHEMA, "scene": "test", "joint_names": [f"j{i}" for i in range(positions.shape[1])],
+           "time_from_start": times.tolist(), "positions": positions.tolist(),
+           "velocities": np.zeros_like(positions).tolist(), "accelerations": np.zeros_like(positions).tolist(),
+           "waypoints": waypoints.tolist(), "waypoint_times": np.linspace(0, times[-1], len(waypoints)).tolist(),
+           "certified": False}
+    if narrow is not None:
+        doc["narrow_samples"], doc["narrow_on_path"] = np.asarray(narrow).tolist(), list(on_path)
+    return doc
+
+
 def write_trajectory(file, times, positions, **extra):
-    obj = {"times": np.asarray(times).tolist(), "positions": np.asarray(positions).tolist()}
-    obj.update({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in extra.items()})
-    file.write_text(json.dumps(obj))
+    file.write_text(json.dumps(trajectory_doc(times, positions, **extra)))
     return file
 
 
@@ -130,17 +144,32 @@ def test_wrong_dimension_is_exit_2_and_writes_nothing(tmp_path, oracles, meshcat
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
 
 
+def _bad(**change):
+    """A valid 9-coordinate, two-sample trajectory file with `change` applied (a None value removes the key)."""
+    doc = trajectory_doc([0.0, 1.0], np.zeros((2, 9)))
+    for key, value in change.items():
+        if value is None:
+            doc.pop(key)
+        else:
+            doc[key] = value
+    return json.dumps(doc)
+
+
 @pytest.mark.parametrize("content, needle", [
     (None, "not found"),
-    ('{"times": [0, 1], "positions": ', "cannot read"),
+    ('{"time_from_start": [0, 1], "positions": ', "cannot read"),
     ('[1, 2]', "JSON object"),
-    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], "speed": 3}', "unknown key"),
-    ('{"times": [0, 1], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]]}', "times for"),
-    ('{"times": [1, 0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0, 0, 0, 0]]}', "non-decreasing"),
-    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, "x"]]}', "numbers"),
-    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], "narrow": [[1, 2]]}', "narrow"),
-    ('{"times": [0], "positions": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], "narrow": [[0, 0, 0, 0, 0, 0, 0, 0, 0]], '
-     '"on_path": [true, false]}', "on_path"),
+    (_bad(schema="other/9"), "schema"),
+    (_bad(speed=3), "unknown key"),
+    (_bad(velocities=None), "missing key"),
+    (_bad(time_from_start=[0.0]), "rows of 'positions' for 1 times"),
+    (_bad(time_from_start=[1.0, 0.0]), "non-decreasing"),
+    (_bad(positions=[[0] * 8 + ["x"]] * 2), "numbers"),
+    (_bad(joint_names=["a"]), "joint_names"),
+    (_bad(narrow_samples=[[1, 2]], narrow_on_path=[True]), "narrow_samples"),
+    (_bad(narrow_samples=[[0] * 9], narrow_on_path=[True, False]), "narrow_on_path"),
+    (_bad(narrow_samples=[[0] * 9]), "go together"),
+    (_bad(certified="yes"), "certified"),
 ])
 def test_bad_trajectory_files_are_one_line_exit_2(tmp_path, capsys, content, needle):
     trajectory = tmp_path / "t.json"
@@ -199,3 +228,20 @@ def test_view_meshcat_does_not_wait_without_a_terminal(tmp_path, oracles):
                             timeout=120)
     assert result.returncode == 0, result.stderr
     assert re.search(r"^meshcat: http://localhost:\d+$", result.stderr, re.M), result.stderr
+
+
+@pytest.mark.parametrize("command", [["plan", "bar", "--seed", "0"], ["run", "welding"]])
+def test_out_files_of_plan_and_run_are_what_view_reads(tmp_path, meshcat_allowed, capsys, command):
+    """One trajectory format: the file `plan --out` / `run --out` writes opens in `view --trajectory`, with the
+    same motion and samples."""
+    from app.trajectory import TrajectoryFile
+
+    out, page = tmp_path / "motion.json", tmp_path / "motion.html"
+    assert main([*command, "--out", str(out)]) == 0
+    scene = command[1]
+    assert main(["view", scene, "--trajectory", str(out), "--html", str(page)]) == 0
+    assert page.stat().st_size > 100_000
+    capsys.readouterr()
+    written = TrajectoryFile.read(out, {"bar": 9, "welding": 6}[scene])
+    assert written.scene == scene and written.trajectory.duration > 0
+    assert np.allclose(written.trajectory.positions[0], written.trajectory.waypoints[0])

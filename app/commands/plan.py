@@ -1,10 +1,6 @@
 """`plan SCENE ...`: PRM with narrow-passage samples, shortcut smoothing and Toppra timing (app.planner.plan)."""
-import json
-from pathlib import Path
-
 from app.cli import float_list, non_negative_int, positive_float, positive_int, print_json
-from app.errors import UserError
-from app.io import check_output, write_atomically
+from app.io import check_output
 from app.planner import PlanSettings
 
 DEFAULTS = PlanSettings()
@@ -65,30 +61,23 @@ def run(args) -> int:
     settings = PlanSettings(sampler=args.sampler, narrow=args.narrow, uniform=args.uniform, step=args.step,
                             seed=args.seed, budget=budget, k=args.neighbours, smooth_rounds=args.smooth, dt=args.dt,
                             full_roadmap=args.full_roadmap)
-    out = Path(args.out) if args.out else None
-    if out is not None and (out.is_dir() or not out.parent.is_dir()):
-        raise UserError(f"cannot write --out {args.out}: " + ("is a folder" if out.is_dir() else "no such folder"))
+    out = check_output(args.out) if args.out else None
     if args.html:
         check_output(args.html)
     oracle = CollisionOracle(scene_from_args(args, args.scene))
     result = plan(oracle, settings, start=args.start, goal=args.goal)
     if out is not None:
-        write_trajectory(out, result)
+        result.trajectory_file().write(out)
     if args.json:
         print_json(result.to_json())
     else:
         print(summary(result))
     if args.html or args.meshcat:
         from app.commands.view import publish_from_args
-        from app.viewer import parse_view_data
+        from app.viewer import ViewData
 
-        publish_from_args(args, oracle.scene, parse_view_data(result.view_json(), oracle.dim))
+        publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
     return 0
-
-
-def write_trajectory(path: Path, result) -> None:
-    """The trajectory as JSON in the format `view --trajectory` reads."""
-    write_atomically(path, json.dumps(result.view_json(), separators=(",", ":")))
 
 
 def summary(r) -> str:
@@ -103,7 +92,7 @@ def summary(r) -> str:
         f"  path      {len(r.roadmap_path)} roadmap nodes ({r.narrow_on_path} from {r.sampler}), length "
         f"{r.smoothing['raw_length']:.1f} -> {len(r.path)} waypoints, length {r.smoothing['length_after']:.1f} "
         f"after smoothing",
-        f"  timing    {t.duration:.2f} s trajectory, {len(t.times)} samples at dt {t.dt:g} s (stops at each waypoint)",
+        f"  timing    {t.duration:.2f} s trajectory, {len(t.times)} samples (stops at each waypoint)",
         f"  cost      {r.collision_checks} collision checks, {s['total']:.2f} s (sampling {s['sampling']:.2f}, "
         f"roadmap {s['roadmap']:.2f}, search {s['search']:.2f}, smoothing {s['smoothing']:.2f}, "
         f"timing {s['timing']:.2f})",

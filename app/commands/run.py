@@ -1,5 +1,4 @@
 """`run welding|window`: the scripted UR3 jobs, planned leg by leg into one trajectory, with a summary table."""
-import json
 from dataclasses import replace
 
 from app.cli import non_negative_int, positive_float, print_json
@@ -29,7 +28,8 @@ def run(args) -> int:
     from app.runs import JOB_SETTINGS, ROUTES, run_job
     from app.scene import Scene
     from app.errors import UserError
-    from app.io import check_output, write_atomically
+    from app.io import check_output
+    from app.viewer import ViewData
 
     if args.job not in ROUTES:
         raise UserError(f"unknown job '{args.job}' (known: {', '.join(ROUTES)})")
@@ -41,7 +41,7 @@ def run(args) -> int:
     oracle = CollisionOracle(Scene(args.job))
     result = run_job(oracle, args.job, settings)
     if args.out:
-        write_atomically(args.out, json.dumps(result.trajectory.to_json()))
+        result.trajectory_file().write(args.out)
     if args.json:
         print_json(result.to_json())
     else:
@@ -53,5 +53,5 @@ def run(args) -> int:
         s = result.seconds
         print(f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
               f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)")
-    publish_from_args(args, oracle.scene, result.view_data())
+    publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
     return 0

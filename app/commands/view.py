@@ -24,7 +24,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("view", help="show a trajectory in Meshcat and/or export a standalone HTML page")
     p.add_argument("scene", help="scene name, problem-file path or custom scene file")
     p.add_argument("--trajectory", required=True, metavar="FILE.json",
-                   help='{"times": [...], "positions": [[...], ...], optional "narrow", "on_path", "path"}')
+                   help="a trajectory file written by plan --out or run --out")
     add_arguments(p)
     p.set_defaults(func=run_view)
 
@@ -32,15 +32,13 @@ def register(subparsers) -> None:
 def run_view(args) -> int:
     from app.errors import UserError
     from app.custom_scene import load_scene
-    from app.viewer import load_view_data
+    from app.trajectory import TrajectoryFile
+    from app.viewer import ViewData
 
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
     scene = load_scene(args.scene)
-    data = load_view_data(args.trajectory, scene.dim)
-    if data.positions is None:
-        raise UserError(f"{args.trajectory}: 'times' and 'positions' are required")
-    publish_from_args(args, scene, data)
+    publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
     if args.html:
         print(args.html)
     return 0

@@ -1,0 +1,161 @@
+"""A timed motion and its one file format, written by `plan --out` and `run --out`, read by `view --trajectory`.
+
+The file is a JSON object shaped like ROS `trajectory_msgs/JointTrajectory` (joint names; per sample the time from
+start, positions, velocities, accelerations), stored by columns:
+
+    schema            "npp-trajectory/1"
+    scene             the scene's name
+    joint_names       one name per coordinate (the model's joint names; a floating body's as name[i])
+    time_from_start   (N,) seconds, non-decreasing, from 0
+    positions         (N, dim) continuous angles unwrapped (no 2 pi jumps), so consecutive samples are close
+    velocities        (N, dim) per second
+    accelerations     (N, dim) per second squared
+    waypoints         (K, dim) the path the motion follows, unwrapped like positions
+    waypoint_times    (K,) when the motion passes each waypoint
+    certified         whether the whole motion, not only its samples, was proved collision-free
+    narrow_samples    optional (M, dim): the planner's narrow-passage samples
+    narrow_on_path    optional (M,) booleans: which of them the roadmap path used
+
+Anything else in the file is an error, so a misspelt key is found rather than ignored.
+"""
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app.errors import UserError
+from app.io import write_atomically
+
+SCHEMA = "npp-trajectory/1"
+
+
+@dataclass
+class Trajectory:
+    joint_names: list[str]
+    times: np.ndarray  # (N,) from 0 to duration
+    positions: np.ndarray  # (N, dim) unwrapped
+    velocities: np.ndarray  # (N, dim)
+    accelerations: np.ndarray  # (N, dim)
+    waypoints: np.ndarray  # (K, dim) unwrapped
+    waypoint_times: np.ndarray  # (K,)
+    certified: bool = False
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1]) if len(self.times) else 0.0
+
+    def to_json(self) -> dict:
+        return {"joint_names": list(self.joint_names), "time_from_start": self.times.tolist(),
+                "positions": self.positions.tolist(), "velocities": self.velocities.tolist(),
+                "accelerations": self.accelerations.tolist(), "waypoints": self.waypoints.tolist(),
+                "waypoint_times": self.waypoint_times.tolist(), "certified": bool(self.certified)}
+
+
+@dataclass
+class TrajectoryFile:
+    """What a trajectory file holds: the motion, the scene it is for, and optionally the narrow-passage samples."""
+
+    scene: str
+    trajectory: Trajectory
+    narrow: np.ndarray | None = None  # (M, dim)
+    on_path: np.ndarray | None = field(default=None)  # (M,) bool
+
+    def to_json(self) -> dict:
+        out = {"schema": SCHEMA, "scene": self.scene, **self.trajectory.to_json()}
+        if self.narrow is not None:
+            out["narrow_samples"] = np.asarray(self.narrow).tolist()
+            out["narrow_on_path"] = [bool(x) for x in self.on_path]
+        return out
+
+    def write(self, path: str | os.PathLike) -> Path:
+        return write_atomically(path, json.dumps(self.to_json(), separators=(",", ":")))
+
+    @classmethod
+    def read(cls, path: str | os.PathLike, dim: int) -> TrajectoryFile:
+        """A trajectory file checked against a scene of `dim` coordinates; every fault is one UserError."""
+        file = Path(path)
+        if not file.is_file():
+            raise UserError(f"trajectory file not found: {path}")
+        try:
+            obj = json.loads(file.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise UserError(f"cannot read trajectory {file.name}: {' '.join(str(exc).split())[:200]}") from None
+        return cls.from_json(obj, dim, source=file.name)
+
+    @classmethod
+    def from_json(cls, obj, dim: int, source: str = "trajectory") -> TrajectoryFile:
+        if not isinstance(obj, dict):
+            raise UserError(f"{source}: expected a JSON object (schema {SCHEMA})")
+        if obj.get("schema") != SCHEMA:
+            raise UserError(f"{source}: schema is {obj.get('schema')!r}, expected {SCHEMA!r}")
+        known = {"schema", "scene", "joint_names", "time_from_start", "positions", "velocities", "accelerations",
+                 "waypoints", "waypoint_times", "certified", "narrow_samples", "narrow_on_path"}
+        unknown = set(obj) - known
+        if unknown:
+            raise UserError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}")
+        missing = sorted(known - set(obj) - {"narrow_samples", "narrow_on_path"})
+        if missing:
+            raise UserError(f"{source}: missing key(s) {', '.join(missing)}")
+        names = obj["joint_names"]
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise UserError(f"{source}: 'joint_names' must be a list of names")
+        if len(names) != dim:
+            raise UserError(f"{source}: {len(names)} 'joint_names' for a scene of {dim} coordinates")
+        times = _vector(obj["time_from_start"], "time_from_start", source)
+        if len(times) == 0:
+            raise UserError(f"{source}: the trajectory is empty")
+        if np.any(np.diff(times) < 0):
+            raise UserError(f"{source}: 'time_from_start' must be non-decreasing")
+        columns = {key: _matrix(obj[key], key, dim, source) for key in ("positions", "velocities", "accelerations")}
+        for key, value in columns.items():
+            if len(value) != len(times):
+                raise UserError(f"{source}: {len(value)} rows of '{key}' for {len(times)} times")
+        waypoints = _matrix(obj["waypoints"], "waypoints", dim, source)
+        waypoint_times = _vector(obj["waypoint_times"], "waypoint_times", source)
+        if len(waypoint_times) != len(waypoints):
+            raise UserError(f"{source}: {len(waypoint_times)} waypoint times for {len(waypoints)} waypoints")
+        if not isinstance(obj["certified"], bool):
+            raise UserError(f"{source}: 'certified' must be true or false")
+        trajectory = Trajectory(names, times, columns["positions"], columns["velocities"], columns["accelerations"],
+                                waypoints, waypoint_times, obj["certified"])
+        narrow = on_path = None
+        if ("narrow_samples" in obj) != ("narrow_on_path" in obj):
+            raise UserError(f"{source}: 'narrow_samples' and 'narrow_on_path' go together")
+        if "narrow_samples" in obj:
+            narrow = _matrix(obj["narrow_samples"], "narrow_samples", dim, source)
+            flags = obj["narrow_on_path"]
+            if not isinstance(flags, list) or not all(isinstance(f, bool) for f in flags):
+                raise UserError(f"{source}: 'narrow_on_path' must be a list of true/false")
+            if len(flags) != len(narrow):
+                raise UserError(f"{source}: {len(flags)} 'narrow_on_path' flags for {len(narrow)} narrow samples")
+            on_path = np.array(flags, bool)
+        return cls(scene=str(obj["scene"]), trajectory=trajectory, narrow=narrow, on_path=on_path)
+
+
+def _vector(value, key: str, source: str) -> np.ndarray:
+    try:
+        array = np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise UserError(f"{source}: '{key}' must be a list of numbers") from None
+    if array.ndim != 1 or not np.all(np.isfinite(array)):
+        raise UserError(f"{source}: '{key}' must be a list of finite numbers")
+    return array
+
+
+def _matrix(value, key: str, dim: int, source: str) -> np.ndarray:
+    try:
+        array = np.asarray(value, float)
+    except (TypeError, ValueError):
+        raise UserError(f"{source}: '{key}' must be a list of lists of numbers") from None
+    if array.ndim == 1 and array.size == 0:
+        array = array.reshape(0, dim)
+    if array.ndim != 2 or array.shape[1] != dim:
+        got = array.shape[1] if array.ndim == 2 else f"shape {array.shape}"
+        raise UserError(f"{source}: '{key}' needs rows of {dim} numbers (the scene's dimension), got {got}")
+    if not np.all(np.isfinite(array)):
+        raise UserError(f"{source}: '{key}' has a value that is not a finite number")
+    return array
