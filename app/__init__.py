@@ -1,7 +1,39 @@
-"""Narrow-passage PRM planning on Drake."""
+"""Narrow-passage PRM planning on Drake: Lévy-flight and random-walk bridge samplers feeding a lazy roadmap.
+
+    import app
+
+    oracle = app.CollisionOracle(app.load_scene("bar"))
+    result = app.plan(oracle, app.PlanSettings(sampler="lfbs", seed=0))
+    result.trajectory.positions  # (N, 9), with velocities, accelerations and joint names
+
+Everything a user needs is named in `__all__`; the rest of the package is implementation.
+"""
 import os
 
 # Drake's parallel collision batches use OpenMP. By default its idle threads spin for a while after each batch,
 # holding the second core while the Python loop that follows wants it: with many small batches (walkers, edge
 # rounds) that made 2 threads slower than 1. Passive waiting gives the core back. Must be set before libgomp loads.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+from app.budget import Budget  # noqa: E402
+from app.cspace import ConfigurationSpace  # noqa: E402
+from app.custom_scene import load_scene  # noqa: E402
+from app.errors import InvalidEndpoint, NoPath, UserError  # noqa: E402
+from app.oracle import CollisionOracle  # noqa: E402
+from app.planner import PlanResult, PlanSettings, Query, plan  # noqa: E402
+from app.samplers import SAMPLERS, Sampler, SamplerBudgetExceeded, make_sampler  # noqa: E402
+from app.scene import Scene, scene_names  # noqa: E402
+from app.trajectory import Trajectory, TrajectoryFile  # noqa: E402
+
+__all__ = [
+    # scenes and the collision oracle
+    "Scene", "load_scene", "scene_names", "CollisionOracle", "ConfigurationSpace",
+    # planning
+    "plan", "PlanSettings", "PlanResult", "Query", "Budget",
+    # samplers
+    "SAMPLERS", "Sampler", "make_sampler",
+    # the motion
+    "Trajectory", "TrajectoryFile",
+    # errors
+    "UserError", "InvalidEndpoint", "NoPath", "SamplerBudgetExceeded",
+]

@@ -1,0 +1,38 @@
+"""The public API: what `import app` offers, and the README's example run exactly as printed."""
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import app
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+
+
+def test_all_names_exist_and_nothing_else_is_promised():
+    assert len(set(app.__all__)) == len(app.__all__)
+    for name in app.__all__:
+        assert getattr(app, name) is not None
+    assert {"plan", "PlanSettings", "CollisionOracle", "load_scene", "Trajectory", "Budget", "make_sampler",
+            "SAMPLERS", "NoPath"} <= set(app.__all__)
+
+
+def test_readme_python_example_runs_as_printed(tmp_path):
+    section = README.read_text().split("## Python API", 1)[1]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.strip().splitlines()
+    assert re.fullmatch(r"\d+ waypoints, \d+ collision checks, \d+\.\d s of motion", lines[0]), lines
+    assert re.fullmatch(r"\d+% of 30 lfbs samples are in the passage", lines[1]), lines
+    written = app.TrajectoryFile.read(tmp_path / "bar-motion.json", 9)
+    assert written.scene == "bar" and len(written.trajectory.joint_names) == 9
+
+
+def test_settings_are_validated_once_when_built():
+    import pytest
+
+    for bad in [dict(sampler="nope"), dict(narrow=-1), dict(k=0), dict(dt=0.0), dict(step=float("inf")),
+                dict(seed=1.5), dict(budget="30s")]:
+        with pytest.raises(app.UserError):
+            app.PlanSettings(**bad)
