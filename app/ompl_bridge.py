@@ -14,12 +14,16 @@ intervals [-pi, pi] on the OMPL side (our own PRM does wrap); this only removes 
 import numpy as np
 
 from app.errors import UserError
+from app.samplers import make_sampler
+# Importing this module loads OMPL (an optional dependency; the samplers below subclass its classes), so callers
+# import it only where OMPL is needed.
 
 
 _seeded = False
 
 
-def _ompl():
+def ompl_modules():
+    """OMPL's base, geometric and util modules, or one clear UserError when OMPL is not installed."""
     try:
         from ompl import base as ob
         from ompl import geometric as og
@@ -33,7 +37,7 @@ def _ompl():
 class OmplProblem:
     def __init__(self, oracle, seed: int = 0):
         global _seeded
-        ob, og, ou = _ompl()
+        ob, og, ou = ompl_modules()
         self.ob, self.og = ob, og
         if not _seeded:  # OMPL takes one seed per process, before its first random draw
             ou.RNG.setSeed(int(seed) + 1)  # (seed 0 would mean "pick one")
@@ -116,7 +120,7 @@ def straight_waypoints(oracle, path: np.ndarray) -> np.ndarray:
 
 
 def _base():
-    ob, _, _ = _ompl()
+    ob, _, _ = ompl_modules()
     return ob.ValidStateSampler
 
 
@@ -178,8 +182,6 @@ class ProjectSampler(_Sampler):
     BATCH = 10
 
     def __init__(self, si, problem: OmplProblem, name: str, params: dict):
-        from app.samplers import make_sampler
-
         super().__init__(si)
         self.problem = problem
         self.sampler = make_sampler(name, problem.oracle, **params)

@@ -27,6 +27,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.scene import Scene
+# pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
 
 # Below this many configurations the checker's batch set-up costs more than the raw loop saves.
 _BATCH_MIN = 8
@@ -299,6 +300,16 @@ class CollisionOracle:
             return np.zeros(len(Q), bool)
         p = self.frame_positions(Q)
         return np.any([np.all((p >= lo) & (p <= hi), axis=1) for lo, hi in self.scene.passage_boxes], axis=0)
+
+    def query_object(self, q: np.ndarray):
+        """SceneGraph's QueryObject with the robot at q, under the scene's collision policy, for pictures and
+        measurements that need Drake's own answers (not counted). Valid until the oracle's next query."""
+        self.plant.SetPositions(self._ctx, np.asarray(q, float))
+        return self._query_port.Eval(self._ctx)
+
+    def is_robot_geometry(self, geometry_id) -> bool:
+        """Whether a SceneGraph geometry belongs to the robot (else to the environment)."""
+        return geometry_id in self._robot_geometries
 
 
 @functools.lru_cache(maxsize=4096)

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from app.budget import Budget
-from app.errors import InvalidEndpoint, NoPath, UserError
+from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.path import FINE, path_length, shortcut, unwrap, verify
 from app.timing import Trajectory, parameterize
 
@@ -117,13 +117,21 @@ class PlanResult:
         out = {"times": self.trajectory.times.tolist(), "positions": self.trajectory.positions.tolist(),
                "path": self.path.tolist()}
         if self.graph is not None:
-            from app.roadmap import NARROW
-
-            narrow = [i for i, kind in enumerate(self.graph.kinds) if kind == NARROW]
-            used = set(self.path_nodes)
-            out["narrow"] = self.graph.Q[narrow].tolist() if narrow else []
-            out["on_path"] = [i in used for i in narrow]
+            samples, on_path = self.narrow_samples()
+            out["narrow"] = samples.tolist()
+            out["on_path"] = on_path.tolist()
         return out
+
+    def narrow_samples(self) -> tuple[np.ndarray, np.ndarray]:
+        """The roadmap's narrow-passage samples (n, dim) and whether the roadmap path used each (n,) bool; empty
+        without a roadmap."""
+        if self.graph is None:
+            return np.empty((0, len(self.start))), np.zeros(0, bool)
+        from app.roadmap import NARROW
+
+        narrow = [i for i, kind in enumerate(self.graph.kinds) if kind == NARROW]
+        used = set(self.path_nodes)
+        return self.graph.Q[narrow], np.array([i in used for i in narrow], bool)
 
     def to_json(self) -> dict:
         return {
@@ -163,7 +171,7 @@ def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None)
     whole `narrow` + `uniform` (the paper's protocol: a roadmap of fixed size, then the query). With a budget,
     quarter rounds go on past those counts until start and goal connect or the budget is spent."""
     from app.roadmap import GOAL, NARROW, START, UNIFORM, Roadmap
-    from app.samplers import SamplerBudgetExceeded, make_sampler
+    from app.samplers import make_sampler
 
     s = settings or PlanSettings()
     sampler, narrow, uniform, seed, budget = s.sampler, s.narrow, s.uniform, s.seed, s.budget
@@ -277,7 +285,7 @@ def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None)
             f"{stats['components']} "
             f"components, start and goal in different ones (sizes {sizes[0]} and {sizes[1]}); "
             f"{stats['edges_tried']} edges tried, {spent} collision checks, {elapsed:.1f} s, {rounds} round(s)"
-            + (f", budget {budget} spent" if budget is not None else "; no --budget for more rounds"))
+            + (f", budget {budget} spent" if budget is not None else "; no budget for more rounds"))
         error.details = {"roadmap": stats, "components_of_start_goal": sizes, "collision_checks": spent,
                          "seconds": elapsed, "rounds": rounds}
         raise error

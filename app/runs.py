@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.errors import UserError
+from app.ik import solve_poses
 from app.path import FINE, unwrap
 from app.budget import Budget
 from app.planner import PlanSettings, plan
@@ -67,15 +68,18 @@ class RunResult:
                 "seconds": self.seconds, "collision_checks": self.collision_checks,
                 "configurations": {k: v.tolist() for k, v in self.configurations.items()}}
 
-    def view_data(self):
-        from app.viewer import ViewData
-
+    def view_json(self) -> dict:
+        """What a viewer shows, in the trajectory-file format `python -m app view` reads: the joined trajectory,
+        the legs' path and every planned leg's narrow-passage samples with their on-path flags."""
         narrow = [leg.narrow for leg in self.legs if len(leg.narrow)]
         on_path = [leg.on_path for leg in self.legs if len(leg.narrow)]
         path = np.concatenate([leg.path if i == 0 else leg.path[1:] for i, leg in enumerate(self.legs)])
-        return ViewData(times=self.trajectory.times, positions=self.trajectory.positions,
-                        narrow=np.concatenate(narrow) if narrow else None,
-                        on_path=np.concatenate(on_path) if on_path else None, path=path)
+        out = {"times": self.trajectory.times.tolist(), "positions": self.trajectory.positions.tolist(),
+               "path": path.tolist()}
+        if narrow:
+            out["narrow"] = np.concatenate(narrow).tolist()
+            out["on_path"] = np.concatenate(on_path).tolist()
+        return out
 
 
 def route(oracle, job: str) -> list[str]:
@@ -91,8 +95,6 @@ def route(oracle, job: str) -> list[str]:
 def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResult:
     """The job's route, leg by leg: a straight move where it is free at the fine resolution, else `plan` with
     `settings` (leg i seeded settings.seed * 1000 + i)."""
-    from app.ik import solve_poses
-
     seed, sampler = settings.seed, settings.sampler
 
     names = route(oracle, job)
@@ -114,10 +116,8 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
                                       oracle.scene.acceleration_limits, settings.dt)
         else:
             result = plan(oracle, replace(settings, seed=seed * 1000 + i), start=qa, goal=qb)
-            view = result.view_json()
             path, trajectory, method = result.path, result.trajectory, sampler
-            samples = np.array(view.get("narrow") or np.empty((0, oracle.dim)))
-            on_path = np.array(view.get("on_path") or [], bool)
+            samples, on_path = result.narrow_samples()
             narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
         legs.append(Leg(a, b, method, int(narrow_count), int(used), oracle.checks - c, time.perf_counter() - t,
                         trajectory.duration, path, trajectory, samples, on_path))

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+# pydrake is imported inside `parameterize`, so that importing the package does not load Drake.
 
 
 @dataclass

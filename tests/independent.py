@@ -17,9 +17,8 @@ def raw_free(oracle, q) -> bool:
     context = plant.GetMyContextFromRoot(root)
     plant.SetPositions(context, q)
     query = plant.get_geometry_query_input_port().Eval(context)
-    robot = oracle._robot_geometries
     for pair in query.ComputeSignedDistancePairwiseClosestPoints(0.0):
-        a, b = pair.id_A in robot, pair.id_B in robot
+        a, b = oracle.is_robot_geometry(pair.id_A), oracle.is_robot_geometry(pair.id_B)
         if ((a != b) or (a and b and oracle.scene.self_collisions)) and pair.distance < 0:
             return False
     return True

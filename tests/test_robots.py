@@ -62,13 +62,15 @@ def test_ur3_limits_are_the_real_ones(oracles):
 
 def _pair_counts(oracle, Q) -> Counter:
     """How often each robot-robot geometry pair penetrates over the configurations Q (unfiltered context)."""
-    inspector = oracle._inspector
+    plant = oracle.plant
+    context = plant.GetMyContextFromRoot(oracle.model.CreateDefaultContext())
+    inspector = oracle.model.scene_graph().model_inspector()
     counts = Counter()
     for q in Q:
-        oracle.plant.SetPositions(oracle._diag, q)
-        pairs = oracle._query_port.Eval(oracle._diag).ComputePointPairPenetration()
+        plant.SetPositions(context, q)
+        pairs = plant.get_geometry_query_input_port().Eval(context).ComputePointPairPenetration()
         counts.update({tuple(sorted((inspector.GetName(p.id_A), inspector.GetName(p.id_B)))) for p in pairs
-                       if p.id_A in oracle._robot_geometries and p.id_B in oracle._robot_geometries})
+                       if oracle.is_robot_geometry(p.id_A) and oracle.is_robot_geometry(p.id_B)})
     return counts
 
 

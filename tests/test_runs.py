@@ -1,8 +1,5 @@
 """The scripted UR3 jobs (`run welding|window`): IK goals, legs planned or straight, one joined trajectory."""
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -50,15 +47,11 @@ def test_same_seed_same_run(oracles, window_run):
     assert np.array_equal(again.trajectory.positions, window_run.trajectory.positions)
 
 
-def test_cli_run_prints_the_legs_and_rejects_an_unknown_job(tmp_path):
-    env = os.environ.copy()
+def test_cli_run_prints_the_legs_and_rejects_an_unknown_job(tmp_path, cli, one_line_error):
     out = tmp_path / "welding.json"
-    result = subprocess.run([sys.executable, "-m", "app", "run", "welding", "--json", "--out", str(out)],
-                            capture_output=True, text=True, env=env, timeout=300)
+    result = cli("run", "welding", "--json", "--out", out)
     assert result.returncode == 0, result.stderr
     doc = json.loads(result.stdout)
     assert doc["legs"][0]["from"] == HOME and len(doc["legs"]) >= 2
     assert json.loads(out.read_text())["duration"] == doc["trajectory"]["duration"]
-    bad = subprocess.run([sys.executable, "-m", "app", "run", "parking"], capture_output=True, text=True, env=env,
-                         timeout=300)
-    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "unknown job 'parking'" in bad.stderr
+    assert "unknown job 'parking'" in one_line_error(cli("run", "parking"), 2)

@@ -1,16 +1,14 @@
 """The seven samplers: free in-bounds samples, real bridges, heavy Lévy tails, reproducibility, honest counts, CLI."""
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.errors import UserError
-from app.samplers import SAMPLERS, SamplerBudgetExceeded, make_sampler
+from app.bench.sampling import run_trial
+from app.errors import SamplerBudgetExceeded, UserError
+from app.samplers import SAMPLERS, make_sampler
 from app.samplers.levy import hill_tail_index, levy_stable
 from app.samplers.walk import Walker
 
@@ -107,8 +105,6 @@ def test_same_seed_same_samples(oracles, name):
 
 @pytest.mark.parametrize("name", ["uniform", "gaussian", "lfs", "lfbs"])
 def test_reported_checks_match_the_oracle_counter(oracles, name):
-    from app.bench.sampling import run_trial
-
     oracle = oracles("teeth3d")
     before = oracle.checks
     row = run_trial(oracle, name, 10.0, seed=2, k=5, keep_samples=True)
@@ -179,25 +175,19 @@ def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(oracles):
 
 
 # ---- CLI ---------------------------------------------------------------------------------------------------------
-def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True, env=dict(os.environ),
-                          timeout=120)
-
-
 @pytest.mark.parametrize("args", [
     ["--sampler", "levy"], ["--sampler", "lfbs", "-k", "0"], ["--sampler", "lfbs", "--step", "nan"],
 ])
-def test_cli_bad_input_is_one_line_exit_2(args):
-    result = _cli("sample", "bar", *args)
-    assert result.returncode == 2
-    assert result.stdout == "" and len(result.stderr.strip().splitlines()) == 1
-    assert result.stderr.startswith("error:")
+def test_cli_bad_input_is_one_line_exit_2(cli, one_line_error, args):
+    result = cli("sample", "bar", *args)
+    one_line_error(result, 2)
+    assert result.stdout == ""
 
 
-def test_cli_json(tmp_path):
+def test_cli_json(tmp_path, cli):
     png = tmp_path / "s.png"
-    result = _cli("sample", "bar", "--sampler", "lfbs", "-k", "5", "--step", "10", "--seed", "4", "--json",
-                  "--png", str(png))
+    result = cli("sample", "bar", "--sampler", "lfbs", "-k", "5", "--step", "10", "--seed", "4", "--json",
+                 "--png", png)
     assert result.returncode == 0, result.stderr
     out = json.loads(result.stdout)
     for key in ("scene", "sampler", "k", "step", "seed", "samples", "collision_checks", "seconds",
