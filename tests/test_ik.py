@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from app import ik
+from app.cli import exit_code
 from app.errors import InvalidEndpoint, UserError
 
 POSITION_TOLERANCE = ik.POSITION_TOLERANCE * (1 + 1e-6)
@@ -69,7 +70,7 @@ def test_a_pose_out_of_reach_is_an_invalid_endpoint(oracles):
     oracle = oracles("window")
     with pytest.raises(InvalidEndpoint, match=r"pose '\[2.000, 0.000, 0.600\]' cannot be reached") as info:
         ik.solve_pose(oracle, RigidTransform([2.0, 0.0, 0.6]), np.random.default_rng(0), seeds=16)
-    assert info.value.exit_code == 3
+    assert exit_code(info.value) == 3
 
 
 @pytest.mark.slow
