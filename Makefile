@@ -1,4 +1,5 @@
-# make plan: create .venv, install, run the default job.  make test: the test suite (what CI runs).
+# make plan: create .venv, install, run the default job.  make test: the import contracts and the test suite (what CI
+# runs).
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
@@ -20,6 +21,7 @@ chromium:
 	command -v chromium >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null)
 
 test: $(STAMP) chromium
+	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q
 
 test-slow: $(STAMP)

@@ -18,10 +18,10 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 from app.budget import Budget  # noqa: E402
 from app.cspace import ConfigurationSpace  # noqa: E402
 from app.custom_scene import load_scene  # noqa: E402
-from app.errors import InvalidEndpoint, NoPath, UserError  # noqa: E402
+from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError  # noqa: E402
 from app.oracle import CollisionOracle  # noqa: E402
 from app.planner import PlanResult, PlanSettings, Query, plan  # noqa: E402
-from app.samplers import SAMPLERS, Sampler, SamplerBudgetExceeded, make_sampler  # noqa: E402
+from app.samplers import SAMPLERS, Sampler, make_sampler  # noqa: E402
 from app.scene import Scene, scene_names  # noqa: E402
 from app.trajectory import Trajectory, TrajectoryFile  # noqa: E402
 

@@ -1,14 +1,24 @@
-"""`python -m app ...`: argument parsing, exit codes and one-line errors. Commands live in their own modules.
+"""`python -m app ...`: the parser of every command, and the one place where a failure becomes an exit code.
 
-Each command module exposes `register(subparsers)`, which adds its parser and sets `func` to a callable taking the
-parsed arguments and returning an exit code. Exit codes: 0 ok, 1 no path found, 2 bad input, 3 start/goal invalid.
+Each command module (app/commands) exposes `register(subparsers)`, which adds its parser and sets `func` to a
+callable taking the parsed arguments; it returns on success and raises on failure. `main` prints what was raised
+as one line on stderr and exits with its code from EXIT_CODES.
 """
 import argparse
-import json
-import math
 import sys
 
-from app.errors import UserError
+from app import commands
+from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
+
+# The one map from a failure to the process's exit code (0: success). An exception takes the code of its nearest
+# class here: NoPath is also a UserError, and gets 1.
+EXIT_CODES = {
+    NoPath: 1,  # no path found
+    SamplerBudgetExceeded: 1,  # a sampler spent its check budget before it had its samples
+    UserError: 2,  # bad input
+    InvalidEndpoint: 3,  # start or goal out of bounds or in collision
+    KeyboardInterrupt: 130,  # Ctrl-C (128 + SIGINT, as a shell reports it)
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -16,60 +26,17 @@ class _Parser(argparse.ArgumentParser):
         raise UserError(f"{self.prog}: {message}")
 
 
-def positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive: {text}")
-    return value
-
-
-def non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must not be negative: {text}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive finite number: {text}")
-    return value
-
-
-def float_list(text: str) -> list[float]:
-    """Comma-separated numbers, all finite."""
-    try:
-        values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a comma-separated list of numbers: {text!r}") from None
-    if not values or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"needs finite numbers: {text!r}")
-    return values
-
-
-def print_json(obj) -> None:
-    json.dump(obj, sys.stdout, indent=None, separators=(",", ":"))
-    sys.stdout.write("\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    from app import commands
-
     parser = _Parser(prog="python -m app", description="Narrow-passage PRM planning on Drake.")
     subparsers = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for module in commands.MODULES:
         module.register(subparsers)
     return parser
+
+
+def exit_code(exc: BaseException) -> int:
+    """The exit code of a failure: that of the nearest class of `exc` in EXIT_CODES."""
+    return next(EXIT_CODES[cls] for cls in type(exc).__mro__ if cls in EXIT_CODES)
 
 
 def main(argv=None) -> int:
@@ -78,7 +45,7 @@ def main(argv=None) -> int:
         return int(args.func(args) or 0)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    except KeyboardInterrupt:
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:
         print("error: interrupted", file=sys.stderr)
-        return 130
+        return exit_code(exc)

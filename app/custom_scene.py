@@ -2,10 +2,10 @@
 SDF/URDF obstacles, turned into an ordinary Scene the oracle and planner accept.
 
 How: the inputs are written as Drake model directives + a problem file into a scene directory under the cache
-(`<cache>/scenes/<hash>/`) and loaded with the existing Scene class. `CustomScene` only adds the user's
-`--package-path` entries to the parser's package map before the directives are processed.
+(`<cache>/scenes/<hash>/`) and loaded with the existing Scene class. `CustomScene` only adds the user's package
+paths to the parser's package map before the directives are processed.
 
-Inputs (CLI flags of `plan`, or the same keys in a custom scene file, see `CustomSpec`):
+Inputs (the keys of a custom scene file, see `CustomSpec`; `plan` takes the same as flags):
 - robot: a .urdf/.sdf file, or a mesh (.obj/.stl/.dae/...) which becomes a free-flying rigid body.
   A URDF/SDF robot whose root is not attached to the world is welded to it at the origin, unless `floating` is set:
   then (as for a mesh) it is carried by prismatic x, y, z and revolute yaw, pitch, roll joints (R = Rz Ry Rx, as
@@ -30,6 +30,7 @@ from app import meshes
 from app.errors import UserError
 from app.io import write_atomically
 from app.scene import PACKAGES, Scene, robot_diagram_builder
+# pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
 ROBOT_SUFFIXES = {".urdf", ".sdf"}
 CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
@@ -37,7 +38,7 @@ CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
 
 @dataclass
 class CustomSpec:
-    """The keys of a custom scene file (YAML); CLI flags map onto the same fields. Paths in a file are relative to it."""
+    """The keys of a custom scene file (YAML), also built from `plan`'s flags. Paths in a file are relative to it."""
 
     description: str = ""
     robot: str = ""  # .urdf/.sdf, or a mesh file (a free-flying body)
@@ -76,7 +77,7 @@ def parse_package_paths(items: list[str], base: Path | None = None) -> dict[str,
     for item in items:
         name, sep, directory = item.partition("=")
         if not sep or not name.strip() or not directory.strip():
-            raise UserError(f"--package-path needs NAME=DIR, got '{item}'")
+            raise UserError(f"a package path needs NAME=DIR, got '{item}'")
         path = Path(directory.strip()).expanduser()
         if base is not None and not path.is_absolute():
             path = base / path
@@ -135,7 +136,7 @@ def _parser_error(exc: Exception, path: Path) -> UserError:
 
         match = re.search(r"unknown package '([^']+)'", text)
         name = match.group(1) if match else "?"
-        return UserError(f"cannot load {path.name}: unknown package '{name}' (add --package-path {name}=DIR)")
+        return UserError(f"cannot load {path.name}: unknown package '{name}' (add the package path {name}=DIR)")
     return UserError(f"cannot load {path.name}: {text[:300]}")
 
 
@@ -225,7 +226,7 @@ def resolve_uri(uri: str, relative_to: Path, packages: dict[str, Path]) -> Path 
         known = {**{k: Path(v) for k, v in PACKAGES.items()}, **packages}
         if name not in known:
             raise UserError(f"cannot load {relative_to.name}: unknown package '{name}' "
-                            f"(add --package-path {name}=DIR)")
+                            f"(add the package path {name}=DIR)")
         return known[name] / rest
     if uri.startswith("file://"):
         return Path(uri[len("file://"):])
@@ -406,7 +407,7 @@ def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | No
         return (path if path.is_absolute() else base / path).resolve()
 
     if not spec.robot:
-        raise UserError("a robot is required (--robot FILE.urdf|.sdf|MESH)")
+        raise UserError("a robot is required (a .urdf/.sdf file or a mesh)")
     if spec.collisions not in ("environment", "all"):
         raise UserError("collisions must be 'environment' or 'all'")
     if spec.mesh_method not in meshes.METHODS:
@@ -420,9 +421,9 @@ def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | No
     env_kinds = [_kind(p, "environment") for p in env_paths]
     poses = parse_poses(spec.env_pose, len(env_paths)) if env_paths else []
     if spec.env_pose and not env_paths:
-        raise UserError("an env pose needs an --env")
+        raise UserError("an env pose needs an environment file")
     if not spec.start or not spec.goal:
-        raise UserError("start and goal are required (--start and --goal)")
+        raise UserError("start and goal are required")
     bounds = parse_bounds(spec.bounds)
     mesh_options = {"method": spec.mesh_method, "tolerance": spec.mesh_tolerance or None, "cache_dir": cache_dir,
                     "progress": progress}
@@ -446,7 +447,7 @@ def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | No
         robot_instances = ["robot"]
         if floating:
             if len(probe["floating"]) != 1:
-                raise UserError(f"{robot_path.name}: --floating needs one root body not attached to the world, "
+                raise UserError(f"{robot_path.name}: a floating robot needs one root body not attached to the world, "
                                 f"found {len(probe['floating'])}")
             # The carrier first, so that its x, y, z, yaw, pitch, roll are the first six coordinates.
             files["carrier.urdf"] = carrier_urdf("carrier")
@@ -482,7 +483,7 @@ def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | No
                 if len(probe["floating"]) > 1:
                     raise UserError(f"{path.name}: an environment model must be static or one rigid body")
             elif any(pose):
-                raise UserError(f"{path.name}: a static SDF model cannot be moved by --env-pose; "
+                raise UserError(f"{path.name}: a static SDF model cannot be moved by an env pose; "
                                 f"set its <pose> in the file")
 
     # The robot part alone gives the coordinates (the environment adds none: static or welded).
@@ -511,18 +512,18 @@ def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | No
         elif floating and len(bounds) == 3:
             lower[:3], upper[:3] = [b[0] for b in bounds], [b[1] for b in bounds]
         else:
-            raise UserError(f"--bounds needs {nq} lo..hi items (one per coordinate: {', '.join(coords['names'])})"
+            raise UserError(f"bounds: {nq} lo..hi items needed (one per coordinate: {', '.join(coords['names'])})"
                             + (" or 3 for x, y, z" if floating else "") + f"; got {len(bounds)}")
     elif floating:
         if not env_lo:
-            raise UserError("a floating robot with no environment needs --bounds for x, y, z")
+            raise UserError("a floating robot with no environment needs bounds for x, y, z")
         margin = coords["reach"]
         lo = np.minimum(np.min(env_lo, axis=0) - margin, np.minimum(start[:3], goal[:3]))
         hi = np.maximum(np.max(env_hi, axis=0) + margin, np.maximum(start[:3], goal[:3]))
         lower[:3], upper[:3] = lo, hi
     if not np.all(np.isfinite(lower) & np.isfinite(upper)):
         missing = [coords["names"][i] for i in range(nq) if not (np.isfinite(lower[i]) and np.isfinite(upper[i]))]
-        raise UserError(f"no limits for {', '.join(missing)}: give --bounds")
+        raise UserError(f"no limits for {', '.join(missing)}: give bounds")
 
     # Weights: an angle's weight is the lever arm it swings (the robot's radius or reach), metres weigh 1.
     lever = max(coords["reach"], 1e-6)
@@ -554,7 +555,7 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
         import sys
 
         print(f"warning: {path.name} became {len(d.pieces)} convex pieces; Drake's set-up time grows with the square "
-              f"of that (about 5 s at 1000, 20 s at 2000): consider a larger --mesh-tolerance", file=sys.stderr)
+              f"of that (about 5 s at 1000, 20 s at 2000): consider a larger mesh tolerance", file=sys.stderr)
     return {"mesh": path.name, "method": d.method, "pieces": len(d.pieces), "from_cache": d.from_cache,
             "seconds": round(d.seconds, 3), "validation": {k: d.validation.get(k) for k in
                                                          ("ok", "tolerance", "near_surface_points", "free_points",
@@ -595,60 +596,3 @@ def load_scene(name_or_path: str, cache_dir: Path | None = None) -> Scene:
     if path.suffix == ".yaml" and path.is_file() and is_custom_scene_file(path):
         return build_scene(read_spec(path), base=path.resolve().parent, cache_dir=cache_dir)
     return Scene(name_or_path)
-
-
-def add_arguments(parser, scene_optional: bool = True) -> None:
-    """The --robot/--env flags, for any command that takes a scene (`plan`, `prepare`)."""
-    group = parser.add_argument_group("bring your own robot and environment (instead of SCENE)")
-    group.add_argument("--robot", metavar="FILE", help="robot .urdf/.sdf, or a mesh (a free-flying rigid body)")
-    group.add_argument("--package-path", metavar="NAME=DIR", action="append", default=[],
-                       help="resolve package://NAME/... in the robot's files to DIR (repeatable)")
-    group.add_argument("--floating", action="store_true",
-                       help="carry a URDF/SDF robot's root in SE(3) (x, y, z, yaw, pitch, roll) instead of welding it")
-    group.add_argument("--env", metavar="FILE", action="append", default=[],
-                       help="obstacle mesh (.obj/.stl/.dae/...) or .sdf/.urdf (repeatable)")
-    group.add_argument("--env-pose", metavar="X,Y,Z,R,P,Y", action="append", default=[],
-                       help="place the environment: metres and roll,pitch,yaw in degrees (once, or once per --env; "
-                            "--env-pose=-1,... for a leading minus sign)")
-    group.add_argument("--bounds", metavar="LO..HI,...",
-                       help="lo..hi per coordinate, or for a floating robot per x,y,z only (write --bounds=-1..1,... "
-                            "when it starts with a minus sign)")
-    group.add_argument("--mesh-method", choices=meshes.METHODS, default="auto",
-                       help="convex decomposition of meshes (default auto: per mesh, validated)")
-    group.add_argument("--mesh-tolerance", type=float, default=0.0, metavar="M",
-                       help="how far a decomposition may reach beyond the mesh surface (default 0.2%% of its size)")
-    group.add_argument("--resolution", type=float, default=0.0, metavar="STEP",
-                       help="edge-check step (default: a quarter of the robot's smallest extent)")
-    group.add_argument("--self-collision", action="store_true",
-                       help="count the robot's collisions with itself too (default: only with the environment)")
-
-
-def spec_from_args(args) -> CustomSpec | None:
-    """A CustomSpec from parsed flags, or None when no --robot was given. `args.start`/`args.goal` are lists."""
-    if not getattr(args, "robot", None):
-        if getattr(args, "env", None):
-            raise UserError("--env needs --robot")
-        return None
-    pose = []
-    for text in args.env_pose:
-        try:
-            pose += [float(v) for v in text.split(",")]
-        except ValueError:
-            raise UserError(f"--env-pose needs numbers x,y,z,roll,pitch,yaw, got '{text}'") from None
-    return CustomSpec(robot=args.robot, package_path=list(args.package_path), floating=args.floating,
-                      env=list(args.env), env_pose=pose, start=list(args.start or []), goal=list(args.goal or []),
-                      bounds=[args.bounds] if args.bounds else [],
-                      collisions="all" if args.self_collision else "environment",
-                      resolution=args.resolution, mesh_method=args.mesh_method, mesh_tolerance=args.mesh_tolerance)
-
-
-def scene_from_args(args, scene: str | None = None) -> Scene:
-    """The scene a command works on: --robot/--env when given, else SCENE (a name or a scene file)."""
-    spec = spec_from_args(args)
-    if spec is not None:
-        if scene:
-            raise UserError("give either SCENE or --robot/--env, not both")
-        return build_scene(spec)
-    if not scene:
-        raise UserError("a SCENE (name or file) or --robot is required")
-    return load_scene(scene)

@@ -1,7 +1,11 @@
 """Matplotlib pictures of a scene, read from SceneGraph's collision shapes, so any scene draws without extra code.
 
 2D scenes are drawn as a top view (x-y), 3D scenes on 3D axes. `scene_figure` draws obstacles and the passage
-region; `draw_robot` adds the robot at a configuration; `save` writes the PNG atomically.
+region; `draw_robot` adds the robot at a configuration; `save` writes the PNG atomically; `draw_scene` and
+`draw_samples` are the whole pictures of `show` and `sample --png`.
+
+pydrake's geometry types are imported in the functions that use them, as everywhere in the package: importing a
+module stays cheap until Drake is needed.
 """
 
 import matplotlib
@@ -21,12 +25,10 @@ def _geometries(oracle, q, robot: bool):
     """(shape, world pose) of the robot's or the environment's collision geometries at configuration q."""
     from pydrake.geometry import Role
 
-    plant, context = oracle.plant, oracle._diag
-    plant.SetPositions(context, np.asarray(q, float))
-    query = oracle._query_port.Eval(context)
+    query = oracle.query_object(q)
     inspector = query.inspector()
     for gid in inspector.GetAllGeometryIds(Role.kProximity):
-        if (gid in oracle._robot_geometries) == robot:
+        if oracle.is_robot_geometry(gid) == robot:
             yield inspector.GetShape(gid), query.GetPoseInWorld(gid)
 
 
@@ -142,8 +144,8 @@ def _workspace_bounds(oracle):
     points = np.array(points)
     lo, hi = points.min(axis=0), points.max(axis=0)
     k = min(int(translational.sum()), 3)
-    lo[:k] = np.minimum(lo[:k], oracle.lower[translational][:k])
-    hi[:k] = np.maximum(hi[:k], oracle.upper[translational][:k])
+    lo[:k] = np.minimum(lo[:k], oracle.space.lower[translational][:k])
+    hi[:k] = np.maximum(hi[:k], oracle.space.upper[translational][:k])
     return list(zip(lo, hi))
 
 
@@ -166,4 +168,23 @@ def draw_scene(oracle, path: str) -> None:
     fig, ax = scene_figure(oracle)
     draw_robot(ax, oracle, oracle.scene.start, color="tab:blue")
     draw_robot(ax, oracle, oracle.scene.goal, color="tab:green")
+    save(fig, path)
+
+
+def draw_samples(oracle, samples: np.ndarray, path: str, title: str | None = None) -> None:
+    """The scene with every sample: faint robots in 2D (like the paper's Fig. 3), frame positions as dots in 3D."""
+    fig, ax = scene_figure(oracle, title=title)
+    inside = oracle.in_passage(samples)
+    if oracle.scene.problem.view == "3d":
+        p = oracle.frame_positions(samples) if len(samples) else np.empty((0, 3))
+        for q in samples:
+            draw_robot(ax, oracle, q, color="tab:blue", alpha=0.06)
+        ax.scatter(*p[~inside].T, s=14, color="tab:blue", depthshade=False, label="sample")
+        ax.scatter(*p[inside].T, s=18, color="tab:red", depthshade=False, label="sample in passage")
+    else:
+        for q, hit in zip(samples, inside):
+            draw_robot(ax, oracle, q, color="tab:red" if hit else "tab:blue", alpha=0.18)
+        p = oracle.frame_positions(samples) if len(samples) else np.empty((0, 3))
+        ax.scatter(p[:, 0], p[:, 1], s=10, color="k", zorder=5, label="passage frame")
+    ax.legend(loc="upper right", fontsize=7)
     save(fig, path)

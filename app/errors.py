@@ -1,19 +1,20 @@
-"""The exit codes every command shares, as exceptions the CLI turns into one line on stderr."""
+"""The exceptions behind every failure a user should see as one line: bad input, an invalid start or goal, no path.
+
+What each means to a process (its exit code) is the command line's business: `app.cli.EXIT_CODES`.
+"""
 
 
 class UserError(Exception):
     """Bad input: unknown name, malformed file, wrong-length or non-finite numbers."""
 
-    exit_code = 2
-
 
 class InvalidEndpoint(UserError):
     """Start or goal is in collision or out of bounds."""
-
-    exit_code = 3
 
 
 class NoPath(UserError):
     """The planner spent its budget without connecting start and goal."""
 
-    exit_code = 1
+
+class SamplerBudgetExceeded(UserError):
+    """A sampler spent its collision-check budget before it had k samples."""

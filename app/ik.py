@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from app.errors import InvalidEndpoint, UserError
+# pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
 POSITION_TOLERANCE = 1e-3  # m
 ANGLE_TOLERANCE = math.radians(0.5)

@@ -39,6 +39,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import write_atomically
+# trimesh and coacd (optional, slow to import) are imported inside the functions that use them.
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
 DECOMPOSER_VERSION = "1"

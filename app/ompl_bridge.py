@@ -14,12 +14,16 @@ intervals [-pi, pi] on the OMPL side (our own PRM does wrap); this only removes 
 import numpy as np
 
 from app.errors import UserError
+from app.samplers import make_sampler
+# Importing this module loads OMPL (an optional dependency; the samplers below subclass its classes), so callers
+# import it only where OMPL is needed.
 
 
 _seeded = False
 
 
-def _ompl():
+def ompl_modules():
+    """OMPL's base, geometric and util modules, or one clear UserError when OMPL is not installed."""
     try:
         from ompl import base as ob
         from ompl import geometric as og
@@ -33,26 +37,26 @@ def _ompl():
 class OmplProblem:
     def __init__(self, oracle, seed: int = 0):
         global _seeded
-        ob, og, ou = _ompl()
+        ob, og, ou = ompl_modules()
         self.ob, self.og = ob, og
         if not _seeded:  # OMPL takes one seed per process, before its first random draw
             ou.RNG.setSeed(int(seed) + 1)  # (seed 0 would mean "pick one")
             _seeded = True
         self.oracle = oracle
         self.rng = np.random.default_rng(seed)
-        self.scale = oracle.weights
-        dim = oracle.dim
+        self.scale = oracle.space.weights
+        dim = oracle.space.dim
         self.space = ob.RealVectorStateSpace(dim)
         bounds = ob.RealVectorBounds(dim)
         for i in range(dim):
-            bounds.setLow(i, float(oracle.lower[i] * self.scale[i]))
-            bounds.setHigh(i, float(oracle.upper[i] * self.scale[i]))
+            bounds.setLow(i, float(oracle.space.lower[i] * self.scale[i]))
+            bounds.setHigh(i, float(oracle.space.upper[i] * self.scale[i]))
         self.space.setBounds(bounds)
         self.setup = og.SimpleSetup(self.space)
         self.setup.setStateValidityChecker(self._valid)
         self.si = self.setup.getSpaceInformation()
         # OMPL's default spacing (1 % of the extent) is too coarse for a narrow passage: use the scene's resolution.
-        self.si.setStateValidityCheckingResolution(oracle.resolution / self.space.getMaximumExtent())
+        self.si.setStateValidityCheckingResolution(oracle.space.resolution / self.space.getMaximumExtent())
         self.setup.setStartAndGoalStates(self.to_state(oracle.scene.start), self.to_state(oracle.scene.goal))
         self._samplers = []
 
@@ -63,7 +67,7 @@ class OmplProblem:
         return state
 
     def to_q(self, state) -> np.ndarray:
-        return np.array([state[i] for i in range(self.oracle.dim)]) / self.scale
+        return np.array([state[i] for i in range(self.oracle.space.dim)]) / self.scale
 
     def _valid(self, state) -> bool:
         return self.oracle.is_free(self.to_q(state))
@@ -109,14 +113,14 @@ def straight_waypoints(oracle, path: np.ndarray) -> np.ndarray:
     (our metric) and OMPL's linear interpolation are then the same motion."""
     out = [path[0]]
     for a, b in zip(path[:-1], path[1:]):
-        turn = np.max(np.abs(b - a)[oracle.continuous], initial=0.0)
+        turn = np.max(np.abs(b - a)[oracle.space.continuous], initial=0.0)
         pieces = max(1, int(np.ceil(turn / (0.5 * np.pi))))  # < pi per piece, with room to spare
         out.extend(a + (b - a) * t for t in np.linspace(0.0, 1.0, pieces + 1)[1:])
     return np.array(out)
 
 
 def _base():
-    ob, _, _ = _ompl()
+    ob, _, _ = ompl_modules()
     return ob.ValidStateSampler
 
 
@@ -178,8 +182,6 @@ class ProjectSampler(_Sampler):
     BATCH = 10
 
     def __init__(self, si, problem: OmplProblem, name: str, params: dict):
-        from app.samplers import make_sampler
-
         super().__init__(si)
         self.problem = problem
         self.sampler = make_sampler(name, problem.oracle, **params)

@@ -27,6 +27,7 @@ import numpy as np
 
 from app.cspace import ConfigurationSpace
 from app.scene import Scene
+# pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
 
 # Below this many configurations the checker's batch set-up costs more than the raw loop saves.
 _BATCH_MIN = 8
@@ -101,21 +102,6 @@ class CollisionOracle:
 
     def reset(self) -> None:
         self.checks = 0
-
-    # Until every caller uses `space` directly: the configuration-space facts, read through.
-    dim = property(lambda self: self.space.dim)
-    lower = property(lambda self: self.space.lower)
-    upper = property(lambda self: self.space.upper)
-    weights = property(lambda self: self.space.weights)
-    angular = property(lambda self: self.space.angular)
-    continuous = property(lambda self: self.space.continuous)
-    resolution = property(lambda self: self.space.resolution)
-
-    def __getattr__(self, name):
-        if name in ("uniform", "wrap", "within_bounds", "difference", "distance", "segments", "interpolate",
-                    "check_configuration"):
-            return getattr(self.space, name)
-        raise AttributeError(name)
 
     # ---- collision answers (counted) -----------------------------------------------------------------------
     def _raw_free(self, q: np.ndarray) -> bool:
@@ -257,6 +243,16 @@ class CollisionOracle:
             return np.zeros(len(Q), bool)
         p = self.frame_positions(Q)
         return np.any([np.all((p >= lo) & (p <= hi), axis=1) for lo, hi in self.scene.passage_boxes], axis=0)
+
+    def query_object(self, q: np.ndarray):
+        """SceneGraph's QueryObject with the robot at q, under the scene's collision policy, for pictures and
+        measurements that need Drake's own answers (not counted). Valid until the oracle's next query."""
+        self.plant.SetPositions(self._ctx, np.asarray(q, float))
+        return self._query_port.Eval(self._ctx)
+
+    def is_robot_geometry(self, geometry_id) -> bool:
+        """Whether a SceneGraph geometry belongs to the robot (else to the environment)."""
+        return geometry_id in self._robot_geometries
 
 
 @functools.lru_cache(maxsize=4096)

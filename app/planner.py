@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from app.budget import Budget
-from app.errors import InvalidEndpoint, NoPath, UserError
+from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.path import FINE, path_length, shortcut, verify
 from app.timing import parameterize
 from app.trajectory import Trajectory, TrajectoryFile
@@ -241,8 +241,6 @@ class Query:
     def _draw(self, kind: str, count: int) -> np.ndarray:
         """`count` samples from the narrow or uniform sampler, resuming its walkers; a sampler that cannot find
         them within its check cap (or the budget's) makes the query fail."""
-        from app.samplers import SamplerBudgetExceeded
-
         if count <= 0:
             return np.empty((0, self.oracle.space.dim))
         sampler, budget = self._samplers[kind], self.settings.budget

@@ -20,47 +20,14 @@ Shortcut smoothing (app/path.py) then recovers the path quality a denser graph w
 from __future__ import annotations
 
 import math
-import re
 
 import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
 
-from app.budget import Budget
-from app.errors import UserError
 
 START, GOAL, UNIFORM, NARROW = "start", "goal", "uniform", "narrow"
 SCREEN = 3  # points of a lazy candidate edge checked when it is added: its midpoint and quarter points
-
-
-_BUDGET_PART = re.compile(r"^(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>s|min|k?checks|M?checks)$")
-
-
-def parse_budget(text: str) -> Budget:
-    """'30s', '2min', '200000checks', '200kchecks', '5Mchecks', or two joined by a comma: '30s,200kchecks'."""
-    seconds = checks = None
-    parts = [p.strip() for p in str(text).split(",")]
-    if not parts or not all(parts) or len(parts) > 2:
-        raise UserError(f"bad budget {text!r}: use e.g. 30s, 2min, 200000checks, 200kchecks or 30s,200kchecks")
-    for part in parts:
-        match = _BUDGET_PART.match(part)
-        if not match:
-            raise UserError(f"bad budget {part!r}: use e.g. 30s, 2min, 200000checks, 200kchecks or 30s,200kchecks")
-        number, unit = float(match["number"]), match["unit"]
-        if not math.isfinite(number) or number <= 0:
-            raise UserError(f"bad budget {part!r}: must be positive")
-        if unit in ("s", "min"):
-            if seconds is not None:
-                raise UserError(f"bad budget {text!r}: two time limits")
-            seconds = number * (60.0 if unit == "min" else 1.0)
-        else:
-            if checks is not None:
-                raise UserError(f"bad budget {text!r}: two check limits")
-            scale = {"k": 1_000, "M": 1_000_000}.get(unit[0], 1)
-            checks = int(round(number * scale))
-            if checks <= 0:
-                raise UserError(f"bad budget {part!r}: must be at least one check")
-    return Budget(seconds=seconds, checks=checks)
 
 
 def prm_star_k(n: int, dim: int) -> int:

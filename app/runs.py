@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.errors import UserError
+from app.ik import solve_poses
 from app.path import FINE
 from app.budget import Budget
 from app.planner import PlanSettings, plan
@@ -89,8 +90,6 @@ def route(oracle, job: str) -> list[str]:
 def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResult:
     """The job's route, leg by leg: a straight move where it is free at the fine resolution, else `plan` with
     `settings` (leg i seeded settings.seed * 1000 + i)."""
-    from app.ik import solve_poses
-
     seed, sampler = settings.seed, settings.sampler
 
     names = route(oracle, job)

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import UserError
+# pydrake is imported inside the functions that use it, so that importing the package (as the command line does)
+# does not load Drake.
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES_DIR = ROOT / "scenes"

@@ -11,6 +11,7 @@ Waypoints must be unwrapped first (`ConfigurationSpace.unwrap`), so that continu
 from __future__ import annotations
 
 import numpy as np
+# pydrake is imported inside `parameterize`, so that importing the package does not load Drake.
 
 from app.trajectory import Trajectory
 

@@ -10,13 +10,14 @@ at the world position of one robot frame (default: the passage frame, else the t
 
 Meshcat opens a server on localhost even to export HTML. Drake refuses that when DRAKE_ALLOW_NETWORK is set without
 "meshcat" in it; the viewer then raises a UserError saying so rather than overriding the user's setting.
+
+pydrake is imported in the functions that use it, so importing this module (as the command line does) stays cheap.
 """
 from __future__ import annotations
 
 import logging
 import math
 import os
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -315,26 +316,13 @@ def show(scene: Scene | str, data: ViewData, *, frame: str | None = None, collis
     return viewer
 
 
-def publish(scene: Scene | str, data: ViewData, *, meshcat: bool = False, html: str | None = None,
-            frame: str | None = None, collision: bool = False, wait: bool = True) -> Viewer | None:
-    """What `--meshcat` / `--html FILE` do for any command: export the page, serve it, wait for the user.
-
-    With `meshcat`, the URL goes to stderr (stdout may carry a command's JSON) and, when stdin is a terminal and
-    `wait` is true, the server stays up until Enter or Ctrl-C; otherwise (CI, pipes) it returns at once.
-    """
-    if not meshcat and not html:
-        return None
+def publish(scene: Scene | str, data: ViewData, *, html: str | None = None, frame: str | None = None,
+            collision: bool = False) -> Viewer:
+    """What `--meshcat` / `--html FILE` do for any command: `data` shown in a Meshcat served on localhost
+    (`viewer.url()`), and the standalone page written to `html` when given (checked before the viewer is built)."""
     if html:
         check_output(html)
     viewer = show(scene, data, frame=frame, collision=collision)
     if html:
         viewer.write_html(html)
-    if meshcat:
-        print(f"meshcat: {viewer.url()}", file=sys.stderr, flush=True)
-        if wait and sys.stdin is not None and sys.stdin.isatty():
-            print("press Enter (or Ctrl-C) to quit the viewer", file=sys.stderr, flush=True)
-            try:
-                sys.stdin.readline()
-            except KeyboardInterrupt:
-                pass
     return viewer

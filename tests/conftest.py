@@ -9,6 +9,7 @@ import atexit
 import hashlib
 import json
 import os
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -16,6 +17,7 @@ from pathlib import Path
 import pytest
 
 import app  # noqa: F401  (before pydrake: it sets OpenMP's wait policy, see app/__init__.py)
+from app.cli import main
 
 
 def _offline_drake_cache() -> Path:
@@ -54,6 +56,47 @@ def oracles():
         return cache[name]
 
     return get
+
+
+# ---- the command line ---------------------------------------------------------------------------------------------
+# `cli` runs a command in this process (app.cli.main), `run_app` as `python -m app` in a child process (for what
+# only the entry point does). Both answer a subprocess.CompletedProcess, which `one_line_error` checks.
+@pytest.fixture
+def cli(capsys):
+    """`cli("plan", "bar", ...)`: app.cli.main on these arguments; returncode, stdout and stderr of that call."""
+    def run(*args) -> subprocess.CompletedProcess:
+        capsys.readouterr()  # what earlier calls printed is not this call's output
+        code = main([str(a) for a in args])
+        out, err = capsys.readouterr()
+        return subprocess.CompletedProcess(["python", "-m", "app", *args], code, out, err)
+
+    return run
+
+
+@pytest.fixture
+def run_app():
+    """`run_app("plan", "bar", ..., env=None)`: `python -m app ...` in a child process."""
+    def run(*args, env=None, timeout=300) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "app", *map(str, args)], capture_output=True, text=True,
+                              env=os.environ.copy() if env is None else env, stdin=subprocess.DEVNULL,
+                              timeout=timeout)
+
+    return run
+
+
+@pytest.fixture
+def one_line_error():
+    """`one_line_error(result, code)`: the command failed with exit code `code` and said so in one line on stderr,
+    "error: ...", without a traceback; returns that line."""
+    def check(result: subprocess.CompletedProcess, code: int) -> str:
+        assert result.returncode == code, (result.returncode, result.stderr)
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1, result.stderr
+        assert lines[0].startswith("error:"), result.stderr
+        assert "Traceback" not in result.stderr
+        return lines[0]
+
+    return check
 
 
 # OMPL's nanobind bindings report "leaked" objects while the interpreter shuts down (harmless, and known: see

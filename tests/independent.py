@@ -17,9 +17,8 @@ def raw_free(oracle, q) -> bool:
     context = plant.GetMyContextFromRoot(root)
     plant.SetPositions(context, q)
     query = plant.get_geometry_query_input_port().Eval(context)
-    robot = oracle._robot_geometries
     for pair in query.ComputeSignedDistancePairwiseClosestPoints(0.0):
-        a, b = pair.id_A in robot, pair.id_B in robot
+        a, b = oracle.is_robot_geometry(pair.id_A), oracle.is_robot_geometry(pair.id_B)
         if ((a != b) or (a and b and oracle.scene.self_collisions)) and pair.distance < 0:
             return False
     return True
@@ -30,7 +29,7 @@ def fine_points(oracle, P, resolution):
     out = [P[0]]
     for a, b in zip(P[:-1], P[1:]):
         d = np.asarray(b) - np.asarray(a)
-        d[oracle.continuous] = (d[oracle.continuous] + np.pi) % (2 * np.pi) - np.pi
-        n = max(1, math.ceil(np.linalg.norm(d * oracle.weights) / resolution))
+        d[oracle.space.continuous] = (d[oracle.space.continuous] + np.pi) % (2 * np.pi) - np.pi
+        n = max(1, math.ceil(np.linalg.norm(d * oracle.space.weights) / resolution))
         out.extend(a + t * d for t in np.linspace(0, 1, n + 1)[1:])
     return np.array(out)

@@ -93,7 +93,7 @@ def test_exported_page_draws_the_robot_in_chromium(scene, oracles, monkeypatch, 
     # A third of the way from start to goal: in 3D scenes the robot stays on the camera's side of the (see-through)
     # wall, so its colour is not blended, wherever the animation is when Chromium takes the screenshot.
     start, goal = oracle.scene.start, oracle.scene.goal
-    Q = oracle.interpolate(start, start + 0.3 * (goal - start), resolution=1.0)
+    Q = oracle.space.interpolate(start, start + 0.3 * (goal - start), resolution=1.0)
     times = np.linspace(0.0, 1.0, len(Q))
     viewer = show(oracle.scene, ViewData(times=times, positions=Q, narrow=Q[::4],
                                          on_path=np.arange(len(Q[::4])) % 2 == 0))

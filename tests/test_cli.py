@@ -1,6 +1,7 @@
-"""The command line: listing, drawing, and one-line errors with the agreed exit codes."""
+"""The command line: listing, drawing, one-line errors with the agreed exit codes, the argument types, and the
+entry point itself (start-up without Drake, the exit code of the process)."""
+import argparse
 import json
-import os
 import re
 import subprocess
 import sys
@@ -9,25 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from app import errors
+from app.budget import Budget
+from app.cli import EXIT_CODES, exit_code
+from app.commands.common import comma_list, names_from, parse_budget, sampler_names
 from app.errors import UserError
 from app.scene import SCENES_DIR, Scene
 
 
-def run_app(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True, cwd=cwd,
-                          env=os.environ.copy(), timeout=300)
-
-
-def assert_one_line_error(result, code):
-    assert result.returncode == code, result.stderr
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("error:")
-    assert "Traceback" not in result.stderr
-
-
-def test_scenes_json_lists_every_scene_with_its_facts():
-    result = run_app("scenes", "--json")
+def test_scenes_json_lists_every_scene_with_its_facts(cli):
+    result = cli("scenes", "--json")
     assert result.returncode == 0, result.stderr
     scenes = {s["name"]: s for s in json.loads(result.stdout)["scenes"]}
     assert {"bar", "bar-3link", "bar-5link", "joint", "joint3d", "teeth3d"} <= set(scenes)
@@ -35,28 +27,29 @@ def test_scenes_json_lists_every_scene_with_its_facts():
     assert len(scenes["bar"]["start"]) == 9
 
 
-def test_show_writes_a_png(tmp_path):
+def test_show_writes_a_png(tmp_path, cli):
     target = tmp_path / "bar.png"
-    result = run_app("show", "bar", "--png", str(target))
+    result = cli("show", "bar", "--png", target)
     assert result.returncode == 0, result.stderr
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_unknown_scene_is_one_line_exit_2(tmp_path):
+def test_unknown_scene_is_one_line_exit_2(tmp_path, cli, one_line_error):
     target = tmp_path / "x.png"
-    result = run_app("show", "no-such-scene", "--png", str(target))
-    assert_one_line_error(result, 2)
+    result = cli("show", "no-such-scene", "--png", target)
+    one_line_error(result, 2)
     assert "no-such-scene" in result.stderr
     assert not target.exists()
 
 
-def test_unknown_command_is_one_line_exit_2():
-    assert_one_line_error(run_app("fly"), 2)
+def test_the_entry_point_exits_with_the_commands_code(run_app, one_line_error):
+    one_line_error(run_app("fly"), 2)
+    assert run_app("scenes").returncode == 0
 
 
-def test_show_into_a_missing_folder_writes_nothing(tmp_path):
-    result = run_app("show", "bar", "--png", str(tmp_path / "missing" / "x.png"))
-    assert_one_line_error(result, 2)
+def test_show_into_a_missing_folder_writes_nothing(tmp_path, cli, one_line_error):
+    result = cli("show", "bar", "--png", tmp_path / "missing" / "x.png")
+    one_line_error(result, 2)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -80,12 +73,12 @@ BAR = (SCENES_DIR / "bar.yaml").read_text()
     (BAR.replace("frame: base", "frame: nose"), "passage frame 'nose'"),
     (BAR.replace("robot: [arm]", "robot: [rover]"), "no model instance named 'rover'"),
 ])
-def test_bad_scene_files_are_rejected_with_a_reason(tmp_path, text, expected):
+def test_bad_scene_files_are_rejected_with_a_reason(tmp_path, cli, one_line_error, text, expected):
     path = write_scene(tmp_path, text)
     with pytest.raises(UserError, match=expected):
         Scene(str(path))
-    result = run_app("show", str(path), "--png", str(tmp_path / "x.png"))
-    assert_one_line_error(result, 2)
+    result = cli("show", path, "--png", tmp_path / "x.png")
+    one_line_error(result, 2)
     assert not (tmp_path / "x.png").exists()
 
 
@@ -97,7 +90,69 @@ def test_a_good_custom_scene_file_loads(tmp_path):
 def test_wrong_length_or_non_finite_configuration_is_a_user_error(oracles):
     oracle = oracles("bar")
     with pytest.raises(UserError, match="has 3 values"):
-        oracle.check_configuration([1, 2, 3], "start")
+        oracle.space.check_configuration([1, 2, 3], "start")
     with pytest.raises(UserError, match="finite"):
-        oracle.check_configuration([np.nan] * 9, "goal")
-    assert oracle.check_configuration(list(range(9))).shape == (9,)
+        oracle.space.check_configuration([np.nan] * 9, "goal")
+    assert oracle.space.check_configuration(list(range(9))).shape == (9,)
+
+
+# ---- exit codes and argument types ----------------------------------------------------------------------------------
+def test_every_error_class_has_its_exit_code():
+    """The one map covers every exception the core raises to a user (app.errors; the samplers define none)."""
+    import app.samplers
+    import app.samplers.base
+    import app.samplers.bridge
+    import app.samplers.levy
+    import app.samplers.uniform
+    import app.samplers.walk
+
+    modules = [errors, app.samplers, app.samplers.base, app.samplers.bridge, app.samplers.levy,
+               app.samplers.uniform, app.samplers.walk]
+    classes = {obj for module in modules for obj in vars(module).values()
+               if isinstance(obj, type) and issubclass(obj, BaseException)}
+    assert classes and classes <= set(EXIT_CODES)
+    assert {cls.__name__: code for cls, code in EXIT_CODES.items()} == {
+        "NoPath": 1, "SamplerBudgetExceeded": 1, "UserError": 2, "InvalidEndpoint": 3, "KeyboardInterrupt": 130}
+    assert not any(hasattr(cls, "exit_code") for cls in classes)  # the core does not know about exit codes
+    assert exit_code(errors.NoPath("x")) == 1 and exit_code(errors.InvalidEndpoint("x")) == 3
+
+
+def test_budget_syntax():
+    assert parse_budget("30s") == Budget(seconds=30)
+    assert parse_budget("2min") == Budget(seconds=120)
+    assert parse_budget("200000checks") == Budget(checks=200000)
+    assert parse_budget("200kchecks") == Budget(checks=200000)
+    assert parse_budget("1.5Mchecks") == Budget(checks=1500000)
+    assert parse_budget("30s,200kchecks") == Budget(seconds=30, checks=200000)
+    for bad in ["", "30", "-5s", "0s", "nans", "30s,40s", "1e3checks", "10 parsecs", "s"]:
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_budget(bad)
+
+
+def test_comma_lists_are_parsed_one_way():
+    assert comma_list(" bar, joint3d,,") == ["bar", "joint3d"]
+    assert sampler_names("lfbs, rbbs") == ["lfbs", "rbbs"]
+    assert names_from(["welding", "window"], "job")("window") == ["window"]
+    for parse, text, words in [(comma_list, " , ", "at least one"), (sampler_names, "lfbs,levy", "unknown sampler"),
+                               (names_from(["welding"], "job"), "parking", "unknown job 'parking'")]:
+        with pytest.raises(argparse.ArgumentTypeError, match=words):
+            parse(text)
+
+
+@pytest.mark.parametrize("args", [["plan", "bar", "--sampler", "magic"], ["bench", "plan", "--samplers", "lfbs,magic"],
+                                  ["bench", "sampling", "--steps", "2,-1"], ["bench", "paper", "--parts", "everything"],
+                                  ["plan", "bar", "--budget", "forever"]])
+def test_bad_values_are_refused_by_the_parser(cli, one_line_error, args):
+    line = one_line_error(cli(*args), 2)
+    assert re.search(r"argument (--sampler|--samplers|--steps|--parts|--budget)", line), line
+
+
+def test_help_does_not_load_drake():
+    """The command line starts fast: building every command's parser imports neither Drake nor the heavy
+    libraries (they load when a command needs them)."""
+    code = ("import sys; from app.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in ('pydrake', 'ompl', 'matplotlib', 'scipy', 'networkx', 'distributed') "
+            "if m in sys.modules))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"

@@ -200,7 +200,7 @@ def test_urdf_arm_with_a_package_path(arm_package, tmp_path, urdf):
 @pytest.mark.parametrize("urdf", ["arm.urdf", "arm_stl.urdf"])
 def test_unknown_package_is_one_line(arm_package, tmp_path, urdf):
     spec = CustomSpec(robot=str(arm_package / urdf), start=[1.0], goal=[-1.0], bounds=["-3..3"])
-    with pytest.raises(UserError, match=r"unknown package 'my_arm' \(add --package-path my_arm=DIR\)"):
+    with pytest.raises(UserError, match=r"unknown package 'my_arm' \(add the package path my_arm=DIR\)"):
         build_scene(spec, cache_dir=tmp_path, progress=False)
 
 
@@ -211,7 +211,7 @@ def test_unknown_package_is_one_line(arm_package, tmp_path, urdf):
     (dict(env=["garbage.stl"]), "cannot read mesh garbage.stl"),
     (dict(robot="cube.txt"), "unsupported type"),
     (dict(bounds=["1..0"]), "bad bounds item"),
-    (dict(bounds=["0..1", "0..1"]), "needs 6 lo..hi items"),
+    (dict(bounds=["0..1", "0..1"]), "6 lo..hi items needed"),
     (dict(start=[0, 0]), "start needs 6 finite numbers"),
     (dict(env_pose=[1, 2]), "env pose needs 6"),
     (dict(package_path=["nodir"]), "NAME=DIR"),
@@ -240,35 +240,29 @@ def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):
         plan(channel_oracle, PlanSettings(narrow=5, uniform=5), start=[0.0, 1.25, 1.5, 0, 0, 0])
 
 
-def test_cli_flags(files, arm_package, tmp_path, monkeypatch, capsys):
-    """`plan --robot ... --env ...`: exit codes and one-line errors (skipped while plan has no --robot)."""
-    from app.cli import main
-
+def test_cli_flags(files, arm_package, tmp_path, monkeypatch, cli, one_line_error):
+    """`plan --robot ... --env ...`: exit codes and one-line errors."""
     monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path))
     common = ["plan", "--robot", str(files / "cube.obj"), "--env", str(files / "channel.stl"),
               "--bounds=" + ",".join(BOUNDS), "--goal", ",".join(map(str, GOAL))]
-    code = main(common + ["--start", "0,1.25,1.5,0,0,0"])
-    err = capsys.readouterr().err
-    if "unrecognized arguments" in err or "required" in err:
-        pytest.skip("plan has no --robot yet")
-    assert code == 3 and err.count("\n") == 1 and "start" in err
+    assert "start" in one_line_error(cli(*common, "--start", "0,1.25,1.5,0,0,0"), 3)
     out = tmp_path / "traj.json"
-    assert main(common + ["--start=" + ",".join(map(str, START)), "--narrow", "60", "--uniform", "120",
-                          "--seed", "1", "--json", "--out", str(out)]) == 0
-    assert out.is_file() and '"success":true' in capsys.readouterr().out
+    result = cli(*common, "--start=" + ",".join(map(str, START)), "--narrow", "60", "--uniform", "120", "--seed", "1",
+                 "--json", "--out", out)
+    assert result.returncode == 0, result.stderr
+    assert out.is_file() and '"success":true' in result.stdout
     bad = [
         (["plan", "--robot", str(files / "nope.urdf"), "--start", "0", "--goal", "0"], 2, "robot file not found"),
         (["plan", "--robot", str(arm_package / "arm.urdf"), "--start", "0", "--goal", "0"], 2,
          "unknown package 'my_arm'"),
         (common + ["--start=" + ",".join(map(str, START)), "--env-pose", "1,2"], 2, "env pose needs 6"),
+        (common + ["--start=" + ",".join(map(str, START)), "--env-pose", "1,2,x"], 2, "argument --env-pose"),
         (common + ["--start=" + ",".join(map(str, START)), "--bounds", "0..x"], 2, "bad bounds item"),
         (["plan", "bar", "--robot", str(files / "cube.obj"), "--start", "0", "--goal", "0"], 2, "not both"),
         (["plan", "--env", str(files / "channel.stl")], 2, "--env needs --robot"),
     ]
     for argv, code, words in bad:
-        assert main(argv) == code, argv
-        err = capsys.readouterr().err
-        assert err.count("\n") == 1 and words in err, err
+        assert words in one_line_error(cli(*argv), code), argv
 
 
 BLOCK_SDF = """<?xml version="1.0"?>

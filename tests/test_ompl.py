@@ -4,6 +4,8 @@ samplers behind OMPL's interface, and OMPL's PRM solving bar-3link on a short bu
 OMPL's RNG takes one seed per process (the first OmplProblem sets it), so these tests check properties that hold
 for any draw, not particular states. nanobind may print leak warnings when the interpreter exits: harmless.
 """
+import json
+
 import numpy as np
 import pytest
 
@@ -12,8 +14,8 @@ try:
 except ImportError as exc:  # pragma: no cover - depends on the machine
     pytest.skip(f"OMPL is not installed ({exc}); pip install '.[ompl]'", allow_module_level=True)
 
-from app.bench.plan import default_step
 from app.ompl_bridge import BridgeTestSampler, GaussianSampler, OmplProblem, ProjectSampler
+from app.planner import default_step
 
 SCENE = "bar-3link"
 BUDGET = 5.0  # seconds, at most, per OMPL solve
@@ -74,7 +76,7 @@ def test_our_sampler_feeds_ompls_prm_only_free_states(problem, monkeypatch):
         return ok
 
     monkeypatch.setattr(ProjectSampler, "sample", recording)
-    problem.use_sampler("lfbs", step=default_step(SCENE))
+    problem.use_sampler("lfbs", step=default_step(problem.oracle.scene))
     problem.solve(1.0)
     assert problem._samplers and all(isinstance(s, ProjectSampler) for s in problem._samplers)
     assert handed, "OMPL's PRM drew no state from the lfbs adapter"
@@ -87,7 +89,7 @@ def test_ompl_prm_solves_bar_3link_with_a_path_free_at_a_quarter_resolution(orac
     for name in ("lfbs", "ompl-uniform"):
         oracle.reset()
         problem = OmplProblem(oracle, seed=0)
-        problem.use_sampler(name, **({"step": default_step(SCENE)} if name == "lfbs" else {}))
+        problem.use_sampler(name, **({"step": default_step(oracle.scene)} if name == "lfbs" else {}))
         if problem.solve(BUDGET):
             results[name] = problem.solution_for_oracle()
             break
@@ -95,7 +97,7 @@ def test_ompl_prm_solves_bar_3link_with_a_path_free_at_a_quarter_resolution(orac
     path = next(iter(results.values()))
     assert np.allclose(path[0], oracle.scene.start, atol=1e-6) and np.allclose(path[-1], oracle.scene.goal, atol=1e-6)
     # OMPL interpolates continuous angles linearly; solution_for_oracle adds waypoints so our edges follow suit
-    assert oracle.edges_free(path[:-1], path[1:], oracle.resolution / 4).all()
+    assert oracle.edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all()
 
 
 def test_straight_waypoints_make_short_way_edges_follow_ompls_linear_motion(oracles):
@@ -107,7 +109,7 @@ def test_straight_waypoints_make_short_way_edges_follow_ompls_linear_motion(orac
     dense = straight_waypoints(oracle, np.array([a, b]))
     assert np.allclose(dense[0], a) and np.allclose(dense[-1], b) and len(dense) > 2
     steps = np.diff(dense, axis=0)
-    assert np.allclose([oracle.difference(p, q) for p, q in zip(dense[:-1], dense[1:])], steps)
+    assert np.allclose([oracle.space.difference(p, q) for p, q in zip(dense[:-1], dense[1:])], steps)
 
 
 def test_the_oracle_counts_ompls_validity_calls(problem):
@@ -122,3 +124,13 @@ def test_the_oracle_counts_ompls_validity_calls(problem):
     problem.use_sampler("ompl-uniform")
     problem.solve(0.5)
     assert oracle.checks > 25
+
+
+def test_bench_ompl_ends_without_ompls_leak_report(tmp_path, run_app):
+    """`python -m app` ends right after a command that loaded OMPL, so its answer is the last thing printed (not
+    nanobind's report of objects alive at interpreter shutdown)."""
+    result = run_app("bench", "ompl", "--scenes", SCENE, "--methods", "ompl-uniform", "--seeds", "1", "--budget", "1",
+                     "--store", tmp_path / "ompl.sqlite", "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["ompl"][0]["runs"] == 1
+    assert "leak" not in result.stderr

@@ -14,9 +14,8 @@ def reference_free(oracle, q) -> bool:
     context = plant.GetMyContextFromRoot(oracle.model.CreateDefaultContext())
     plant.SetPositions(context, q)
     query = plant.get_geometry_query_input_port().Eval(context)
-    robot = oracle._robot_geometries
     for pair in query.ComputeSignedDistancePairwiseClosestPoints(0.0):
-        a, b = pair.id_A in robot, pair.id_B in robot
+        a, b = oracle.is_robot_geometry(pair.id_A), oracle.is_robot_geometry(pair.id_B)
         counts = (a != b) or (a and b and oracle.scene.self_collisions)
         if counts and pair.distance < 0:
             return False
@@ -26,7 +25,7 @@ def reference_free(oracle, q) -> bool:
 @pytest.mark.parametrize("name", SAMPLING_SCENES)
 def test_oracle_agrees_with_scenegraph_on_1000_configurations(oracles, name):
     oracle = oracles(name)
-    Q = oracle.uniform(np.random.default_rng(7), 1000)
+    Q = oracle.space.uniform(np.random.default_rng(7), 1000)
     batch = oracle.are_free(Q)
     single = np.array([oracle.is_free(q) for q in Q])
     reference = np.array([reference_free(oracle, q) for q in Q])
@@ -39,7 +38,7 @@ def test_oracle_agrees_with_scenegraph_on_1000_configurations(oracles, name):
 def test_counters_are_exact(oracles):
     oracle = oracles("bar")
     rng = np.random.default_rng(1)
-    Q = oracle.uniform(rng, 50)
+    Q = oracle.space.uniform(rng, 50)
     oracle.reset()
     assert oracle.checks == 0
     oracle.is_free(Q[0])
@@ -47,7 +46,7 @@ def test_counters_are_exact(oracles):
     oracle.are_free(Q)
     assert oracle.checks == 51
     outside = Q[:5].copy()
-    outside[:, 0] = oracle.upper[0] + 1.0  # out of bounds: rejected before Drake, not counted
+    outside[:, 0] = oracle.space.upper[0] + 1.0  # out of bounds: rejected before Drake, not counted
     assert not oracle.are_free(outside).any()
     assert not oracle.is_free(outside[0])
     assert oracle.checks == 51
@@ -62,23 +61,23 @@ def test_edge_check_counts_the_configurations_it_looked_at(oracles):
     free_end[1] += 10.0  # slide the arm sideways in open space
     oracle.reset()
     assert oracle.edge_free(start, free_end)
-    assert oracle.checks == len(oracle.interpolate(start, free_end))
+    assert oracle.checks == len(oracle.space.interpolate(start, free_end))
 
     through_wall = start.copy()
     through_wall[0] = 50.0
     through_wall[1] = 20.0  # the base inside the lower bar
     oracle.reset()
     assert not oracle.edge_free(start, through_wall)
-    assert 0 < oracle.checks < len(oracle.interpolate(start, through_wall))
+    assert 0 < oracle.checks < len(oracle.space.interpolate(start, through_wall))
 
 
 def test_edges_free_matches_pointwise_checks(oracles):
     oracle = oracles("joint3d")
     rng = np.random.default_rng(3)
-    A, B = oracle.uniform(rng, 40), oracle.uniform(rng, 40)
+    A, B = oracle.space.uniform(rng, 40), oracle.space.uniform(rng, 40)
     B = A + 0.1 * (B - A)  # short edges: a mix of free and colliding
     flags = oracle.edges_free(A, B)
-    expected = np.array([oracle.are_free(oracle.interpolate(a, b)).all() for a, b in zip(A, B)])
+    expected = np.array([oracle.are_free(oracle.space.interpolate(a, b)).all() for a, b in zip(A, B)])
     assert np.array_equal(flags, expected)
     assert 0 < flags.sum() < len(flags)
 
@@ -86,21 +85,21 @@ def test_edges_free_matches_pointwise_checks(oracles):
 def test_a_screen_checks_the_coarsest_points_and_known_free_ends_are_skipped(oracles):
     oracle = oracles("joint3d")
     rng = np.random.default_rng(3)
-    A, B = oracle.uniform(rng, 60), oracle.uniform(rng, 60)
+    A, B = oracle.space.uniform(rng, 60), oracle.space.uniform(rng, 60)
     keep = oracle.are_free(A) & oracle.are_free(B)  # endpoints free, as roadmap nodes are
     A, B = A[keep], B[keep]
     full = oracle.edges_free(A, B)
     oracle.reset()
     screen = oracle.edges_free(A, B, max_points=1, ends_free=True)
     assert oracle.checks == len(A)  # one point per edge: its midpoint
-    points = [oracle.interpolate(a, b) for a, b in zip(A, B)]
+    points = [oracle.space.interpolate(a, b) for a, b in zip(A, B)]
     mids = np.array([p[round((len(p) - 1) / 2)] for p in points])
     assert np.array_equal(screen, oracle.are_free(mids))
     assert np.all(screen >= full)  # a screen only ever drops edges that collide
     assert (screen > full).any()  # and lets some colliding ones through, for the full check to find
     oracle.reset()
     assert np.array_equal(oracle.edges_free(A, B, ends_free=True), full)
-    expected = sum(len(oracle.interpolate(a, b)) - 2 for a, b in zip(A[full], B[full]))
+    expected = sum(len(oracle.space.interpolate(a, b)) - 2 for a, b in zip(A[full], B[full]))
     assert oracle.checks >= expected  # every free edge's inner points, not its ends
 
 
@@ -109,8 +108,8 @@ def test_distance_takes_the_short_way_round_on_continuous_angles(oracles):
     q1 = oracle.scene.start.copy()
     q2 = q1.copy()
     q1[2], q2[2] = np.pi - 0.1, -np.pi + 0.1
-    assert oracle.distance(q1, q2) == pytest.approx(0.2 * oracle.weights[2])
-    path = oracle.interpolate(q1, q2)
+    assert oracle.space.distance(q1, q2) == pytest.approx(0.2 * oracle.space.weights[2])
+    path = oracle.space.interpolate(q1, q2)
     assert np.all(np.abs(path[:, 2]) > np.pi - 0.11)  # never swings through zero
 
 
@@ -146,7 +145,7 @@ def test_scene_start_goal_free_and_outside_the_passage(oracles, name):
 @pytest.mark.parametrize("name", scene_names())
 def test_passage_is_narrow_for_uniform_sampling(oracles, name):
     oracle = oracles(name)
-    Q = oracle.uniform(np.random.default_rng(11), 6000)
+    Q = oracle.space.uniform(np.random.default_rng(11), 6000)
     free = Q[oracle.are_free(Q)]
     assert len(free) > 1000
     assert oracle.in_passage(free).mean() < 0.02
@@ -169,7 +168,7 @@ def test_both_batch_paths_give_the_same_answers_and_the_cheaper_is_chosen():
     from app.scene import Scene
 
     oracle = CollisionOracle(Scene("bar"), threads=2)
-    Q = oracle.uniform(np.random.default_rng(5), 400)
+    Q = oracle.space.uniform(np.random.default_rng(5), 400)
     answers = {}
     for path in ("batch", "raw"):
         oracle._cost = {"batch": None, "raw": None}

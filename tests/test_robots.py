@@ -62,13 +62,15 @@ def test_ur3_limits_are_the_real_ones(oracles):
 
 def _pair_counts(oracle, Q) -> Counter:
     """How often each robot-robot geometry pair penetrates over the configurations Q (unfiltered context)."""
-    inspector = oracle._inspector
+    plant = oracle.plant
+    context = plant.GetMyContextFromRoot(oracle.model.CreateDefaultContext())
+    inspector = oracle.model.scene_graph().model_inspector()
     counts = Counter()
     for q in Q:
-        oracle.plant.SetPositions(oracle._diag, q)
-        pairs = oracle._query_port.Eval(oracle._diag).ComputePointPairPenetration()
+        plant.SetPositions(context, q)
+        pairs = plant.get_geometry_query_input_port().Eval(context).ComputePointPairPenetration()
         counts.update({tuple(sorted((inspector.GetName(p.id_A), inspector.GetName(p.id_B)))) for p in pairs
-                       if p.id_A in oracle._robot_geometries and p.id_B in oracle._robot_geometries})
+                       if oracle.is_robot_geometry(p.id_A) and oracle.is_robot_geometry(p.id_B)})
     return counts
 
 
@@ -77,7 +79,7 @@ def test_ur3_self_collision_geometry_is_sane(oracles):
     oracle = oracles("window")
     assert not _pair_counts(oracle, [oracle.scene.start])
     assert oracle.clearance(oracle.scene.start, 0.2) > 0.01
-    Q = oracle.uniform(np.random.default_rng(5), 1500)
+    Q = oracle.space.uniform(np.random.default_rng(5), 1500)
     counts = _pair_counts(oracle, Q)
     worst = max(counts.values()) / len(Q)
     assert worst < 0.6, counts.most_common(3)
@@ -125,7 +127,7 @@ def test_quadrotor_model_and_safety_hull(oracles):
 @pytest.mark.parametrize("name, side, up", [("maze", 0.1, 0.25), ("tunnel", 0.12, 0.28)])
 def test_uav_passage_is_narrow_but_open(oracles, name, side, up):
     oracle = oracles(name)
-    Q = oracle.uniform(np.random.default_rng(11), 6000)
+    Q = oracle.space.uniform(np.random.default_rng(11), 6000)
     free = Q[oracle.are_free(Q)]
     assert len(free) > 3000
     assert oracle.in_passage(free).mean() < 0.02
@@ -206,7 +208,7 @@ def test_batched_and_single_checks_agree_on_the_new_scenes(oracles, name):
     """The cart is welded to the world yet part of the robot: the checker's batch path and the raw SceneGraph path
     must still see the same pairs (cart-arm counts, cart-floor obstacles never move relative to each other)."""
     oracle = oracles(name)
-    Q = oracle.uniform(np.random.default_rng(7), 600)
+    Q = oracle.space.uniform(np.random.default_rng(7), 600)
     batch = oracle.are_free(Q)
     single = np.array([oracle.is_free(q) for q in Q])
     assert np.array_equal(batch, single)

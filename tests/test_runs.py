@@ -1,8 +1,5 @@
 """The scripted UR3 jobs (`run welding|window`): IK goals, legs planned or straight, one joined trajectory."""
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -24,13 +21,13 @@ def test_window_route_goes_through_the_window_and_back(oracles, window_run):
                     ("place", HOME)]
     assert any(leg.method == "lfbs" for leg in window_run.legs)  # at least one leg needed the planner
     for a, b in zip(window_run.legs[:-1], window_run.legs[1:]):  # legs meet where the previous one stopped
-        assert oracle.distance(a.path[-1], b.path[0]) < 1e-9
+        assert oracle.space.distance(a.path[-1], b.path[0]) < 1e-9
 
 
 def test_every_leg_is_free_under_an_independent_fine_check(oracles, window_run):
     oracle = oracles("window")
     for leg in window_run.legs:
-        points = fine_points(oracle, leg.path, FINE * oracle.resolution)
+        points = fine_points(oracle, leg.path, FINE * oracle.space.resolution)
         assert all(raw_free(oracle, q) for q in points), f"{leg.start} -> {leg.goal}"
 
 
@@ -50,16 +47,12 @@ def test_same_seed_same_run(oracles, window_run):
     assert np.array_equal(again.trajectory.positions, window_run.trajectory.positions)
 
 
-def test_cli_run_prints_the_legs_and_rejects_an_unknown_job(tmp_path):
-    env = os.environ.copy()
+def test_cli_run_prints_the_legs_and_rejects_an_unknown_job(tmp_path, cli, one_line_error):
     out = tmp_path / "welding.json"
-    result = subprocess.run([sys.executable, "-m", "app", "run", "welding", "--json", "--out", str(out)],
-                            capture_output=True, text=True, env=env, timeout=300)
+    result = cli("run", "welding", "--json", "--out", out)
     assert result.returncode == 0, result.stderr
     doc = json.loads(result.stdout)
     assert doc["legs"][0]["from"] == HOME and len(doc["legs"]) >= 2
     assert doc["success"] is True
     assert json.loads(out.read_text())["time_from_start"] == doc["trajectory"]["time_from_start"]
-    bad = subprocess.run([sys.executable, "-m", "app", "run", "parking"], capture_output=True, text=True, env=env,
-                         timeout=300)
-    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "unknown job 'parking'" in bad.stderr
+    assert "unknown job 'parking'" in one_line_error(cli("run", "parking"), 2)

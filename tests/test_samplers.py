@@ -1,16 +1,14 @@
 """The seven samplers: free in-bounds samples, real bridges, heavy Lévy tails, reproducibility, honest counts, CLI."""
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from app.errors import UserError
-from app.samplers import SAMPLERS, SamplerBudgetExceeded, make_sampler
+from app.bench.sampling import run_trial
+from app.errors import SamplerBudgetExceeded, UserError
+from app.samplers import SAMPLERS, make_sampler
 from app.samplers.levy import hill_tail_index, levy_stable
 from app.samplers.walk import Walker
 
@@ -20,10 +18,10 @@ SCENES = ["bar", "teeth3d"]
 
 
 def _check_samples(oracle, X, k):
-    assert X.shape == (k, oracle.dim)
+    assert X.shape == (k, oracle.space.dim)
     assert np.all(np.isfinite(X))
-    assert oracle.within_bounds(X).all()
-    assert np.all(X[:, oracle.continuous] >= -np.pi) and np.all(X[:, oracle.continuous] < np.pi)
+    assert oracle.space.within_bounds(X).all()
+    assert np.all(X[:, oracle.space.continuous] >= -np.pi) and np.all(X[:, oracle.space.continuous] < np.pi)
     assert all(oracle.is_free(q) for q in X)  # independent re-check, one configuration at a time
 
 
@@ -65,13 +63,13 @@ def test_bridge_endpoints_collide_and_straddle_the_sample(oracles, scene, name):
     sampler = make_sampler(name, oracle, step=10)
     X = sampler.sample(k, np.random.default_rng(5))
     ends = sampler.bridges
-    assert ends.shape == (k, 2, oracle.dim)
+    assert ends.shape == (k, 2, oracle.space.dim)
     for q, (a, b) in zip(X, ends):
-        assert oracle.within_bounds(a).all() and oracle.within_bounds(b).all()
+        assert oracle.space.within_bounds(a).all() and oracle.space.within_bounds(b).all()
         assert not oracle.is_free(a) and not oracle.is_free(b)
         # the sample is the bridge's midpoint: b = extend(a, q) = q + (q - a), angles the short way round
-        far = oracle.wrap(q + oracle.difference(a, q))
-        assert np.allclose(oracle.difference(far, b), 0.0, atol=1e-9)
+        far = oracle.space.wrap(q + oracle.space.difference(a, q))
+        assert np.allclose(oracle.space.difference(far, b), 0.0, atol=1e-9)
 
 
 def test_unbridged_samplers_report_no_bridges(oracles):
@@ -107,8 +105,6 @@ def test_same_seed_same_samples(oracles, name):
 
 @pytest.mark.parametrize("name", ["uniform", "gaussian", "lfs", "lfbs"])
 def test_reported_checks_match_the_oracle_counter(oracles, name):
-    from app.bench.sampling import run_trial
-
     oracle = oracles("teeth3d")
     before = oracle.checks
     row = run_trial(oracle, name, 10.0, seed=2, k=5, keep_samples=True)
@@ -146,10 +142,10 @@ def test_proposals_never_leave_the_bounds(oracles):
     oracle = oracles("bar")
     sampler = make_sampler("lfs", oracle, step=20)
     sampler.stats = {"gave_up": 0}
-    Q = oracle.uniform(np.random.default_rng(1), 500)
-    Q[:, 0] = oracle.upper[0]  # on the edge: about half the steps leave the bounds at first
+    Q = oracle.space.uniform(np.random.default_rng(1), 500)
+    Q[:, 0] = oracle.space.upper[0]  # on the edge: about half the steps leave the bounds at first
     P, ok = sampler._propose(np.random.default_rng(2), Q, sampler._draw)
-    assert oracle.within_bounds(P[ok]).all() and ok.mean() > 0.95
+    assert oracle.space.within_bounds(P[ok]).all() and ok.mean() > 0.95
 
 
 def test_resumed_batches_carry_walkers_over_and_stay_reproducible(oracles):
@@ -179,25 +175,19 @@ def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(oracles):
 
 
 # ---- CLI ---------------------------------------------------------------------------------------------------------
-def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "app", *args], capture_output=True, text=True, env=dict(os.environ),
-                          timeout=120)
-
-
 @pytest.mark.parametrize("args", [
     ["--sampler", "levy"], ["--sampler", "lfbs", "-k", "0"], ["--sampler", "lfbs", "--step", "nan"],
 ])
-def test_cli_bad_input_is_one_line_exit_2(args):
-    result = _cli("sample", "bar", *args)
-    assert result.returncode == 2
-    assert result.stdout == "" and len(result.stderr.strip().splitlines()) == 1
-    assert result.stderr.startswith("error:")
+def test_cli_bad_input_is_one_line_exit_2(cli, one_line_error, args):
+    result = cli("sample", "bar", *args)
+    one_line_error(result, 2)
+    assert result.stdout == ""
 
 
-def test_cli_json(tmp_path):
+def test_cli_json(tmp_path, cli):
     png = tmp_path / "s.png"
-    result = _cli("sample", "bar", "--sampler", "lfbs", "-k", "5", "--step", "10", "--seed", "4", "--json",
-                  "--png", str(png))
+    result = cli("sample", "bar", "--sampler", "lfbs", "-k", "5", "--step", "10", "--seed", "4", "--json",
+                 "--png", png)
     assert result.returncode == 0, result.stderr
     out = json.loads(result.stdout)
     for key in ("scene", "sampler", "k", "step", "seed", "samples", "collision_checks", "seconds",

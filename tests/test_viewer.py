@@ -6,13 +6,10 @@ Meshcat is made, so tests that need one allow it with monkeypatch (in-process) o
 import json
 import os
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from app.cli import main
 from app.errors import UserError
 from meshcat_page import commands
 
@@ -26,7 +23,7 @@ def meshcat_allowed(monkeypatch):
 
 def straight_trajectory(oracle, duration=2.0):
     """start -> goal in a straight line (through the wall: the viewer does not care), times evenly spread."""
-    Q = oracle.interpolate(oracle.scene.start, oracle.scene.goal, resolution=2.0)
+    Q = oracle.space.interpolate(oracle.scene.start, oracle.scene.goal, resolution=2.0)
     return np.linspace(0.0, duration, len(Q)), Q
 
 
@@ -51,15 +48,7 @@ def write_trajectory(file, times, positions, **extra):
     return file
 
 
-def assert_one_line_error(capsys, code, returned):
-    err = capsys.readouterr().err
-    assert returned == code, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error:"), err
-    return lines[0]
-
-
-def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, oracles, meshcat_allowed, capsys):
+def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, oracles, meshcat_allowed, cli):
     oracle = oracles("bar")
     times, Q = straight_trajectory(oracle, duration=2.0)
     narrow = Q[::3]
@@ -67,8 +56,9 @@ def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, ora
     trajectory = write_trajectory(tmp_path / "t.json", times, Q, narrow=narrow, on_path=on_path, path=Q[[0, -1]])
     page = tmp_path / "bar.html"
 
-    assert main(["view", "bar", "--trajectory", str(trajectory), "--html", str(page)]) == 0
-    assert capsys.readouterr().out.strip() == str(page)
+    result = cli("view", "bar", "--trajectory", trajectory, "--html", page)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == str(page)
     html = page.read_text()
     assert html.lstrip().lower().startswith("<!doctype html") or html.lstrip().startswith("<html")
     # Standalone: no script or stylesheet fetched from anywhere (the JavaScript is inlined).
@@ -116,7 +106,7 @@ def test_viewer_frame_positions_agree_with_the_oracle(oracles, meshcat_allowed):
 
     oracle = oracles("joint3d")
     viewer = Viewer(oracle.scene)
-    Q = oracle.uniform(np.random.default_rng(1), 20)
+    Q = oracle.space.uniform(np.random.default_rng(1), 20)
     np.testing.assert_allclose(viewer.frame_positions(Q), oracle.frame_positions(Q), atol=1e-9)
     with pytest.raises(UserError):
         viewer.show_samples(Q[:4], [True, False])
@@ -134,12 +124,11 @@ def test_viewer_frame_positions_agree_with_the_oracle(oracles, meshcat_allowed):
     assert robot and all(v == 1 for v in robot)
 
 
-def test_wrong_dimension_is_exit_2_and_writes_nothing(tmp_path, oracles, meshcat_allowed, capsys):
+def test_wrong_dimension_is_exit_2_and_writes_nothing(tmp_path, oracles, meshcat_allowed, cli, one_line_error):
     times, Q = straight_trajectory(oracles("bar"))
     trajectory = write_trajectory(tmp_path / "t.json", times, Q[:, :6])
     page = tmp_path / "out.html"
-    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
-                                                  "--html", str(page)]))
+    line = one_line_error(cli("view", "bar", "--trajectory", trajectory, "--html", page), 2)
     assert "9" in line and "6" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
 
@@ -171,34 +160,32 @@ def _bad(**change):
     (_bad(narrow_samples=[[0] * 9]), "go together"),
     (_bad(certified="yes"), "certified"),
 ])
-def test_bad_trajectory_files_are_one_line_exit_2(tmp_path, capsys, content, needle):
+def test_bad_trajectory_files_are_one_line_exit_2(tmp_path, cli, one_line_error, content, needle):
     trajectory = tmp_path / "t.json"
     if content is not None:
         trajectory.write_text(content)
     page = tmp_path / "out.html"
-    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
-                                                  "--html", str(page)]))
+    line = one_line_error(cli("view", "bar", "--trajectory", trajectory, "--html", page), 2)
     assert needle in line
     assert not page.exists()
 
 
-def test_meshcat_disabled_by_the_environment_is_a_clear_error(tmp_path, oracles, capsys):
+def test_meshcat_disabled_by_the_environment_is_a_clear_error(tmp_path, oracles, cli, one_line_error):
     """conftest sets DRAKE_ALLOW_NETWORK=none: the viewer says how to allow Meshcat rather than overriding it."""
     assert os.environ["DRAKE_ALLOW_NETWORK"] == "none"
     times, Q = straight_trajectory(oracles("bar"))
     trajectory = write_trajectory(tmp_path / "t.json", times, Q)
     page = tmp_path / "out.html"
-    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
-                                                  "--html", str(page)]))
+    line = one_line_error(cli("view", "bar", "--trajectory", trajectory, "--html", page), 2)
     assert "DRAKE_ALLOW_NETWORK" in line and "meshcat" in line
     assert not page.exists()
 
 
-def test_html_into_a_missing_folder_is_exit_2(tmp_path, oracles, meshcat_allowed, capsys):
+def test_html_into_a_missing_folder_is_exit_2(tmp_path, oracles, meshcat_allowed, cli, one_line_error):
     times, Q = straight_trajectory(oracles("bar"))
     trajectory = write_trajectory(tmp_path / "t.json", times, Q)
-    line = assert_one_line_error(capsys, 2, main(["view", "bar", "--trajectory", str(trajectory),
-                                                  "--html", str(tmp_path / "missing" / "out.html")]))
+    page = tmp_path / "missing" / "out.html"
+    line = one_line_error(cli("view", "bar", "--trajectory", trajectory, "--html", page), 2)
     assert "does not exist" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.json"]
 
@@ -218,30 +205,27 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["page.html"]
 
 
-def test_view_meshcat_does_not_wait_without_a_terminal(tmp_path, oracles):
+def test_view_meshcat_does_not_wait_without_a_terminal(tmp_path, oracles, run_app):
     """`--meshcat` with stdin not a terminal (CI): prints the localhost URL and exits instead of blocking."""
     times, Q = straight_trajectory(oracles("bar"))
     trajectory = write_trajectory(tmp_path / "t.json", times, Q)
     env = dict(os.environ, DRAKE_ALLOW_NETWORK="meshcat")
-    result = subprocess.run([sys.executable, "-m", "app", "view", "bar", "--trajectory", str(trajectory),
-                             "--meshcat"], stdin=subprocess.DEVNULL, capture_output=True, text=True, env=env,
-                            timeout=120)
+    result = run_app("view", "bar", "--trajectory", trajectory, "--meshcat", env=env, timeout=120)
     assert result.returncode == 0, result.stderr
     assert re.search(r"^meshcat: http://localhost:\d+$", result.stderr, re.M), result.stderr
 
 
 @pytest.mark.parametrize("command", [["plan", "bar", "--seed", "0"], ["run", "welding"]])
-def test_out_files_of_plan_and_run_are_what_view_reads(tmp_path, meshcat_allowed, capsys, command):
+def test_out_files_of_plan_and_run_are_what_view_reads(tmp_path, meshcat_allowed, cli, command):
     """One trajectory format: the file `plan --out` / `run --out` writes opens in `view --trajectory`, with the
     same motion and samples."""
     from app.trajectory import TrajectoryFile
 
     out, page = tmp_path / "motion.json", tmp_path / "motion.html"
-    assert main([*command, "--out", str(out)]) == 0
+    assert cli(*command, "--out", out).returncode == 0
     scene = command[1]
-    assert main(["view", scene, "--trajectory", str(out), "--html", str(page)]) == 0
+    assert cli("view", scene, "--trajectory", out, "--html", page).returncode == 0
     assert page.stat().st_size > 100_000
-    capsys.readouterr()
     written = TrajectoryFile.read(out, {"bar": 9, "welding": 6}[scene])
     assert written.scene == scene and written.trajectory.duration > 0
     assert np.allclose(written.trajectory.positions[0], written.trajectory.waypoints[0])

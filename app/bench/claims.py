@@ -9,7 +9,6 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import mannwhitneyu
 
 ALPHA = 0.01
 BRIDGE_WALKERS = ("lfbs", "rwbs")
@@ -45,6 +44,8 @@ def _greater(a, b) -> tuple[bool, float]:
         return False, float("nan")
     if np.all(a == a[0]) and np.all(b == b[0]):
         return bool(a[0] > b[0]), 0.0 if a[0] > b[0] else 1.0
+    from scipy.stats import mannwhitneyu  # about a second to import: only when a claim is judged, not at CLI start
+
     p = float(mannwhitneyu(a, b, alternative="greater").pvalue)
     return bool(p < ALPHA and np.median(a) >= np.median(b)), p
 

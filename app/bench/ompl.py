@@ -9,25 +9,15 @@ import time
 
 import numpy as np
 
+from app.bench.runner import sweep
 from app.bench.store import TrialSpec
-from app.cli import positive_float, positive_int, print_json
+from app.planner import default_step
+from app.scene import Scene
+# app.ompl_bridge loads OMPL (optional) when imported: it is imported by the functions that run OMPL, so that the
+# command line starts, and the other benchmarks run, without it.
 
 OMPL_METHODS = ["ompl-uniform", "ompl-obstacle", "ompl-gaussian", "ompl-bridge", "ompl+lfbs", "ompl+rbbs"]
 OURS = ["ours:lfbs", "ours:rbbs", "ours:uniform"]
-
-
-def register(kinds) -> None:
-    p = kinds.add_parser("ompl", help="OMPL's PRM with OMPL's and our samplers vs our PRM, same oracle and budget")
-    p.add_argument("--scenes", default="bar,joint3d")
-    p.add_argument("--methods", default=",".join(OMPL_METHODS + OURS))
-    p.add_argument("--seeds", type=positive_int, default=10)
-    p.add_argument("--budget", type=positive_float, default=20.0, help="seconds per run")
-    p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
-    p.add_argument("--workers", type=positive_int, default=1,
-                   help="parallel runs (1 keeps timings clean: each run gets a whole core and nothing competes)")
-    p.add_argument("--store", default="out/bench-ompl.sqlite")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=run)
 
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
@@ -46,16 +36,14 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     seconds = time.perf_counter() - start
     if success:  # OMPL's path is checked at OMPL's resolution; hold it to ours, as our planner's paths are held
         path = problem.solution_for_oracle()  # OMPL's own motions (it does not wrap angles), not short-way edges
-        success = bool(oracle.edges_free(path[:-1], path[1:], oracle.resolution / 4).all())
+        success = bool(oracle.edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all())
     return {"success": float(success), "seconds": seconds, "collision_checks": oracle.checks}
 
 
 def specs(scenes, methods, seeds, budget, step) -> list[TrialSpec]:
-    from app.bench.plan import default_step
-
     out = []
     for scene in scenes:
-        a = step or default_step(scene)
+        a = step or default_step(Scene(scene))
         for method in methods:
             experiment = "prm" if method.startswith("ours:") else "ompl"
             name = method.split(":", 1)[1] if experiment == "prm" else method
@@ -83,22 +71,11 @@ def summarise(rows) -> list[dict]:
     return table
 
 
-def run(args) -> int:
-    from app.bench.runner import sweep
-    from app.ompl_bridge import _ompl
+def measure(scenes: list[str], methods: list[str], seeds: int, budget: float, step: float | None, store,
+            workers: int = 1) -> list[dict]:
+    """Every scene x method for seeds 0..seeds-1 on `budget` seconds each (trials `store` lacks are run), as
+    `summarise` rows. A missing OMPL is one UserError before anything runs."""
+    from app.ompl_bridge import ompl_modules
 
-    _ompl()  # a missing OMPL is one clear line before anything runs
-    scenes = [s.strip() for s in args.scenes.split(",")]
-    methods = [m.strip() for m in args.methods.split(",")]
-    todo = specs(scenes, methods, args.seeds, args.budget, args.step)
-    table = summarise(sweep(todo, args.store, workers=args.workers, desc="bench ompl"))
-    if args.json:
-        print_json({"ompl": table, "budget_seconds": args.budget, "seeds": args.seeds})
-        return 0
-    print(f"budget {args.budget:g} s per run, {args.seeds} seeds, same Drake oracle for every method")
-    print(f"{'scene':<9} {'method':<15} {'success':>8} {'median s':>9} {'s (solved)':>11} {'median checks':>14}")
-    for r in table:
-        solved = f"{r['median_seconds_solved']:.2f}" if r["median_seconds_solved"] is not None else "-"
-        print(f"{r['scene']:<9} {r['method']:<15} {r['success_rate']:>8.0%} {r['median_seconds']:>9.2f} "
-              f"{solved:>11} {r['median_checks']:>14.0f}")
-    return 0
+    ompl_modules()
+    return summarise(sweep(specs(scenes, methods, seeds, budget, step), store, workers=workers, desc="bench ompl"))

@@ -25,9 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
+from app.bench import jobs, sampling, uav
+from app.bench.claims import ALPHA, judge
+from app.bench.runner import run_sweep
 from app.bench.store import ResultStore, TrialSpec
 from app.io import write_atomically
-from app.cli import float_list, positive_int
+from app.oracle import CollisionOracle
+from app.planner import default_step
+from app.samplers import SAMPLERS
+from app.scene import Scene
 
 SAMPLING_SCENES = ["bar", "joint", "joint3d", "teeth3d"]
 TABLE1_SCENES = ["bar-3link", "bar-5link", "bar"]
@@ -46,31 +52,6 @@ PAPER_TABLE1 = {"bar-3link": [6.9561, 6.1784, 6.3532, 6.4736, 6.8388],
 PAPER_UR3 = {"welding": 233.0, "window": 253.0}  # LFBS-PRM, average seconds
 
 
-def register(kinds) -> None:
-    from app.samplers import SAMPLERS
-
-    p = kinds.add_parser("paper", help="the paper's Section IV: all sweeps into one store, then DIR/report.md")
-    p.add_argument("--trials", type=positive_int, default=None,
-                   help="trials (seeds) per sampling cell (default 300, --quick 3)")
-    p.add_argument("--quick", action="store_true",
-                   help="a few minutes: 3 trials, steps 2 and 10, 2 PRM seeds, 1 UR3 run per job")
-    p.add_argument("--workers", type=int, default=0, help="local processes (default: all cores)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
-                   help="run the trials on this Dask scheduler instead of local processes")
-    p.add_argument("--out", default="out/paper", help="report folder, with results.sqlite (default out/paper)")
-    p.add_argument("--report-only", action="store_true", help="rebuild report.md from the store; run nothing")
-    p.add_argument("--parts", default=",".join(PARTS), help=f"sweeps to run (default {','.join(PARTS)})")
-    p.add_argument("--scenes", default=None,
-                   help=f"sampling-sweep scenes (default {','.join(SAMPLING_SCENES)})")
-    p.add_argument("--samplers", default=",".join(SAMPLERS), help="sampling-sweep samplers (default all seven)")
-    p.add_argument("--steps", type=float_list, default=None, help="steps (default 2,5,10,15,20; --quick 2,10)")
-    p.add_argument("--max-checks", type=positive_int, default=200_000,
-                   help="collision-check budget per sampling trial; a trial that spends it is censored")
-    p.add_argument("--prm-seeds", type=positive_int, default=None, help="seeds per PRM cell (default 30, --quick 2)")
-    p.add_argument("--ur3-runs", type=positive_int, default=None, help="runs per UR3 job (default 5, --quick 1)")
-    p.set_defaults(func=run)
-
-
 @dataclass
 class Config:
     trials: int = 300
@@ -84,34 +65,6 @@ class Config:
     parts: list = field(default_factory=lambda: list(PARTS))
     quick: bool = False
 
-    @classmethod
-    def from_args(cls, args) -> "Config":
-        from app.errors import UserError
-        from app.samplers import SAMPLERS
-
-        quick = args.quick
-        config = cls(
-            trials=args.trials or (3 if quick else 300),
-            steps=list(args.steps or (QUICK_STEPS if quick else STEPS)),
-            scenes=_names(args.scenes) if args.scenes else list(SAMPLING_SCENES),
-            samplers=_names(args.samplers),
-            max_checks=args.max_checks,
-            prm_seeds=args.prm_seeds or (2 if quick else 30),
-            ur3_runs=args.ur3_runs or (1 if quick else 5),
-            parts=_names(args.parts),
-            quick=bool(quick))
-        bad = [s for s in config.samplers if s not in SAMPLERS] or [p for p in config.parts if p not in PARTS]
-        if bad or not config.samplers or not config.scenes:
-            raise UserError(f"unknown sampler or part '{bad[0]}' (samplers: {', '.join(SAMPLERS)}; parts: "
-                            f"{', '.join(PARTS)})" if bad else "need at least one scene and one sampler")
-        if any(not (a > 0) for a in config.steps):
-            raise UserError("steps must be positive")
-        return config
-
-
-def _names(text: str) -> list[str]:
-    return [s.strip() for s in text.split(",") if s.strip()]
-
 
 # ----------------------------------------------------------------------------------------------------- the sweeps
 
@@ -121,17 +74,9 @@ def sampling_specs(scenes, samplers, steps, trials, k=30, max_checks=200_000) ->
             for scene in scenes for sampler in samplers for step in steps for seed in range(trials)]
 
 
-def prm_specs(seeds: int) -> list[TrialSpec]:
-    """The maze/tunnel PRM cells of `bench uav` (the paper's steps and roadmap sizes), seeds 0..N-1."""
-    from app.bench.uav import specs
-
-    return specs(seeds)
-
-
 def ur3_specs(runs: int) -> list[TrialSpec]:
-    from app.bench.plan import default_step
-
-    return [TrialSpec("ur3", job, sampler, default_step(job), seed, dict(UR3_SIZE))
+    steps = {job: default_step(Scene(job)) for job in UR3_JOBS}
+    return [TrialSpec("ur3", job, sampler, steps[job], seed, dict(UR3_SIZE))
             for job in UR3_JOBS for sampler in UR3_SAMPLERS for seed in range(runs)]
 
 
@@ -145,7 +90,7 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
         out.append(("table1", sampling_specs(TABLE1_SCENES, TABLE1_METHODS, config.steps, config.trials, config.k,
                                              config.max_checks)))
     if "prm" in config.parts:
-        out.append(("prm", prm_specs(config.prm_seeds)))
+        out.append(("prm", uav.specs(config.prm_seeds)))  # the maze/tunnel cells of `bench uav`
     if "ur3" in config.parts:
         out.append(("ur3", ur3_specs(config.ur3_runs)))
     return out
@@ -202,11 +147,8 @@ def machine() -> list[str]:
 
 
 def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[tuple[str, list[tuple[str, str]]]]:
-    """One seed's K_c samples per scene x sampler, as in the paper's Figs. 3, 5, 6 (drawn by `sample`'s code)."""
-    from app.bench.sampling import run_trial
-    from app.commands.sample import draw_samples
-    from app.oracle import CollisionOracle
-    from app.scene import Scene
+    """One seed's K_c samples per scene x sampler, as in the paper's Figs. 3, 5, 6 (drawn as `sample --png` does)."""
+    from app.draw import draw_samples  # loads matplotlib: only when a report is drawn
 
     out = []
     for scene in scenes:
@@ -214,7 +156,7 @@ def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[
         step = PICTURE_STEPS.get(scene, 10.0)
         pictures = []
         for sampler in samplers:
-            r = run_trial(oracle, sampler, step, 0, k=30, max_checks=max_checks, keep_samples=True)
+            r = sampling.run_trial(oracle, sampler, step, 0, k=30, max_checks=max_checks, keep_samples=True)
             name = f"samples-{scene}-{sampler}.png"
             note = "" if r["ok"] else f" — over the {max_checks}-check budget, no samples"
             draw_samples(oracle, r["samples"], str(folder / name),
@@ -225,6 +167,7 @@ def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[
 
 
 def _figure_prm(table: list[dict], path: Path) -> None:
+    # matplotlib (and app.draw, which loads it) only when a report is drawn: the command line imports this module.
     import matplotlib
 
     matplotlib.use("Agg")
@@ -256,10 +199,6 @@ def _figure_prm(table: list[dict], path: Path) -> None:
 def build_report(store: ResultStore, folder: Path, config: Config | None = None, pictures: bool = True,
                  wall_seconds: float | None = None) -> Path:
     """report.md and its figures from what the store holds (every row of every experiment in it)."""
-    from app.bench import jobs, sampling, uav
-    from app.bench.claims import ALPHA, judge
-    from app.samplers import SAMPLERS
-
     folder = Path(folder)
     rows = store.rows()
     lines = ["# Levy-flight narrow-passage PRM: the paper's Section IV, reproduced", ""]
@@ -406,25 +345,12 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
     return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
 
 
-def run(args) -> int:
-    from app.bench.runner import connect, run_sweep
-
-    config = Config.from_args(args)
-    scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
-    folder = Path(args.out)
-    folder.mkdir(parents=True, exist_ok=True)
-    store = ResultStore(folder / "results.sqlite")
-    ran, wall = 0, None
-    if not args.report_only:
-        start = time.perf_counter()
-        seen = set()
-        for name, specs in sweeps(config):
-            specs = [s for s in specs if not (s.key in seen or seen.add(s.key))]  # table1's bar = sampling's bar
-            n = run_sweep(specs, store, workers=args.workers, scheduler=scheduler, desc=f"paper {name}")
-            print(f"{name}: {len(specs)} trials, {n} run now, {len(specs) - n} already stored", flush=True)
-            ran += n
-        wall = time.perf_counter() - start
-    path = build_report(store, folder, config, wall_seconds=wall)
-    print(f"{ran} trials run; {store.count()} in {store.path}")
-    print(path)
-    return 0
+def run_sweeps(config: Config, store: ResultStore, workers: int = 0, scheduler=None):
+    """Run every sweep of `config` into `store` (trials it holds already are skipped; a trial in two sweeps runs
+    once). Yields (sweep name, its trials, how many ran now) as each sweep ends. workers, scheduler: as
+    `runner.run_sweep`."""
+    seen = set()
+    for name, specs in sweeps(config):
+        specs = [s for s in specs if not (s.key in seen or seen.add(s.key))]  # table1's bar = sampling's bar
+        ran = run_sweep(specs, store, workers=workers, scheduler=scheduler, desc=f"paper {name}")
+        yield name, len(specs), ran

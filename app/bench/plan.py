@@ -10,58 +10,22 @@ import time
 
 import numpy as np
 
+from app.bench.runner import sweep
 from app.bench.store import TrialSpec
-from app.cli import non_negative_int, positive_float, positive_int, print_json
-from app.planner import PlanSettings
+from app.budget import Budget
+from app.errors import NoPath
+from app.planner import PlanSettings, default_step, plan
+from app.scene import Scene
 
-SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]
+COMPARED_SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]  # the default of `bench plan --samplers`
+MODES = {"query": False, "full": True}  # roadmap mode -> plan(full_roadmap=...)
 # What a plain `plan` does: the same roadmap size, k (None: k-PRM*) and smoothing.
 SIZE = {"narrow": PlanSettings.narrow, "uniform": PlanSettings.uniform, "k": PlanSettings.k,
         "smooth": PlanSettings.smooth_rounds}
 
 
-def register(kinds) -> None:
-    p = kinds.add_parser("plan", help="PRM success rate and median time per sampler (fixed roadmap size)")
-    p.add_argument("--scenes", default="bar,joint3d", help="comma-separated scene names")
-    p.add_argument("--samplers", default=",".join(SAMPLERS), help="comma-separated sampler names")
-    p.add_argument("--seeds", type=positive_int, default=50, help="seeds 0..N-1 per scene and sampler")
-    p.add_argument("--narrow", type=non_negative_int, default=SIZE["narrow"],
-                   help="narrow-passage samples per roadmap (uniform: that many more uniform samples)")
-    p.add_argument("--uniform", type=non_negative_int, default=SIZE["uniform"], help="uniform samples per roadmap")
-    p.add_argument("-k", "--neighbours", type=positive_int, default=SIZE["k"],
-                   help="k nearest neighbours (default: k-PRM*'s, as `plan`)")
-    p.add_argument("--smooth", type=non_negative_int, default=SIZE["smooth"], help="random shortcut rounds")
-    p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
-    p.add_argument("--budget", type=positive_float, default=None, metavar="SECONDS",
-                   help="instead of one round, add samples in rounds until connected or this many seconds pass")
-    p.add_argument("--roadmap", choices=["query", "full", "both"], default="query",
-                   help="query: the planner's default (lazy, a quarter at a time until connected); full: the whole "
-                        "roadmap, every edge checked (the paper's protocol); both: side by side")
-    p.add_argument("--workers", type=positive_int, default=1,
-                   help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread "
-                        "each)")
-    p.add_argument("--store", default="out/bench-plan.sqlite", help="results store (resumes a killed run)")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=run)
-
-
-def default_step(scene) -> float:
-    """The planner's default sampler step for a scene name, Scene or oracle."""
-    from app.planner import default_step as step_of
-
-    if isinstance(scene, str):
-        from app.scene import Scene
-
-        scene = Scene(scene)
-    return step_of(scene)
-
-
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One plan: success, seconds (whole pipeline), seconds to a path, checks, roadmap and path facts."""
-    from app.errors import NoPath
-    from app.budget import Budget
-    from app.planner import plan
-
     p = spec.params
     budget = Budget(seconds=float(p["budget"])) if p.get("mode") == "budget" else None
     narrow = int(p.get("narrow", SIZE["narrow"]))
@@ -90,7 +54,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
 def specs(scenes, samplers, seeds, params, step) -> list[TrialSpec]:
     out = []
     for scene in scenes:
-        a = step or default_step(scene)
+        a = step or default_step(Scene(scene))
         out.extend(TrialSpec("prm", scene, m, a, seed, dict(params)) for m in samplers for seed in range(seeds))
     return out
 
@@ -116,47 +80,22 @@ def summarise(rows) -> list[dict]:
     return table
 
 
-def run(args) -> int:
-    from app.bench.runner import sweep
-    from app.errors import UserError
-    from app.samplers import SAMPLERS as KNOWN
+def trial_params(narrow: int, uniform: int, k: int | None, smooth: int, budget: float | None = None) -> dict:
+    """A plan trial's params: roadmap size, k (None: k-PRM*'s) and shortcut rounds; with `budget` (seconds),
+    rounds go on until connected or spent instead of one roadmap of that size."""
+    params = {"narrow": narrow, "uniform": uniform, "k": k, "smooth": smooth}
+    if budget is not None:
+        params.update(mode="budget", budget=budget)
+    return params
 
-    scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
-    samplers = [s.strip() for s in args.samplers.split(",") if s.strip()]
-    unknown = [s for s in samplers if s not in KNOWN]
-    if unknown or not samplers or not scenes:
-        raise UserError(f"unknown sampler '{unknown[0]}' (known: {', '.join(KNOWN)})" if unknown
-                        else "need at least one scene and one sampler")
-    params = {"narrow": args.narrow, "uniform": args.uniform, "k": args.neighbours, "smooth": args.smooth}
-    if args.budget is not None:
-        params.update(mode="budget", budget=args.budget)
-    modes = ["query", "full"] if args.roadmap == "both" else [args.roadmap]
+
+def measure(scenes: list[str], samplers: list[str], seeds: int, params: dict, store, modes=("query",),
+            step: float | None = None, workers: int = 1) -> list[dict]:
+    """The plan trials (`trial_params`) of every scene x sampler x roadmap mode (`MODES`) for seeds 0..seeds-1 that
+    `store` lacks, then the summary of exactly these trials: one row per scene x sampler x mode, in that order."""
     todo = []
     for mode in modes:
-        todo += specs(scenes, samplers, args.seeds, {**params, "full_roadmap": mode == "full"}, args.step)
-    rows = sweep(todo, args.store, workers=args.workers, desc="bench plan")
+        todo += specs(scenes, samplers, seeds, {**params, "full_roadmap": MODES[mode]}, step)
+    rows = sweep(todo, store, workers=workers, desc="bench plan")
     order = {key: i for i, key in enumerate((sc, sa, mode) for sc in scenes for sa in samplers for mode in modes)}
-    table = sorted(summarise(rows), key=lambda r: order.get((r["scene"], r["sampler"], r["roadmap"]), 1e9))
-    if args.json:
-        print_json({"plan": table, "seeds": args.seeds, "params": params})
-        return 0
-    budget = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
-    print(f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
-          f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
-          f"query: lazy edges, a quarter of the samples at a time until connected; full: the whole roadmap, every "
-          f"edge checked{budget}")
-    print(f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
-          f"{'median checks':>14} {'narrow on path':>15}")
-    for r in table:
-        to_path = f"{r['median_seconds_to_path']:.2f}" if r["median_seconds_to_path"] is not None else "-"
-        narrow = f"{r['median_narrow_on_path']:.0f}" if r["median_narrow_on_path"] is not None else "-"
-        print(f"{r['scene']:<9} {r['sampler']:<9} {r['roadmap']:<8} {r['success_rate']:>8.0%} "
-              f"{r['median_seconds']:>9.2f} {to_path:>10} {r['median_checks']:>14.0f} {narrow:>15}")
-    cells = {(r["scene"], r["sampler"], r["roadmap"]): r for r in table}
-    for (scene, sampler, mode), r in cells.items():
-        full = cells.get((scene, sampler, "full"))
-        if mode == "query" and full:
-            print(f"{scene} {sampler}: query/full median time {r['median_seconds'] / full['median_seconds']:.2f}x, "
-                  f"checks {r['median_checks'] / full['median_checks']:.2f}x, success {r['success_rate']:.0%} vs "
-                  f"{full['success_rate']:.0%}")
-    return 0
+    return sorted(summarise(rows), key=lambda r: order.get((r["scene"], r["sampler"], r["roadmap"]), 1e9))

@@ -15,6 +15,9 @@ from tqdm import tqdm
 
 from app.bench.store import ResultStore, TrialSpec
 from app.errors import UserError
+from app.oracle import CollisionOracle, default_threads
+from app.scene import Scene
+# Dask (optional) is imported only for a sweep sent to a scheduler.
 
 # experiment name -> "module:function" taking (oracle, spec) and returning a dict of metrics.
 EXPERIMENTS = {
@@ -29,9 +32,6 @@ _oracles = {}
 
 def _oracle(scene: str, threads: int):
     if (scene, threads) not in _oracles:
-        from app.oracle import CollisionOracle
-        from app.scene import Scene
-
         _oracles[scene, threads] = CollisionOracle(Scene(scene), threads=threads)
     return _oracles[scene, threads]
 
@@ -88,8 +88,6 @@ def _results(pending: list[TrialSpec], workers: int, client):
     if client is not None:
         yield from _dask_results(pending, client)
     elif workers == 1:  # in this process, with all the cores a plain `plan` would use
-        from app.oracle import default_threads
-
         for spec in pending:
             yield execute(spec, default_threads())
     else:

@@ -10,30 +10,15 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from tqdm import tqdm
 
-from app.cli import float_list, positive_float, positive_int, print_json
+from app.errors import SamplerBudgetExceeded
+from app.oracle import CollisionOracle
+from app.samplers import make_sampler
+from app.scene import Scene
 
 STEPS = [2.0, 5.0, 10.0, 15.0, 20.0]
 METRICS = [("seconds", "t_eps (s)"), ("collision_checks", "gamma_c (checks)"), ("passage_fraction", "in passage")]
-
-
-def register(kinds) -> None:
-    from app.samplers import SAMPLERS
-
-    p = kinds.add_parser("sampling", help="t_eps, gamma_c and passage fraction of the seven samplers vs step")
-    p.add_argument("--scenes", default="bar,teeth3d", help="comma-separated scene names")
-    p.add_argument("--samplers", default=",".join(SAMPLERS), help="comma-separated sampler names")
-    p.add_argument("--steps", type=float_list, default=STEPS, help="comma-separated steps a (default 2,5,10,15,20)")
-    p.add_argument("--trials", type=positive_int, default=10, help="trials (seeds 0..N-1) per cell")
-    p.add_argument("-k", type=positive_int, default=30, help="samples per trial (the paper's K_c = 30)")
-    p.add_argument("--margin", type=positive_float, default=None,
-                   help="contact margin for 'sits between' (default: twice the scene's resolution)")
-    p.add_argument("--max-checks", type=positive_int, default=200_000,
-                   help="collision-check budget per trial; a trial that spends it is reported as censored")
-    p.add_argument("--threads", type=positive_int, default=None, help="oracle threads (default: up to 2)")
-    p.add_argument("--png", help="figure: one panel per metric vs step, one line per sampler, a row per scene")
-    p.add_argument("--json", action="store_true", help="rows and summary as one JSON object on stdout")
-    p.set_defaults(func=run)
 
 
 def sits_between(oracle, samples: np.ndarray, margin: float) -> dict[str, float]:
@@ -53,8 +38,6 @@ def run_trial(oracle, sampler_name: str, step: float, seed: int, k: int = 30, ma
 
     A trial that exhausts its check budget returns ok=False with the checks it spent (a censored value).
     """
-    from app.samplers import SamplerBudgetExceeded, make_sampler
-
     if max_checks is not None:
         params["max_checks"] = max_checks
     sampler = make_sampler(sampler_name, oracle, step=step, **params)
@@ -64,7 +47,7 @@ def run_trial(oracle, sampler_name: str, step: float, seed: int, k: int = 30, ma
     try:
         samples, ok = sampler.sample(k, rng), True
     except SamplerBudgetExceeded:
-        samples, ok = np.empty((0, oracle.dim)), False
+        samples, ok = np.empty((0, oracle.space.dim)), False
     seconds = time.perf_counter() - start
     row = {
         "scene": oracle.scene.name, "sampler": sampler_name, "step": float(step), "seed": int(seed), "k": int(k),
@@ -91,7 +74,7 @@ def run_trial_spec(oracle, spec) -> dict:
 
     p = spec.params
     margin = p.get("margin")
-    margin = 2 * oracle.resolution if margin is None else float(margin)
+    margin = 2 * oracle.space.resolution if margin is None else float(margin)
     oracle.reset()
     row = run_trial(oracle, spec.method, spec.step, spec.seed, k=int(p.get("k", 30)), margin=margin,
                     max_checks=p.get("max_checks"), keep_samples=True)
@@ -129,22 +112,8 @@ def summarise(rows: list[dict]) -> list[dict]:
     return out
 
 
-def print_table(summary: list[dict]) -> None:
-    print(f"{'scene':<9} {'sampler':<8} {'step':>5} {'t_eps s (95% int.)':>26} {'gamma_c (95% int.)':>28} "
-          f"{'passage (95% int.)':>20} {'env':>5} {'self':>5} {'both':>5} {'none':>5}")
-    for s in summary:
-        t, c, p = s["seconds"], s["collision_checks"], s["passage_fraction"]
-        mark = "≥" if s["censored"] else " "
-        near = " ".join(f"{s.get(k, float('nan')):>5.2f}" for k in
-                        ("near_environment", "near_self", "near_both", "near_neither"))
-        print(f"{s['scene']:<9} {s['sampler']:<8} {s['step']:>5g} "
-              f"{mark}{t['median']:>7.3f} ({t['lo']:>7.3f}-{t['hi']:>7.3f}) "
-              f"{mark}{c['median']:>8.0f} ({c['lo']:>8.0f}-{c['hi']:>8.0f}) "
-              f"{p['median']:>6.2f} ({p['lo']:.2f}-{p['hi']:.2f}) {near}"
-              + (f"  [{s['censored']}/{s['trials']} over budget]" if s["censored"] else ""))
-
-
 def figure(summary: list[dict], path: str) -> None:
+    # matplotlib (and app.draw, which loads it) only when a figure is drawn: the command line imports this module.
     import matplotlib
 
     matplotlib.use("Agg")
@@ -181,35 +150,15 @@ def figure(summary: list[dict], path: str) -> None:
     save(fig, path)
 
 
-def run(args) -> int:
-    from tqdm import tqdm
-
-    from app.errors import UserError
-    from app.oracle import CollisionOracle
-    from app.samplers import SAMPLERS
-    from app.scene import Scene
-
-    scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
-    samplers = [s.strip() for s in args.samplers.split(",") if s.strip()]
-    unknown = [s for s in samplers if s not in SAMPLERS]
-    if unknown or not samplers or not scenes:
-        raise UserError(f"unknown sampler(s) {', '.join(unknown) or '(none given)'} (known: {', '.join(SAMPLERS)})")
-    if any(not (a > 0) for a in args.steps):
-        raise UserError("steps must be positive")
-    oracles = {name: CollisionOracle(Scene(name), threads=args.threads) for name in scenes}
-    todo = [(sc, sa, a, seed) for sc in scenes for sa in samplers for a in args.steps for seed in range(args.trials)]
+def measure(scenes: list[str], samplers: list[str], steps: list[float], trials: int, k: int = 30,
+            margin: float | None = None, max_checks: int | None = None, threads: int | None = None) -> list[dict]:
+    """Every scene x sampler x step trial for seeds 0..trials-1, in this process (a progress bar on stderr); the
+    rows in that order. margin None: twice each scene's resolution."""
+    oracles = {name: CollisionOracle(Scene(name), threads=threads) for name in scenes}
+    todo = [(sc, sa, a, seed) for sc in scenes for sa in samplers for a in steps for seed in range(trials)]
     rows = []
     for scene, sampler, step, seed in tqdm(todo, desc="bench sampling", unit="trial"):
         oracle = oracles[scene]
-        margin = args.margin if args.margin is not None else 2 * oracle.resolution
-        rows.append(run_trial(oracle, sampler, step, seed, k=args.k, margin=margin, max_checks=args.max_checks))
-    summary = summarise(rows)
-    if args.png:
-        figure(summary, args.png)
-    if args.json:
-        print_json({"rows": rows, "summary": summary})
-    else:
-        print_table(summary)
-        if args.png:
-            print(args.png)
-    return 0
+        near = margin if margin is not None else 2 * oracle.space.resolution
+        rows.append(run_trial(oracle, sampler, step, seed, k=k, margin=near, max_checks=max_checks))
+    return rows

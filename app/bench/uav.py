@@ -7,24 +7,15 @@ roadmap, every edge checked, k = 10, no budget) in the same results store, so a 
 """
 import numpy as np
 
+from app.bench.runner import sweep
 from app.bench.store import TrialSpec
-from app.cli import positive_int, print_json
 
 PAPER = {"maze": {"narrow": 200, "uniform": 300, "steps": [0.5, 1.0]},
          "tunnel": {"narrow": 100, "uniform": 200, "steps": [0.2, 0.5, 1.0]}}
 PAPER_SECONDS = {("maze", 0.5): (78.49, 298.57, 162.48, 396.83), ("maze", 1.0): (40.22, 269.91, 102.87, 330.6),
                  ("tunnel", 0.2): (74.81, 202.20, 124.56, 253.09), ("tunnel", 0.5): (46.67, 192.20, 102.6, 248.27),
                  ("tunnel", 1.0): (28.40, 172.09, 75.11, 224.65)}  # t_eps LFBS, T_PRM LFBS, t_eps RBBS, T_PRM RBBS
-SAMPLERS = ["lfbs", "rbbs"]
-
-
-def register(kinds) -> None:
-    p = kinds.add_parser("uav", help="the paper's maze/tunnel PRM tables: LFBS vs RBBS, t_eps, T_PRM, success")
-    p.add_argument("--seeds", type=positive_int, default=30)
-    p.add_argument("--workers", type=positive_int, default=1, help="parallel processes (1 keeps timings clean)")
-    p.add_argument("--store", default="out/bench-uav.sqlite")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=run)
+COMPARED_SAMPLERS = ["lfbs", "rbbs"]
 
 
 def specs(seeds: int, scenes=PAPER) -> list[TrialSpec]:
@@ -33,7 +24,7 @@ def specs(seeds: int, scenes=PAPER) -> list[TrialSpec]:
         params = {"narrow": setup["narrow"], "uniform": setup["uniform"], "k": 10, "smooth": 10,
                   "full_roadmap": True}
         out.extend(TrialSpec("prm", scene, sampler, step, seed, params)
-                   for step in setup["steps"] for sampler in SAMPLERS for seed in range(seeds))
+                   for step in setup["steps"] for sampler in COMPARED_SAMPLERS for seed in range(seeds))
     return out
 
 
@@ -53,23 +44,6 @@ def table(rows) -> list[dict]:
     return out
 
 
-def run(args) -> int:
-    from app.bench.runner import sweep
-
-    todo = specs(args.seeds)
-    result = table(sweep(todo, args.store, workers=args.workers, desc="bench uav"))
-    if args.json:
-        print_json({"uav": result, "seeds": args.seeds})
-        return 0
-    print(f"{args.seeds} seeds per cell; whole roadmap, every edge checked, k 10 (maze 200 + 300, tunnel 100 + 200 "
-          "samples); t_eps = narrow+uniform sampling time of successful runs, T_PRM = whole plan; paper's seconds in brackets")
-    print(f"{'scene':<7} {'step':>5} {'sampler':<8} {'success':>8} {'t_eps s':>9} {'T_PRM s':>9} {'checks':>9} "
-          f"{'paper t_eps':>12} {'paper T_PRM':>12}")
-    for r in result:
-        paper = PAPER_SECONDS.get((r["scene"], r["step"]))
-        t_eps, t_prm = (paper[0], paper[1]) if paper and r["sampler"] == "lfbs" else (paper[2], paper[3]) if paper \
-            else (None, None)
-        eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "-"
-        print(f"{r['scene']:<7} {r['step']:>5g} {r['sampler']:<8} {r['success_rate']:>8.0%} {eps:>9} "
-              f"{r['median_t_prm']:>9.2f} {r['median_checks']:>9.0f} {t_eps!s:>12} {t_prm!s:>12}")
-    return 0
+def measure(seeds: int, store, workers: int = 1) -> list[dict]:
+    """The paper's maze and tunnel cells for seeds 0..seeds-1 (trials `store` lacks are run), as `table` rows."""
+    return table(sweep(specs(seeds), store, workers=workers, desc="bench uav"))

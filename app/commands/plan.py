@@ -1,7 +1,11 @@
 """`plan SCENE ...`: PRM with narrow-passage samples, shortcut smoothing and Toppra timing (app.planner.plan)."""
-from app.cli import float_list, non_negative_int, positive_float, positive_int, print_json
+from app.commands import custom, view
+from app.commands.common import (float_list, non_negative_int, parse_budget, positive_float, positive_int,
+                                 print_json, sampler_name)
 from app.io import check_output
-from app.planner import PlanSettings
+from app.oracle import CollisionOracle
+from app.planner import PlanSettings, plan
+from app.viewer import ViewData
 
 DEFAULTS = PlanSettings()
 
@@ -10,7 +14,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("plan", help="plan a path (PRM + narrow-passage samples) and time it with Toppra")
     p.add_argument("scene", nargs="?",
                    help="scene name, problem-file path or custom scene file (or --robot/--env instead)")
-    p.add_argument("--sampler", default=DEFAULTS.sampler,
+    p.add_argument("--sampler", type=sampler_name, default=DEFAULTS.sampler,
                    help=f"narrow-passage sampler (default {DEFAULTS.sampler})")
     p.add_argument("--narrow", type=non_negative_int, default=DEFAULTS.narrow,
                    help=f"samples from --sampler (default {DEFAULTS.narrow})")
@@ -20,7 +24,7 @@ def register(subparsers) -> None:
                    help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
                         "of the scene's extent)")
     p.add_argument("--seed", type=non_negative_int, default=DEFAULTS.seed)
-    p.add_argument("--budget", default=None,
+    p.add_argument("--budget", type=parse_budget, default=None,
                    help="keep adding samples in rounds past --narrow/--uniform until connected or this is spent: "
                         "30s, 2min, 200000checks, 200kchecks, or both as 30s,200kchecks (default: stop at those "
                         "counts)")
@@ -41,30 +45,20 @@ def register(subparsers) -> None:
     p.add_argument("--out", default=None,
                    help="write the trajectory (times, positions, path, narrow samples) as JSON for `view "
                         "--trajectory`; only on success")
-    from app.commands import view
-
     view.add_arguments(p)  # --html / --meshcat / --frame / --collision: show the planned trajectory
-    from app.custom_scene import add_arguments as add_custom_scene_arguments
-
-    add_custom_scene_arguments(p)  # --robot / --package-path / --env / --env-pose / --bounds ... (issue 7)
+    custom.add_arguments(p)  # --robot / --package-path / --env / --env-pose / --bounds ...
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from app.oracle import CollisionOracle
-    from app.planner import plan
-    from app.roadmap import parse_budget
-    from app.custom_scene import scene_from_args
-
     # Everything that can be wrong with the input is found before the (slow) planning starts.
-    budget = parse_budget(args.budget) if args.budget is not None else None
     settings = PlanSettings(sampler=args.sampler, narrow=args.narrow, uniform=args.uniform, step=args.step,
-                            seed=args.seed, budget=budget, k=args.neighbours, smooth_rounds=args.smooth, dt=args.dt,
+                            seed=args.seed, budget=args.budget, k=args.neighbours, smooth_rounds=args.smooth, dt=args.dt,
                             full_roadmap=args.full_roadmap)
     out = check_output(args.out) if args.out else None
     if args.html:
         check_output(args.html)
-    oracle = CollisionOracle(scene_from_args(args, args.scene))
+    oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     result = plan(oracle, settings, start=args.start, goal=args.goal)
     if out is not None:
         result.trajectory_file().write(out)
@@ -73,10 +67,7 @@ def run(args) -> int:
     else:
         print(summary(result))
     if args.html or args.meshcat:
-        from app.commands.view import publish_from_args
-        from app.viewer import ViewData
-
-        publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+        view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
     return 0
 
 

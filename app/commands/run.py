@@ -1,19 +1,25 @@
 """`run welding|window`: the scripted UR3 jobs, planned leg by leg into one trajectory, with a summary table."""
 from dataclasses import replace
 
-from app.cli import non_negative_int, positive_float, print_json
+from app.commands.common import non_negative_int, parse_budget, positive_float, print_json, sampler_name
 from app.commands.view import add_arguments, publish_from_args
+from app.errors import UserError
+from app.io import check_output
+from app.oracle import CollisionOracle
+from app.runs import JOB_SETTINGS, ROUTES, run_job
+from app.scene import Scene
+from app.viewer import ViewData
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("run", help="scripted UR3 jobs: welding (seam point to point), window (reach, place)")
     p.add_argument("job", help="welding or window (the scene of the same name)")
-    p.add_argument("--sampler", default="lfbs")
+    p.add_argument("--sampler", type=sampler_name, default=JOB_SETTINGS.sampler)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--narrow", type=non_negative_int, default=40, help="narrow-passage samples per planned leg")
     p.add_argument("--uniform", type=non_negative_int, default=40, help="uniform samples per planned leg")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
-    p.add_argument("--budget", default="30s", help="per planned leg, e.g. 30s or 500kchecks")
+    p.add_argument("--budget", type=parse_budget, default="30s", help="per planned leg, e.g. 30s or 500kchecks")
     p.add_argument("--full-roadmap", action="store_true",
                    help="per planned leg, draw every sample and check every edge before the query (as `plan`)")
     p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
@@ -23,18 +29,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from app.oracle import CollisionOracle
-    from app.roadmap import parse_budget
-    from app.runs import JOB_SETTINGS, ROUTES, run_job
-    from app.scene import Scene
-    from app.errors import UserError
-    from app.io import check_output
-    from app.viewer import ViewData
-
     if args.job not in ROUTES:
         raise UserError(f"unknown job '{args.job}' (known: {', '.join(ROUTES)})")
     settings = replace(JOB_SETTINGS, sampler=args.sampler, seed=args.seed, narrow=args.narrow, uniform=args.uniform,
-                       step=args.step, budget=parse_budget(args.budget), full_roadmap=args.full_roadmap)
+                       step=args.step, budget=args.budget, full_roadmap=args.full_roadmap)
     for target in (args.out, args.html):
         if target:
             check_output(target)
@@ -53,5 +51,6 @@ def run(args) -> int:
         s = result.seconds
         print(f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
               f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)")
-    publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+    if args.html or args.meshcat:
+        publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
     return 0

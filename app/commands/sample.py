@@ -1,22 +1,15 @@
 """`sample SCENE --sampler NAME`: draw k narrow-passage samples, report them (JSON or a summary) and draw them."""
-import argparse
-import numpy as np
-
-from app.cli import non_negative_int, positive_float, positive_int, print_json
-
-
-def _sampler_name(text: str) -> str:
-    from app.samplers import SAMPLERS
-
-    if text not in SAMPLERS:
-        raise argparse.ArgumentTypeError(f"unknown sampler '{text}' (known: {', '.join(SAMPLERS)})")
-    return text
+from app.bench.sampling import run_trial
+from app.commands.common import non_negative_int, positive_float, positive_int, print_json, sampler_name
+from app.custom_scene import load_scene
+from app.errors import SamplerBudgetExceeded
+from app.oracle import CollisionOracle
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("sample", help="draw k samples with one of the seven samplers")
     p.add_argument("scene", help="scene name, problem-file path or custom scene file")
-    p.add_argument("--sampler", type=_sampler_name, required=True,
+    p.add_argument("--sampler", type=sampler_name, required=True,
                    help="uniform, gaussian, rbbs, rws, lfs, rwbs or lfbs")
     p.add_argument("-k", type=positive_int, default=30, help="number of samples (default 30)")
     p.add_argument("--step", type=positive_float, default=10.0,
@@ -29,11 +22,6 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from app.bench.sampling import run_trial
-    from app.oracle import CollisionOracle
-    from app.samplers import SamplerBudgetExceeded
-    from app.custom_scene import load_scene
-
     oracle = CollisionOracle(load_scene(args.scene), threads=args.threads)
     result = run_trial(oracle, args.sampler, args.step, args.seed, k=args.k, keep_samples=True)
     if not result["ok"]:
@@ -41,6 +29,8 @@ def run(args) -> int:
                                     f"collision checks")
     samples = result["samples"]
     if args.png:
+        from app.draw import draw_samples  # loads matplotlib: only when a picture is asked for
+
         draw_samples(oracle, samples, args.png, title=f"{oracle.scene.name}: {args.sampler}, k={args.k}, "
                                                       f"step {args.step:g}, seed {args.seed}")
     out = {
@@ -62,24 +52,3 @@ def run(args) -> int:
         if args.png:
             print(args.png)
     return 0
-
-
-def draw_samples(oracle, samples: np.ndarray, path: str, title: str | None = None) -> None:
-    """The scene with every sample: faint robots in 2D (like the paper's Fig. 3), frame positions as dots in 3D."""
-    from app.draw import draw_robot, save, scene_figure
-
-    fig, ax = scene_figure(oracle, title=title)
-    inside = oracle.in_passage(samples)
-    if oracle.scene.problem.view == "3d":
-        p = oracle.frame_positions(samples) if len(samples) else np.empty((0, 3))
-        for q in samples:
-            draw_robot(ax, oracle, q, color="tab:blue", alpha=0.06)
-        ax.scatter(*p[~inside].T, s=14, color="tab:blue", depthshade=False, label="sample")
-        ax.scatter(*p[inside].T, s=18, color="tab:red", depthshade=False, label="sample in passage")
-    else:
-        for q, hit in zip(samples, inside):
-            draw_robot(ax, oracle, q, color="tab:red" if hit else "tab:blue", alpha=0.18)
-        p = oracle.frame_positions(samples) if len(samples) else np.empty((0, 3))
-        ax.scatter(p[:, 0], p[:, 1], s=10, color="k", zorder=5, label="passage frame")
-    ax.legend(loc="upper right", fontsize=7)
-    save(fig, path)

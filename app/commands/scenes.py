@@ -1,5 +1,8 @@
 """`scenes` lists the shipped scenes; `show` draws one to a PNG."""
-from app.cli import print_json
+from app.commands.common import print_json
+from app.custom_scene import load_scene
+from app.oracle import CollisionOracle
+from app.scene import Scene, scene_names
 
 
 def register(subparsers) -> None:
@@ -14,8 +17,6 @@ def register(subparsers) -> None:
 
 
 def run_scenes(args) -> int:
-    from app.scene import Scene, scene_names
-
     scenes = [Scene(name).summary() for name in scene_names()]
     if args.json:
         print_json({"scenes": scenes})
@@ -27,9 +28,7 @@ def run_scenes(args) -> int:
 
 
 def run_show(args) -> int:
-    from app.draw import draw_scene
-    from app.oracle import CollisionOracle
-    from app.custom_scene import load_scene
+    from app.draw import draw_scene  # loads matplotlib: only when a picture is drawn
 
     oracle = CollisionOracle(load_scene(args.scene))
     draw_scene(oracle, args.png)

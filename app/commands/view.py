@@ -2,6 +2,12 @@
 
 `add_arguments` and `publish_from_args` give any command (plan, run) the same --html / --meshcat / --frame flags.
 """
+import sys
+
+from app.custom_scene import load_scene
+from app.errors import UserError
+from app.trajectory import TrajectoryFile
+from app.viewer import ViewData, publish
 
 
 def add_arguments(p) -> None:
@@ -14,10 +20,23 @@ def add_arguments(p) -> None:
 
 
 def publish_from_args(args, scene, data):
-    """Show/export `data` (an app.viewer.ViewData) as the flags of `add_arguments` ask; None when none was given."""
-    from app.viewer import publish
+    """Show/export `data` (an app.viewer.ViewData) as the flags of `add_arguments` ask; None when none was given.
 
-    return publish(scene, data, meshcat=args.meshcat, html=args.html, frame=args.frame, collision=args.collision)
+    With --meshcat the URL goes to stderr (stdout may carry a command's JSON) and, when stdin is a terminal, the
+    server stays up until Enter or Ctrl-C; otherwise (CI, pipes) this returns at once.
+    """
+    if not args.meshcat and not args.html:
+        return None
+    viewer = publish(scene, data, html=args.html, frame=args.frame, collision=args.collision)
+    if args.meshcat:
+        print(f"meshcat: {viewer.url()}", file=sys.stderr, flush=True)
+        if sys.stdin is not None and sys.stdin.isatty():
+            print("press Enter (or Ctrl-C) to quit the viewer", file=sys.stderr, flush=True)
+            try:
+                sys.stdin.readline()
+            except KeyboardInterrupt:
+                pass
+    return viewer
 
 
 def register(subparsers) -> None:
@@ -30,11 +49,6 @@ def register(subparsers) -> None:
 
 
 def run_view(args) -> int:
-    from app.errors import UserError
-    from app.custom_scene import load_scene
-    from app.trajectory import TrajectoryFile
-    from app.viewer import ViewData
-
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
     scene = load_scene(args.scene)

@@ -8,7 +8,7 @@ from __future__ import annotations
 from functools import partial
 
 from app.errors import UserError
-from app.samplers.base import Sampler, SamplerBudgetExceeded
+from app.samplers.base import Sampler
 from app.samplers.bridge import BridgeSampler
 from app.samplers.uniform import GaussianSampler, UniformSampler
 from app.samplers.walk import Walker
@@ -40,4 +40,4 @@ def make_sampler(name: str, oracle, **params) -> Sampler:
         raise UserError(f"sampler '{name}': {exc}") from None
 
 
-__all__ = ["SAMPLERS", "Sampler", "SamplerBudgetExceeded", "check_name", "make_sampler"]
+__all__ = ["SAMPLERS", "Sampler", "check_name", "make_sampler"]

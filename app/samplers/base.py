@@ -12,13 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from app.errors import UserError
-
-
-class SamplerBudgetExceeded(UserError):
-    """The sampler spent its collision-check budget before it had k samples."""
-
-    exit_code = 1
+from app.errors import SamplerBudgetExceeded, UserError
 
 
 def unit_directions(rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
@@ -72,7 +66,8 @@ class Sampler:
                 self.stats["checks"] = spent
                 raise SamplerBudgetExceeded(
                     f"{self.name}: gave up after {spent} collision checks and {self.stats['rounds']} rounds "
-                    f"with {have} of {k} samples (raise max_checks or change the step)")
+                    f"with {have} of {k} samples (its limits per call: {self.max_checks} checks, "
+                    f"{self.max_rounds} rounds; another step may need fewer)")
             self.stats["rounds"] += 1
             got, ends = self._round(rng, k - have)
             if len(got):

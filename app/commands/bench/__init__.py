@@ -1,0 +1,12 @@
+"""`bench KIND ...`: one module per benchmark; each adds its sub-command, runs its experiment (app.bench.KIND) and
+prints the result."""
+from app.commands.bench import jobs, ompl, oracle, paper, plan, sampling, uav
+
+KINDS = [oracle, sampling, plan, uav, jobs, ompl, paper]
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("bench", help="benchmarks (figures side by side with their peers, in one run)")
+    kinds = p.add_subparsers(dest="kind", required=True, parser_class=type(p))
+    for kind in KINDS:
+        kind.register(kinds)
