@@ -1,6 +1,7 @@
 """How much a query may spend: wall-clock seconds and/or collision checks, whichever runs out first."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 
@@ -22,3 +23,55 @@ class Budget:
         if self.checks is not None:
             parts.append(f"{self.checks}checks")
         return ",".join(parts) or "none"
+
+
+class BudgetSpent(Exception):
+    """Raised by the oracle when a Stop it was given runs out; the query that set the stop catches it."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason  # "time" or "checks"
+
+
+class Stop:
+    """A Budget running against the clock and an oracle's check counter, from the moment it is made.
+
+    Like OMPL's PlannerTerminationCondition it travels down to where the work is: the oracle polls it before every
+    collision batch (`allow`), so sampling, edge checks and smoothing all stop within one batch of the limit, and a
+    check limit is never overrun."""
+
+    def __init__(self, budget: Budget, oracle):
+        self.budget, self._oracle = budget, oracle
+        self._t0, self._c0 = time.perf_counter(), oracle.checks
+
+    def seconds(self) -> float:
+        return time.perf_counter() - self._t0
+
+    def checks(self) -> int:
+        return self._oracle.checks - self._c0
+
+    def reason(self) -> str | None:
+        """'time' or 'checks' once the budget is spent, else None."""
+        b = self.budget
+        if b.seconds is not None and self.seconds() >= b.seconds:
+            return "time"
+        if b.checks is not None and self.checks() >= b.checks:
+            return "checks"
+        return None
+
+    def allow(self, n: int) -> int:
+        """How many of the next n checks may run (all of them, or what the check limit leaves); BudgetSpent when
+        none may."""
+        reason = self.reason()
+        if reason is not None:
+            raise BudgetSpent(reason)
+        if self.budget.checks is None:
+            return n
+        return min(n, self.budget.checks - self.checks())
+
+    def within(self, checks: int, reserve: int = 0) -> Stop:
+        """A stop for part of the work: what is left of this budget less `reserve` checks, and at most `checks`
+        more checks."""
+        left = None if self.budget.checks is None else max(0, self.budget.checks - self.checks() - reserve)
+        seconds = None if self.budget.seconds is None else max(0.0, self.budget.seconds - self.seconds())
+        return Stop(Budget(seconds=seconds, checks=checks if left is None else min(left, checks)), self._oracle)

@@ -412,8 +412,8 @@ def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | No
         raise UserError("collisions must be 'environment' or 'all'")
     if spec.mesh_method not in meshes.METHODS:
         raise UserError(f"unknown mesh method '{spec.mesh_method}' (known: {', '.join(meshes.METHODS)})")
-    if spec.resolution < 0 or spec.mesh_tolerance < 0:
-        raise UserError("resolution and mesh tolerance must not be negative")
+    if not (0 <= spec.resolution < math.inf and 0 <= spec.mesh_tolerance < math.inf):
+        raise UserError("resolution and mesh tolerance must be finite and not negative")
     packages = parse_package_paths(spec.package_path, base)
     robot_path = resolve(spec.robot)
     robot_kind = _kind(robot_path, "robot")

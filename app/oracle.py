@@ -25,6 +25,7 @@ import time
 
 import numpy as np
 
+from app.budget import BudgetSpent, Stop
 from app.cspace import ConfigurationSpace
 from app.scene import Scene
 # pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
@@ -33,6 +34,8 @@ from app.scene import Scene
 _BATCH_MIN = 8
 # Every this many batch calls, the path not in favour is measured again.
 _PROBE_EVERY = 16
+# Most configurations one edge-check call hands Drake at once (a few tenths of a second), so a stop is polled often.
+_MAX_BATCH = 4096
 
 
 
@@ -56,6 +59,7 @@ class CollisionOracle:
         self._cost = {"batch": None, "raw": None}  # running seconds per configuration of each are_free path
         self._batch_calls = 0
         self.checks = 0
+        self.stop: Stop | None = None  # set by a query for its duration: every counted answer polls it
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
         self.checker = SceneGraphCollisionChecker(
@@ -108,18 +112,37 @@ class CollisionOracle:
         self.plant.SetPositions(self._ctx, q)
         return not self._query_port.Eval(self._ctx).HasCollisions()
 
+    def poll(self) -> None:
+        """BudgetSpent if the stop is spent: for loops that may go round without asking Drake anything (a
+        sampler whose proposals all leave the bounds)."""
+        if self.stop is not None:
+            self.stop.allow(0)
+
     def is_free(self, q: np.ndarray) -> bool:
         q = np.asarray(q, float)
         if not self.space.within_bounds(q)[0]:
             return False
+        if self.stop is not None:
+            self.stop.allow(1)
         self.checks += 1
         return self._raw_free(q)
 
     def are_free(self, Q: np.ndarray) -> np.ndarray:
-        """Free flags for a batch (n, dim); the batch is spread over the oracle's threads."""
+        """Free flags for a batch (n, dim); the batch is spread over the oracle's threads. Under a `stop`, a batch
+        the check limit cannot hold is checked as far as it goes, then BudgetSpent is raised."""
         Q = np.atleast_2d(np.asarray(Q, float))
         free = self.space.within_bounds(Q)
         inside = np.flatnonzero(free)
+        if self.stop is not None and len(inside):
+            allowed = self.stop.allow(len(inside))
+            if allowed < len(inside):
+                self._answer(Q, inside[:allowed], free)
+                raise BudgetSpent("checks")
+        self._answer(Q, inside, free)
+        return free
+
+    def _answer(self, Q: np.ndarray, inside: np.ndarray, free: np.ndarray) -> None:
+        """Ask Drake about Q[inside], counted, into `free`, by the cheaper path."""
         self.checks += len(inside)
         if self.threads == 1 or len(inside) < _BATCH_MIN:
             path = "raw"
@@ -135,7 +158,6 @@ class CollisionOracle:
             cost = (time.perf_counter() - start) / len(inside)
             old = self._cost[path]
             self._cost[path] = cost if old is None else 0.7 * old + 0.3 * cost
-        return free
 
     def _choose_path(self) -> str:
         """The batch path with the lower running cost per configuration; each is tried first, and the other one
@@ -149,36 +171,47 @@ class CollisionOracle:
             return "batch" if best == "raw" else "raw"
         return best
 
-    def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False,
-                   max_points: int | None = None) -> np.ndarray:
+    def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None,
+                   ends_free: bool = False) -> np.ndarray:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
 
         Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
-        its first collision, so colliding edges cost few checks and every round is one batched call. Only the points
-        a round checks are computed (a screen of a lazy roadmap's 100k candidate edges needs 3 points of each).
+        its first collision, so colliding edges cost few checks and every round is one batched call (split into
+        batches of at most _MAX_BATCH, so a stop is polled often). Only the points a round checks are computed.
         ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
-        max_points: a screen -- at most this many points per edge, coarsest first; True then only means that none
-        of them collides.
         """
+        return self.edges_status(Q1, Q2, resolution, ends_free)[0]
+
+    def edges_status(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False,
+                     until_one_collides: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """(free, decided) flags for the edges, checked as `edges_free` does. With `until_one_collides` the check
+        ends after the first coarse-to-fine round in which any edge collides (the edges of one candidate path: one
+        collision condemns the path, and finishing its free edges would be wasted); edges not finished by then are
+        not decided."""
         space = self.space
         Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
         D = space.difference(Q1, Q2)
         n = space.segments(Q1, Q2, resolution)
-        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0:][:max_points] for k in n.tolist()]
+        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0:] for k in n.tolist()]
         free = np.ones(len(Q1), bool)
         cursor = np.zeros(len(Q1), int)
         chunk = 1
         while True:
             live = [i for i in np.flatnonzero(free).tolist() if cursor[i] < len(orders[i])]
             if not live:
-                return free
+                return free, np.ones(len(Q1), bool)
             takes = [orders[i][cursor[i]:cursor[i] + chunk] for i in live]
             lengths = np.array([len(t) for t in takes])
             cursor[live] += lengths
             owner = np.repeat(live, lengths)
             t = np.concatenate(takes) / n[owner]
-            ok = self.are_free(space.wrap(Q1[owner] + t[:, None] * D[owner]))
-            free[np.unique(owner[~ok])] = False
+            points = space.wrap(Q1[owner] + t[:, None] * D[owner])
+            ok = np.concatenate([self.are_free(points[b:b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
+            hit_owners = np.unique(owner[~ok])
+            free[hit_owners] = False
+            if until_one_collides and len(hit_owners):
+                decided = ~free | (cursor >= np.array([len(o) for o in orders]))
+                return free, decided
             chunk *= 2  # few points first (endpoints, midpoints), then ever finer
 
     def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:

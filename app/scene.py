@@ -18,6 +18,7 @@ from app.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES_DIR = ROOT / "scenes"
+MIN_RESOLUTION = 1e-5  # the finest edge-check step, as a fraction of the weighted diagonal of the bounds
 PACKAGES = {"npp_robots": ROOT / "robots", "npp_scenes": SCENES_DIR}
 
 
@@ -163,8 +164,11 @@ class Scene:
             raise UserError(f"bad scene file {self.path.name}: weights must be positive")
         self.start = self._vector("start", problem.start, None)
         self.goal = self._vector("goal", problem.goal, None)
-        if not problem.resolution > 0:
-            raise UserError(f"bad scene file {self.path.name}: resolution must be positive")
+        diagonal = float(np.linalg.norm((self.upper - self.lower) * self.weights))
+        if not (math.isfinite(problem.resolution) and problem.resolution >= MIN_RESOLUTION * diagonal):
+            # Edges are checked at points this far apart: a finer step makes an edge check of millions of points.
+            raise UserError(f"bad scene file {self.path.name}: resolution must be a finite number of at least "
+                            f"{MIN_RESOLUTION:g} x the bounds' diagonal ({MIN_RESOLUTION * diagonal:.3g})")
         self.resolution = float(problem.resolution)
         if not (problem.step >= 0 and math.isfinite(problem.step)):
             raise UserError(f"bad scene file {self.path.name}: step must be a non-negative number")

@@ -82,26 +82,25 @@ def test_edges_free_matches_pointwise_checks(oracles):
     assert 0 < flags.sum() < len(flags)
 
 
-def test_a_screen_checks_the_coarsest_points_and_known_free_ends_are_skipped(oracles):
+def test_known_free_ends_are_skipped_and_a_path_check_ends_at_its_first_collision(oracles):
     oracle = oracles("joint3d")
     rng = np.random.default_rng(3)
     A, B = oracle.space.uniform(rng, 60), oracle.space.uniform(rng, 60)
     keep = oracle.are_free(A) & oracle.are_free(B)  # endpoints free, as roadmap nodes are
     A, B = A[keep], B[keep]
     full = oracle.edges_free(A, B)
-    oracle.reset()
-    screen = oracle.edges_free(A, B, max_points=1, ends_free=True)
-    assert oracle.checks == len(A)  # one point per edge: its midpoint
-    points = [oracle.space.interpolate(a, b) for a, b in zip(A, B)]
-    mids = np.array([p[round((len(p) - 1) / 2)] for p in points])
-    assert np.array_equal(screen, oracle.are_free(mids))
-    assert np.all(screen >= full)  # a screen only ever drops edges that collide
-    assert (screen > full).any()  # and lets some colliding ones through, for the full check to find
+    assert full.any() and not full.all()
     oracle.reset()
     assert np.array_equal(oracle.edges_free(A, B, ends_free=True), full)
     expected = sum(len(oracle.space.interpolate(a, b)) - 2 for a, b in zip(A[full], B[full]))
     assert oracle.checks >= expected  # every free edge's inner points, not its ends
-
+    everything = oracle.checks
+    oracle.reset()
+    free, decided = oracle.edges_status(A, B, ends_free=True, until_one_collides=True)
+    assert oracle.checks < everything / 4  # stopped early: the first round with a collision ends it
+    assert np.array_equal(free[decided], full[decided])  # what it decided is right
+    assert (~free[decided]).any() and not decided.all()  # at least one collision found, some edges left open
+    assert np.all(free[~decided])  # an undecided edge has not been seen to collide
 
 def test_distance_takes_the_short_way_round_on_continuous_angles(oracles):
     oracle = oracles("bar")

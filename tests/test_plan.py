@@ -3,6 +3,7 @@ within the limits, reproducibility, and the command line's exit codes."""
 import dataclasses
 import json
 import math
+import time
 
 import numpy as np
 import pytest
@@ -114,12 +115,14 @@ def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
 
 
 def test_a_query_stops_at_the_first_round_that_connects_and_checks_edges_lazily(oracles, planned):
-    result = planned("bar")  # 200 + 300 samples at most, a quarter (50 + 75) per round
-    assert result.roadmap["narrow_nodes"] == 50 * result.rounds
+    result = planned("bar")  # 75 uniform samples a round; narrow ones from round 2, 13, 26, 50, 50, ...
     assert result.roadmap["uniform_nodes"] == 75 * result.rounds
-    assert result.rounds < 4 and result.roadmap["lazy"]
+    assert result.narrow_from_round == 2 and result.rounds >= 2  # bar's gap is not found by 75 uniform samples
+    ramp = [min(50, 13 * 2**k) for k in range(result.rounds - 1)]
+    assert result.roadmap["narrow_nodes"] == sum(ramp) and result.narrow_on_path >= 1
+    assert result.rounds < 6 and result.roadmap["lazy"]
     assert result.roadmap["edges_unchecked"] > 0  # most candidate edges never lay on a candidate path
-    assert result.roadmap["edges_tried"] < result.roadmap["edges"] / 2
+    assert result.roadmap["edges_tried"] < result.roadmap["edges_proposed"] / 2
     graph = result.graph.graph
     assert all(graph[u][v]["checked"] for u, v in zip(result.path_nodes[:-1], result.path_nodes[1:]))
 
@@ -192,8 +195,41 @@ def test_endpoint_errors_in_the_api(oracles):
 
 def test_no_path_says_what_was_tried(oracles):
     with pytest.raises(NoPath, match=r"roadmap of 12 nodes .* components, start and goal in different ones") as info:
-        plan(oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=10, seed=0))
-    assert info.value.details["roadmap"]["nodes"] == 12
+        plan(oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=10, seed=0, full_roadmap=True))
+    assert info.value.details["roadmap"]["nodes"] == 12 and "may not grow further" in str(info.value)
+
+
+def test_a_free_straight_motion_is_the_answer_after_one_edge_check(oracles):
+    oracle = oracles("joint3d")
+    start, goal = [20, 25, 75, 0, 0, 0], [30, 25, 75, 0.5, 0, 0]
+    result = plan(oracle, PlanSettings(seed=0), start=start, goal=goal)
+    assert result.rounds == 0 and len(result.path) == 2 and result.smoothing["straight"]
+    inner = len(oracle.space.interpolate(start, goal, oracle.space.resolution / 4)) - 2
+    assert result.collision_checks == 2 + inner  # the endpoints, then every inner point of one fine edge check
+
+
+def test_a_check_budget_is_never_overrun(oracles):
+    oracle = oracles("joint3d")  # joint3d's hole is beyond 8000 checks of uniform samples
+    with pytest.raises(NoPath, match=r"budget 8000checks spent \(checks\)") as info:
+        plan(oracle, PlanSettings(sampler="uniform", narrow=0, uniform=40, seed=0, budget=Budget(checks=8000)))
+    assert 8000 <= info.value.details["collision_checks"] <= 8000 + 2  # + the two endpoint checks before it
+    assert info.value.details["rounds"] > 1
+
+
+def test_a_time_budget_ends_sampling_within_a_round(oracles):
+    """rbbs spends most of a round looking for bridges in the maze: the budget stops it inside the sampler."""
+    oracle = oracles("maze")
+    clock = time.perf_counter()
+    with pytest.raises(NoPath, match=r"budget 0.5s spent \(time\)"):
+        plan(oracle, PlanSettings(sampler="rbbs", seed=0, step=0.3, budget=Budget(seconds=0.5)))
+    assert time.perf_counter() - clock < 2.0  # a generous bound on a loaded machine; rounds took tens of seconds
+
+
+def test_parameters_that_would_never_end_are_refused(oracles):
+    with pytest.raises(UserError, match="longer than the scene's diagonal"):
+        plan(oracles("bar-3link"), PlanSettings(step=1e308))
+    with pytest.raises(UserError, match="dt must be at least"):
+        PlanSettings(dt=1e-7)
 
 
 def test_budget_adds_rounds_until_spent(oracles):

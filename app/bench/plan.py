@@ -14,7 +14,7 @@ from app.bench.runner import sweep
 from app.bench.store import TrialSpec
 from app.budget import Budget
 from app.errors import NoPath
-from app.planner import PlanSettings, default_step, plan
+from app.planner import DEFAULT_BUDGET, PlanSettings, default_step, plan
 from app.scene import Scene
 
 COMPARED_SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]  # the default of `bench plan --samplers`
@@ -27,7 +27,10 @@ SIZE = {"narrow": PlanSettings.narrow, "uniform": PlanSettings.uniform, "k": Pla
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One plan: success, seconds (whole pipeline), seconds to a path, checks, roadmap and path facts."""
     p = spec.params
-    budget = Budget(seconds=float(p["budget"])) if p.get("mode") == "budget" else None
+    # Without a budget of its own a trial has the planner's default; the paper's fixed roadmap is not cut short.
+    full_roadmap = bool(p.get("full_roadmap", True))
+    budget = (Budget(seconds=float(p["budget"])) if p.get("mode") == "budget"
+              else Budget() if full_roadmap else DEFAULT_BUDGET)
     narrow = int(p.get("narrow", SIZE["narrow"]))
     uniform = int(p.get("uniform", SIZE["uniform"]))
     if spec.method == "uniform":  # the same roadmap size, all of it uniform
@@ -37,7 +40,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         r = plan(oracle, PlanSettings(sampler=spec.method, narrow=narrow, uniform=uniform, step=spec.step,
                                       seed=spec.seed, budget=budget, k=p.get("k", SIZE["k"]),
                                       smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
-                                      full_roadmap=bool(p.get("full_roadmap", True))))  # rows made before the key: one round
+                                      full_roadmap=full_roadmap))
     except NoPath as exc:
         d = getattr(exc, "details", {})
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_to_path": None,

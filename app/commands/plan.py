@@ -17,17 +17,18 @@ def register(subparsers) -> None:
     p.add_argument("--sampler", type=sampler_name, default=DEFAULTS.sampler,
                    help=f"narrow-passage sampler (default {DEFAULTS.sampler})")
     p.add_argument("--narrow", type=non_negative_int, default=DEFAULTS.narrow,
-                   help=f"samples from --sampler (default {DEFAULTS.narrow})")
+                   help=f"narrow-passage samples: per round narrow/16 at first, doubling up to narrow/4; with "
+                        f"--full-roadmap all of them (default {DEFAULTS.narrow})")
     p.add_argument("--uniform", type=non_negative_int, default=DEFAULTS.uniform,
-                   help=f"uniform free samples (default {DEFAULTS.uniform})")
+                   help=f"uniform free samples: uniform/4 per round; with --full-roadmap all of them "
+                        f"(default {DEFAULTS.uniform})")
     p.add_argument("--step", type=positive_float, default=None,
                    help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
                         "of the scene's extent)")
     p.add_argument("--seed", type=non_negative_int, default=DEFAULTS.seed)
-    p.add_argument("--budget", type=parse_budget, default=None,
-                   help="keep adding samples in rounds past --narrow/--uniform until connected or this is spent: "
-                        "30s, 2min, 200000checks, 200kchecks, or both as 30s,200kchecks (default: stop at those "
-                        "counts)")
+    p.add_argument("--budget", type=parse_budget, default=DEFAULTS.budget,
+                   help="what the query may spend before it gives up: 30s, 2min, 200000checks, 200kchecks, or both "
+                        f"as 30s,200kchecks (default {DEFAULTS.budget})")
     p.add_argument("--full-roadmap", action="store_true",
                    help="build the whole roadmap (all --narrow + --uniform samples, every edge checked) before the "
                         "query, as in the paper; default: add samples a quarter at a time, check edges lazily, and "
@@ -73,8 +74,7 @@ def run(args) -> int:
 
 def summary(r) -> str:
     m, s, t = r.roadmap, r.seconds, r.trajectory
-    edges = (f"{m['edges']} candidate edges ({m['edges_screened_out']} more screened out), {m['edges_tried']} "
-             f"checked in full (lazy)" if m["lazy"] else
+    edges = (f"{m['edges']} candidate edges, {m['edges_tried']} checked when a search used them (lazy)" if m["lazy"] else
              f"{m['edges']} edges, {m['components']} components, {m['edges_tried']} edges tried")
     lines = [
         f"plan {r.scene}: path found with {r.sampler} (seed {r.seed}, step {r.step:g})",

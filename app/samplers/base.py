@@ -69,6 +69,7 @@ class Sampler:
                     f"with {have} of {k} samples (its limits per call: {self.max_checks} checks, "
                     f"{self.max_rounds} rounds; another step may need fewer)")
             self.stats["rounds"] += 1
+            oracle.poll()
             got, ends = self._round(rng, k - have)
             if len(got):
                 got = got[:k - have]
