@@ -45,8 +45,8 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     try:
         settings = replace(JOB_SETTINGS, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
                            uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])),
-                           full_roadmap=bool(p.get("full_roadmap", True)))  # rows made before the key: full
-        r = run_job(oracle, spec.scene, settings)  # rows made before the key: full
+                           full_roadmap=bool(p["full_roadmap"]))
+        r = run_job(oracle, spec.scene, settings)
     except UserError as exc:  # NoPath, or IK finding no collision-free pose
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_ik": None,
                 "seconds_planning": None, "collision_checks": oracle.checks, "error": str(exc)[:200]}
@@ -61,7 +61,7 @@ def table(rows) -> list[dict]:
     cells = {}
     for r in rows:
         if r["experiment"] == "ur3":
-            mode = "full" if r["params"].get("full_roadmap", True) else "query"  # rows made before the key: full
+            mode = "full" if r["params"]["full_roadmap"] else "query"
             cells.setdefault((r["scene"], r["method"], mode), []).append(r["metrics"])
     out = []
     for (job, sampler, mode), metrics in sorted(cells.items()):

@@ -73,7 +73,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         r = plan(oracle, PlanSettings(sampler=spec.method, narrow=narrow, uniform=uniform, step=spec.step,
                                       seed=spec.seed, budget=budget, k=p.get("k", SIZE["k"]),
                                       smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
-                                      full_roadmap=bool(p.get("full_roadmap", True))))  # rows made before the key: one round
+                                      full_roadmap=bool(p["full_roadmap"])))
     except NoPath as exc:
         d = getattr(exc, "details", {})
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_to_path": None,
@@ -98,7 +98,7 @@ def specs(scenes, samplers, seeds, params, step) -> list[TrialSpec]:
 def summarise(rows) -> list[dict]:
     cells = {}
     for r in rows:
-        mode = "full" if r["params"].get("full_roadmap", True) else "query"  # rows made before the key: one round
+        mode = "full" if r["params"]["full_roadmap"] else "query"
         cells.setdefault((r["scene"], r["method"], mode), []).append(r["metrics"])
     table = []
     for (scene, method, mode), metrics in cells.items():
