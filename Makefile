@@ -20,6 +20,8 @@ chromium:
 	command -v chromium >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null)
 
 test: $(STAMP) chromium
+	$(VENV)/bin/ruff check app tests
+	$(VENV)/bin/ruff format --check app tests
 	$(PY) -m pytest -q
 
 test-slow: $(STAMP)

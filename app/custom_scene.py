@@ -37,7 +37,8 @@ CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
 
 @dataclass
 class CustomSpec:
-    """The keys of a custom scene file (YAML); CLI flags map onto the same fields. Paths in a file are relative to it."""
+    """The keys of a custom scene file (YAML); CLI flags map onto the same fields. Paths in a file are relative to
+    it."""
 
     description: str = ""
     robot: str = ""  # .urdf/.sdf, or a mesh file (a free-flying body)
@@ -300,8 +301,7 @@ def convert_model_meshes(path: Path, packages: dict[str, Path], cache_dir: Path 
             head, _, tail = _ref_parts(m)
             uri = str(piece) if m.group(2) else f"file://{piece}"
             copy = block[:m.start()] + f"{head}{uri}{tail}" + block[m.end():]
-            copy = re.sub(r'(<collision\b[^>]*\bname\s*=\s*")([^"]*)(")', lambda n: f"{n.group(1)}{n.group(2)}_piece{k}"
-                          f"{n.group(3)}", copy, count=1)
+            copy = re.sub(r'(<collision\b[^>]*\bname\s*=\s*")([^"]*)(")', rf"\g<1>\g<2>_piece{k}\g<3>", copy, count=1)
             copies.append(copy)
         return "\n".join(copies)
 
@@ -323,7 +323,8 @@ def carrier_urdf(name: str, body_xml: str = "") -> str:
     `body` holding `body_xml` (collision/visual elements)."""
     links = ["origin", "px", "py", "pz", "yawed", "pitched", "body"]
     axes = ["1 0 0", "0 1 0", "0 0 1", "0 0 1", "0 1 0", "1 0 0"]
-    out = [f'<?xml version="1.0"?>\n<robot name="{name}" xmlns:drake="http://drake.mit.edu">', '  <link name="origin"/>']
+    out = [f'<?xml version="1.0"?>\n<robot name="{name}" xmlns:drake="http://drake.mit.edu">',
+           '  <link name="origin"/>']
     for link in links[1:-1]:
         out.append(f'  <link name="{link}">{_INERTIAL}</link>')
     out.append(f'  <link name="body">{_INERTIAL}\n{body_xml}  </link>')

@@ -109,7 +109,8 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         t, c = time.perf_counter(), oracle.checks
         if oracle.edge_free(qa, qb, oracle.resolution * FINE):
             path = np.array([qa, qb])
-            method, narrow_count, used, samples, on_path = "straight", 0, 0, np.empty((0, oracle.dim)), np.zeros(0, bool)
+            method, narrow_count, used = "straight", 0, 0
+            samples, on_path = np.empty((0, oracle.dim)), np.zeros(0, bool)
             trajectory = parameterize(oracle.plant, unwrap(oracle, path), oracle.scene.velocity_limits,
                                       oracle.scene.acceleration_limits, settings.dt)
         else:

@@ -292,8 +292,8 @@ def _overview_section(store: ResultStore, rows, folder: Path, config: Config | N
               "- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items()))
                                               or "none")]
     if config is not None:
-        lines += [f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per sampling cell, steps "
-                  f"{', '.join(f'{a:g}' for a in config.steps)}, K_c = {config.k}, check budget "
+        lines += [f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per "
+                  f"sampling cell, steps {', '.join(f'{a:g}' for a in config.steps)}, K_c = {config.k}, check budget "
                   f"{config.max_checks} per sampling trial, {config.prm_seeds} seeds per PRM cell, "
                   f"{config.ur3_runs} run(s) per UR3 job and sampler; parts: {', '.join(config.parts)}"]
     if wall_seconds is not None:

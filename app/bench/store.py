@@ -129,7 +129,8 @@ class ResultStore:
             self._db.execute(
                 "INSERT OR IGNORE INTO trials VALUES (?,?,?,?,?,?,?,?,?,?)",
                 (spec.key, spec.experiment, spec.scene, spec.method, float(spec.step), int(spec.seed),
-                 json.dumps(spec.params, sort_keys=True, default=_plain), json.dumps(metrics, default=_plain), self._version, time.time()))
+                 json.dumps(spec.params, sort_keys=True, default=_plain), json.dumps(metrics, default=_plain),
+                 self._version, time.time()))
 
     def rows_for(self, specs: list[TrialSpec]) -> list[dict]:
         """The stored rows of exactly these trials (a store may hold other sweeps, or other parameters)."""
