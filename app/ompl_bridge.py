@@ -15,7 +15,6 @@ import numpy as np
 
 from app.errors import UserError
 
-
 _seeded = False
 
 

@@ -14,9 +14,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from app.budget import Budget
 from app.errors import UserError
 from app.path import FINE, unwrap
-from app.budget import Budget
 from app.planner import PlanSettings, plan
 from app.timing import Trajectory, parameterize
 

@@ -35,8 +35,8 @@ def register(kinds) -> None:
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One scripted UR3 job (experiment "ur3", scene = job): seconds total/ik/planning, checks, success."""
-    from app.errors import UserError
     from app.budget import Budget
+    from app.errors import UserError
     from app.runs import JOB_SETTINGS, run_job
 
     p = spec.params

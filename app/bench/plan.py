@@ -58,8 +58,8 @@ def default_step(scene) -> float:
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One plan: success, seconds (whole pipeline), seconds to a path, checks, roadmap and path facts."""
-    from app.errors import NoPath
     from app.budget import Budget
+    from app.errors import NoPath
     from app.planner import plan
 
     p = spec.params
