@@ -1,4 +1,5 @@
-"""The results store survives a kill: a resumed sweep loses and duplicates nothing."""
+"""The results store survives a kill: a resumed sweep loses and duplicates nothing; a store of another schema is
+refused."""
 import os
 import signal
 import sqlite3
