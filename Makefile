@@ -22,6 +22,8 @@ chromium:
 
 test: $(STAMP) chromium
 	$(VENV)/bin/lint-imports
+	$(VENV)/bin/ruff check app tests
+	$(VENV)/bin/ruff format --check app tests
 	$(PY) -m pytest -q
 
 test-slow: $(STAMP)

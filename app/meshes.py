@@ -142,10 +142,10 @@ def hull_piece(points: np.ndarray) -> Piece:
     remap = {old: new for new, old in enumerate(hull.vertices)}
     faces = np.vectorize(remap.get)(hull.simplices)
     # Orient every triangle outward (scipy's simplices are not consistently wound).
-    for k, (i, j, l) in enumerate(faces):
-        n = np.cross(verts[j] - verts[i], verts[l] - verts[i])
+    for k, (a, b, c) in enumerate(faces):
+        n = np.cross(verts[b] - verts[a], verts[c] - verts[a])
         if np.dot(n, hull.equations[k, :3]) < 0:
-            faces[k] = (i, l, j)
+            faces[k] = (a, c, b)
     return Piece(verts, faces, hull.equations.copy())
 
 

@@ -18,7 +18,6 @@ from app.samplers import make_sampler
 # Importing this module loads OMPL (an optional dependency; the samplers below subclass its classes), so callers
 # import it only where OMPL is needed.
 
-
 _seeded = False
 
 

@@ -14,10 +14,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from app.budget import Budget
 from app.errors import UserError
 from app.ik import solve_poses
 from app.path import FINE
-from app.budget import Budget
 from app.planner import PlanSettings, plan
 from app.timing import parameterize
 from app.trajectory import Trajectory, TrajectoryFile
@@ -106,7 +106,8 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         t, c = time.perf_counter(), oracle.checks
         if oracle.edge_free(qa, qb, oracle.space.resolution * FINE):
             path = np.array([qa, qb])
-            method, narrow_count, used, samples, on_path = "straight", 0, 0, np.empty((0, oracle.space.dim)), np.zeros(0, bool)
+            method, narrow_count, used = "straight", 0, 0
+            samples, on_path = np.empty((0, oracle.space.dim)), np.zeros(0, bool)
             trajectory = parameterize(oracle.plant, oracle.space.unwrap(path), oracle.scene.velocity_limits,
                                       oracle.scene.acceleration_limits, settings.dt, oracle.space.names)
         else:

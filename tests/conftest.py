@@ -99,9 +99,8 @@ def one_line_error():
     return check
 
 
-# OMPL's nanobind bindings report "leaked" objects while the interpreter shuts down (harmless, and known: see
-# shared/notes/ompl-api.md). When OMPL was loaded, end the process right after pytest is done, so the test summary
-# stays the last thing printed.
+# OMPL's nanobind bindings report "leaked" objects while the interpreter shuts down (harmless: the process is ending).
+# When OMPL was loaded, end the process right after pytest is done, so the test summary stays the last thing printed.
 _exit_status = None
 
 

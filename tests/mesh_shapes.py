@@ -21,12 +21,12 @@ def _ear_clip(poly: np.ndarray) -> list[tuple[int, int, int]]:
 
     while len(idx) > 3:
         for k in range(len(idx)):
-            i, j, l = idx[k - 1], idx[k], idx[(k + 1) % len(idx)]
-            if cross(poly[i], poly[j], poly[l]) <= 0:
+            i, j, n = idx[k - 1], idx[k], idx[(k + 1) % len(idx)]
+            if cross(poly[i], poly[j], poly[n]) <= 0:
                 continue
-            if any(inside(poly[m], poly[i], poly[j], poly[l]) for m in idx if m not in (i, j, l)):
+            if any(inside(poly[m], poly[i], poly[j], poly[n]) for m in idx if m not in (i, j, n)):
                 continue
-            tris.append((i, j, l))
+            tris.append((i, j, n))
             idx.pop(k)
             break
     tris.append(tuple(idx))
@@ -38,8 +38,8 @@ def extrude_x(section: np.ndarray, length: float) -> trimesh.Trimesh:
     m = len(section)
     verts = np.vstack([np.c_[np.full(m, -length / 2), section], np.c_[np.full(m, length / 2), section]])
     faces = []
-    for i, j, l in _ear_clip(section):
-        faces += [(i, l, j), (m + i, m + j, m + l)]
+    for i, j, n in _ear_clip(section):
+        faces += [(i, n, j), (m + i, m + j, m + n)]
     for k in range(m):
         a, b = k, (k + 1) % m
         faces += [(a, b, m + b), (a, m + b, m + a)]

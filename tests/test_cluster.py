@@ -13,6 +13,7 @@ import pytest
 from app.bench.paper import sampling_specs
 from app.bench.runner import run_sweep
 from app.bench.store import ResultStore
+from app.scene import ROOT
 
 distributed = pytest.importorskip("distributed", reason="Dask not installed (pip install '.[cluster]')")
 
@@ -49,8 +50,11 @@ def test_dask_cluster_and_local_pool_give_the_same_rows(tmp_path):
                 cluster.close()
     """)
     (tmp_path / "dask_sweep.py").write_text(script)
+    # The script's own folder comes first on its sys.path: PYTHONPATH makes it (and Dask's workers) import the
+    # app under test rather than whichever copy is installed.
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     result = subprocess.run([sys.executable, str(tmp_path / "dask_sweep.py")], capture_output=True, text=True,
-                            env=os.environ.copy(), timeout=600)
+                            env=env, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.split() == [str(len(specs)), "0"]  # all ran once; the second sweep resumed to nothing
     remote = ResultStore(tmp_path / "dask.sqlite")

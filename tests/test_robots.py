@@ -12,7 +12,7 @@ from app.scene import ROOT, SCENES_DIR, Scene
 
 UAV_SCENES = ["maze", "tunnel"]
 ARM_SCENES = ["welding", "window"]
-NEW_SCENES = UAV_SCENES + ARM_SCENES
+UAV_AND_ARM_SCENES = UAV_SCENES + ARM_SCENES
 
 # Standard UR3 DH parameters (Universal Robots' published table).
 DH_D = [0.1519, 0.0, 0.0, 0.11235, 0.08535, 0.0819]
@@ -190,7 +190,7 @@ def test_bad_pose_entries_are_rejected(tmp_path, text, expected):
 
 
 def test_obstacle_files_match_their_generator():
-    spec = importlib.util.spec_from_file_location("make_issue5_obstacles", SCENES_DIR / "make_issue5_obstacles.py")
+    spec = importlib.util.spec_from_file_location("make_box_obstacles", SCENES_DIR / "make_box_obstacles.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     for filename, (model, comment, boxes) in module.FILES.items():
@@ -203,8 +203,8 @@ def test_models_are_primitive_shapes_only():
         assert "<mesh" not in text and "package://" not in text
 
 
-@pytest.mark.parametrize("name", NEW_SCENES)
-def test_batched_and_single_checks_agree_on_the_new_scenes(oracles, name):
+@pytest.mark.parametrize("name", UAV_AND_ARM_SCENES)
+def test_batched_and_single_checks_agree_on_the_uav_and_arm_scenes(oracles, name):
     """The cart is welded to the world yet part of the robot: the checker's batch path and the raw SceneGraph path
     must still see the same pairs (cart-arm counts, cart-floor obstacles never move relative to each other)."""
     oracle = oracles(name)

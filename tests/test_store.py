@@ -1,13 +1,18 @@
-"""The results store survives a kill: a resumed sweep loses and duplicates nothing."""
+"""The results store survives a kill: a resumed sweep loses and duplicates nothing; a store of another schema is
+refused."""
 import os
 import signal
+import sqlite3
 import subprocess
 import sys
 import textwrap
 import time
 
+import pytest
+
 from app.bench.runner import EXPERIMENTS, run_sweep
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import SCHEMA_VERSION, ResultStore, TrialSpec
+from app.errors import UserError
 
 TESTS = os.path.dirname(__file__)
 
@@ -35,6 +40,41 @@ def test_sweep_stores_each_trial_once(tmp_path, monkeypatch):
     assert sorted(r["seed"] for r in rows) == list(range(8))
     assert all(r["metrics"]["collision_checks"] == 20 for r in rows)
     assert rows[0]["code_version"]
+
+
+def test_a_reopened_store_resumes(tmp_path, monkeypatch):
+    monkeypatch.setitem(EXPERIMENTS, "toy", "toy_trials:run")
+    path = tmp_path / "r.sqlite"
+    store = ResultStore(path)
+    assert run_sweep(toy_specs(3), store, workers=1) == 3
+    store.close()
+    store = ResultStore(path)
+    assert run_sweep(toy_specs(5), store, workers=1) == 2
+    assert store.count() == 5
+
+
+@pytest.mark.parametrize("user_version, schema", [(0, 1), (SCHEMA_VERSION + 1, SCHEMA_VERSION + 1)])
+def test_a_store_of_another_schema_is_refused(tmp_path, user_version, schema):
+    """A store written before the version was recorded (user_version 0: schema 1) or by newer code is not read."""
+    path = tmp_path / "old.sqlite"
+    db = sqlite3.connect(path)
+    db.executescript(f"""
+        CREATE TABLE trials (key TEXT PRIMARY KEY, experiment TEXT NOT NULL, scene TEXT NOT NULL,
+            method TEXT NOT NULL, step REAL NOT NULL, seed INTEGER NOT NULL, params TEXT NOT NULL,
+            metrics TEXT NOT NULL, code_version TEXT NOT NULL, finished REAL NOT NULL);
+        INSERT INTO trials VALUES ('k', 'prm', 'bar', 'lfbs', 10.0, 0, '{{}}', '{{"success": 1.0}}', 'abc', 0);
+        PRAGMA user_version = {user_version};
+    """)
+    db.close()
+    with pytest.raises(UserError) as caught:
+        ResultStore(path)
+    message = str(caught.value)
+    assert message == (f"results store {path} has schema {schema}, this code writes {SCHEMA_VERSION}: "
+                       "move it away and run again")
+    db = sqlite3.connect(path)  # untouched
+    assert db.execute("SELECT COUNT(*), (SELECT user_version FROM pragma_user_version) FROM trials").fetchone() \
+        == (1, user_version)
+    db.close()
 
 
 def test_a_command_sweep_returns_only_its_own_rows(tmp_path, monkeypatch):

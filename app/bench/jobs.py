@@ -31,8 +31,8 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     try:
         settings = replace(JOB_SETTINGS, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
                            uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])),
-                           full_roadmap=bool(p.get("full_roadmap", True)))  # rows made before the key: full
-        r = run_job(oracle, spec.scene, settings)  # rows made before the key: full
+                           full_roadmap=bool(p["full_roadmap"]))
+        r = run_job(oracle, spec.scene, settings)
     except UserError as exc:  # NoPath, or IK finding no collision-free pose
         return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_ik": None,
                 "seconds_planning": None, "collision_checks": oracle.checks, "error": str(exc)[:200]}
@@ -42,25 +42,26 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
             "legs": len(r.legs), "planned_legs": len(planned), "duration": r.trajectory.duration}
 
 
+def _stat(metrics: list[dict], key: str, fn=np.median) -> float | None:
+    """`fn` of the values of `key` the metrics hold (a failed step leaves None), or None without any."""
+    values = [m[key] for m in metrics if m.get(key) is not None]
+    return float(fn(values)) if values else None
+
+
 def table(rows) -> list[dict]:
     """Medians per (job, sampler, roadmap mode) over successful runs; checks over all runs."""
     cells = {}
     for r in rows:
         if r["experiment"] == "ur3":
-            mode = "full" if r["params"].get("full_roadmap", True) else "query"  # rows made before the key: full
+            mode = "full" if r["params"]["full_roadmap"] else "query"
             cells.setdefault((r["scene"], r["method"], mode), []).append(r["metrics"])
     out = []
     for (job, sampler, mode), metrics in sorted(cells.items()):
         ok = [m for m in metrics if m["success"]]
-
-        def stat(key, fn=np.median):
-            values = [m[key] for m in ok if m.get(key) is not None]
-            return float(fn(values)) if values else None
-
         out.append({"job": job, "sampler": sampler, "roadmap": mode, "runs": len(metrics), "successes": len(ok),
-                    "median_total": stat("seconds"), "min_total": stat("seconds", np.min),
-                    "max_total": stat("seconds", np.max), "median_ik": stat("seconds_ik"),
-                    "median_planning": stat("seconds_planning"),
+                    "median_total": _stat(ok, "seconds"), "min_total": _stat(ok, "seconds", np.min),
+                    "max_total": _stat(ok, "seconds", np.max), "median_ik": _stat(ok, "seconds_ik"),
+                    "median_planning": _stat(ok, "seconds_planning"),
                     "median_checks": float(np.median([m["collision_checks"] for m in metrics]))})
     return out
 

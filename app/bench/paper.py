@@ -201,6 +201,24 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
     """report.md and its figures from what the store holds (every row of every experiment in it)."""
     folder = Path(folder)
     rows = store.rows()
+    srows = _sampling_rows(rows)
+    summary = sampling.summarise(srows)
+    order = {name: i for i, name in enumerate(SAMPLERS)}
+    summary.sort(key=lambda s: (s["scene"], order.get(s["sampler"], 99), s["step"]))
+    lines = _overview_section(store, rows, folder, config, wall_seconds)
+    lines += _claims_section(rows)
+    lines += _sampling_section(srows, summary, folder)
+    lines += _table1_section(summary)
+    if pictures and config is not None:
+        lines += _pictures_section(config, folder)
+    lines += _prm_section(rows, folder)
+    lines += _ur3_section(rows)
+    return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
+
+
+def _overview_section(store: ResultStore, rows, folder: Path, config: Config | None,
+                      wall_seconds: float | None) -> list[str]:
+    """Title, then the machine, the code versions and trial counts in the store, and this invocation's options."""
     lines = ["# Levy-flight narrow-passage PRM: the paper's Section IV, reproduced", ""]
     lines += [f"Generated {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())} from `{store.path.name}` "
               f"({len(rows)} trials). Rebuild with `python -m app bench paper --out {folder} --report-only`.", ""]
@@ -214,8 +232,8 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
               "- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items()))
                                               or "none")]
     if config is not None:
-        lines += [f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per sampling cell, steps "
-                  f"{', '.join(f'{a:g}' for a in config.steps)}, K_c = {config.k}, check budget "
+        lines += [f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per "
+                  f"sampling cell, steps {', '.join(f'{a:g}' for a in config.steps)}, K_c = {config.k}, check budget "
                   f"{config.max_checks} per sampling trial, {config.prm_seeds} seeds per PRM cell, "
                   f"{config.ur3_runs} run(s) per UR3 job and sampler; parts: {', '.join(config.parts)}"]
     if wall_seconds is not None:
@@ -225,13 +243,16 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
                      "with so few trials most comparisons cannot reach significance, so they are not conclusive.")
     lines += ["- Timings come from trials run side by side on the worker processes; they compare samplers "
               "measured alike, not absolute speeds.", ""]
+    return lines
 
-    # Claims
-    lines += ["## Claims", "",
-              f"Each claim is a set of comparisons; one holds when the medians point the claimed way and, for "
-              f"distributions, a one-sided Mann-Whitney U test agrees at the {ALPHA:g} level. All hold: reproduced; "
-              "none: not reproduced; some: partly; no rows: no data (`app/bench/claims.py`).", "",
-              "| claim | verdict | statement |", "|---|---|---|"]
+
+def _claims_section(rows) -> list[str]:
+    """The verdict table of claims C1-C5, then each claim's evidence."""
+    lines = ["## Claims", "",
+             f"Each claim is a set of comparisons; one holds when the medians point the claimed way and, for "
+             f"distributions, a one-sided Mann-Whitney U test agrees at the {ALPHA:g} level. All hold: reproduced; "
+             "none: not reproduced; some: partly; no rows: no data (`app/bench/claims.py`).", "",
+             "| claim | verdict | statement |", "|---|---|---|"]
     verdicts = judge(rows)
     lines += [f"| {v.claim} | **{v.verdict}** | {v.text} |" for v in verdicts]
     lines.append("")
@@ -239,17 +260,16 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
         lines += [f"### {v.claim}: {v.verdict}", "", v.text, ""]
         lines += [f"- {e}" for e in v.evidence] or ["- (no rows for this claim)"]
         lines.append("")
+    return lines
 
-    # Sampling experiment
-    srows = _sampling_rows(rows)
-    summary = sampling.summarise(srows)
-    order = {name: i for i, name in enumerate(SAMPLERS)}
-    summary.sort(key=lambda s: (s["scene"], order.get(s["sampler"], 99), s["step"]))
-    censored = sum(bool(r.get("censored", not r.get("ok", True))) for r in srows)
-    lines += ["## Sampling experiment (Figs. 4 and 7)", "",
-              f"{len(srows)} trials of K_c samples each; {censored} of them spent their collision-check budget "
-              "(censored): for those t_eps and gamma_c are lower bounds (marked ≥ where any trial in the cell was "
-              "censored) and they have no passage fraction. Cells: median [2.5 %, 97.5 % of trials].", ""]
+
+def _sampling_section(srows: list[dict], summary: list[dict], folder: Path) -> list[str]:
+    """Per scene, a table of the sampling metrics per sampler and step, and their figure (drawn into `folder`)."""
+    censored = sum(bool(r["censored"]) for r in srows)
+    lines = ["## Sampling experiment (Figs. 4 and 7)", "",
+             f"{len(srows)} trials of K_c samples each; {censored} of them spent their collision-check budget "
+             "(censored): for those t_eps and gamma_c are lower bounds (marked ≥ where any trial in the cell was "
+             "censored) and they have no passage fraction. Cells: median [2.5 %, 97.5 % of trials].", ""]
     for scene in dict.fromkeys(s["scene"] for s in summary):
         cells = [s for s in summary if s["scene"] == scene]
         lines += [f"### {scene}", "",
@@ -263,86 +283,90 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
         name = f"sampling-{scene}.png"
         sampling.figure(cells, str(folder / name))
         lines += ["", f"![{scene}: metrics vs step]({name})", ""]
+    return lines
 
-    # Table 1
-    lines += ["## Table 1: t_eps (s) vs step, bar scenes", "",
-              "Median t_eps over trials (≥: some trials censored at the check budget, so a lower bound); the "
-              "paper's RBBS values in brackets.", ""]
+
+def _table1_section(summary: list[dict]) -> list[str]:
+    """The paper's Table 1: median t_eps per bar scene and step for RBBS and LFBS, the paper's RBBS values beside."""
+    lines = ["## Table 1: t_eps (s) vs step, bar scenes", "",
+             "Median t_eps over trials (≥: some trials censored at the check budget, so a lower bound); the "
+             "paper's RBBS values in brackets.", ""]
     steps = sorted({s["step"] for s in summary if s["scene"] in TABLE1_SCENES})
-    if steps:
-        for method in TABLE1_METHODS:
-            lines += [f"**{method.upper()}**", "", "| scene | " + " | ".join(f"a={a:g}" for a in steps) + " |",
-                      "|---|" + "---:|" * len(steps)]
-            for scene in TABLE1_SCENES:
-                cells = {s["step"]: s for s in summary if s["scene"] == scene and s["sampler"] == method}
-                if not cells:
-                    continue
-                out = []
-                for a in steps:
-                    s = cells.get(a)
-                    text = "–" if s is None else f"{'≥' if s['censored'] else ''}{s['seconds']['median']:.3f}"
-                    if method == "rbbs" and a in STEPS:
-                        text += f" ({PAPER_TABLE1[scene][STEPS.index(a)]:g})"
-                    out.append(text)
-                lines.append(f"| {scene} | " + " | ".join(out) + " |")
-            lines.append("")
-    else:
-        lines += ["No rows.", ""]
-
-    # Sample pictures
-    if pictures and config is not None:
-        picture_scenes = [s for s in config.scenes]
-        lines += ["## Sample pictures (Figs. 3, 5, 6)", "",
-                  "Seed 0, K_c = 30 samples (red: in the passage). bar at step 2, the others at step 10.", ""]
-        for title, items in _figure_sample_pictures(picture_scenes, config.samplers, config.max_checks, folder):
-            lines += [f"### {title}", ""]
-            lines += [f"![{label}]({name})" for label, name in items]
-            lines.append("")
-
-    # PRM
-    prm_rows = [r for r in rows if r["experiment"] == "prm" and r["scene"] in uav.PAPER]
-    lines += ["## Maze and tunnel: LFBS vs RBBS in a PRM (Tables on maze and tunnel)", ""]
-    if prm_rows:
-        table = uav.table(prm_rows)
-        lines += ["The whole roadmap, every edge checked, k = 10 (maze 200 narrow + 300 uniform, tunnel 100 + 200). "
-                  "t_eps = sampling time (successful runs), T_PRM = whole plan; medians; paper seconds in brackets.",
-                  "",
-                  "| scene | step | sampler | runs | success | t_eps s | T_PRM s | checks |",
-                  "|---|---:|---|---:|---:|---:|---:|---:|"]
-        for r in table:
-            paper = uav.PAPER_SECONDS.get((r["scene"], r["step"]))
-            pe, pt = ((paper[0], paper[1]) if r["sampler"] == "lfbs" else (paper[2], paper[3])) if paper else \
-                (None, None)
-            eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "–"
-            lines.append(f"| {r['scene']} | {r['step']:g} | {r['sampler']} | {r['runs']} | "
-                         f"{r['success_rate']:.0%} | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
-                         f"{r['median_checks']:.0f} |")
-        _figure_prm(table, folder / "prm.png")
-        lines += ["", "![PRM success and time](prm.png)", ""]
-    else:
-        lines += ["No rows.", ""]
-
-    # UR3
-    lines += ["## UR3 welding and window jobs (the paper's UR3 timing table)", ""]
-    ur3 = jobs.table(rows)
-    if ur3:
-        lines += [f"`app.runs.run_job`: IK for the route's poses, then each leg straight or by PRM "
-                  f"(a full roadmap of {UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples, "
-                  f"{UR3_SIZE['budget']:g} s per leg). Medians over successful runs; the paper's LFBS average in "
-                  "brackets (Gazebo/MoveIt set-up, step 0.5).", "",
-                  "| job | sampler | roadmap | runs | success | total s | IK s | planning s | checks |",
-                  "|---|---|---|---:|---:|---:|---:|---:|---:|"]
-        for r in ur3:
-            paper = f" ({PAPER_UR3[r['job']]:g})" if r["sampler"] == "lfbs" and r["job"] in PAPER_UR3 else ""
-            lines.append(f"| {r['job']} | {r['sampler']} | {r['roadmap']} | {r['runs']} | "
-                         f"{r['successes']}/{r['runs']} | "
-                         f"{_fmt(r['median_total'])}{paper} | {_fmt(r['median_ik'])} | "
-                         f"{_fmt(r['median_planning'])} | {r['median_checks']:.0f} |")
+    if not steps:
+        return lines + ["No rows.", ""]
+    for method in TABLE1_METHODS:
+        lines += [f"**{method.upper()}**", "", "| scene | " + " | ".join(f"a={a:g}" for a in steps) + " |",
+                  "|---|" + "---:|" * len(steps)]
+        for scene in TABLE1_SCENES:
+            cells = {s["step"]: s for s in summary if s["scene"] == scene and s["sampler"] == method}
+            if not cells:
+                continue
+            out = []
+            for a in steps:
+                s = cells.get(a)
+                text = "–" if s is None else f"{'≥' if s['censored'] else ''}{s['seconds']['median']:.3f}"
+                if method == "rbbs" and a in STEPS:
+                    text += f" ({PAPER_TABLE1[scene][STEPS.index(a)]:g})"
+                out.append(text)
+            lines.append(f"| {scene} | " + " | ".join(out) + " |")
         lines.append("")
-    else:
-        lines += ["No rows.", ""]
+    return lines
 
-    return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
+
+def _pictures_section(config: Config, folder: Path) -> list[str]:
+    """One seed's samples per scene and sampler of this invocation, drawn into `folder` (not read from the store)."""
+    lines = ["## Sample pictures (Figs. 3, 5, 6)", "",
+             "Seed 0, K_c = 30 samples (red: in the passage). bar at step 2, the others at step 10.", ""]
+    for title, items in _figure_sample_pictures(config.scenes, config.samplers, config.max_checks, folder):
+        lines += [f"### {title}", ""]
+        lines += [f"![{label}]({name})" for label, name in items]
+        lines.append("")
+    return lines
+
+
+def _prm_section(rows, folder: Path) -> list[str]:
+    """The maze and tunnel PRM table (LFBS vs RBBS, the paper's seconds beside) and its figure."""
+    prm_rows = [r for r in rows if r["experiment"] == "prm" and r["scene"] in uav.PAPER]
+    lines = ["## Maze and tunnel: LFBS vs RBBS in a PRM (Tables on maze and tunnel)", ""]
+    if not prm_rows:
+        return lines + ["No rows.", ""]
+    table = uav.table(prm_rows)
+    lines += ["The whole roadmap, every edge checked, k = 10 (maze 200 narrow + 300 uniform, tunnel 100 + 200). "
+              "t_eps = sampling time (successful runs), T_PRM = whole plan; medians; paper seconds in brackets.",
+              "",
+              "| scene | step | sampler | runs | success | t_eps s | T_PRM s | checks |",
+              "|---|---:|---|---:|---:|---:|---:|---:|"]
+    for r in table:
+        paper = uav.PAPER_SECONDS.get((r["scene"], r["step"]))
+        pe, pt = ((paper[0], paper[1]) if r["sampler"] == "lfbs" else (paper[2], paper[3])) if paper else \
+            (None, None)
+        eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "–"
+        lines.append(f"| {r['scene']} | {r['step']:g} | {r['sampler']} | {r['runs']} | "
+                     f"{r['success_rate']:.0%} | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
+                     f"{r['median_checks']:.0f} |")
+    _figure_prm(table, folder / "prm.png")
+    return lines + ["", "![PRM success and time](prm.png)", ""]
+
+
+def _ur3_section(rows) -> list[str]:
+    """The UR3 welding and window jobs timed end to end, the paper's LFBS average beside."""
+    lines = ["## UR3 welding and window jobs (the paper's UR3 timing table)", ""]
+    ur3 = jobs.table(rows)
+    if not ur3:
+        return lines + ["No rows.", ""]
+    lines += [f"`app.runs.run_job`: IK for the route's poses, then each leg straight or by PRM "
+              f"(a full roadmap of {UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples, "
+              f"{UR3_SIZE['budget']:g} s per leg). Medians over successful runs; the paper's LFBS average in "
+              "brackets (Gazebo/MoveIt set-up, step 0.5).", "",
+              "| job | sampler | roadmap | runs | success | total s | IK s | planning s | checks |",
+              "|---|---|---|---:|---:|---:|---:|---:|---:|"]
+    for r in ur3:
+        paper = f" ({PAPER_UR3[r['job']]:g})" if r["sampler"] == "lfbs" and r["job"] in PAPER_UR3 else ""
+        lines.append(f"| {r['job']} | {r['sampler']} | {r['roadmap']} | {r['runs']} | "
+                     f"{r['successes']}/{r['runs']} | "
+                     f"{_fmt(r['median_total'])}{paper} | {_fmt(r['median_ik'])} | "
+                     f"{_fmt(r['median_planning'])} | {r['median_checks']:.0f} |")
+    return lines + [""]
 
 
 def run_sweeps(config: Config, store: ResultStore, workers: int = 0, scheduler=None):

@@ -65,7 +65,7 @@ def specs(scenes, samplers, seeds, params, step) -> list[TrialSpec]:
 def summarise(rows) -> list[dict]:
     cells = {}
     for r in rows:
-        mode = "full" if r["params"].get("full_roadmap", True) else "query"  # rows made before the key: one round
+        mode = "full" if r["params"]["full_roadmap"] else "query"
         cells.setdefault((r["scene"], r["method"], mode), []).append(r["metrics"])
     table = []
     for (scene, method, mode), metrics in cells.items():

@@ -4,6 +4,9 @@ A trial's key is a hash of its experiment, scene, method, step, seed and paramet
 started again skips exactly the rows already written (INSERT OR IGNORE: never a duplicate) and runs the rest
 (never a lost trial). Each row is committed as it arrives; SQLite's journal keeps a killed write from leaving a
 half row. Reports are built from the store, not from memory.
+
+The file records its schema version (SQLite's user_version). A store of another version is refused rather than
+read: rows are never reinterpreted, so the code that reads them needs no branch for how older code wrote them.
 """
 import hashlib
 import json
@@ -13,9 +16,14 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from app.errors import UserError
 from app.scene import ROOT
 
-SCHEMA = """
+# 1: stores from before the version was recorded (user_version 0); "prm" and "ur3" rows may lack full_roadmap.
+# 2: every "prm" and "ur3" row's params hold full_roadmap.
+SCHEMA_VERSION = 2
+SCHEMA = f"""
+BEGIN;
 CREATE TABLE IF NOT EXISTS trials (
     key TEXT PRIMARY KEY,
     experiment TEXT NOT NULL,
@@ -29,6 +37,8 @@ CREATE TABLE IF NOT EXISTS trials (
     finished REAL NOT NULL
 );
 CREATE INDEX IF NOT EXISTS trials_by_cell ON trials (experiment, scene, method, step);
+PRAGMA user_version = {SCHEMA_VERSION};
+COMMIT;
 """
 
 
@@ -83,8 +93,26 @@ class ResultStore:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._db = sqlite3.connect(self.path)
-        self._db.executescript(SCHEMA)
+        try:
+            self._check_schema()
+        except BaseException:
+            self._db.close()
+            raise
         self._version = code_version()
+
+    def _check_schema(self) -> None:
+        # One statement, so both facts come from one snapshot: another process may be creating the store (the
+        # table and the version are written in one transaction).
+        version, has_trials = self._db.execute(
+            "SELECT (SELECT user_version FROM pragma_user_version), "
+            "EXISTS (SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'trials')").fetchone()
+        if not has_trials and version == 0:  # a new store
+            self._db.executescript(SCHEMA)
+            return
+        found = version or 1
+        if found != SCHEMA_VERSION:
+            raise UserError(f"results store {self.path} has schema {found}, this code writes {SCHEMA_VERSION}: "
+                            f"move it away and run again")
 
     def close(self) -> None:
         self._db.close()
@@ -101,7 +129,8 @@ class ResultStore:
             self._db.execute(
                 "INSERT OR IGNORE INTO trials VALUES (?,?,?,?,?,?,?,?,?,?)",
                 (spec.key, spec.experiment, spec.scene, spec.method, float(spec.step), int(spec.seed),
-                 json.dumps(spec.params, sort_keys=True, default=_plain), json.dumps(metrics, default=_plain), self._version, time.time()))
+                 json.dumps(spec.params, sort_keys=True, default=_plain), json.dumps(metrics, default=_plain),
+                 self._version, time.time()))
 
     def rows_for(self, specs: list[TrialSpec]) -> list[dict]:
         """The stored rows of exactly these trials (a store may hold other sweeps, or other parameters)."""

@@ -21,7 +21,7 @@ import numpy as np
 _TINY = float(np.finfo(float).tiny)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def mantegna_sigma(alpha: float) -> float:
     """sigma_u of Mantegna's numerator, so that X has unit scale."""
     if not 0 < alpha <= 2:
