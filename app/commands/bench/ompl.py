@@ -79,7 +79,7 @@ def run(args) -> int:
                   f"{_num(r['median_seconds'], '.2f'):>8} {_num(r['median_smoothing_checks'], '.0f'):>10} "
                   f"{_num(r['median_path_length'], '.4g'):>9}  {'; '.join(notes)}")
         c = s["comparison"]
-        if c["best_ompl"] is None:
+        if c["best_ompl"] is None or not any(r["method"] == OURS for r in s["methods"]):
             continue
         if c["checks_ratio"] is None:
             print(f"  {OURS} / best OMPL ({c['best_ompl']}) median checks: - (one of them never succeeded)")
