@@ -1,22 +1,43 @@
-"""OMPL on our collision oracle: a state space, a validity checker, and valid-state samplers.
+"""OMPL on our collision oracle: state spaces, a validity checker, OMPL's planners, and valid-state samplers.
 
-- `OmplProblem(oracle)` sets up OMPL's SimpleSetup with the oracle as validity checker (every check counted in
-  oracle.checks, like our own planner's) and start/goal from the scene.
+- `OmplSpace(cspace, wrap_angles)` is our configuration space as an OMPL state space, with states converted both
+  ways. Linear coordinates and joint-limited angles are scaled by their metric weights, x = w*q, into one
+  RealVectorStateSpace. With `wrap_angles` every continuous angle is an SO2StateSpace of its own (subspace weight =
+  the angle's metric weight) beside it, in a CompoundStateSpace, so OMPL's motions take the short way round, as
+  ours do. Without, the angles are intervals [-pi, pi] of the real-vector space: this only removes motions across
+  +-pi, and it is what BIT* needs -- its informed sampler refuses compound spaces ("PathLengthDirectInfSampler only
+  supports RealVector, SE2, SE3, ...").
+- The two metrics are not the same function. OMPL's compound distance is the weighted *sum* of the subspaces'
+  distances, sqrt(sum (w dx)^2) + sum_i w_i |dtheta_i|, where ours is the Euclidean norm over all coordinates:
+  equal when one subspace moves, never smaller, and at most sqrt(1 + #angles) times larger. Straight motions
+  (interpolation) are the same in both; what differs is which nodes OMPL calls nearest and its range. Path
+  lengths are measured in our metric, whatever the planner.
+- Motion checks no coarser than the scene's resolution r in our metric: `motion_check_steps` (the rule and its
+  proof are there), applied by `OmplSpace.apply_motion_checks`; `motion_spacing` measures the spacing OMPL's motion
+  validator really uses, on random edges.
+- `OmplProblem(oracle, planner=...)` sets up OMPL's SimpleSetup with the oracle as validity checker (every check
+  counted in oracle.checks, like our own planner's), the scene's start and goal, and one of `PLANNERS`. Every
+  planner gets a path-length objective whose cost threshold is infinite, so the optimising ones (PRM, BIT*) stop
+  at their first solution, as RRTConnect and KPIECE1 do anyway.
 - OMPL's Gaussian and bridge-test samplers are not bound in the Python wheel; `GaussianSampler` and
-  `BridgeTestSampler` re-implement OMPL 2.0.1's algorithms as `ValidStateSampler` subclasses.
-- `ProjectSampler` offers any of our samplers (lfbs, rbbs, ...) to OMPL, so an OMPL user can put LFBS into their
-  own pipeline: `problem.use_sampler("lfbs", step=10)`.
+  `BridgeTestSampler` re-implement OMPL 2.0.1's algorithms as `ValidStateSampler` subclasses. `ProjectSampler`
+  offers any of our samplers (lfbs, rbbs, ...) to OMPL's PRM: `problem.use_sampler("lfbs", step=10)`.
 
-Coordinates are scaled by the scene's metric weights, so OMPL's Euclidean distance, its motion-check resolution and
-its sigma mean the same as ours. OMPL's RealVectorStateSpace does not wrap angles: continuous joints are treated as
-intervals [-pi, pi] on the OMPL side (our own PRM does wrap); this only removes shortcuts across +-pi.
+OMPL's RNG takes one seed per process (the first OmplProblem sets it): OMPL runs are not reproducible per seed.
+States from `space.allocState()` are owned by the Python wrapper: never `freeState` them (a segfault follows).
 """
+import math
+
 import numpy as np
 
 from app.errors import UserError
 from app.samplers import make_sampler
 # Importing this module loads OMPL (an optional dependency; the samplers below subclass its classes), so callers
 # import it only where OMPL is needed.
+
+# The planners the benchmark runs (all bound by OMPL 2.0.1's wheel); the ones that need a real-vector space.
+PLANNERS = ("RRTConnect", "BITstar", "PRM", "KPIECE1")
+REAL_VECTOR_ONLY = frozenset({"BITstar"})
 
 _seeded = False
 
@@ -33,47 +54,218 @@ def ompl_modules():
     return ob, og, ou
 
 
+def motion_check_steps(extents, resolution: float) -> np.ndarray:
+    """Each subspace's longest unchecked step, in our weighted metric, so that every motion's consecutive checked
+    states are at most `resolution` (r) apart in that metric: l_c = r sqrt(e_c / sum e), e_c the subspaces'
+    weighted extents.
+
+    OMPL cuts a motion into n = max_c ceil(d_c / L_c) pieces (d_c, L_c: subspace c's distance and longest valid
+    segment, in its own units; one subspace: the same with c alone), so a piece moves subspace c by at most L_c,
+    which is l_c in our metric when L_c = l_c / weight_c. Our metric is the Euclidean norm over the subspaces, so a
+    piece is at most sqrt(sum_c l_c^2) = r long. Steps growing with sqrt(e_c) keep a small subspace (a wrist
+    angle) from being checked far finer than the motion needs, which steps proportional to e_c (what one fraction
+    for every subspace amounts to) do: measured on 200 random edges per shipped scene, OMPL checked 1.01-1.52x the
+    states of an exact r-spacing (median; at most 4.4x) where one fraction checked 1.26-1.88x (at most 22x)."""
+    extents = np.asarray(extents, float)
+    return resolution * np.sqrt(extents / extents.sum())
+
+
+class OmplSpace:
+    """Our ConfigurationSpace as an OMPL state space (see the module docstring), with states converted both ways."""
+
+    def __init__(self, cspace, wrap_angles: bool = True):
+        ob, _, _ = ompl_modules()
+        self.cspace = cspace
+        self.weights = np.asarray(cspace.weights, float)
+        continuous = np.asarray(cspace.continuous, bool)
+        self.compound = bool(wrap_angles and continuous.any())
+        self.linear = np.flatnonzero(~continuous) if self.compound else np.arange(cspace.dim)
+        self.angles = np.flatnonzero(continuous) if self.compound else np.arange(0)
+        real = None
+        if len(self.linear):
+            real = ob.RealVectorStateSpace(len(self.linear))
+            bounds = ob.RealVectorBounds(len(self.linear))
+            for j, i in enumerate(self.linear):
+                bounds.setLow(j, float(cspace.lower[i] * self.weights[i]))
+                bounds.setHigh(j, float(cspace.upper[i] * self.weights[i]))
+            real.setBounds(bounds)
+        if not self.compound:
+            self.space = real
+            self.extents = [real.getMaximumExtent()]
+            return
+        self.space = ob.CompoundStateSpace()
+        self.extents = []  # per subspace, in our weighted metric
+        if real is not None:
+            self.space.addSubspace(real, 1.0)
+            self.extents.append(real.getMaximumExtent())
+        for i in self.angles:
+            so2 = ob.SO2StateSpace()
+            self.space.addSubspace(so2, float(self.weights[i]))
+            self.extents.append(float(self.weights[i]) * so2.getMaximumExtent())  # pi x weight
+        # KPIECE1 needs a projection and a compound space has no default one: OMPL's default projection of the
+        # first subspace (the real-vector one: the identity up to 2 dimensions, else a random linear map to 2).
+        self._projection = ob.SubspaceProjectionEvaluator(self.space, 0)
+        self.space.registerDefaultProjection(self._projection)
+        self._real = 1 if real is not None else 0  # the first SO2 subspace's index
+
+    @property
+    def kind(self) -> str:
+        return "compound" if self.compound else "real-vector"
+
+    def fractions(self) -> np.ndarray:
+        """Each subspace's longest valid segment as a fraction of its extent (what OMPL is told): the steps of
+        `motion_check_steps` for the scene's resolution over the subspaces' weighted extents."""
+        return motion_check_steps(self.extents, self.cspace.resolution) / np.asarray(self.extents)
+
+    def apply_motion_checks(self, si) -> None:
+        """Make `si`'s motion validator check at `fractions()`, before `si` is set up.
+
+        `si.setStateValidityCheckingResolution(f)` gives a compound space's subspaces all the same fraction f (and
+        each then checks at f x its own extent); it is given the smallest, and each subspace its own fraction
+        after it. `si.setup()` keeps them (`segment_lengths` reads them back)."""
+        fractions = self.fractions()
+        si.setStateValidityCheckingResolution(float(fractions.min()))
+        if self.compound:
+            for c, fraction in enumerate(fractions):
+                self.space.getSubspace(c).setLongestValidSegmentFraction(float(fraction))
+
+    def segment_lengths(self) -> np.ndarray:
+        """The longest valid segment OMPL uses per subspace, in our weighted metric (after set-up)."""
+        if not self.compound:
+            return np.array([self.space.getLongestValidSegmentLength()])
+        return np.array([self.space.getSubspace(c).getLongestValidSegmentLength() * self.space.getSubspaceWeight(c)
+                         for c in range(self.space.getSubspaceCount())])
+
+    def write(self, state, q) -> None:
+        q = self.cspace.wrap(np.asarray(q, float))  # continuous angles into [-pi, pi): in bounds either way
+        if not self.compound:
+            for i, v in enumerate(q * self.weights):
+                state[i] = float(v)
+            return
+        if len(self.linear):
+            real = state[0]
+            for j, i in enumerate(self.linear):
+                real[j] = float(q[i] * self.weights[i])
+        for k, i in enumerate(self.angles):
+            state[self._real + k].value = float(q[i])
+
+    def state(self, q):
+        state = self.space.allocState()  # owned by the wrapper: never freeState it
+        self.write(state, q)
+        return state
+
+    def q(self, state) -> np.ndarray:
+        q = np.empty(self.cspace.dim)
+        if not self.compound:
+            for i in range(self.cspace.dim):
+                q[i] = state[i]
+            return q / self.weights
+        if len(self.linear):
+            real = state[0]
+            for j, i in enumerate(self.linear):
+                q[i] = real[j] / self.weights[i]
+        for k, i in enumerate(self.angles):
+            q[i] = state[self._real + k].value
+        return q
+
+    def for_oracle(self, path: np.ndarray) -> np.ndarray:
+        """Waypoints whose short-way edges (our oracle's) are OMPL's motions between `path`'s states: the path
+        itself in the compound space (SO2 takes the short way too), `straight_waypoints` in the real-vector one."""
+        return np.array(path, float) if self.compound else straight_waypoints(self.cspace, path)
+
+
+def motion_spacing(cspace, wrap_angles: bool = True, edges: int = 200, seed: int = 0) -> dict:
+    """How finely OMPL's motion validator checks motions of `OmplSpace(cspace, wrap_angles)` with
+    `motion_check_steps`, measured on `edges` random edges (uniform pairs of states): the states it hands the
+    validity checker are recorded (no collision check runs), ordered along the motion, and their spacing measured
+    in our metric. Returns the fractions, the largest spacing seen / r (at most 1 by the rule) and how many states
+    OMPL checks per edge over the ceil(length / r) an exact r-spacing needs (median, 90th percentile, max)."""
+    _, og, _ = ompl_modules()
+    space = OmplSpace(cspace, wrap_angles)
+    setup = og.SimpleSetup(space.space)
+    seen = []
+
+    def record(state):
+        seen.append((space.space.distance(a, state), space.q(state)))
+        return True
+
+    setup.setStateValidityChecker(record)
+    si = setup.getSpaceInformation()
+    space.apply_motion_checks(si)
+    si.setup()
+    rng = np.random.default_rng(seed)
+    a, b = space.space.allocState(), space.space.allocState()
+    r = cspace.resolution
+    largest, ratios = 0.0, []
+    for _ in range(edges):
+        qa, qb = cspace.uniform(rng, 2)
+        space.write(a, qa)
+        space.write(b, qb)
+        qa, qb = space.q(a), space.q(b)  # as OMPL holds them (angles wrapped)
+        seen.clear()
+        si.checkMotion(a, b)
+        # OMPL's distance from a grows linearly along a straight motion: it orders the states from a to b
+        along = [qa] + [q for _, q in sorted(seen, key=lambda item: item[0])]
+        if not np.allclose(along[-1], qb):
+            raise RuntimeError("OMPL's motion check did not reach the end of the motion")
+        steps = cspace.distance(np.array(along[:-1]), np.array(along[1:]))
+        if space.compound:
+            length = float(cspace.distance(qa, qb))
+        else:  # OMPL's straight line, not unwrapped (its pieces are shorter than half a turn: the short way)
+            length = float(steps.sum())
+        largest = max(largest, float(steps.max()))
+        ratios.append(len(seen) / max(1, math.ceil(length / r - 1e-9)))
+    ratios = np.array(ratios)
+    return {"space": space.kind, "fractions": space.fractions().tolist(), "edges": edges,
+            "max_spacing_over_resolution": largest / r,
+            "checks_over_exact_median": float(np.median(ratios)),
+            "checks_over_exact_p90": float(np.percentile(ratios, 90)), "checks_over_exact_max": float(ratios.max())}
+
+
 class OmplProblem:
-    def __init__(self, oracle, seed: int = 0):
+    """One OMPL planning problem on our oracle: the scene's start and goal, one of `PLANNERS` (or PRM with a
+    valid-state sampler, `use_sampler`), motion checks at most the scene's resolution apart (`motion_check_steps`)."""
+
+    def __init__(self, oracle, seed: int = 0, planner: str = "PRM"):
         global _seeded
         ob, og, ou = ompl_modules()
+        if planner not in PLANNERS:
+            raise UserError(f"unknown OMPL planner '{planner}' (known: {', '.join(PLANNERS)})")
         self.ob, self.og = ob, og
         if not _seeded:  # OMPL takes one seed per process, before its first random draw
             ou.RNG.setSeed(int(seed) + 1)  # (seed 0 would mean "pick one")
             _seeded = True
-        self.oracle = oracle
+        self.oracle, self.planner_name = oracle, planner
         self.rng = np.random.default_rng(seed)
-        self.scale = oracle.space.weights
-        dim = oracle.space.dim
-        self.space = ob.RealVectorStateSpace(dim)
-        bounds = ob.RealVectorBounds(dim)
-        for i in range(dim):
-            bounds.setLow(i, float(oracle.space.lower[i] * self.scale[i]))
-            bounds.setHigh(i, float(oracle.space.upper[i] * self.scale[i]))
-        self.space.setBounds(bounds)
+        self.map = OmplSpace(oracle.space, wrap_angles=planner not in REAL_VECTOR_ONLY)
+        self.space = self.map.space
         self.setup = og.SimpleSetup(self.space)
         self.setup.setStateValidityChecker(self._valid)
         self.si = self.setup.getSpaceInformation()
-        # OMPL's default spacing (1 % of the extent) is too coarse for a narrow passage: use the scene's resolution.
-        self.si.setStateValidityCheckingResolution(oracle.space.resolution / self.space.getMaximumExtent())
+        # OMPL's default spacing (1 % of the extent) is too coarse for a narrow passage: at most r in our metric.
+        self.map.apply_motion_checks(self.si)
         self.setup.setStartAndGoalStates(self.to_state(oracle.scene.start), self.to_state(oracle.scene.goal))
+        # Path length, threshold infinite: any solution satisfies it, so PRM and BIT* stop at their first one.
+        self.objective = ob.PathLengthOptimizationObjective(self.si)
+        self.objective.setCostThreshold(self.objective.infiniteCost())
+        self.setup.setOptimizationObjective(self.objective)
+        self.planner = getattr(og, planner)(self.si)
+        self.setup.setPlanner(self.planner)
         self._samplers = []
 
     def to_state(self, q):
-        state = self.space.allocState()
-        for i, v in enumerate(np.asarray(q, float) * self.scale):
-            state[i] = float(v)
-        return state
+        return self.map.state(q)
 
     def to_q(self, state) -> np.ndarray:
-        return np.array([state[i] for i in range(self.oracle.space.dim)]) / self.scale
+        return self.map.q(state)
 
     def _valid(self, state) -> bool:
-        return self.oracle.is_free(self.to_q(state))
+        return self.oracle.is_free(self.map.q(state))
 
     def use_sampler(self, name: str, **params) -> None:
-        """Make OMPL's planners draw valid states from `name`: ompl-uniform, ompl-obstacle, ompl-gaussian,
-        ompl-bridge, or any of our samplers (uniform, gaussian, rbbs, rws, lfs, rwbs, lfbs)."""
+        """Make OMPL's PRM draw valid states from `name`: ompl-uniform, ompl-obstacle, ompl-gaussian, ompl-bridge,
+        or any of our samplers (uniform, gaussian, rbbs, rws, lfs, rwbs, lfbs). (Only PRM uses a valid-state
+        sampler; the other planners draw plain states.)"""
         ob = self.ob
         sigma = params.get("sigma")
 
@@ -94,25 +286,32 @@ class OmplProblem:
         self.si.setValidStateSamplerAllocator(allocate)
 
     def solve(self, seconds: float) -> bool:
-        self.setup.setPlanner(self.og.PRM(self.si))
+        """Run the planner for at most `seconds` (it returns at its first solution); whether it found an exact one."""
         self.setup.solve(float(seconds))
         return bool(self.setup.haveExactSolutionPath())
+
+    def simplify(self) -> None:
+        """OMPL's own smoothing of the solution (`SimpleSetup.simplifySolution`: vertex reduction, shortcuts and
+        B-spline smoothing until nothing improves), in place."""
+        self.setup.simplifySolution()
 
     def solution(self) -> np.ndarray:
         return np.array([self.to_q(s) for s in self.setup.getSolutionPath().getStates()])
 
     def solution_for_oracle(self) -> np.ndarray:
-        """The solution with waypoints added so that our oracle's edges (which take the short way round on
-        continuous joints) follow OMPL's straight, unwrapped motions: check this one with oracle.edges_free."""
-        return straight_waypoints(self.oracle, self.solution())
+        """The solution as waypoints whose short-way edges (our oracle's) are OMPL's own motions: check this one
+        with oracle.edges_free, measure it with app.path.path_length."""
+        return self.map.for_oracle(self.solution())
 
 
-def straight_waypoints(oracle, path: np.ndarray) -> np.ndarray:
+def straight_waypoints(cspace, path: np.ndarray) -> np.ndarray:
     """Split each edge so no continuous joint turns by half a turn or more within a piece: the short way round
-    (our metric) and OMPL's linear interpolation are then the same motion."""
+    (our metric) and a real-vector space's linear interpolation are then the same motion. `cspace`: a
+    ConfigurationSpace (or an oracle, for its space)."""
+    cspace = getattr(cspace, "space", cspace)
     out = [path[0]]
     for a, b in zip(path[:-1], path[1:]):
-        turn = np.max(np.abs(b - a)[oracle.space.continuous], initial=0.0)
+        turn = np.max(np.abs(b - a)[cspace.continuous], initial=0.0)
         pieces = max(1, int(np.ceil(turn / (0.5 * np.pi))))  # < pi per piece, with room to spare
         out.extend(a + (b - a) * t for t in np.linspace(0.0, 1.0, pieces + 1)[1:])
     return np.array(out)
@@ -192,7 +391,5 @@ class ProjectSampler(_Sampler):
             self.buffer = list(batch)
             if not self.buffer:
                 return False
-        q = self.buffer.pop()
-        for i, v in enumerate(q * self.problem.scale):
-            state[i] = float(v)
+        self.problem.map.write(state, self.buffer.pop())
         return True

@@ -1,5 +1,6 @@
-"""OMPL on our oracle (app/ompl_bridge.py): OMPL's Gaussian and bridge-test samplers as re-implemented, our
-samplers behind OMPL's interface, and OMPL's PRM solving bar-3link on a short budget.
+"""OMPL on our oracle (app/ompl_bridge.py) and `bench ompl` (app/bench/ompl.py): OMPL's Gaussian and bridge-test
+samplers as re-implemented, our samplers behind OMPL's interface, OMPL's PRM, RRTConnect and BIT* solving bar-3link
+through our oracle, the motion-check rule, and the benchmark's summary and ratio.
 
 OMPL's RNG takes one seed per process (the first OmplProblem sets it), so these tests check properties that hold
 for any draw, not particular states. nanobind may print leak warnings when the interpreter exits: harmless.
@@ -16,8 +17,14 @@ try:
 except ImportError as exc:  # pragma: no cover - depends on the machine
     pytest.skip(f"OMPL is not installed ({exc}); pip install '.[ompl]'", allow_module_level=True)
 
-from app.ompl_bridge import BridgeTestSampler, GaussianSampler, OmplProblem, ProjectSampler
+from app.bench.ompl import PROTOCOL, best_ompl, compare, parse_method, run_trial_spec, summarise
+from app.bench.store import TrialSpec
+from app.cspace import ConfigurationSpace
+from app.errors import UserError
+from app.ompl_bridge import (BridgeTestSampler, GaussianSampler, OmplProblem, OmplSpace, ProjectSampler,
+                             motion_check_steps, motion_spacing)
 from app.planner import default_step
+from app.scene import Scene
 
 SCENE = "bar-3link"
 BUDGET = 5.0  # seconds, at most, per OMPL solve
@@ -61,10 +68,12 @@ def test_bridge_test_sampler_returns_valid_midpoints_of_invalid_endpoints(proble
     sampler = BridgeTestSampler(problem.si, None)
     drawn = _draw(sampler, problem, 5)
     assert len(drawn) >= 3, "the bridge test found too few samples on bar-3link"
+    space = oracle.space
     for q, a, b in drawn:
         assert oracle.is_free(q)
         assert not oracle.is_free(a) and not oracle.is_free(b)
-        assert np.allclose(q, (a + b) / 2, atol=1e-9)
+        # the midpoint of OMPL's motion, which takes the short way round on the angles (SO2 subspaces)
+        assert space.distance(q, a + space.difference(a, b) / 2) < 1e-9
 
 
 def test_our_sampler_feeds_ompls_prm_only_free_states(problem, monkeypatch):
@@ -139,8 +148,114 @@ def test_the_oracle_counts_ompls_validity_calls(problem):
 def test_bench_ompl_ends_without_ompls_leak_report(tmp_path, run_app):
     """`python -m app` ends right after a command that loaded OMPL, so its answer is the last thing printed (not
     nanobind's report of objects alive at interpreter shutdown)."""
-    result = run_app("bench", "ompl", "--scenes", SCENE, "--methods", "ompl-uniform", "--seeds", "1", "--budget", "1",
-                     "--store", tmp_path / "ompl.sqlite", "--json")
+    result = run_app("bench", "ompl", "--scenes", SCENE, "--methods", "ompl:RRTConnect", "--seeds", "1",
+                     "--budget", "5", "--store", tmp_path / "ompl.sqlite", "--png", tmp_path / "ompl.png", "--json")
     assert result.returncode == 0, result.stderr
-    assert json.loads(result.stdout)["ompl"][0]["runs"] == 1
+    report = json.loads(result.stdout)
+    scene = report["scenes"][0]
+    assert scene["scene"] == SCENE and scene["methods"][0]["runs"] == 1
+    assert scene["motion_checks"][0]["space"] == "compound"
+    assert (tmp_path / "ompl.png").stat().st_size > 0
     assert "leak" not in result.stderr
+
+
+def test_rrtconnect_through_the_oracle_counts_checks_and_returns_a_fine_checked_path(oracles):
+    oracle = oracles(SCENE)
+    spec = TrialSpec("ompl", SCENE, "ompl:RRTConnect", default_step(oracle.scene), 0,
+                     {"budget": BUDGET, "protocol": PROTOCOL})
+    before = oracle.checks
+    m = run_trial_spec(oracle, spec)
+    assert m["success"] == 1.0 and m["space"] == "compound", m
+    # every check OMPL asked for went through the oracle: first solution + smoothing + our verification
+    assert m["checks"] > 0 and m["smoothing_checks"] > 0
+    assert oracle.checks - before == m["checks"] + m["smoothing_checks"] + m["verify_checks"]
+    assert m["fine_check_passed"] == 1.0 and m["path_length"] <= m["raw_length"] + 1e-9
+
+
+def test_bitstar_in_the_real_vector_space_solves_bar_3link_with_a_fine_checked_path(oracles):
+    oracle = oracles(SCENE)
+    problem = OmplProblem(oracle, seed=0, planner="BITstar")
+    assert not problem.map.compound  # BIT*'s informed sampler refuses compound spaces
+    before = oracle.checks
+    assert problem.solve(BUDGET), "BIT* found no path on bar-3link"
+    assert oracle.checks > before
+    path = problem.solution_for_oracle()
+    assert np.allclose(path[0], oracle.scene.start) and np.allclose(path[-1], oracle.scene.goal)
+    assert oracle.edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all()
+
+
+def test_motion_checks_are_never_coarser_than_the_resolution():
+    steps = motion_check_steps([141.4, 12 * np.pi, 8 * np.pi], 0.5)
+    assert np.isclose(np.sum(steps ** 2), 0.25)
+    for scene in (SCENE, "maze"):
+        cspace = ConfigurationSpace.of(Scene(scene))
+        for wrap in (True, False):
+            m = motion_spacing(cspace, wrap_angles=wrap, edges=100)
+            assert m["space"] == ("compound" if wrap else "real-vector")
+            assert m["max_spacing_over_resolution"] <= 1 + 1e-9, m
+            assert 1.0 <= m["checks_over_exact_median"] < 2.0, m
+
+
+def test_the_subspace_steps_survive_omplss_set_up(oracles):
+    oracle = oracles(SCENE)
+    problem = OmplProblem(oracle, seed=0, planner="RRTConnect")
+    problem.setup.setup()
+    space = problem.map
+    assert space.compound and len(space.angles) == 3
+    assert np.allclose(space.segment_lengths(), motion_check_steps(space.extents, oracle.space.resolution))
+
+
+def test_states_convert_both_ways_with_angles_wrapped():
+    cspace = ConfigurationSpace.of(Scene(SCENE))
+    q = np.array([20.0, 80.0, 3.5, -0.25, 7.0])
+    for wrap in (True, False):
+        space = OmplSpace(cspace, wrap_angles=wrap)
+        back = space.q(space.state(q))
+        assert np.allclose(back, cspace.wrap(q)) and cspace.distance(back, q) < 1e-9
+
+
+def test_method_names():
+    assert parse_method("ours:default") == {"ours": True, "sampler": "lfbs", "full": False}
+    assert parse_method("ours:full") == {"ours": True, "sampler": "lfbs", "full": True}
+    assert parse_method("ours:rbbs:full") == {"ours": True, "sampler": "rbbs", "full": True}
+    assert parse_method("ompl:BITstar") == {"ours": False, "planner": "BITstar", "sampler": None}
+    assert parse_method("ompl:PRM+ompl-bridge")["sampler"] == "ompl-bridge"
+    for bad in ("ompl:RRTstarish", "ompl:RRTConnect+lfbs", "ours:nope", "ompl-uniform", "ours"):
+        with pytest.raises(UserError):
+            parse_method(bad)
+
+
+def _row(scene, method, success, checks, seconds=1.0, smoothing=100, length=10.0):
+    m = {"solved": 1.0 if success else 0.0, "success": 1.0 if success else 0.0, "checks": checks,
+         "seconds": seconds, "late": 0.0}
+    if success:
+        m.update(smoothing_checks=smoothing, path_length=length, fine_check_passed=1.0)
+    return {"scene": scene, "method": method, "metrics": m}
+
+
+def test_summary_and_ratio_on_synthetic_rows():
+    from scipy.stats import binomtest
+
+    rows = ([_row("s", "ours:default", True, c) for c in (100, 200, 300)] + [_row("s", "ours:default", False, 9999)]
+            + [_row("s", "ompl:RRTConnect", True, c) for c in (400, 500)] + [_row("s", "ompl:RRTConnect", False, 1)] * 2
+            + [_row("s", "ompl:PRM", True, c) for c in (1000, 2000)] + [_row("s", "ompl:PRM", False, 1)] * 2
+            + [_row("s", "ompl:KPIECE1", False, 5)] * 4)
+    table = {r["method"]: r for r in summarise(rows)}
+    ours = table["ours:default"]
+    assert ours["runs"] == 4 and ours["successes"] == 3 and ours["success_rate"] == 0.75
+    ci = binomtest(3, 4).proportion_ci()
+    assert ours["success_ci"] == pytest.approx([ci.low, ci.high])
+    assert ours["median_checks"] == 200  # successful runs only
+    assert ours["checks_spent"] == 250  # all runs
+    assert table["ompl:KPIECE1"]["median_checks"] is None
+    # RRTConnect and PRM tie on successes; RRTConnect needs fewer checks
+    assert best_ompl(list(table.values()))["method"] == "ompl:RRTConnect"
+    c = compare(list(table.values()))
+    assert c["best_ompl"] == "ompl:RRTConnect" and c["checks_ratio"] == pytest.approx(200 / 450)
+    # more successes win over fewer checks
+    rows += [_row("s", "ompl:BITstar", True, 50000)] * 3
+    c = compare(summarise(rows))
+    assert c["best_ompl"] == "ompl:BITstar" and c["checks_ratio"] == pytest.approx(200 / 50000)
+    # no OMPL success: no ratio
+    c = compare(summarise([r for r in rows if r["method"] in ("ours:default", "ompl:KPIECE1")]))
+    assert c["best_ompl"] == "ompl:KPIECE1" and c["checks_ratio"] is None

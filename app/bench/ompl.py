@@ -1,9 +1,23 @@
-"""`bench ompl`: OMPL's PRM on our oracle with OMPL's samplers and ours, beside our own PRM, on one budget.
+"""`bench ompl`: our planner beside OMPL's planners -- RRTConnect, BIT*, PRM, KPIECE1 -- all on our collision oracle.
 
-Every method gets the same wall-clock budget per seed and the same collision oracle, so "checks" means the same
-thing everywhere (configurations handed to Drake). OMPL's PRM alternates grow (valid-state sampler) and expand
-(uniform bounce walks) phases on its own schedule; all OMPL rows share that schedule, and the sampler is the only
-thing that changes between them. Our PRM (`ours:NAME`) runs its own narrow+uniform schedule under the same budget.
+Every method plans from the scene's start to its goal (the UR3 scenes too) on the same wall-clock budget, and every
+collision check goes through the same oracle, so "checks" means the same thing everywhere (configurations handed
+to Drake). Per run:
+
+- success: a path within the budget, after smoothing free at our fine resolution (FINE x the scene's: OMPL's
+  path is held to the standard our planner's paths are held to; runs whose path fails that are counted apart);
+- checks and seconds to the first solution. OMPL: `solve(budget)`, which returns at the first solution for all
+  four planners (PRM and BIT* are given a path-length objective whose cost threshold is infinite), checks counted
+  at its return. Ours: the whole query up to its first path, i.e. all its checks but smoothing and timing;
+- smoothing checks and seconds (OMPL: `simplifySolution()`; ours: shortcuts and its fine re-check) and the
+  smoothed path's length in our metric.
+
+Methods: `ours:default` (our planner as `plan` runs it: a single query, rounds until connected), `ours:full` (the
+paper's protocol: the whole first roadmap, every edge checked), `ours:SAMPLER` and `ours:SAMPLER:full` for another
+narrow-passage sampler; `ompl:PLANNER` for PLANNER in app.ompl_bridge.PLANNERS; `ompl:PRM+SAMPLER`: OMPL's PRM with
+a valid-state sampler (ompl-uniform, ompl-obstacle, ompl-gaussian, ompl-bridge, or one of ours). OMPL's
+state spaces and motion-check spacing are described in app.ompl_bridge; `motion_checks` reports the spacing
+measured per scene. OMPL's RNG is seeded once per process, so an OMPL run is not reproducible from its seed.
 """
 import time
 
@@ -11,71 +25,280 @@ import numpy as np
 
 from app.bench.runner import sweep
 from app.bench.store import TrialSpec
-from app.planner import default_step
+from app.budget import Budget
+from app.errors import NoPath, UserError
+from app.path import FINE, path_length
+from app.planner import PlanSettings, default_step, plan
+from app.samplers import check_name
 from app.scene import Scene
 # app.ompl_bridge loads OMPL (optional) when imported: it is imported by the functions that run OMPL, so that the
-# command line starts, and the other benchmarks run, without it.
+# command line starts, and the other benchmarks run, without it. Its planner names are repeated here for that reason.
 
-OMPL_METHODS = ["ompl-uniform", "ompl-obstacle", "ompl-gaussian", "ompl-bridge", "ompl+lfbs", "ompl+rbbs"]
-OURS = ["ours:lfbs", "ours:rbbs", "ours:uniform"]
+OMPL_PLANNERS = ["RRTConnect", "BITstar", "PRM", "KPIECE1"]  # app.ompl_bridge.PLANNERS
+OMPL_PRM_SAMPLERS = ["ompl-uniform", "ompl-obstacle", "ompl-gaussian", "ompl-bridge"]
+DEFAULT_METHODS = ["ours:default", "ours:full"] + [f"ompl:{p}" for p in OMPL_PLANNERS]
+MORE_METHODS = [f"ompl:PRM+{s}" for s in OMPL_PRM_SAMPLERS + ["lfbs", "rbbs"]]  # OMPL's PRM, other samplers
+OURS = "ours:default"  # the row the ratio is taken of
+# In every trial's key, so rows of the earlier PRM-only benchmark in the same store are not mixed in.
+PROTOCOL = "first-solution+smoothing"
+
+
+def parse_method(name: str) -> dict:
+    """A method's parts: {"ours": True, "sampler", "full"} or {"ours": False, "planner", "sampler" (or None)};
+    UserError naming the fault for anything else."""
+    kind, _, rest = name.partition(":")
+    if kind == "ours" and rest:
+        parts = rest.split(":")
+        full = parts[-1] == "full"
+        if full:
+            parts = parts[:-1]
+        if len(parts) > 1:
+            raise UserError(f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER or ours:SAMPLER:full")
+        sampler = PlanSettings.sampler if not parts or parts[0] == "default" else check_name(parts[0])
+        return {"ours": True, "sampler": sampler, "full": full}
+    if kind == "ompl" and rest:
+        planner, _, sampler = rest.partition("+")
+        if planner not in OMPL_PLANNERS:
+            raise UserError(f"bad method '{name}': unknown OMPL planner '{planner}' (known: {', '.join(OMPL_PLANNERS)})")
+        if sampler and planner != "PRM":
+            raise UserError(f"bad method '{name}': only OMPL's PRM draws from a valid-state sampler")
+        if sampler and sampler not in OMPL_PRM_SAMPLERS:
+            check_name(sampler)
+        return {"ours": False, "planner": planner, "sampler": sampler or None}
+    raise UserError(f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER[:full], ompl:PLANNER "
+                    f"({', '.join(OMPL_PLANNERS)}) or ompl:PRM+SAMPLER")
 
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
-    """One OMPL PRM run: success, seconds to the first solution (or the budget), checks."""
+    """One run of `spec.method` on `spec.scene` (see the module docstring for what is measured)."""
+    method = parse_method(spec.method)
+    budget = float(spec.params["budget"])
+    metrics = (_ours if method["ours"] else _ompl)(oracle, spec, method, budget)
+    # A run succeeds when its first solution came within the budget and its smoothed path passes the fine check.
+    metrics["late"] = float(bool(metrics["solved"]) and metrics["seconds"] > budget)
+    metrics["success"] = float(bool(metrics["solved"]) and not metrics["late"]
+                               and bool(metrics.get("fine_check_passed", 0.0)))
+    return metrics
+
+
+def _ours(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
+    checks0, start = oracle.checks, time.perf_counter()
+    try:
+        r = plan(oracle, PlanSettings(sampler=method["sampler"], step=spec.step, seed=spec.seed,
+                                      budget=Budget(seconds=budget), full_roadmap=method["full"]))
+    except NoPath:
+        return {"solved": 0.0, "seconds": time.perf_counter() - start, "checks": oracle.checks - checks0}
+    smoothing, timing = r.checks["smoothing"], r.checks.get("timing", 0)
+    return {"solved": 1.0, "checks": r.collision_checks - smoothing - timing,
+            "seconds": r.seconds["total"] - r.seconds["smoothing"] - r.seconds.get("timing", 0.0),
+            "smoothing_checks": smoothing, "smoothing_seconds": r.seconds["smoothing"],
+            "raw_length": r.smoothing["raw_length"], "path_length": r.smoothing["length_after"],
+            # every edge of our planner's path has passed the fine check (its re-check is part of smoothing)
+            "fine_check_passed": 1.0}
+
+
+def _ompl(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
     from app.ompl_bridge import OmplProblem
 
-    oracle.reset()
-    problem = OmplProblem(oracle, seed=spec.seed)
-    name = spec.method
-    if name.startswith("ompl+"):
-        problem.use_sampler(name[len("ompl+"):], step=spec.step)
-    else:
-        problem.use_sampler(name)
-    start = time.perf_counter()
-    success = problem.solve(spec.params["budget"])
-    seconds = time.perf_counter() - start
-    if success:  # OMPL's path is checked at OMPL's resolution; hold it to ours, as our planner's paths are held
-        path = problem.solution_for_oracle()  # OMPL's own motions (it does not wrap angles), not short-way edges
-        success = bool(oracle.edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all())
-    return {"success": float(success), "seconds": seconds, "collision_checks": oracle.checks}
+    problem = OmplProblem(oracle, seed=spec.seed, planner=method["planner"])
+    sampler = method["sampler"]
+    if sampler is not None:
+        problem.use_sampler(sampler, **({} if sampler in OMPL_PRM_SAMPLERS else {"step": spec.step}))
+    checks0, start = oracle.checks, time.perf_counter()
+    solved = problem.solve(budget)
+    out = {"solved": float(solved), "seconds": time.perf_counter() - start, "checks": oracle.checks - checks0,
+           "space": problem.map.kind}
+    if not solved:
+        return out
+    raw = problem.solution_for_oracle()
+    checks0, start = oracle.checks, time.perf_counter()
+    problem.simplify()
+    out.update(smoothing_checks=oracle.checks - checks0, smoothing_seconds=time.perf_counter() - start)
+    path = problem.solution_for_oracle()  # OMPL's own motions, as our oracle's edges
+    checks0, fine = oracle.checks, FINE * oracle.space.resolution
+    free = oracle.edges_free(path[:-1], path[1:], fine)
+    # Whether the first solution, before smoothing, would have passed: tells the planner's grazes from the
+    # simplifier's. Both checks are ours, not OMPL's work: counted apart.
+    raw_free = oracle.edges_free(raw[:-1], raw[1:], fine)
+    out.update(verify_checks=oracle.checks - checks0, fine_check_passed=float(free.all()),
+               raw_fine_check_passed=float(raw_free.all()), raw_length=path_length(oracle, raw),
+               path_length=path_length(oracle, path))
+    return out
 
 
 def specs(scenes, methods, seeds, budget, step) -> list[TrialSpec]:
     out = []
     for scene in scenes:
         a = step or default_step(Scene(scene))
-        for method in methods:
-            experiment = "prm" if method.startswith("ours:") else "ompl"
-            name = method.split(":", 1)[1] if experiment == "prm" else method
-            params = {"budget": budget}
-            if experiment == "prm":
-                params.update(mode="budget", full_roadmap=False)  # our planner as `plan` runs it
-            out.extend(TrialSpec(experiment, scene, name, a, seed, params) for seed in range(seeds))
+        params = {"budget": budget, "protocol": PROTOCOL}
+        out.extend(TrialSpec("ompl", scene, method, a, seed, dict(params)) for method in methods
+                   for seed in range(seeds))
     return out
 
 
+def _median(values):
+    values = [v for v in values if v is not None]
+    return float(np.median(values)) if values else None
+
+
 def summarise(rows) -> list[dict]:
+    """One row per scene x method (in the order first seen): success rate with its 95 % binomial interval, and
+    medians over the successful runs of checks and seconds to the first solution, smoothing checks and path
+    length. `checks_spent` is the median over all runs (what an unsuccessful method spent: the figure's x)."""
+    from scipy.stats import binomtest
+
     cells = {}
     for r in rows:
-        label = r["method"] if r["experiment"] == "ompl" else f"ours:{r['method']}"
-        cells.setdefault((r["scene"], label), []).append(r["metrics"])
+        cells.setdefault((r["scene"], r["method"]), []).append(r["metrics"])
     table = []
-    for (scene, method), metrics in sorted(cells.items()):
-        ok = np.array([m["success"] for m in metrics], bool)
-        seconds = np.array([m["seconds"] for m in metrics])
-        checks = np.array([m["collision_checks"] for m in metrics])
-        table.append({"scene": scene, "method": method, "runs": len(metrics), "success_rate": float(ok.mean()),
-                      "median_seconds": float(np.median(seconds)),
-                      "median_seconds_solved": float(np.median(seconds[ok])) if ok.any() else None,
-                      "median_checks": float(np.median(checks))})
+    for (scene, method), metrics in cells.items():
+        won = [m for m in metrics if m["success"]]
+        n, k = len(metrics), len(won)
+        ci = binomtest(k, n).proportion_ci(confidence_level=0.95)
+        table.append({
+            "scene": scene, "method": method, "runs": n, "successes": k, "success_rate": k / n,
+            "success_ci": [float(ci.low), float(ci.high)],
+            "median_checks": _median([m["checks"] for m in won]),
+            "median_seconds": _median([m["seconds"] for m in won]),
+            "median_smoothing_checks": _median([m.get("smoothing_checks") for m in won]),
+            "median_path_length": _median([m.get("path_length") for m in won]),
+            "checks_spent": _median([m["checks"] for m in metrics]),
+            # a path found, but later than the budget, or failing our fine check after smoothing
+            "late": sum(1 for m in metrics if m.get("late")),
+            "failed_fine_check": sum(1 for m in metrics if m["solved"] and not m.get("fine_check_passed", 0.0)),
+            # of those, how many had a first solution (before smoothing) that passed it
+            "failed_fine_check_after_smoothing": sum(1 for m in metrics if m["solved"] and not m["fine_check_passed"]
+                                                     and m.get("raw_fine_check_passed")),
+        })
     return table
 
 
-def measure(scenes: list[str], methods: list[str], seeds: int, budget: float, step: float | None, store,
-            workers: int = 1) -> list[dict]:
-    """Every scene x method for seeds 0..seeds-1 on `budget` seconds each (trials `store` lacks are run), as
-    `summarise` rows. A missing OMPL is one UserError before anything runs."""
-    from app.ompl_bridge import ompl_modules
+def best_ompl(rows: list[dict]) -> dict | None:
+    """The OMPL method with the most successes, ties broken by fewer median checks (None: no OMPL row)."""
+    ompl = [r for r in rows if r["method"].startswith("ompl:")]
+    if not ompl:
+        return None
+    return min(ompl, key=lambda r: (-r["successes"], r["median_checks"] if r["median_checks"] is not None else np.inf))
 
-    ompl_modules()
-    return summarise(sweep(specs(scenes, methods, seeds, budget, step), store, workers=workers, desc="bench ompl"))
+
+def compare(rows: list[dict], ours: str = OURS) -> dict:
+    """For one scene's rows: the best OMPL method (`best_ompl`) and our default planner's median checks to the
+    first solution over that method's (None when either never succeeded)."""
+    best = best_ompl(rows)
+    mine = next((r for r in rows if r["method"] == ours), None)
+    ratio = None
+    if best is not None and mine is not None and best["median_checks"] and mine["median_checks"] is not None:
+        ratio = mine["median_checks"] / best["median_checks"]
+    return {"ours": ours, "best_ompl": best["method"] if best is not None else None, "checks_ratio": ratio,
+            "rule": "best OMPL method: most successes, ties broken by fewer median checks to the first solution"}
+
+
+def motion_checks(scene: str, methods: list[str], edges: int = 200) -> list[dict]:
+    """The motion-check spacing of the OMPL state spaces `methods` use on `scene` (app.ompl_bridge.motion_spacing):
+    one entry per space, naming the planners that use it."""
+    from app.cspace import ConfigurationSpace
+    from app.ompl_bridge import REAL_VECTOR_ONLY, motion_spacing
+
+    cspace = ConfigurationSpace.of(Scene(scene))
+    spaces = {}
+    for method in methods:
+        parts = parse_method(method)
+        if not parts["ours"]:
+            spaces.setdefault(parts["planner"] not in REAL_VECTOR_ONLY, []).append(method)
+    out = []
+    for wrap, users in spaces.items():
+        out.append({**motion_spacing(cspace, wrap_angles=wrap, edges=edges), "methods": users})
+    return out
+
+
+def measure(scenes: list[str], methods: list[str], seeds: int, budget: float, step: float | None, store,
+            workers: int = 1) -> dict:
+    """Every scene x method for seeds 0..seeds-1 on `budget` seconds each (trials `store` lacks are run).
+
+    Returns {"scenes": [{"scene", "methods": summarise rows in `methods` order, "comparison": compare(...),
+    "motion_checks": motion_checks(...)}], "budget_seconds", "seeds"}. A missing OMPL or a bad method is one
+    UserError before anything runs."""
+    for method in methods:
+        parse_method(method)
+    if any(not parse_method(m)["ours"] for m in methods):
+        from app.ompl_bridge import ompl_modules
+
+        ompl_modules()
+    rows = sweep(specs(scenes, methods, seeds, budget, step), store, workers=workers, desc="bench ompl")
+    table = summarise(rows)
+    out = []
+    for scene in scenes:
+        cells = {r["method"]: r for r in table if r["scene"] == scene}
+        ordered = [cells[m] for m in methods if m in cells]
+        out.append({"scene": scene, "methods": ordered, "comparison": compare(ordered),
+                    "motion_checks": motion_checks(scene, methods)})
+    return {"scenes": out, "budget_seconds": budget, "seeds": seeds}
+
+
+def figure(report: dict, path: str) -> None:
+    """Success rate (with its 95 % interval) against median checks to the first solution, one panel per scene (log
+    x), one marker per method; ours highlighted. A method that never succeeded is drawn hollow at y = 0, at the
+    median checks it spent."""
+    # matplotlib (and app.draw, which loads it) only when a figure is drawn: the command line imports this module.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    from app.draw import save
+
+    scenes = report["scenes"]
+    methods = list(dict.fromkeys(r["method"] for s in scenes for r in s["methods"]))
+    ompl_markers = iter(["o", "s", "^", "D", "v", "P", "X", "<", ">", "h", "p", "8"])
+    style = {}
+    for i, m in enumerate(methods):
+        if m.startswith("ours:"):
+            style[m] = {"marker": "*", "color": "tab:red" if m == OURS else "tab:orange", "ms": 15, "zorder": 5}
+        else:
+            style[m] = {"marker": next(ompl_markers, "o"), "color": f"C{[0, 2, 4, 5, 6, 7, 8, 9, 1, 3][i % 10]}",
+                        "ms": 8, "zorder": 3}
+    cols = min(5, len(scenes))
+    rows = -(-len(scenes) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.3 * cols, 3.0 * rows), squeeze=False)
+    for ax, s in zip(axes.flat, scenes):
+        for r in s["methods"]:
+            st = style[r["method"]]
+            solved = r["median_checks"] is not None
+            x = r["median_checks"] if solved else r["checks_spent"]
+            if not x:
+                continue
+            y = r["success_rate"]
+            err = [[y - r["success_ci"][0]], [r["success_ci"][1] - y]]
+            ax.errorbar([x], [y], yerr=err, fmt="none", ecolor=st["color"], alpha=0.5, capsize=2,
+                        zorder=st["zorder"] - 1)
+            ax.plot([x], [y], linestyle="none", marker=st["marker"], ms=st["ms"], color=st["color"],
+                    markerfacecolor=st["color"] if solved else "none", markeredgecolor=st["color"],
+                    zorder=st["zorder"])
+        ax.set_xscale("log")
+        ax.set_ylim(-0.08, 1.08)
+        ax.margins(x=0.25)
+        c = s["comparison"]
+        best = (c["best_ompl"] or "").split(":", 1)[-1]
+        ratio = c["checks_ratio"]
+        if ratio is not None:
+            ratio = f"{ratio:.0f}" if ratio >= 10 else f"{ratio:.2g}"
+        title = s["scene"] + (f"\n{OURS} / {best}: {ratio}x checks" if ratio is not None else "")
+        ax.set_title(title, fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+        ax.tick_params(labelsize=8)
+    for ax in axes.flat[len(scenes):]:
+        ax.set_visible(False)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("success rate", fontsize=9)
+    for ax in axes[-1, :]:
+        ax.set_xlabel("median checks to first solution", fontsize=9)
+    handles = [Line2D([], [], linestyle="none", marker=style[m]["marker"], color=style[m]["color"],
+                      ms=min(style[m]["ms"], 11), label=m) for m in methods]
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(methods), 6), fontsize=9, frameon=False,
+               bbox_to_anchor=(0.5, -0.02))
+    fig.suptitle(f"{report['seeds']} runs per method, {report['budget_seconds']:g} s budget each; bars: 95 % binomial "
+                 f"interval; hollow: no successful run (x: median checks spent)\npanel titles: our median checks over the "
+                 f"best OMPL planner's (most successes, then fewer checks)", fontsize=9)
+    fig.tight_layout(rect=(0, 0.06 + 0.02 * (len(methods) > 6), 1, 1))
+    save(fig, path)
