@@ -8,6 +8,7 @@ import argparse
 import sys
 
 from app import commands
+from app.commands.common import print_json
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 
 # The one map from a failure to the process's exit code (0: success). An exception takes the code of its nearest
@@ -40,12 +41,17 @@ def exit_code(exc: BaseException) -> int:
 
 
 def main(argv=None) -> int:
+    """Run one command. A failure is one line on stderr and its exit code; with --json also one JSON object on
+    stdout: {"success": false, "error": {"code", "message"}, "exit_code"}."""
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
-    except UserError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return exit_code(exc)
-    except KeyboardInterrupt as exc:
-        print("error: interrupted", file=sys.stderr)
-        return exit_code(exc)
+    except (UserError, KeyboardInterrupt) as exc:
+        message = str(exc) if isinstance(exc, UserError) else "interrupted"
+        code = exit_code(exc)
+        print(f"error: {message}", file=sys.stderr)
+        if "--json" in argv:
+            print_json({"success": False, "error": {"code": getattr(exc, "code", "PREEMPTED"), "message": message},
+                        "exit_code": code})
+        return code

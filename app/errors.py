@@ -1,20 +1,38 @@
 """The exceptions behind every failure a user should see as one line: bad input, an invalid start or goal, no path.
 
-What each means to a process (its exit code) is the command line's business: `app.cli.EXIT_CODES`.
+Each carries a stable `code` (MoveIt's error-code names where they fit), so a program reading `--json` answers, or
+calling the API, can tell failures apart without parsing messages. What each means to a process (its exit code) is
+the command line's business: `app.cli.EXIT_CODES`.
 """
 
 
 class UserError(Exception):
     """Bad input: unknown name, malformed file, wrong-length or non-finite numbers."""
 
+    code = "INVALID_INPUT"
+
+    def __init__(self, message: str, code: str | None = None):
+        super().__init__(message)
+        if code is not None:
+            self.code = code
+
 
 class InvalidEndpoint(UserError):
-    """Start or goal is in collision or out of bounds."""
+    """Start or goal is in collision or out of bounds (START_STATE_IN_COLLISION, GOAL_IN_COLLISION,
+    START_STATE_INVALID, GOAL_STATE_INVALID), or a goal pose has no collision-free inverse kinematics
+    (NO_IK_SOLUTION)."""
+
+    code = "START_STATE_INVALID"
 
 
 class NoPath(UserError):
-    """The planner spent its budget without connecting start and goal."""
+    """The planner spent its samples or its budget without connecting start and goal (TIMED_OUT when the budget
+    ended it)."""
+
+    code = "PLANNING_FAILED"
 
 
 class SamplerBudgetExceeded(UserError):
     """A sampler spent its collision-check budget before it had k samples."""
+
+    code = "PLANNING_FAILED"

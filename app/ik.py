@@ -134,7 +134,8 @@ def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=
         oracle.checks = checks_before
     if not found:
         raise InvalidEndpoint(f"pose '{label}' cannot be reached collision-free by {frame.name()} "
-                              f"(tolerance {position_tolerance * 1000:g} mm, {math.degrees(angle_tolerance):g} deg)")
+                              f"(tolerance {position_tolerance * 1000:g} mm, {math.degrees(angle_tolerance):g} deg)",
+                              "NO_IK_SOLUTION")
     return min(found, key=lambda c: float(oracle.space.distance(reference, c)))
 
 

@@ -159,11 +159,13 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
     q = oracle.space.check_configuration(q, what)
     bad = oracle.space.out_of_bounds(q)
     if bad:
-        raise InvalidEndpoint(f"{what} is out of bounds: {'; '.join(bad)}")
+        raise InvalidEndpoint(f"{what} is out of bounds: {'; '.join(bad)}",
+                              "START_STATE_INVALID" if what == "start" else "GOAL_STATE_INVALID")
     if not oracle.is_free(q):
         pairs = oracle.colliding_bodies(q)
         touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
-        raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}")
+        raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}",
+                              "START_STATE_IN_COLLISION" if what == "start" else "GOAL_IN_COLLISION")
     return oracle.space.wrap(q)
 
 
@@ -407,7 +409,7 @@ class Query:
     # ---- answers ----------------------------------------------------------------------------------------------------
     def _failure(self, message: str, **details) -> NoPath:
         seconds, spent = self.elapsed()
-        error = NoPath(message)
+        error = NoPath(message, "TIMED_OUT" if self.stopped else None)
         error.details = {"roadmap": self.roadmap.stats(), "rounds": self.rounds, "collision_checks": spent,
                          "seconds": seconds, "stopped": self.stopped, **details}
         return error
@@ -420,10 +422,9 @@ class Query:
                   else "; the roadmap may not grow further")
         return self._failure(
             f"no path from start to goal on {self.oracle.scene.name}: roadmap of {stats['nodes']} nodes "
-            f"({stats['narrow_nodes']} narrow-passage samples from {s.sampler}, {stats['uniform_nodes']} uniform) in "
-            f"{stats['components']} components, start and goal in different ones (sizes {sizes[0]} and {sizes[1]}); "
-            f"{stats['edges_tried']} edges tried, {spent} collision checks, {seconds:.1f} s, {self.rounds} round(s)"
-            + ending, components_of_start_goal=sizes)
+            f"({stats['narrow_nodes']} narrow-passage samples from {s.sampler}, {stats['uniform_nodes']} uniform), "
+            f"start and goal not joined by edges checked free; {stats['edges_tried']} edges decided, {spent} "
+            f"collision checks, {seconds:.1f} s, {self.rounds} round(s)" + ending, components_of_start_goal=sizes)
 
     def _result(self, nodes: list[int], path: np.ndarray, stats: dict) -> PlanResult:
         from app.roadmap import NARROW

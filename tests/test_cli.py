@@ -156,3 +156,27 @@ def test_help_does_not_load_drake():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("args, code, error", [
+    (["plan", "bar", "--start", "1,2,3"], 2, "INVALID_INPUT"),
+    (["plan", "bar", "--sampler", "nope"], 2, "INVALID_INPUT"),
+    (["plan", "bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, "START_STATE_IN_COLLISION"),
+    (["plan", "bar", "--goal", "500,50,0,0,0,0,0,0,0"], 3, "GOAL_STATE_INVALID"),
+    (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "TIMED_OUT"),
+    (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--full-roadmap"], 1,
+     "PLANNING_FAILED"),
+])
+def test_json_answers_failures_with_one_object_and_a_stable_code(cli, args, code, error):
+    result = cli(*args, "--json")
+    assert result.returncode == code
+    lines = result.stdout.strip().splitlines()
+    assert len(lines) == 1
+    answer = json.loads(lines[0])
+    assert answer["success"] is False and answer["exit_code"] == code and answer["error"]["code"] == error
+    assert answer["error"]["message"] and result.stderr.count("\n") == 1
+
+
+def test_json_answers_success_with_one_object(cli):
+    result = cli("scenes", "--json")
+    assert result.returncode == 0 and json.loads(result.stdout)["success"] is True

@@ -127,7 +127,7 @@ def parse_budget(text: str) -> Budget:
     return Budget(seconds=seconds, checks=checks)
 
 
-def print_json(obj) -> None:
-    """A command's answer as one line of JSON on stdout."""
-    json.dump(obj, sys.stdout, indent=None, separators=(",", ":"))
+def print_json(obj: dict) -> None:
+    """A command's answer as one line of JSON on stdout; every answer says whether it is a success."""
+    json.dump({"success": True, **obj}, sys.stdout, indent=None, separators=(",", ":"))
     sys.stdout.write("\n")

@@ -61,14 +61,15 @@ def run(args) -> int:
         check_output(args.html)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     result = plan(oracle, settings, start=args.start, goal=args.goal)
+    # Files first, the answer last: a failure writing one leaves no success printed.
+    view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
     if out is not None:
         result.trajectory_file().write(out)
     if args.json:
         print_json(result.to_json())
     else:
         print(summary(result))
-    if args.html or args.meshcat:
-        view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+    view.wait(args)
     return 0
 
 

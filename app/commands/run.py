@@ -2,7 +2,7 @@
 from dataclasses import replace
 
 from app.commands.common import non_negative_int, parse_budget, positive_float, print_json, sampler_name
-from app.commands.view import add_arguments, publish_from_args
+from app.commands.view import add_arguments, publish_from_args, wait
 from app.errors import UserError
 from app.io import check_output
 from app.oracle import CollisionOracle
@@ -38,6 +38,8 @@ def run(args) -> int:
             check_output(target)
     oracle = CollisionOracle(Scene(args.job))
     result = run_job(oracle, args.job, settings)
+    # Files first, the answer last: a failure writing one leaves no success printed.
+    publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
     if args.out:
         result.trajectory_file().write(args.out)
     if args.json:
@@ -51,6 +53,5 @@ def run(args) -> int:
         s = result.seconds
         print(f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
               f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)")
-    if args.html or args.meshcat:
-        publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+    wait(args)
     return 0

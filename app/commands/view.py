@@ -21,22 +21,23 @@ def add_arguments(p) -> None:
 
 def publish_from_args(args, scene, data):
     """Show/export `data` (an app.viewer.ViewData) as the flags of `add_arguments` ask; None when none was given.
-
-    With --meshcat the URL goes to stderr (stdout may carry a command's JSON) and, when stdin is a terminal, the
-    server stays up until Enter or Ctrl-C; otherwise (CI, pipes) this returns at once.
-    """
+    With --meshcat the URL goes to stderr (stdout may carry a command's JSON); `wait` then keeps it served."""
     if not args.meshcat and not args.html:
         return None
     viewer = publish(scene, data, html=args.html, frame=args.frame, collision=args.collision)
     if args.meshcat:
         print(f"meshcat: {viewer.url()}", file=sys.stderr, flush=True)
-        if sys.stdin is not None and sys.stdin.isatty():
-            print("press Enter (or Ctrl-C) to quit the viewer", file=sys.stderr, flush=True)
-            try:
-                sys.stdin.readline()
-            except KeyboardInterrupt:
-                pass
     return viewer
+
+
+def wait(args) -> None:
+    """With --meshcat and a terminal, keep the viewer up until Enter or Ctrl-C; otherwise (CI, pipes) return."""
+    if args.meshcat and sys.stdin is not None and sys.stdin.isatty():
+        print("press Enter (or Ctrl-C) to quit the viewer", file=sys.stderr, flush=True)
+        try:
+            sys.stdin.readline()
+        except KeyboardInterrupt:
+            pass
 
 
 def register(subparsers) -> None:
@@ -55,4 +56,5 @@ def run_view(args) -> int:
     publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
     if args.html:
         print(args.html)
+    wait(args)
     return 0
