@@ -284,7 +284,7 @@ def test_cli_human_summary(cli):
     (["bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, ["start", "collision", "obstacles::obstacles"]),
     (["bar", "--goal", "150,50,0,0,0,0,0,0,0"], 3, ["goal", "out of bounds"]),
     (["joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--budget", "1checks"], 1,
-     ["no path", "components", "different"]),
+     ["no path", "not joined", "budget 1checks spent"]),
     (["bar", "--sampler", "magic"], 2, ["unknown sampler", "lfbs"]),
     (["atlantis"], 2, ["unknown scene"]),
     (["bar", "--narrow", "-1"], 2, ["--narrow"]),
