@@ -1,8 +1,8 @@
 """The planner: a query on a lazy PRM whose key samples come from a narrow-passage sampler.
 
-    endpoints checked -> narrow + uniform samples, in rounds until start and goal connect -> roadmap (k-nearest;
-    lazy edge checks for a single query) -> shortest path -> shortcut smoothing -> the result re-checked at 1/4
-    resolution -> Toppra per segment
+    endpoints checked -> the straight motion -> uniform, then narrow-passage samples, in rounds until start and
+    goal connect -> roadmap (k-nearest; lazy edge checks for a single query) -> shortest path -> shortcut
+    smoothing -> the result re-checked at 1/4 resolution -> Toppra per segment
 
 `plan(oracle, PlanSettings(...))` runs one `Query` through those phases and returns a PlanResult.
 """
@@ -53,9 +53,10 @@ def default_step(scene) -> float:
 class PlanSettings:
     """Everything a query may be told, validated once when built (a bad value raises UserError).
 
-    sampler: the narrow-passage sampler's registered name; narrow / uniform: how many samples of each (per round
-    a quarter, unless full_roadmap); step: the sampler's base step a (None: the scene's default); budget: keep
-    adding rounds past those counts until connected or spent; k: neighbours per node (None: k-PRM*'s);
+    sampler: the narrow-passage sampler's registered name; narrow / uniform: the sample counts that size a
+    query's rounds (see Query) or, with full_roadmap, the whole roadmap; step: the sampler's base step a (None:
+    the scene's default); budget: what the query may spend (seconds and/or collision checks; Budget() has no
+    limit); k: neighbours per node (None: k-PRM*'s);
     smooth_rounds: random shortcut rounds; dt: trajectory sample period (s); sampler_params: extra keyword
     arguments of the sampler (e.g. alpha_angle); skip_connected: Kavraki's rule for a full roadmap;
     full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query)."""
