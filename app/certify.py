@@ -1,0 +1,286 @@
+"""Continuous collision certification by conservative advancement: a motion is proved free, not only sampled.
+
+Motion bound. For robot geometry g and coordinate j, rates[g, j] bounds how far any point of g moves per unit of
+q_j, at every configuration: 1 for a prismatic joint; for a revolute joint, the distance from its axis to the
+farthest point of g, bounded without knowing q by the triangle inequality -- the fixed offsets along the chain
+from the joint to g's body (a prismatic joint on the way adds its largest travel within the bounds) plus g's
+radius about its body origin, taken from the shape. So along any motion a point of g travels at most
+B_g = sum_j rates[g, j] * (travel of q_j).
+
+Certificate. Signed distance changes no faster than the shapes move, so if at the ends a, b of a piece of motion
+d_PQ(a) + d_PQ(b) > B_P + B_Q for every pair the scene counts (B = 0 for the environment), P and Q never touch in
+between: d(t) >= d(a) - travel(a..t) and d(t) >= d(b) - travel(t..b), and the two travels add up to at most
+B_P + B_Q. A piece that fails is bisected; one that still fails once its motion is shorter than the floor (in
+the space's weighted metric) is reported as colliding.
+
+max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
+at that end. Each end is queried with D just above half the largest B_P + B_Q of the pieces it bounds: a pair
+unreported at both ends then passes, and Drake computes no more pairs than the test needs. Distances are cached
+per configuration, so ends shared by adjacent pieces, and by rounds of a caller that retries, are asked once.
+"""
+from __future__ import annotations
+
+import itertools
+import time
+import weakref
+from typing import NamedTuple
+
+import numpy as np
+
+# A piece is bisected until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
+FLOOR_DIVISOR = 64
+# max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
+_MARGIN = 1.0 + 1e-6
+# Pair key: smaller geometry index * _KEY + larger.
+_KEY = 1 << 31
+
+
+class MotionBound:
+    """Per robot geometry, per coordinate: the largest distance any point of the geometry moves per unit of that
+    coordinate, at any configuration within the space's bounds."""
+
+    def __init__(self, oracle):
+        plant = oracle.plant
+        inspector = oracle.model.scene_graph().model_inspector()
+        inboard = {}
+        for index in plant.GetJointIndices():
+            joint = plant.get_joint(index)
+            inboard[joint.child_body().index()] = joint
+        self.rows, rates = {}, []
+        for instance in oracle.scene.robot_instances:
+            for body_index in plant.GetBodyIndices(instance):
+                chain = _chain(inboard, body_index)
+                for geometry in plant.GetCollisionGeometriesForBody(plant.get_body(body_index)):
+                    self.rows[geometry] = len(rates)
+                    rates.append(_rates(chain, _radius(inspector, geometry), oracle.space))
+        # The last row (zeros) stands for every environment geometry: it does not move.
+        self.rates = np.vstack(rates + [np.zeros(oracle.space.dim)])
+        self.self_pairs = oracle.scene.self_collisions
+
+    def row(self, geometry_id) -> int:
+        return self.rows.get(geometry_id, -1)
+
+    def travel(self, variation: np.ndarray) -> np.ndarray:
+        """Bound on how far any point of each geometry moves when coordinate j travels variation[j] (>= 0)."""
+        return self.rates @ variation
+
+    def max_distance(self, travel: np.ndarray) -> float:
+        """The max_distance at which every unreported pair passes: half the largest B_P + B_Q of a counted pair."""
+        top = np.sort(travel)[-2:]
+        largest = top.sum() if self.self_pairs else top[-1]
+        return 0.5 * largest * _MARGIN + 1e-12
+
+
+def _chain(inboard: dict, body_index) -> list:
+    """The joints from a body up to the world, nearest first."""
+    chain = []
+    while body_index in inboard:
+        joint = inboard[body_index]
+        chain.append(joint)
+        body_index = joint.parent_body().index()
+    return chain
+
+
+def _rates(chain: list, radius: float, space) -> np.ndarray:
+    """Rates of one geometry whose points lie within `radius` of its body origin."""
+    rates = np.zeros(space.dim)
+    reach = radius  # bound on the distance from the current joint's child body origin to any point of the geometry
+    for joint in chain:
+        reach += np.linalg.norm(joint.frame_on_child().GetFixedPoseInBodyFrame().translation())
+        kind, start = joint.type_name(), joint.position_start()
+        if kind == "revolute":
+            rates[start] = reach  # the axis passes through the joint frame's origin: distance to it bounds the lever
+            slide = 0.0
+        elif kind == "prismatic":
+            rates[start] = np.linalg.norm(joint.translation_axis())
+            slide = rates[start] * max(abs(space.lower[start]), abs(space.upper[start]))
+        elif kind == "weld":
+            slide = np.linalg.norm(joint.X_FM().translation())
+        else:
+            raise ValueError(f"joint '{joint.name()}' of type {kind}: the motion bound handles revolute, prismatic "
+                             "and weld joints only")
+        reach += slide + np.linalg.norm(joint.frame_on_parent().GetFixedPoseInBodyFrame().translation())
+    return rates
+
+
+def _radius(inspector, geometry) -> float:
+    """Largest distance from the geometry's body origin to a point of the geometry."""
+    from pydrake.geometry import Box, Capsule, Convex, Cylinder, Ellipsoid, Mesh, Sphere
+
+    shape, pose = inspector.GetShape(geometry), inspector.GetPoseInFrame(geometry)
+    if isinstance(shape, Box):
+        half = np.array([shape.width(), shape.depth(), shape.height()]) / 2
+        corners = np.array(np.meshgrid(*[[-h, h] for h in half])).reshape(3, -1)
+    elif isinstance(shape, (Mesh, Convex)):
+        hull = shape.GetConvexHull()
+        corners = np.column_stack([hull.vertex(i) for i in range(hull.num_vertices())])
+    else:
+        center = np.linalg.norm(pose.translation())
+        if isinstance(shape, Sphere):
+            return center + shape.radius()
+        if isinstance(shape, Cylinder):
+            return center + np.hypot(shape.radius(), shape.length() / 2)
+        if isinstance(shape, Capsule):
+            return center + shape.radius() + shape.length() / 2
+        if isinstance(shape, Ellipsoid):
+            return center + max(shape.a(), shape.b(), shape.c())
+        raise ValueError(f"robot geometry '{inspector.GetName(geometry)}': no motion bound for a {type(shape).__name__}")
+    return float(np.linalg.norm(pose.multiply(corners), axis=0).max())
+
+
+_bounds: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def motion_bound(oracle) -> MotionBound:
+    """The oracle's MotionBound, computed once per oracle."""
+    if oracle not in _bounds:
+        _bounds[oracle] = MotionBound(oracle)
+    return _bounds[oracle]
+
+
+class Certifier:
+    """Certifies pieces of motion for one oracle, keeping the distances it has asked for across calls."""
+
+    def __init__(self, oracle, floor: float | None = None):
+        self.oracle = oracle
+        self.bound = motion_bound(oracle)
+        self.floor = floor if floor is not None else oracle.space.resolution / FLOOR_DIVISOR
+        self._cache = {}  # configuration bytes -> _End, or None where it collides
+        geometries = oracle.model.scene_graph().model_inspector().GetAllGeometryIds()
+        self._indices = {g: i for i, g in enumerate(geometries)}  # a small integer per geometry, for pair keys
+        self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
+
+    def certify(self, position, variation, intervals) -> tuple[bool, dict]:
+        """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
+
+        variation(s0, s1) bounds each coordinate's travel between s0 and s1, for s0 < s1 within one interval.
+        The curve must stay within the space's bounds between in-bound ends (a straight edge or a blend does).
+        stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds.
+        """
+        clock, queries = time.perf_counter(), self.oracle.distance_queries
+        intervals = [(float(a), float(b)) for a, b in intervals]
+        needs = [self._need(variation(a, b)) for a, b in intervals]
+        hint = {}  # shared ends are asked once, at the larger max_distance of the intervals they bound
+        for (a, b), need in zip(intervals, needs):
+            hint[a], hint[b] = max(hint.get(a, 0.0), need), max(hint.get(b, 0.0), need)
+        failed, pieces = [], 0
+        for i, (a, b) in enumerate(intervals):
+            count = self._interval(position, variation, a, b, hint)
+            if count is None:
+                failed.append(i)
+            else:
+                pieces += count
+        stats = {"failed": failed, "pieces": pieces, "distance_queries": self.oracle.distance_queries - queries,
+                 "seconds": time.perf_counter() - clock}
+        return not failed, stats
+
+    def _need(self, variation: np.ndarray) -> float:
+        return self.bound.max_distance(self.bound.travel(variation))
+
+    def _interval(self, position, variation, s0: float, s1: float, hint: dict) -> int | None:
+        """How many pieces certify [s0, s1] (bisecting as needed), or None if some piece cannot be certified."""
+        stack, pieces = [(s0, s1)], 0
+        while stack:
+            a, b = stack.pop()
+            var = variation(a, b)
+            travel = self.bound.travel(var)
+            need = self.bound.max_distance(travel)
+            ends = [self._distances(position(s), max(need, hint.get(s, 0.0))) for s in (a, b)]
+            if ends[0] is None or ends[1] is None:
+                return None
+            if _clear(ends[0], ends[1], travel):
+                pieces += 1
+                continue
+            if np.linalg.norm(var * self.oracle.space.weights) <= self.floor:
+                return None
+            m = 0.5 * (a + b)
+            hint[m] = max(self._need(variation(a, m)), self._need(variation(m, b)))
+            stack += [(m, b), (a, m)]  # the left half first: a collision near the start shows up early
+        return pieces
+
+    def _distances(self, q: np.ndarray, max_distance: float):
+        """The pairs within max_distance at q (an _End), from the cache when it was asked at a max_distance at
+        least as large; None if q collides or lies outside the bounds."""
+        q = np.asarray(q, float)
+        key = q.tobytes()
+        if key in self._cache:
+            cached = self._cache[key]
+            if cached is None or cached.limit >= max_distance:
+                return cached
+        end = None
+        if self.oracle.space.within_bounds(q)[0]:
+            end = self._end(self.oracle.signed_distances(q, max_distance), max_distance)
+        self._cache[key] = end
+        return end
+
+    def _end(self, pairs: list, max_distance: float):
+        distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
+        if np.any(distance <= 0):
+            return None
+        ix = self._indices
+        index = np.array([(ix[p.id_A], ix[p.id_B]) for p in pairs], np.int64).reshape(-1, 2)
+        index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
+        keys = index[:, 0] * _KEY + index[:, 1]
+        order = np.argsort(keys)
+        rows = self._rows[index[order]]
+        return _End(max_distance, keys[order], distance[order], rows[:, 0], rows[:, 1])
+
+
+class _End(NamedTuple):
+    """Distances at one end of a piece: the pairs within `limit`, by key, sorted."""
+
+    limit: float
+    keys: np.ndarray
+    distance: np.ndarray
+    row_a: np.ndarray
+    row_b: np.ndarray
+
+
+def _clear(a: _End, b: _End, travel: np.ndarray) -> bool:
+    """The certificate for one piece: every pair reported at either end is farther apart, summed over the two
+    ends, than both its shapes can move (a pair an end does not report is at least that end's limit apart)."""
+    return _pass(a, b, travel) and _pass(b, a, travel)
+
+
+def _pass(a: _End, b: _End, travel: np.ndarray) -> bool:
+    """The certificate for the pairs `a` reports, with their distance at `b`, or b's limit where b has none."""
+    other = np.full(len(a.keys), b.limit)
+    if len(b.keys):
+        at = np.searchsorted(b.keys, a.keys).clip(max=len(b.keys) - 1)
+        found = b.keys[at] == a.keys
+        other[found] = b.distance[at[found]]
+    return bool(np.all(a.distance + other > travel[a.row_a] + travel[a.row_b]))
+
+
+def certify_curve(oracle, position, variation, knots, floor: float | None = None) -> tuple[bool, dict]:
+    """Certify the curve position(s) over [knots[0], knots[-1]]; variation(s0, s1) bounds each coordinate's
+    travel for s0 < s1 between two consecutive knots. stats["failed"]: indices of the knot intervals that failed."""
+    knots = np.asarray(knots, float)
+    return Certifier(oracle, floor).certify(position, variation, itertools.pairwise(knots))
+
+
+def polyline(space, P: np.ndarray):
+    """(position, variation) of the polyline P with parameter s = i + t on edge i (straight, the short way)."""
+    W = space.unwrap(P)
+    D = np.diff(W, axis=0)
+
+    def edge(s: float) -> int:
+        return min(max(int(s), 0), len(D) - 1)
+
+    def position(s: float) -> np.ndarray:
+        i = edge(s)
+        return W[i] + (s - i) * D[i]
+
+    def variation(s0: float, s1: float) -> np.ndarray:
+        return np.abs(D[edge(0.5 * (s0 + s1))]) * (s1 - s0)
+
+    return position, variation
+
+
+def certify_path(oracle, P: np.ndarray, floor: float | None = None) -> tuple[bool, dict]:
+    """Certify every straight edge of the polyline P (in oracle.space). stats["failed"]: the edges that failed."""
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(P) < 2:
+        P = np.vstack([P, P])
+    position, variation = polyline(oracle.space, P)
+    return certify_curve(oracle, position, variation, np.arange(len(P)), floor)
