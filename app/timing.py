@@ -258,9 +258,8 @@ def _prepare(waypoints, velocity_limits, acceleration_limits, weights):
 
 def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acceleration_limits: np.ndarray,
                  dt: float = 0.02, joint_names: list[str] | None = None) -> Trajectory:
-    """Rest to rest at every waypoint: each straight segment timed on its own (what a scripted job wants where it
-    stops, and the fallback of a path that cannot be certified). Not certified: it is exactly the polyline, which
-    is as free as its checks say."""
+    """Rest to rest at every waypoint: each straight segment timed on its own (what a scripted job's leg wants
+    where it stops). Not certified: it is exactly the polyline, as free as its checks say."""
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, np.ones(np.shape(waypoints)[-1]))
     legs = _legs(W, tangent, arc, np.zeros(len(W))) if len(W) > 1 else []
     return _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified=False)
