@@ -187,9 +187,8 @@ class Certifier:
         self._indices = {g: i for i, g in enumerate(geometries)}  # a small integer per geometry, for pair keys
         self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
-        # Pairs whose signed distance Drake computes in closed form (its documented error ~1e-15 m); the others
-        # come from GJK, whose answers were seen up to 0.3 mm too large, and get a lower bound of their own.
-        self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds]).reshape(len(kinds), -1)
+        # Pairs Drake computes in closed form; the others (GJK) get a lower bound of our own (see the module doc).
+        self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
         self._shapes = {}
 
     def certify(self, position, variation, intervals) -> tuple[bool, dict]:
@@ -201,9 +200,9 @@ class Certifier:
         """
         clock, queries = time.perf_counter(), self.oracle.distance_queries
         intervals = [(float(a), float(b)) for a, b in intervals]
-        needs = [self._need(variation(a, b)) for a, b in intervals]
         hint = {}  # shared ends are asked once, at the larger max_distance of the intervals they bound
-        for (a, b), need in zip(intervals, needs):
+        for a, b in intervals:
+            need = self._need(variation(a, b))
             hint[a], hint[b] = max(hint.get(a, 0.0), need), max(hint.get(b, 0.0), need)
         failed, pieces = [], 0
         for i, (a, b) in enumerate(intervals):
