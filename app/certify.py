@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 # A piece is bisected until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
-FLOOR_DIVISOR = 64
+FLOOR_DIVISOR = 256
 # max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
 _MARGIN = 1.0 + 1e-6
 # Pairs are asked for this fraction of the resolution beyond the distance needed (over ten times the GJK errors
