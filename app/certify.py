@@ -14,15 +14,18 @@ B_P + B_Q. A piece that fails is bisected; one that still fails once its motion 
 the space's weighted metric) is reported as colliding.
 
 Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
-mesh by GJK, whose answers were measured up to 0.34 mm too large (the maze's hull at 1 cm from a pillar's corner;
-0.07 mm on the window). Too large is unsafe, so such a pair's distance is replaced by a lower bound of our own: the
-gap between the two shapes along Drake's separating direction, from the shapes' support functions (the gap along
-any direction bounds the distance from below). It came out up to 0.2 mm below the true distance on the maze.
+mesh by GJK, whose answers can be too large -- unsafe here: up to 0.34 mm for the maze's hull near a pillar's corner,
+and 2.7 cm (0.064 for 0.037) for two nearly coaxial cylinders of the UR3's wrist and torch. So for every counted pair
+of that kind, reported by Drake or not, the certificate uses a lower bound of its own: the largest gap between the
+two shapes along three directions -- Drake's separating direction, and the normals of each shape at the near points
+that a few alternating projections onto the two shapes find -- from the shapes' support functions (the gap along
+any direction bounds the distance from below). On the maze's corner it matched the true distance to 1e-15.
+Every distance is lowered by a rounding allowance (1e-9 of the resolution).
 
 max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
 at that end. Each end is queried with D just above half the largest B_P + B_Q of the pieces it bounds: a pair
-unreported at both ends then passes, and Drake computes no more pairs than the test needs. (Drake is asked a
-little farther, REPORT_SLACK, so that a pair its GJK error leaves out is surely beyond D.) Distances are cached
+unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
+count as unreported when their own bound is at least D). Distances are cached
 per configuration, so ends shared by adjacent pieces, and by rounds of a caller that retries, are asked once.
 """
 from __future__ import annotations
@@ -38,12 +41,11 @@ import numpy as np
 FLOOR_DIVISOR = 256
 # max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
 _MARGIN = 1.0 + 1e-6
-# Pairs are asked for this fraction of the resolution beyond the distance needed (over ten times the GJK errors
-# measured), so that a pair left out at max_distance + slack is surely beyond max_distance.
-REPORT_SLACK = 0.1
 # Shape pairs Drake computes signed distance for in closed form.
 _EXACT = {frozenset(pair) for pair in [("Box",), ("Sphere",), ("Box", "Sphere"), ("Sphere", "Capsule"),
                                        ("Sphere", "Cylinder")]}
+# Alternating projections between two shapes, for the direction of their gap.
+PROJECTIONS = 2
 # Pair key: smaller geometry index * _KEY + larger.
 _KEY = 1 << 31
 
@@ -146,19 +148,118 @@ def _radius(kind: str, data, pose) -> float:
     return float(np.linalg.norm(pose.translation()) + extent)
 
 
-def _support(kind: str, data, u: np.ndarray) -> float:
-    """max over the shape of u . x, in the shape's own frame (u a unit vector)."""
-    if kind == "box":
-        return float(data @ np.abs(u))
-    if kind == "sphere":
-        return data
-    if kind == "cylinder":
-        return data[0] * np.hypot(u[0], u[1]) + data[1] * abs(u[2])
-    if kind == "capsule":
-        return data[0] + data[1] * abs(u[2])
-    if kind == "ellipsoid":
-        return float(np.linalg.norm(data * u))
-    return float((data @ u).max())
+class _Gaps:
+    """Lower bounds on the distance of the counted pairs whose distance Drake computes by GJK (see the module doc).
+
+    Shapes as a box core (half sizes), a disc (radius, in the x-y plane) and a ball (radius) summed: a box is a
+    core, a sphere a ball, a capsule a z segment and a ball, a cylinder a z segment and a disc -- one formula for the
+    nearest point and for the support function of all four. Ellipsoids and meshes are handled apart ("special")."""
+
+    def __init__(self, oracle, geometries: list, robot: np.ndarray, exact: np.ndarray):
+        from pydrake.math import RigidTransform
+
+        inspector = oracle.model.scene_graph().model_inspector()
+        self.pairs = np.array([(i, j) for i, j in itertools.combinations(range(len(geometries)), 2)
+                               if (robot[i] or robot[j]) and not exact[i, j]
+                               and (oracle.scene.self_collisions or not (robot[i] and robot[j]))
+                               and not inspector.CollisionFiltered(geometries[i], geometries[j])], int).reshape(-1, 2)
+        self.keys = self.pairs[:, 0] * _KEY + self.pairs[:, 1]
+        count = len(geometries)
+        self.core, self.disc, self.ball = np.zeros((count, 3)), np.zeros(count), np.zeros(count)
+        self.radius = np.zeros(count)  # about the shape's own origin
+        self.special = {}  # geometry index -> ("ellipsoid", semi-axes) or ("vertices", (n, 3))
+        for i in np.unique(self.pairs):
+            kind, data = _describe(inspector, geometries[i])
+            self.radius[i] = _radius(kind, data, RigidTransform())
+            if kind == "box":
+                self.core[i] = data
+            elif kind == "sphere":
+                self.ball[i] = data
+            elif kind in ("cylinder", "capsule"):
+                self.core[i, 2] = data[1]
+                (self.disc if kind == "cylinder" else self.ball)[i] = data[0]
+            else:
+                self.special[i] = (kind, data)
+        self.is_special = np.isin(np.arange(count), list(self.special))
+
+    def near(self, R: np.ndarray, p: np.ndarray, nhat: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+        """(pairs, bounds): the pairs whose lower bound is below `limit`, and the bounds, given the shapes' poses
+        (R (G, 3, 3), p (G, 3)) and Drake's direction from b to a where it reported a pair (else NaN)."""
+        a, b = self.pairs.T
+        # Cheap bounds first, to skip most pairs: bounding spheres; then from each centre to the other shape.
+        near = np.flatnonzero(np.linalg.norm(p[a] - p[b], axis=1) - self.radius[a] - self.radius[b] < limit)
+        A, B = self._posed(a[near], R, p), self._posed(b[near], R, p)
+        rough = np.maximum(self._distance_to(B, A.p) - A.radius, self._distance_to(A, B.p) - B.radius)
+        keep = rough < limit
+        near = near[keep]
+        if not len(near):
+            return near, np.zeros(0)
+        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[near])
+        return near[bounds < limit], bounds[bounds < limit]
+
+    def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
+        return _Posed(R[g], p[g], self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
+
+    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray) -> np.ndarray:
+        """The largest gap between the shapes along three directions: Drake's where it has one, and the normals of
+        each shape at the near points that alternating projections onto the two shapes find. Any direction's gap
+        bounds the distance from below; a normal of a shape makes that shape's side of the bound exact."""
+        on_a = A.p
+        for _ in range(PROJECTIONS):
+            on_b = self._project(B, on_a)
+            on_a = self._project(A, on_b)
+        n = np.stack([on_a - on_b, on_a - self._project(B, on_a), nhat], 1)
+        length = np.linalg.norm(n, axis=2)
+        n = np.where(length[..., None] > 1e-12, n / np.maximum(length, 1e-300)[..., None], np.nan)
+        gaps = [np.einsum("ij,ij->i", n[:, k], A.p - B.p) - self._support(A, -n[:, k]) - self._support(B, n[:, k])
+                for k in range(n.shape[1])]
+        return np.nanmax(np.column_stack(gaps + [np.full(len(A.p), -np.inf)]), 1)
+
+    def _support(self, S: _Posed, n: np.ndarray) -> np.ndarray:
+        """max over each posed shape of n . (x - its centre), for world directions n (unit rows)."""
+        u = np.einsum("mji,mj->mi", S.R, n)
+        out = (S.core * np.abs(u)).sum(1) + S.disc * np.hypot(u[:, 0], u[:, 1]) + S.ball
+        for m in np.flatnonzero(self.is_special[S.g]):
+            kind, data = self.special[S.g[m]]
+            out[m] = np.linalg.norm(data * u[m]) if kind == "ellipsoid" else (data @ u[m]).max()
+        return out
+
+    def _project(self, S: _Posed, x: np.ndarray) -> np.ndarray:
+        """The point of each posed shape nearest to x, in the world (the centre of an ellipsoid or mesh)."""
+        local = np.einsum("mji,mj->mi", S.R, x - S.p)
+        near = np.clip(local, -S.core, S.core)
+        disc = S.disc > 0
+        if disc.any():
+            near[disc, :2] = local[disc, :2] * _shrink(local[disc, :2], S.disc[disc])
+        near += (local - near) * _shrink(local - near, S.ball)
+        return S.p + np.einsum("mij,mj->mi", S.R, near)
+
+    def _distance_to(self, S: _Posed, x: np.ndarray) -> np.ndarray:
+        """A lower bound on the distance from x to each posed shape: exact where _project is, else to its radius."""
+        exact = np.linalg.norm(self._project(S, x) - x, axis=1)
+        rough = np.maximum(np.linalg.norm(S.p - x, axis=1) - S.radius, 0.0)
+        return np.where(self.is_special[S.g], rough, exact)
+
+
+class _Posed(NamedTuple):
+    """Shapes of the gaps' pairs, one a row, posed: rotation, centre, and their _Gaps parameters."""
+
+    R: np.ndarray
+    p: np.ndarray
+    core: np.ndarray
+    disc: np.ndarray
+    ball: np.ndarray
+    radius: np.ndarray
+    g: np.ndarray  # geometry indices
+
+
+def _rows(S: _Posed, rows) -> _Posed:
+    return _Posed(*(field[rows] for field in S))
+
+
+def _shrink(v: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Factors that bring vectors v (rows) within `radius` of the origin, (n, 1)."""
+    return np.minimum(1.0, radius / np.maximum(np.linalg.norm(v, axis=1), 1e-300))[:, None]
 
 
 _bounds: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -181,15 +282,18 @@ class Certifier:
         self.bound = motion_bound(oracle)
         self.floor = floor if floor is not None else oracle.space.resolution / FLOOR_DIVISOR
         self._cache = {}  # configuration bytes -> _End, or None where it collides
-        self.slack = oracle.space.resolution * REPORT_SLACK
+        self._rounding = 1e-9 * oracle.space.resolution
         inspector = oracle.model.scene_graph().model_inspector()
         geometries = inspector.GetAllGeometryIds(Role.kProximity)
         self._indices = {g: i for i, g in enumerate(geometries)}  # a small integer per geometry, for pair keys
         self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
-        # Pairs Drake computes in closed form; the others (GJK) get a lower bound of our own (see the module doc).
         self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
-        self._shapes = {}
+        self._gaps = _Gaps(oracle, geometries, self._rows >= 0, self._exact)
+        # Shape poses for the gaps: the environment's never change, the robot's are updated per configuration.
+        self._robot = [(i, g) for i, g in enumerate(geometries) if self._rows[i] >= 0]
+        self._R, self._p = np.tile(np.eye(3), (len(geometries), 1, 1)), np.zeros((len(geometries), 3))
+        self._poses(oracle.query_object(oracle.scene.start), enumerate(geometries))
 
     def certify(self, position, variation, intervals) -> tuple[bool, dict]:
         """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
@@ -214,6 +318,16 @@ class Certifier:
         stats = {"failed": failed, "pieces": pieces, "distance_queries": self.oracle.distance_queries - queries,
                  "seconds": time.perf_counter() - clock}
         return not failed, stats
+
+    def distances(self, q: np.ndarray, max_distance: float) -> dict | None:
+        """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
+        pairs closer than max_distance (those left out are at least that far apart); None if q collides."""
+        end = self._distances(q, max_distance)
+        if end is None:
+            return None
+        geometries = list(self._indices)
+        return {frozenset((geometries[k // _KEY], geometries[k % _KEY])): d
+                for k, d in zip(end.keys.tolist(), end.distance.tolist())}
 
     def _need(self, variation: np.ndarray) -> float:
         return self.bound.max_distance(self.bound.travel(variation))
@@ -250,42 +364,43 @@ class Certifier:
                 return cached
         end = None
         if self.oracle.space.within_bounds(q)[0]:
-            # Asked a little farther than needed: a pair Drake's inexact distance leaves out is then surely beyond.
-            pairs = self.oracle.signed_distances(q, max_distance + self.slack)
+            pairs = self.oracle.signed_distances(q, max_distance)
             end = self._end(q, pairs, max_distance)
         self._cache[key] = end
         return end
 
     def _end(self, q: np.ndarray, pairs: list, limit: float):
+        """The certificate's distances at q: Drake's for the pairs it computes exactly, our lower bound for the
+        others; a pair left out is at least `limit` apart. None if Drake finds a pair touching."""
         distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
         if np.any(distance <= 0):
             return None
         ix = self._indices
         index = np.array([(ix[p.id_A], ix[p.id_B]) for p in pairs], np.int64).reshape(-1, 2)
-        inexact = [k for k, (a, b) in enumerate(index) if not self._exact[a, b]]
-        if inexact:
-            query = self.oracle.query_object(q)
-            for k in inexact:
-                distance[k] = min(distance[k], self._lower_bound(query, pairs[k]))
+        swapped = index[:, 0] > index[:, 1]
         index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
         keys = index[:, 0] * _KEY + index[:, 1]
+        exact = self._exact[index[:, 0], index[:, 1]]
+        # Drake's direction (from the pair's second geometry to its first, in our order) where it reported a pair.
+        nhat = np.full((len(self._gaps.keys), 3), np.nan)
+        reported = np.searchsorted(self._gaps.keys, keys[~exact])
+        if np.any(self._gaps.keys[reported.clip(max=len(self._gaps.keys) - 1)] != keys[~exact]):
+            raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
+        directions = np.array([p.nhat_BA_W for p in pairs], float).reshape(-1, 3)
+        nhat[reported] = np.where(swapped[~exact, None], -1.0, 1.0) * directions[~exact]
+        self._poses(self.oracle.query_object(q), self._robot)
+        near, bounds = self._gaps.near(self._R, self._p, nhat, limit)
+        keys = np.concatenate([keys[exact], self._gaps.keys[near]])
+        distance = np.concatenate([distance[exact], bounds]) - self._rounding
         order = np.argsort(keys)
-        rows = self._rows[index[order]]
+        index = np.concatenate([index[exact], self._gaps.pairs[near]])[order]
+        rows = self._rows[index]
         return _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
 
-    def _lower_bound(self, query, pair) -> float:
-        """A distance no larger than the true one, whatever Drake's error: the gap between the two shapes along
-        Drake's separating direction, from their support functions (any direction's gap bounds the distance)."""
-        n = pair.nhat_BA_W
-        X_A, X_B = query.GetPoseInWorld(pair.id_A), query.GetPoseInWorld(pair.id_B)
-        lowest_a = n @ X_A.translation() - _support(*self._shape(pair.id_A), X_A.rotation().matrix().T @ -n)
-        highest_b = n @ X_B.translation() + _support(*self._shape(pair.id_B), X_B.rotation().matrix().T @ n)
-        return lowest_a - highest_b
-
-    def _shape(self, geometry):
-        if geometry not in self._shapes:
-            self._shapes[geometry] = _describe(self.oracle.model.scene_graph().model_inspector(), geometry)
-        return self._shapes[geometry]
+    def _poses(self, query, geometries) -> None:
+        for i, g in geometries:
+            X = query.GetPoseInWorld(g)
+            self._R[i], self._p[i] = X.rotation().matrix(), X.translation()
 
 
 class _End(NamedTuple):

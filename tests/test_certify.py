@@ -158,5 +158,32 @@ def test_the_distances_used_are_never_larger_than_the_true_ones(oracles):
         centre = np.array([5.1, 9.0]) + (0.35 + gap) * np.array([np.cos(angle), np.sin(angle)])
         q = np.array([*centre, 1.5, rng.uniform(-np.pi, np.pi)])
         drake_over = max(drake_over, min(p.distance for p in oracle.signed_distances(q, 0.05)) - gap)
-        assert certifier._distances(q, 0.02).distance.min() <= gap + 1e-9
+        assert min(certifier.distances(q, 0.02).values()) <= gap + 1e-9
     assert drake_over > 1e-5  # Drake's own answer would not have been safe
+
+
+def _surface(shape, pose, rng) -> np.ndarray:
+    """Points on a cylinder's side and caps, in the world (3, n)."""
+    r, h = shape.radius(), shape.length() / 2
+    angle = rng.uniform(0, 2 * np.pi, 4000)
+    rho = r * np.sqrt(rng.uniform(0, 1, 4000))
+    side = np.vstack([r * np.cos(angle), r * np.sin(angle), rng.uniform(-h, h, 4000)])
+    caps = np.vstack([rho * np.cos(angle), rho * np.sin(angle), h * np.sign(rng.uniform(-1, 1, 4000))])
+    return pose.multiply(np.hstack([side, caps]))
+
+
+def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(oracles):
+    """On the window's UR3 at this configuration, Drake's GJK puts the wrist cylinder 6.4 cm from the torch, which
+    is 3.7 cm away: the certificate's bound for the pair stays below every sampled distance, and close to them."""
+    oracle = oracles("window")
+    q = np.array([1.04377472, -0.92859484, 1.60936435, -2.24710633, -1.56433128, -0.52707146])
+    inspector = oracle.model.scene_graph().model_inspector()
+    ids = {inspector.GetName(g): g for g in inspector.GetAllGeometryIds()}
+    wrist, torch = ids["ur3::wrist_3_joint"], ids["ur3::torch_body"]
+    query = oracle.query_object(q)
+    rng = np.random.default_rng(0)
+    a, b = (_surface(inspector.GetShape(g), query.GetPoseInWorld(g), rng) for g in (wrist, torch))
+    sampled = min(np.linalg.norm(a[:, i:i + 500, None] - b[:, None], axis=0).min() for i in range(0, a.shape[1], 500))
+    assert query.ComputeSignedDistancePairClosestPoints(wrist, torch).distance > sampled + 0.02
+    ours = Certifier(oracle).distances(q, 0.1)[frozenset((wrist, torch))]
+    assert sampled - 1e-3 < ours <= sampled
