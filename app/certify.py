@@ -25,8 +25,8 @@ Every distance is lowered by a rounding allowance (1e-9 of the resolution).
 max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
 at that end. Each end is queried with D just above half the largest B_P + B_Q of the pieces it bounds: a pair
 unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
-count as unreported when their own bound is at least D). Distances are cached
-per configuration, so ends shared by adjacent pieces, and by rounds of a caller that retries, are asked once.
+count as unreported when their own bound is at least D). Distances are cached per configuration, so ends shared by
+adjacent pieces, and by rounds of a caller that retries, are asked once.
 """
 from __future__ import annotations
 
@@ -381,13 +381,8 @@ class Certifier:
         index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
         keys = index[:, 0] * _KEY + index[:, 1]
         exact = self._exact[index[:, 0], index[:, 1]]
-        # Drake's direction (from the pair's second geometry to its first, in our order) where it reported a pair.
-        nhat = np.full((len(self._gaps.keys), 3), np.nan)
-        reported = np.searchsorted(self._gaps.keys, keys[~exact])
-        if np.any(self._gaps.keys[reported.clip(max=len(self._gaps.keys) - 1)] != keys[~exact]):
-            raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
         directions = np.array([p.nhat_BA_W for p in pairs], float).reshape(-1, 3)
-        nhat[reported] = np.where(swapped[~exact, None], -1.0, 1.0) * directions[~exact]
+        nhat = self._directions(keys[~exact], swapped[~exact], directions[~exact])
         self._poses(self.oracle.query_object(q), self._robot)
         near, bounds = self._gaps.near(self._R, self._p, nhat, limit)
         keys = np.concatenate([keys[exact], self._gaps.keys[near]])
@@ -396,6 +391,15 @@ class Certifier:
         index = np.concatenate([index[exact], self._gaps.pairs[near]])[order]
         rows = self._rows[index]
         return _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
+
+    def _directions(self, keys: np.ndarray, swapped: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported, as one row per pair of the
+        gaps, turned to point from the pair's second geometry to its first in our order; NaN where not reported."""
+        if not np.isin(keys, self._gaps.keys).all():
+            raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
+        nhat = np.full((len(self._gaps.keys), 3), np.nan)
+        nhat[np.searchsorted(self._gaps.keys, keys)] = np.where(swapped[:, None], -1.0, 1.0) * directions
+        return nhat
 
     def _poses(self, query, geometries) -> None:
         for i, g in geometries:
