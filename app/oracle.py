@@ -60,6 +60,7 @@ class CollisionOracle:
         self._batch_calls = 0
         self.checks = 0
         self.stop: Stop | None = None  # set by a query for its duration: every counted answer polls it
+        self.distance_queries = 0  # signed-distance queries (continuous certification), apart from `checks`
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
         self.checker = SceneGraphCollisionChecker(
@@ -106,6 +107,7 @@ class CollisionOracle:
 
     def reset(self) -> None:
         self.checks = 0
+        self.distance_queries = 0
 
     # ---- collision answers (counted) -----------------------------------------------------------------------
     def _raw_free(self, q: np.ndarray) -> bool:
@@ -286,6 +288,13 @@ class CollisionOracle:
     def is_robot_geometry(self, geometry_id) -> bool:
         """Whether a SceneGraph geometry belongs to the robot (else to the environment)."""
         return geometry_id in self._robot_geometries
+
+    def signed_distances(self, q: np.ndarray, max_distance: float) -> list:
+        """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
+        `max_distance` (farther pairs are left out); counted in `distance_queries`, not in `checks`."""
+        self.distance_queries += 1
+        self.plant.SetPositions(self._ctx, np.asarray(q, float))
+        return self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
 
 
 @functools.lru_cache(maxsize=4096)

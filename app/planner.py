@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -19,13 +20,13 @@ import numpy as np
 from app.budget import Budget, BudgetSpent, Stop
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.path import FINE, path_length, shortcut, verify
-from app.timing import parameterize
+from app.timing import parameterize_smooth
 from app.trajectory import Trajectory, TrajectoryFile
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
     from app.roadmap import Roadmap
 
-PHASES = ("sampling", "roadmap", "search", "smoothing", "timing")
+PHASES = ("sampling", "roadmap", "search", "smoothing", "certify", "timing")
 # What a query may spend unless told otherwise: every query ends, and says so when this is why.
 DEFAULT_BUDGET = Budget(seconds=30.0)
 # Smoothing may spend this share of the checks that finding the path took (at least SMOOTHING_MIN).
@@ -120,6 +121,7 @@ class PlanResult:
     smoothing: dict = field(default_factory=dict)
     sampler_stats: dict = field(default_factory=dict)
     narrow_from_round: int | None = None  # the first round with narrow-passage samples (None: never needed)
+    distance_queries: int = 0  # signed-distance queries of the certificates (apart from collision_checks)
     # The roadmap itself (nodes `Q`, provenance `kinds`, networkx `graph`) and the roadmap path's node indices,
     # for viewers; not part of the JSON.
     graph: "Roadmap | None" = field(default=None, repr=False)
@@ -150,7 +152,8 @@ class PlanResult:
             "checks": self.checks, "seconds": self.seconds, "roadmap": self.roadmap,
             "narrow_on_path": self.narrow_on_path, "rounds": self.rounds, "budget": self.budget,
             "smoothing": self.smoothing, "sampler_stats": self.sampler_stats,
-            "narrow_from_round": self.narrow_from_round,
+            "narrow_from_round": self.narrow_from_round, "distance_queries": self.distance_queries,
+            "certified": self.trajectory.certified,
         }
 
 
@@ -242,6 +245,8 @@ class Query:
         # check and shortcuts are checked at the fine resolution.
         self.fine_only = False
         self.stopped: str | None = None  # why the budget ended the query's work: "time" or "checks"
+        self._certifier = None  # made when the first path is to be proved (it sets up per-geometry bounds)
+        self._queries0 = oracle.distance_queries
 
     # ---- bookkeeping ----------------------------------------------------------------------------------------------
     def _timed(self, phase: str, fn, *args, **kwargs):
@@ -345,28 +350,53 @@ class Query:
         the planning resolution looked at)."""
         return bool(self._timed("smoothing", verify, self.oracle, path, self.fine).all())
 
+    def certify(self, path: np.ndarray) -> tuple[bool, dict]:
+        """Whether every straight edge of `path` is free in the continuous sense (app.certify: signed distances at
+        the ends exceed how far any point of the robot can travel along the edge, bisected where they do not);
+        stats["failed"] lists the edges that could not be proved."""
+        from app.certify import Certifier, polyline
+
+        if self._certifier is None:
+            self._certifier = Certifier(self.oracle)
+        position, variation = polyline(self.oracle.space, path)
+        return self._timed("certify", self._certifier.certify, position, variation,
+                           itertools.pairwise(range(len(path))))
+
     def connect_and_smooth(self) -> tuple[list[int], np.ndarray, dict] | None:
         """(roadmap path, smoothed path, smoothing stats) once start and goal connect, else None.
 
         Optimistic first (planning resolution, then the fine re-check); if the re-check fails the query turns
-        fine-only and tries again, so every returned edge has passed the fine check. The re-check runs whole even
-        when the budget ran out while smoothing: a path is returned only once it is proved."""
+        fine-only and tries again, so every returned edge has passed the fine check. The path is then certified
+        (continuous, app.certify); where the shortcuts went too close to something to prove, the roadmap path is
+        taken if it can be. A path neither can prove is still returned, fine-checked and marked uncertified:
+        treating it as colliding made tight passages (a cube through a slot a few millimetres wider) unsolvable,
+        since the certificate's bounds are conservative. The re-check and the certificate run whole even when the
+        budget ran out while smoothing."""
         while True:
             nodes = self.search()
             if nodes is None:
                 return None
             path, stats = self.smooth(nodes)
             with self._unlimited():
-                if self.fine_only or self.recheck(path):
-                    return nodes, path, stats
-            self.fine_only = True
+                if not (self.fine_only or self.recheck(path)):
+                    self.fine_only = True
+                    continue
+                proved, certificate = self.certify(path)
+                raw = self.roadmap.Q[nodes]
+                if not proved and not (path.shape == raw.shape and np.array_equal(path, raw)):
+                    raw_proved, raw_certificate = self.certify(raw)
+                    if raw_proved:
+                        path, stats = raw, {**stats, "smoothing_dropped": True}
+                        proved, certificate = raw_proved, raw_certificate
+            return nodes, path, {**stats, "certificate": {**certificate, "proved": proved}}
 
     def time(self, path: np.ndarray) -> Trajectory:
+        """Toppra along the path with its corners blended where the blends can be proved free (app.timing)."""
         scene = self.oracle.scene
         try:
-            return self._timed("timing", parameterize, self.oracle.plant, self.oracle.space.unwrap(path),
+            return self._timed("timing", parameterize_smooth, self.oracle, self.oracle.space.unwrap(path),
                                scene.velocity_limits, scene.acceleration_limits, self.settings.dt,
-                               self.oracle.space.names)
+                               self.oracle.space.names, certifier=self._certifier)
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
             raise NoPath(f"path found on {scene.name} but not time-parameterized: "
                          f"{' '.join(str(exc).split())}") from None
@@ -378,7 +408,11 @@ class Query:
         try:
             if self.straight():
                 path = np.array([self.start, self.goal])
-                return self._result([self.start_node, self.goal_node], path, {"straight": True})
+                with self._unlimited():
+                    proved, certificate = self.certify(path)
+                if proved:  # else the roadmap may find a route it can prove
+                    return self._result([self.start_node, self.goal_node], path,
+                                        {"straight": True, "certificate": {**certificate, "proved": True}})
             found = None
             sizes = self.round_sizes()
             while sizes is not None:
@@ -442,4 +476,5 @@ class Query:
             collision_checks=self.elapsed()[1], checks=self.checks, seconds=self.seconds, roadmap=roadmap.stats(),
             narrow_on_path=int(sum(roadmap.kinds[i] == NARROW for i in nodes)), rounds=self.rounds,
             budget=str(s.budget), smoothing=stats, sampler_stats=self.sampler_stats,
-            narrow_from_round=self.narrow_from_round, graph=roadmap, path_nodes=list(nodes))
+            narrow_from_round=self.narrow_from_round, graph=roadmap, path_nodes=list(nodes),
+            distance_queries=self.oracle.distance_queries - self._queries0)

@@ -4,10 +4,10 @@
 - `window`: home, through the window to the part, back out, place it on the table, home.
 
 Goals are the scene's tool poses solved to collision-free configurations by inverse kinematics (as one chain, so
-consecutive seam points get neighbouring arm postures). A leg whose straight joint-space move passes the fine
-check is taken as it is — a seam step of a few centimetres needs no roadmap — and any other leg goes to the PRM.
-Every leg is time-parameterized rest to rest, so the joined trajectory stops at each pose (where a welder
-strikes or a gripper closes).
+consecutive seam points get neighbouring arm postures). Each leg is one query: the planner takes the straight
+joint-space move where it is proved free (a seam step of a few centimetres needs no roadmap) and plans the others.
+Legs start and end at rest, so the joined trajectory stops at each pose (where a welder strikes or a gripper
+closes) and nowhere else.
 """
 import time
 from dataclasses import dataclass, replace
@@ -17,9 +17,7 @@ import numpy as np
 from app.budget import Budget
 from app.errors import UserError
 from app.ik import solve_poses
-from app.path import FINE
 from app.planner import PlanSettings, plan
-from app.timing import parameterize
 from app.trajectory import Trajectory, TrajectoryFile
 
 HOME = "home"
@@ -104,17 +102,12 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
         t, c = time.perf_counter(), oracle.checks
-        if oracle.edge_free(qa, qb, oracle.space.resolution * FINE):
-            path = np.array([qa, qb])
-            method, narrow_count, used = "straight", 0, 0
-            samples, on_path = np.empty((0, oracle.space.dim)), np.zeros(0, bool)
-            trajectory = parameterize(oracle.plant, oracle.space.unwrap(path), oracle.scene.velocity_limits,
-                                      oracle.scene.acceleration_limits, settings.dt, oracle.space.names)
-        else:
-            result = plan(oracle, replace(settings, seed=seed * 1000 + i), start=qa, goal=qb)
-            path, trajectory, method = result.path, result.trajectory, sampler
-            samples, on_path = result.narrow_samples()
-            narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
+        # The planner tries the straight move first (a seam step of a few centimetres needs no roadmap).
+        result = plan(oracle, replace(settings, seed=seed * 1000 + i), start=qa, goal=qb)
+        path, trajectory = result.path, result.trajectory
+        method = "straight" if result.smoothing.get("straight") else sampler
+        samples, on_path = result.narrow_samples()
+        narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
         legs.append(Leg(a, b, method, int(narrow_count), int(used), oracle.checks - c, time.perf_counter() - t,
                         trajectory.duration, path, trajectory, samples, on_path))
 

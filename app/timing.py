@@ -1,81 +1,290 @@
-"""Time parameterization of a checked polyline with Drake's Toppra, stopping at every waypoint.
+"""Time parameterization of a polyline with Drake's Toppra: smooth through the corners where that is proved free,
+stopping only where it is not (or where the caller wants a stop).
 
-The corner problem: on a piecewise-linear path Toppra sees zero curvature at the corners and does not slow down,
-so the joint velocity would jump there. Here each straight segment is parameterized on its own, from rest to rest
-(Drake's Toppra starts and ends each path at zero path velocity), and the segments are concatenated. The executed
-path is then exactly the polyline that was collision-checked -- no blend leaves it -- and velocities and
-accelerations stay within the limits everywhere, at the cost of a stop per waypoint (smoothing keeps them few).
+The corner problem: on a piecewise-linear path Toppra sees zero curvature at the corners and does not slow down, so
+the joint velocity would jump there. Stopping at every corner (rest to rest per segment) avoids that but makes the
+robot stop at each waypoint. Here each corner is rounded instead by a parabolic blend -- a quadratic Bezier curve
+from a point `radius` before the corner, through the corner as control point, to the point `radius` after it -- so
+the path is C1 and Toppra slows down just as much as its curvature needs. A blend leaves the checked polyline, so
+the whole curve is certified (app.certify); a blend that cannot be certified is halved, and after TIGHTEN halvings
+the corner becomes a stop (the path is cut there into legs, each timed from rest to rest).
+
+The path parameter s is arc length in the space's weighted metric along the polyline, and a blend of radius r
+spans s in [corner - r, corner + r], so straight parts keep their s whatever the blends: a straight piece that was
+certified stays certified when a neighbouring blend shrinks.
 
 Waypoints must be unwrapped first (`ConfigurationSpace.unwrap`), so that continuous angles take the short way.
 """
 from __future__ import annotations
 
-import numpy as np
-# pydrake is imported inside `parameterize`, so that importing the package does not load Drake.
+import itertools
+import logging
+import math
+from dataclasses import dataclass
 
+import numpy as np
+# pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
+
+from app.certify import Certifier
+from app.path import dedupe
 from app.trajectory import Trajectory
 
-
-def _segment(plant, qa: np.ndarray, qb: np.ndarray, v: np.ndarray, a: np.ndarray):
-    from pydrake.multibody.optimization import CalcGridPointsOptions, Toppra
-    from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomial
-
-    path = PiecewisePolynomial.FirstOrderHold([0.0, 1.0], np.column_stack([qa, qb]))
-    # Along a straight segment the box limits do not vary with s, so a coarse grid is exact up to where the
-    # switch points fall: 33 points (min_points 20) end within 0.2 % of the closed-form rest-to-rest time on maze
-    # and window legs, at a fifth of the default grid's (129 points) cost.
-    options = CalcGridPointsOptions()
-    options.min_points = 20
-    grid = Toppra.CalcGridPoints(path, options)
-    toppra = Toppra(path, plant, grid)
-    toppra.AddJointVelocityLimit(-v, v)
-    toppra.AddJointAccelerationLimit(-a, a)
-    s_of_t = toppra.SolvePathParameterization()
-    if s_of_t is None:
-        raise RuntimeError("Toppra found no time parameterization for a path segment")
-    return PathParameterizedTrajectory(path, s_of_t)
+# A blend's first radius: this fraction of the shorter of its two segments (at most 1/2, so blends never overlap).
+BLEND = 0.5
+# Halvings of a blend that fails certification before its corner becomes a stop.
+TIGHTEN = 8
+# Toppra grid: points over a leg's straight pieces, and per blend (other sizes in turn if Toppra fails on one).
+GRID_STRAIGHT, GRID_BLEND = 32, (16, 12, 20, 24)
+# Piece derivatives are linear in s up to rounding of their cubic Hermite form: a little slack on the travel bound.
+_SLACK = 1 + 1e-9
 
 
-def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acceleration_limits: np.ndarray,
-                 dt: float = 0.02, joint_names: list[str] | None = None) -> Trajectory:
-    """Rest-to-rest Toppra per segment of the (unwrapped) waypoints, sampled every dt (and at the end)."""
-    W = np.atleast_2d(np.asarray(waypoints, float))
+@dataclass
+class _Leg:
+    """A stretch of the path timed from rest to rest: waypoints first..last, blended at the corners in between."""
+
+    first: int
+    last: int
+    offset: float  # global s of the leg's start; its Drake path runs over s - offset
+    path: object  # PiecewisePolynomial, C1, pieces of degree <= 2
+    pieces: list  # (s0, s1, corner or None), global s
+
+
+def _leg(W: np.ndarray, tangent: np.ndarray, arc: np.ndarray, radii: np.ndarray, first: int, last: int) -> _Leg:
+    from pydrake.trajectories import PiecewisePolynomial
+
+    tiny = 1e-12 * max(arc[-1], 1.0)
+    breaks, values, slopes, pieces = [arc[first]], [W[first]], [tangent[first]], []
+    for i in range(first + 1, last + 1):
+        r = radii[i] if i < last else 0.0
+        if arc[i] - r > breaks[-1] + tiny:  # the straight piece of segment i-1 up to the blend (or the leg's end)
+            pieces.append((breaks[-1], arc[i] - r, None))
+            breaks.append(arc[i] - r)
+            values.append(W[i] - r * tangent[i - 1])
+            slopes.append(tangent[i - 1])
+        if i < last:
+            pieces.append((breaks[-1], arc[i] + r, i))
+            breaks.append(arc[i] + r)
+            values.append(W[i] + r * tangent[i])
+            slopes.append(tangent[i])
+    path = PiecewisePolynomial.CubicHermite(np.array(breaks) - arc[first], np.array(values).T, np.array(slopes).T)
+    return _Leg(first, last, arc[first], path, pieces)
+
+
+def _legs(W, tangent, arc, radii) -> list[_Leg]:
+    """The legs between stops: the ends and every corner whose radius is 0."""
+    stops = [0] + [i for i in range(1, len(W) - 1) if radii[i] == 0] + [len(W) - 1]
+    return [_leg(W, tangent, arc, radii, a, b) for a, b in itertools.pairwise(stops)]
+
+
+class _Curve:
+    """position(s) and variation(s0, s1) over the global s of all legs, for the certifier."""
+
+    def __init__(self, legs: list[_Leg]):
+        self.legs = legs
+        self.starts = np.array([leg.offset for leg in legs])
+
+    def _at(self, s: float) -> _Leg:
+        return self.legs[max(0, int(np.searchsorted(self.starts, s, side="right")) - 1)]
+
+    def position(self, s: float) -> np.ndarray:
+        leg = self._at(s)
+        return leg.path.value(s - leg.offset).ravel()
+
+    def variation(self, s0: float, s1: float) -> np.ndarray:
+        # Within a piece the derivative is linear in s, so its largest magnitude is at an end.
+        leg = self._at(0.5 * (s0 + s1))
+        d0, d1 = (np.abs(leg.path.EvalDerivative(s - leg.offset, 1).ravel()) for s in (s0, s1))
+        return np.maximum(d0, d1) * (s1 - s0) * _SLACK
+
+
+def _certified_radii(certifier: Certifier, W, tangent, arc, radii, tighten: int) -> tuple[np.ndarray, bool, dict]:
+    """Blend radii tightened until every blend is certified (a corner that never is becomes a stop), whether the
+    whole curve then is (False: a straight piece of the polyline itself failed), and the certification cost."""
+    radii, halvings, done = radii.copy(), np.zeros(len(W), int), set()
+    cost = {"distance_queries": 0, "seconds": 0.0, "rounds": 0}
+    while True:
+        curve = _Curve(_legs(W, tangent, arc, radii))
+        todo = [p for leg in curve.legs for p in leg.pieces if p not in done]
+        _, stats = certifier.certify(curve.position, curve.variation, [(p[0], p[1]) for p in todo])
+        cost["distance_queries"] += stats["distance_queries"]
+        cost["seconds"] += stats["seconds"]
+        cost["rounds"] += 1
+        failed = [todo[k] for k in stats["failed"]]
+        done.update(p for p in todo if p not in failed)
+        corners = {p[2] for p in failed if p[2] is not None}
+        if not corners:
+            return radii, not failed, cost
+        for i in corners:
+            halvings[i] += 1
+            radii[i] = radii[i] / 2 if halvings[i] <= tighten else 0.0
+
+
+def _first_radii(lengths: np.ndarray) -> np.ndarray:
+    """Each corner's first blend radius: at most half of each segment it touches, or all of the first or last
+    segment (the path's ends have no blend to share it with), so that blends never overlap."""
+    share = np.full(len(lengths), BLEND)
+    share[[0, -1]] = 2 * BLEND
+    radii = np.zeros(len(lengths) + 1)
+    radii[1:-1] = np.minimum(share[:-1] * lengths[:-1], share[1:] * lengths[1:])
+    return radii
+
+
+def _grid(leg: _Leg, per_blend: int, on_breaks: bool) -> np.ndarray:
+    """Toppra's grid: per_blend intervals per blend, GRID_STRAIGHT over the leg's straight pieces; on the pieces'
+    breaks (where the curvature jumps), or else at the intervals' middles, none on a break."""
+    length = leg.pieces[-1][1] - leg.offset
+    grid = [np.zeros(1)]
+    for s0, s1, corner in leg.pieces:
+        n = per_blend if corner is not None else max(1, math.ceil(GRID_STRAIGHT * (s1 - s0) / length))
+        grid.append(s0 + (np.arange(n) + (1.0 if on_breaks else 0.5)) / n * (s1 - s0) - leg.offset)
+    return np.unique(np.concatenate(grid + [[length]]))
+
+
+def _toppra(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
+    """Toppra from rest to rest along the leg: s(t). Drake's Toppra now and then finds no solution for numerical
+    reasons (seen on a symmetric zigzag with grid points on the breaks, at several grid sizes), so other grids are
+    tried then; Drake's error line for each failed try is kept quiet."""
+    from pydrake.multibody.optimization import Toppra
+
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.CRITICAL)
+    try:
+        for on_breaks, per_blend in itertools.product((True, False), GRID_BLEND):
+            toppra = Toppra(leg.path, plant, _grid(leg, per_blend, on_breaks))
+            toppra.AddJointVelocityLimit(-v, v)
+            toppra.AddJointAccelerationLimit(-a, a)
+            s_of_t = toppra.SolvePathParameterization()
+            if s_of_t is not None:
+                return s_of_t
+    finally:
+        drake_log.setLevel(level)
+    raise RuntimeError("Toppra found no time parameterization for a path leg")
+
+
+def _excess(leg: _Leg, s_of_t, v: np.ndarray, a: np.ndarray) -> float:
+    """By how much the timed leg exceeds its limits, as the factor its time must be stretched by (<= 1: within).
+
+    Toppra enforces the limits at its grid points only. Between them s'' is constant, so on each piece (where q''
+    is constant and q' linear in s) the acceleration q'' s'^2 + q' s'' is linear in s: its extremes lie at the
+    grid's knots and the pieces' breaks, both sides of each, which are checked (and the knots' midpoints for speed).
+    """
+    from pydrake.trajectories import PathParameterizedTrajectory
+
+    trajectory = PathParameterizedTrajectory(leg.path, s_of_t)
+    knots = np.array(s_of_t.get_segment_times())
+    breaks = _when(s_of_t, np.array([p[0] - leg.offset for p in leg.pieces[1:]]))
+    times = np.concatenate([knots, 0.5 * (knots[1:] + knots[:-1]), breaks])
+    times = np.clip(np.concatenate([times - 1e-9, times + 1e-9]), 0.0, trajectory.end_time())
+    speed = np.abs(trajectory.MakeDerivative(1).vector_values(times)) / v[:, None]
+    push = np.abs(trajectory.MakeDerivative(2).vector_values(times)) / a[:, None]
+    return max(speed.max(), math.sqrt(push.max()))
+
+
+def _when(s_of_t, s: np.ndarray) -> np.ndarray:
+    """The times at which the increasing s(t) reaches each s (bisection, to rounding)."""
+    lo, hi = np.full(len(s), s_of_t.start_time()), np.full(len(s), s_of_t.end_time())
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        below = s_of_t.vector_values(mid).ravel() < s
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    return 0.5 * (lo + hi)
+
+
+def _timed_leg(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
+    """The leg's trajectory q(t) and its s(t), within the limits."""
+    from pydrake.trajectories import PathParameterizedTrajectory
+
+    s_of_t = _toppra(plant, leg, v, a)
+    stretch = _excess(leg, s_of_t, v, a)
+    if stretch > 1.0:
+        s_of_t.ScaleTime(stretch * (1 + 1e-9))
+    return PathParameterizedTrajectory(leg.path, s_of_t), s_of_t
+
+
+def _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified) -> Trajectory:
+    """Each leg timed from rest to rest, the legs one after another, sampled every dt (and at the end)."""
+    timed, waypoint_times, t = [], np.zeros(len(W)), 0.0
+    for leg in legs:
+        trajectory, s_of_t = _timed_leg(plant, leg, v, a)
+        # When the motion passes each waypoint (a blended corner: the blend's middle, nearest the corner).
+        inside = np.arange(leg.first, leg.last + 1)
+        waypoint_times[inside] = t + _when(s_of_t, arc[inside] - leg.offset)
+        timed.append((t, trajectory))
+        t += trajectory.end_time()
+    return _sample(timed, W, waypoint_times, dt, joint_names, certified)
+
+
+def _sample(timed: list, W: np.ndarray, waypoint_times: np.ndarray, dt: float, joint_names, certified) -> Trajectory:
+    duration = timed[-1][0] + timed[-1][1].end_time() if timed else 0.0
+    times = np.arange(int(np.floor(duration / dt + 1e-9)) + 1) * dt
+    if duration - times[-1] > 1e-9:
+        times = np.append(times, duration)
+    dim = W.shape[1]
+    positions = np.tile(W[0], (len(times), 1))
+    velocities, accelerations = np.zeros((len(times), dim)), np.zeros((len(times), dim))
+    starts = np.array([t0 for t0, _ in timed])
+    for i, time in enumerate(times):
+        if not timed:
+            break
+        t0, trajectory = timed[int(np.clip(np.searchsorted(starts, time, side="right") - 1, 0, len(timed) - 1))]
+        local = min(time - t0, trajectory.end_time())
+        positions[i] = trajectory.value(local).ravel()
+        velocities[i] = trajectory.EvalDerivative(local, 1).ravel()
+        accelerations[i] = trajectory.EvalDerivative(local, 2).ravel()
+    positions[-1], velocities[-1] = W[-1], 0.0  # exactly the goal, at rest
+    names = list(joint_names) if joint_names is not None else [f"q[{i}]" for i in range(dim)]
+    return Trajectory(joint_names=names, times=times, positions=positions, velocities=velocities,
+                      accelerations=accelerations, waypoints=W.copy(), waypoint_times=waypoint_times,
+                      certified=certified)
+
+
+def _prepare(waypoints, velocity_limits, acceleration_limits, weights):
+    """Waypoints without repeats, unit tangents and arc lengths in the weighted metric, finite positive limits."""
+    W = dedupe(np.atleast_2d(np.asarray(waypoints, float)))
     v = np.asarray(velocity_limits, float)
     a = np.asarray(acceleration_limits, float)
     if not (np.all(v > 0) and np.all(a > 0)):
         raise ValueError("velocity and acceleration limits must be positive")
     # An unlimited joint is limited by the others; Toppra wants finite bounds.
     v, a = np.where(np.isfinite(v), v, 1e9), np.where(np.isfinite(a), a, 1e9)
-    segments, arrivals, t = [], [0.0], 0.0
-    for qa, qb in zip(W[:-1], W[1:]):
-        if np.allclose(qa, qb, rtol=0.0, atol=1e-12):
-            arrivals.append(t)
-            continue
-        traj = _segment(plant, qa, qb, v, a)
-        segments.append((t, traj))
-        t += traj.end_time()
-        arrivals.append(t)
-    duration = t
-    n = int(np.floor(duration / dt + 1e-9))
-    times = np.arange(n + 1) * dt
-    if duration - times[-1] > 1e-9:
-        times = np.append(times, duration)
-    dim = W.shape[1]
-    positions = np.tile(W[0], (len(times), 1))
-    velocities, accelerations = np.zeros((len(times), dim)), np.zeros((len(times), dim))
-    starts = np.array([s[0] for s in segments]) if segments else np.zeros(0)
-    for i, time in enumerate(times):
-        if not segments:
-            continue
-        k = int(np.clip(np.searchsorted(starts, time, side="right") - 1, 0, len(segments) - 1))
-        t0, traj = segments[k]
-        local = min(time - t0, traj.end_time())
-        positions[i] = traj.value(local).ravel()
-        velocities[i] = traj.EvalDerivative(local, 1).ravel()
-        accelerations[i] = traj.EvalDerivative(local, 2).ravel()
-    if segments:
-        positions[-1] = W[-1]  # exactly the goal, not Toppra's last evaluation of it
-        velocities[-1] = 0.0  # and at rest there
-    names = list(joint_names) if joint_names is not None else [f"q[{i}]" for i in range(dim)]
-    return Trajectory(joint_names=names, times=times, positions=positions, velocities=velocities,
-                      accelerations=accelerations, waypoints=W.copy(), waypoint_times=np.array(arrivals))
+    steps = np.diff(W, axis=0)
+    lengths = np.linalg.norm(steps * weights, axis=1)
+    tangent = steps / lengths[:, None] if len(W) > 1 else np.zeros((0, W.shape[1]))
+    arc = np.concatenate([[0.0], np.cumsum(lengths)])
+    return W, v, a, np.vstack([tangent, tangent[-1:]]) if len(W) > 1 else tangent, arc
+
+
+def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acceleration_limits: np.ndarray,
+                 dt: float = 0.02, joint_names: list[str] | None = None) -> Trajectory:
+    """Rest to rest at every waypoint: each straight segment timed on its own (what a scripted job's leg wants
+    where it stops). Not certified: it is exactly the polyline, as free as its checks say."""
+    W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, np.ones(np.shape(waypoints)[-1]))
+    legs = _legs(W, tangent, arc, np.zeros(len(W))) if len(W) > 1 else []
+    return _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified=False)
+
+
+def parameterize_smooth(oracle, waypoints: np.ndarray, velocity_limits: np.ndarray,
+                        acceleration_limits: np.ndarray, dt: float = 0.02, joint_names: list[str] | None = None,
+                        floor: float | None = None, tighten: int = TIGHTEN, stats: dict | None = None,
+                        certifier: Certifier | None = None) -> Trajectory:
+    """Blended corners, certified (see the module doc), timed with Toppra.
+
+    The trajectory is `certified` when the whole executed curve is (blends and straight pieces); if a straight
+    piece of the polyline itself cannot be certified, the curve is still timed and returned, uncertified.
+    floor: the certificate's bisection floor (default: app.certify's); tighten: halvings of a failing blend before
+    its corner becomes a stop. stats, if given, receives: stops (corners the robot stops at), distance_queries and
+    seconds (certification), rounds (of blend tightening). certifier: one to reuse (its distances are cached).
+    """
+    W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, oracle.space.weights)
+    radii = np.zeros(len(W))
+    certified, cost = False, {"distance_queries": 0, "seconds": 0.0, "rounds": 0}
+    if len(W) > 1:
+        radii = _first_radii(np.diff(arc))
+        certifier = certifier or Certifier(oracle, floor)
+        radii, certified, cost = _certified_radii(certifier, W, tangent, arc, radii, tighten)
+    if stats is not None:
+        stats.update(cost, stops=int(np.sum(radii[1:-1] == 0)))
+    legs = _legs(W, tangent, arc, radii) if len(W) > 1 else []
+    return _time_legs(oracle.plant, W, arc, legs, v, a, dt, joint_names, certified)

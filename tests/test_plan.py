@@ -101,10 +101,8 @@ def test_trajectory_respects_limits_and_joins_start_to_goal(oracles, planned, na
     assert np.allclose(0.5 * (traj.velocities[1:] + traj.velocities[:-1]), V,
                        atol=float(np.max(scene.acceleration_limits)) * dt)
     assert np.allclose(traj.velocities[[0, -1]], 0) and traj.joint_names == scene.coordinate_names
-    # It stops at every waypoint (the corner rule): velocity ~0 around each arrival time.
-    for arrival in traj.waypoint_times[1:-1]:
-        i = int(np.argmin(np.abs(t - arrival)))
-        assert np.all(np.abs(V[max(i - 1, 0)]) <= scene.acceleration_limits * 2 * dt + 1e-6)
+    # Corners are blended (velocity never jumps: the acceleration bound above), and the blended curve is proved.
+    assert traj.certified and result.distance_queries > 0
 
 
 def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):

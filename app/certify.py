@@ -1,0 +1,467 @@
+"""Continuous collision certification by conservative advancement: a motion is proved free, not only sampled.
+
+Motion bound. For robot geometry g and coordinate j, rates[g, j] bounds how far any point of g moves per unit of
+q_j, at every configuration: 1 for a prismatic joint; for a revolute joint, the distance from its axis to the
+farthest point of g, bounded without knowing q by the triangle inequality -- the fixed offsets along the chain
+from the joint to g's body (a prismatic joint on the way adds its largest travel within the bounds) plus g's
+radius about its body origin, taken from the shape. So along any motion a point of g travels at most
+B_g = sum_j rates[g, j] * (travel of q_j).
+
+Certificate. Signed distance changes no faster than the shapes move, so if at the ends a, b of a piece of motion
+d_PQ(a) + d_PQ(b) > B_P + B_Q for every pair the scene counts (B = 0 for the environment), P and Q never touch in
+between: d(t) >= d(a) - travel(a..t) and d(t) >= d(b) - travel(t..b), and the two travels add up to at most
+B_P + B_Q. A piece that fails is bisected; one that still fails once its motion is shorter than the floor (in
+the space's weighted metric) is reported as colliding.
+
+Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
+mesh by GJK, whose answers can be too large -- unsafe here: up to 0.34 mm for the maze's hull near a pillar's corner,
+and 2.7 cm (0.064 for 0.037) for two nearly coaxial cylinders of the UR3's wrist and torch. So for every counted pair
+of that kind, reported by Drake or not, the certificate uses a lower bound of its own: the largest gap between the
+two shapes along three directions -- Drake's separating direction, and the normals of each shape at the near points
+that a few alternating projections onto the two shapes find -- from the shapes' support functions (the gap along
+any direction bounds the distance from below). On the maze's corner it matched the true distance to 1e-15.
+Every distance is lowered by a rounding allowance (1e-9 of the resolution).
+
+max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
+at that end. Each end is queried with D just above half the largest B_P + B_Q of the pieces it bounds: a pair
+unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
+count as unreported when their own bound is at least D). Distances are cached per configuration, so ends shared by
+adjacent pieces, and by rounds of a caller that retries, are asked once.
+"""
+from __future__ import annotations
+
+import itertools
+import time
+import weakref
+from typing import NamedTuple
+
+import numpy as np
+
+# A piece is bisected until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
+FLOOR_DIVISOR = 256
+# max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
+_MARGIN = 1.0 + 1e-6
+# Shape pairs Drake computes signed distance for in closed form.
+_EXACT = {frozenset(pair) for pair in [("Box",), ("Sphere",), ("Box", "Sphere"), ("Sphere", "Capsule"),
+                                       ("Sphere", "Cylinder")]}
+# Alternating projections between two shapes, for the direction of their gap.
+PROJECTIONS = 2
+# Pair key: smaller geometry index * _KEY + larger.
+_KEY = 1 << 31
+
+
+class MotionBound:
+    """Per robot geometry, per coordinate: the largest distance any point of the geometry moves per unit of that
+    coordinate, at any configuration within the space's bounds."""
+
+    def __init__(self, oracle):
+        plant = oracle.plant
+        inspector = oracle.model.scene_graph().model_inspector()
+        inboard = {}
+        for index in plant.GetJointIndices():
+            joint = plant.get_joint(index)
+            inboard[joint.child_body().index()] = joint
+        self.rows, rates = {}, []
+        for instance in oracle.scene.robot_instances:
+            for body_index in plant.GetBodyIndices(instance):
+                chain = _chain(inboard, body_index)
+                for geometry in plant.GetCollisionGeometriesForBody(plant.get_body(body_index)):
+                    self.rows[geometry] = len(rates)
+                    pose = inspector.GetPoseInFrame(geometry)
+                    rates.append(_rates(chain, _radius(*_describe(inspector, geometry), pose), oracle.space))
+        # The last row (zeros) stands for every environment geometry: it does not move.
+        self.rates = np.vstack(rates + [np.zeros(oracle.space.dim)])
+        self.self_pairs = oracle.scene.self_collisions
+
+    def row(self, geometry_id) -> int:
+        return self.rows.get(geometry_id, -1)
+
+    def travel(self, variation: np.ndarray) -> np.ndarray:
+        """Bound on how far any point of each geometry moves when coordinate j travels variation[j] (>= 0)."""
+        return self.rates @ variation
+
+    def max_distance(self, travel: np.ndarray) -> float:
+        """The max_distance at which every unreported pair passes: half the largest B_P + B_Q of a counted pair."""
+        top = np.sort(travel)[-2:]
+        largest = top.sum() if self.self_pairs else top[-1]
+        return 0.5 * largest * _MARGIN + 1e-12
+
+
+def _chain(inboard: dict, body_index) -> list:
+    """The joints from a body up to the world, nearest first."""
+    chain = []
+    while body_index in inboard:
+        joint = inboard[body_index]
+        chain.append(joint)
+        body_index = joint.parent_body().index()
+    return chain
+
+
+def _rates(chain: list, radius: float, space) -> np.ndarray:
+    """Rates of one geometry whose points lie within `radius` of its body origin."""
+    rates = np.zeros(space.dim)
+    reach = radius  # bound on the distance from the current joint's child body origin to any point of the geometry
+    for joint in chain:
+        reach += np.linalg.norm(joint.frame_on_child().GetFixedPoseInBodyFrame().translation())
+        kind, start = joint.type_name(), joint.position_start()
+        if kind == "revolute":
+            rates[start] = reach  # the axis passes through the joint frame's origin: distance to it bounds the lever
+            slide = 0.0
+        elif kind == "prismatic":
+            rates[start] = np.linalg.norm(joint.translation_axis())
+            slide = rates[start] * max(abs(space.lower[start]), abs(space.upper[start]))
+        elif kind == "weld":
+            slide = np.linalg.norm(joint.X_FM().translation())
+        else:
+            raise ValueError(f"joint '{joint.name()}' of type {kind}: the motion bound handles revolute, prismatic "
+                             "and weld joints only")
+        reach += slide + np.linalg.norm(joint.frame_on_parent().GetFixedPoseInBodyFrame().translation())
+    return rates
+
+
+def _describe(inspector, geometry) -> tuple[str, object]:
+    """A shape as (kind, data), for its radius and its support function."""
+    from pydrake.geometry import Box, Capsule, Convex, Cylinder, Ellipsoid, Mesh, Sphere
+
+    shape = inspector.GetShape(geometry)
+    if isinstance(shape, Box):
+        return "box", np.array([shape.width(), shape.depth(), shape.height()]) / 2
+    if isinstance(shape, Sphere):
+        return "sphere", shape.radius()
+    if isinstance(shape, (Cylinder, Capsule)):
+        return type(shape).__name__.lower(), (shape.radius(), shape.length() / 2)
+    if isinstance(shape, Ellipsoid):
+        return "ellipsoid", np.array([shape.a(), shape.b(), shape.c()])
+    if isinstance(shape, (Mesh, Convex)):  # Drake's proximity engine uses a mesh's convex hull
+        hull = shape.GetConvexHull()
+        return "vertices", np.array([hull.vertex(i) for i in range(hull.num_vertices())])
+    raise ValueError(f"geometry '{inspector.GetName(geometry)}': no certificate for a {type(shape).__name__}")
+
+
+def _radius(kind: str, data, pose) -> float:
+    """Largest distance from the origin of the frame the shape is posed in (pose X_FG) to a point of the shape."""
+    if kind in ("box", "vertices"):
+        corners = data if kind == "vertices" else np.array(list(itertools.product(*[[-h, h] for h in data])))
+        return float(np.linalg.norm(pose.multiply(corners.T), axis=0).max())
+    extent = {"sphere": lambda: data, "cylinder": lambda: np.hypot(*data), "capsule": lambda: sum(data),
+              "ellipsoid": lambda: data.max()}[kind]()
+    return float(np.linalg.norm(pose.translation()) + extent)
+
+
+class _Gaps:
+    """Lower bounds on the distance of the counted pairs whose distance Drake computes by GJK (see the module doc).
+
+    Shapes as a box core (half sizes), a disc (radius, in the x-y plane) and a ball (radius) summed: a box is a
+    core, a sphere a ball, a capsule a z segment and a ball, a cylinder a z segment and a disc -- one formula for the
+    nearest point and for the support function of all four. Ellipsoids and meshes are handled apart ("special")."""
+
+    def __init__(self, oracle, geometries: list, robot: np.ndarray, exact: np.ndarray):
+        from pydrake.math import RigidTransform
+
+        inspector = oracle.model.scene_graph().model_inspector()
+        self.pairs = np.array([(i, j) for i, j in itertools.combinations(range(len(geometries)), 2)
+                               if (robot[i] or robot[j]) and not exact[i, j]
+                               and (oracle.scene.self_collisions or not (robot[i] and robot[j]))
+                               and not inspector.CollisionFiltered(geometries[i], geometries[j])], int).reshape(-1, 2)
+        self.keys = self.pairs[:, 0] * _KEY + self.pairs[:, 1]
+        count = len(geometries)
+        self.core, self.disc, self.ball = np.zeros((count, 3)), np.zeros(count), np.zeros(count)
+        self.radius = np.zeros(count)  # about the shape's own origin
+        self.special = {}  # geometry index -> ("ellipsoid", semi-axes) or ("vertices", (n, 3))
+        for i in np.unique(self.pairs):
+            kind, data = _describe(inspector, geometries[i])
+            self.radius[i] = _radius(kind, data, RigidTransform())
+            if kind == "box":
+                self.core[i] = data
+            elif kind == "sphere":
+                self.ball[i] = data
+            elif kind in ("cylinder", "capsule"):
+                self.core[i, 2] = data[1]
+                (self.disc if kind == "cylinder" else self.ball)[i] = data[0]
+            else:
+                self.special[i] = (kind, data)
+        self.is_special = np.isin(np.arange(count), list(self.special))
+
+    def near(self, R: np.ndarray, p: np.ndarray, nhat: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+        """(pairs, bounds): the pairs whose lower bound is below `limit`, and the bounds, given the shapes' poses
+        (R (G, 3, 3), p (G, 3)) and Drake's direction from b to a where it reported a pair (else NaN)."""
+        a, b = self.pairs.T
+        # Cheap bounds first, to skip most pairs: bounding spheres; then from each centre to the other shape.
+        near = np.flatnonzero(np.linalg.norm(p[a] - p[b], axis=1) - self.radius[a] - self.radius[b] < limit)
+        A, B = self._posed(a[near], R, p), self._posed(b[near], R, p)
+        rough = np.maximum(self._distance_to(B, A.p) - A.radius, self._distance_to(A, B.p) - B.radius)
+        keep = rough < limit
+        near = near[keep]
+        if not len(near):
+            return near, np.zeros(0)
+        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[near])
+        return near[bounds < limit], bounds[bounds < limit]
+
+    def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
+        return _Posed(R[g], p[g], self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
+
+    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray) -> np.ndarray:
+        """The largest gap between the shapes along three directions: Drake's where it has one, and the normals of
+        each shape at the near points that alternating projections onto the two shapes find. Any direction's gap
+        bounds the distance from below; a normal of a shape makes that shape's side of the bound exact."""
+        on_a = A.p
+        for _ in range(PROJECTIONS):
+            on_b = self._project(B, on_a)
+            on_a = self._project(A, on_b)
+        n = np.stack([on_a - on_b, on_a - self._project(B, on_a), nhat], 1)
+        length = np.linalg.norm(n, axis=2)
+        n = np.where(length[..., None] > 1e-12, n / np.maximum(length, 1e-300)[..., None], np.nan)
+        gaps = [np.einsum("ij,ij->i", n[:, k], A.p - B.p) - self._support(A, -n[:, k]) - self._support(B, n[:, k])
+                for k in range(n.shape[1])]
+        return np.nanmax(np.column_stack(gaps + [np.full(len(A.p), -np.inf)]), 1)
+
+    def _support(self, S: _Posed, n: np.ndarray) -> np.ndarray:
+        """max over each posed shape of n . (x - its centre), for world directions n (unit rows)."""
+        u = np.einsum("mji,mj->mi", S.R, n)
+        out = (S.core * np.abs(u)).sum(1) + S.disc * np.hypot(u[:, 0], u[:, 1]) + S.ball
+        for m in np.flatnonzero(self.is_special[S.g]):
+            kind, data = self.special[S.g[m]]
+            out[m] = np.linalg.norm(data * u[m]) if kind == "ellipsoid" else (data @ u[m]).max()
+        return out
+
+    def _project(self, S: _Posed, x: np.ndarray) -> np.ndarray:
+        """The point of each posed shape nearest to x, in the world (the centre of an ellipsoid or mesh)."""
+        local = np.einsum("mji,mj->mi", S.R, x - S.p)
+        near = np.clip(local, -S.core, S.core)
+        disc = S.disc > 0
+        if disc.any():
+            near[disc, :2] = local[disc, :2] * _shrink(local[disc, :2], S.disc[disc])
+        near += (local - near) * _shrink(local - near, S.ball)
+        return S.p + np.einsum("mij,mj->mi", S.R, near)
+
+    def _distance_to(self, S: _Posed, x: np.ndarray) -> np.ndarray:
+        """A lower bound on the distance from x to each posed shape: exact where _project is, else to its radius."""
+        exact = np.linalg.norm(self._project(S, x) - x, axis=1)
+        rough = np.maximum(np.linalg.norm(S.p - x, axis=1) - S.radius, 0.0)
+        return np.where(self.is_special[S.g], rough, exact)
+
+
+class _Posed(NamedTuple):
+    """Shapes of the gaps' pairs, one a row, posed: rotation, centre, and their _Gaps parameters."""
+
+    R: np.ndarray
+    p: np.ndarray
+    core: np.ndarray
+    disc: np.ndarray
+    ball: np.ndarray
+    radius: np.ndarray
+    g: np.ndarray  # geometry indices
+
+
+def _rows(S: _Posed, rows) -> _Posed:
+    return _Posed(*(field[rows] for field in S))
+
+
+def _shrink(v: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Factors that bring vectors v (rows) within `radius` of the origin, (n, 1)."""
+    return np.minimum(1.0, radius / np.maximum(np.linalg.norm(v, axis=1), 1e-300))[:, None]
+
+
+_bounds: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def motion_bound(oracle) -> MotionBound:
+    """The oracle's MotionBound, computed once per oracle."""
+    if oracle not in _bounds:
+        _bounds[oracle] = MotionBound(oracle)
+    return _bounds[oracle]
+
+
+class Certifier:
+    """Certifies pieces of motion for one oracle, keeping the distances it has asked for across calls."""
+
+    def __init__(self, oracle, floor: float | None = None):
+        from pydrake.geometry import Role
+
+        self.oracle = oracle
+        self.bound = motion_bound(oracle)
+        self.floor = floor if floor is not None else oracle.space.resolution / FLOOR_DIVISOR
+        self._cache = {}  # configuration bytes -> _End, or None where it collides
+        self._rounding = 1e-9 * oracle.space.resolution
+        inspector = oracle.model.scene_graph().model_inspector()
+        geometries = inspector.GetAllGeometryIds(Role.kProximity)
+        self._indices = {g: i for i, g in enumerate(geometries)}  # a small integer per geometry, for pair keys
+        self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
+        kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
+        self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
+        self._gaps = _Gaps(oracle, geometries, self._rows >= 0, self._exact)
+        # Shape poses for the gaps: the environment's never change, the robot's are updated per configuration.
+        self._robot = [(i, g) for i, g in enumerate(geometries) if self._rows[i] >= 0]
+        self._R, self._p = np.tile(np.eye(3), (len(geometries), 1, 1)), np.zeros((len(geometries), 3))
+        self._poses(oracle.query_object(oracle.scene.start), enumerate(geometries))
+
+    def certify(self, position, variation, intervals) -> tuple[bool, dict]:
+        """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
+
+        variation(s0, s1) bounds each coordinate's travel between s0 and s1, for s0 < s1 within one interval.
+        The curve must stay within the space's bounds between in-bound ends (a straight edge or a blend does).
+        stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds.
+        """
+        clock, queries = time.perf_counter(), self.oracle.distance_queries
+        intervals = [(float(a), float(b)) for a, b in intervals]
+        hint = {}  # shared ends are asked once, at the larger max_distance of the intervals they bound
+        for a, b in intervals:
+            need = self._need(variation(a, b))
+            hint[a], hint[b] = max(hint.get(a, 0.0), need), max(hint.get(b, 0.0), need)
+        failed, pieces = [], 0
+        for i, (a, b) in enumerate(intervals):
+            count = self._interval(position, variation, a, b, hint)
+            if count is None:
+                failed.append(i)
+            else:
+                pieces += count
+        stats = {"failed": failed, "pieces": pieces, "distance_queries": self.oracle.distance_queries - queries,
+                 "seconds": time.perf_counter() - clock}
+        return not failed, stats
+
+    def distances(self, q: np.ndarray, max_distance: float) -> dict | None:
+        """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
+        pairs closer than max_distance (those left out are at least that far apart); None if q collides."""
+        end = self._distances(q, max_distance)
+        if end is None:
+            return None
+        geometries = list(self._indices)
+        return {frozenset((geometries[k // _KEY], geometries[k % _KEY])): d
+                for k, d in zip(end.keys.tolist(), end.distance.tolist())}
+
+    def _need(self, variation: np.ndarray) -> float:
+        return self.bound.max_distance(self.bound.travel(variation))
+
+    def _interval(self, position, variation, s0: float, s1: float, hint: dict) -> int | None:
+        """How many pieces certify [s0, s1] (bisecting as needed), or None if some piece cannot be certified."""
+        stack, pieces = [(s0, s1)], 0
+        while stack:
+            a, b = stack.pop()
+            var = variation(a, b)
+            travel = self.bound.travel(var)
+            need = self.bound.max_distance(travel)
+            ends = [self._distances(position(s), max(need, hint.get(s, 0.0))) for s in (a, b)]
+            if ends[0] is None or ends[1] is None:
+                return None
+            if _clear(ends[0], ends[1], travel):
+                pieces += 1
+                continue
+            if np.linalg.norm(var * self.oracle.space.weights) <= self.floor:
+                return None
+            m = 0.5 * (a + b)
+            hint[m] = max(self._need(variation(a, m)), self._need(variation(m, b)))
+            stack += [(m, b), (a, m)]  # the left half first: a collision near the start shows up early
+        return pieces
+
+    def _distances(self, q: np.ndarray, max_distance: float):
+        """The pairs within max_distance at q (an _End), from the cache when it was asked at a max_distance at
+        least as large; None if q collides or lies outside the bounds."""
+        q = np.asarray(q, float)
+        key = q.tobytes()
+        if key in self._cache:
+            cached = self._cache[key]
+            if cached is None or cached.limit >= max_distance:
+                return cached
+        end = None
+        if self.oracle.space.within_bounds(q)[0]:
+            pairs = self.oracle.signed_distances(q, max_distance)
+            end = self._end(q, pairs, max_distance)
+        self._cache[key] = end
+        return end
+
+    def _end(self, q: np.ndarray, pairs: list, limit: float):
+        """The certificate's distances at q: Drake's for the pairs it computes exactly, our lower bound for the
+        others; a pair left out is at least `limit` apart. None if Drake finds a pair touching."""
+        distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
+        if np.any(distance <= 0):
+            return None
+        ix = self._indices
+        index = np.array([(ix[p.id_A], ix[p.id_B]) for p in pairs], np.int64).reshape(-1, 2)
+        swapped = index[:, 0] > index[:, 1]
+        index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
+        keys = index[:, 0] * _KEY + index[:, 1]
+        exact = self._exact[index[:, 0], index[:, 1]]
+        directions = np.array([p.nhat_BA_W for p in pairs], float).reshape(-1, 3)
+        nhat = self._directions(keys[~exact], swapped[~exact], directions[~exact])
+        self._poses(self.oracle.query_object(q), self._robot)
+        near, bounds = self._gaps.near(self._R, self._p, nhat, limit)
+        keys = np.concatenate([keys[exact], self._gaps.keys[near]])
+        distance = np.concatenate([distance[exact], bounds]) - self._rounding
+        order = np.argsort(keys)
+        index = np.concatenate([index[exact], self._gaps.pairs[near]])[order]
+        rows = self._rows[index]
+        return _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
+
+    def _directions(self, keys: np.ndarray, swapped: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported, as one row per pair of the
+        gaps, turned to point from the pair's second geometry to its first in our order; NaN where not reported."""
+        if not np.isin(keys, self._gaps.keys).all():
+            raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
+        nhat = np.full((len(self._gaps.keys), 3), np.nan)
+        nhat[np.searchsorted(self._gaps.keys, keys)] = np.where(swapped[:, None], -1.0, 1.0) * directions
+        return nhat
+
+    def _poses(self, query, geometries) -> None:
+        for i, g in geometries:
+            X = query.GetPoseInWorld(g)
+            self._R[i], self._p[i] = X.rotation().matrix(), X.translation()
+
+
+class _End(NamedTuple):
+    """Distances at one end of a piece: the pairs within `limit`, by key, sorted."""
+
+    limit: float
+    keys: np.ndarray
+    distance: np.ndarray
+    row_a: np.ndarray
+    row_b: np.ndarray
+
+
+def _clear(a: _End, b: _End, travel: np.ndarray) -> bool:
+    """The certificate for one piece: every pair reported at either end is farther apart, summed over the two
+    ends, than both its shapes can move (a pair an end does not report is at least that end's limit apart)."""
+    return _pass(a, b, travel) and _pass(b, a, travel)
+
+
+def _pass(a: _End, b: _End, travel: np.ndarray) -> bool:
+    """The certificate for the pairs `a` reports, with their distance at `b`, or b's limit where b has none."""
+    other = np.full(len(a.keys), b.limit)
+    if len(b.keys):
+        at = np.searchsorted(b.keys, a.keys).clip(max=len(b.keys) - 1)
+        found = b.keys[at] == a.keys
+        other[found] = b.distance[at[found]]
+    return bool(np.all(a.distance + other > travel[a.row_a] + travel[a.row_b]))
+
+
+def certify_curve(oracle, position, variation, knots, floor: float | None = None) -> tuple[bool, dict]:
+    """Certify the curve position(s) over [knots[0], knots[-1]]; variation(s0, s1) bounds each coordinate's
+    travel for s0 < s1 between two consecutive knots. stats["failed"]: indices of the knot intervals that failed."""
+    knots = np.asarray(knots, float)
+    return Certifier(oracle, floor).certify(position, variation, itertools.pairwise(knots))
+
+
+def polyline(space, P: np.ndarray):
+    """(position, variation) of the polyline P with parameter s = i + t on edge i (straight, the short way)."""
+    W = space.unwrap(P)
+    D = np.diff(W, axis=0)
+
+    def edge(s: float) -> int:
+        return min(max(int(s), 0), len(D) - 1)
+
+    def position(s: float) -> np.ndarray:
+        i = edge(s)
+        return W[i] + (s - i) * D[i]
+
+    def variation(s0: float, s1: float) -> np.ndarray:
+        return np.abs(D[edge(0.5 * (s0 + s1))]) * (s1 - s0)
+
+    return position, variation
+
+
+def certify_path(oracle, P: np.ndarray, floor: float | None = None) -> tuple[bool, dict]:
+    """Certify every straight edge of the polyline P (in oracle.space). stats["failed"]: the edges that failed."""
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(P) < 2:
+        P = np.vstack([P, P])
+    position, variation = polyline(oracle.space, P)
+    return certify_curve(oracle, position, variation, np.arange(len(P)), floor)

@@ -1,0 +1,155 @@
+"""Smooth time parameterization (app.timing.parameterize_smooth): corners blended and certified, Toppra along the
+curve. Checked independently of what Toppra reports: limits from finite differences of the positions, collisions
+of samples no more than 1/64 of the resolution apart by SceneGraph directly, start and goal exact, no velocity
+jumps; and it is faster than stopping at every waypoint."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from independent import raw_free
+
+import app
+from app.timing import parameterize, parameterize_smooth
+
+PINNED = json.loads((Path(__file__).parent / "data" / "pinned_plans.json").read_text())
+
+
+def _zigzag(start, step, wiggle, n) -> np.ndarray:
+    """n short segments advancing by `step` and alternating by +-`wiggle` (mild corners, a stop costs most)."""
+    k = np.arange(n + 1)[:, None]
+    return np.asarray(start, float) + k * np.asarray(step, float) + (k % 2) * np.asarray(wiggle, float)
+
+
+# Polylines in free space: the quadrotor in the maze's open south-east room, the planar arm's base beside the wall.
+ZIGZAGS = {
+    "maze": _zigzag([14.5, 2.0, 1.5, 0.0], [0.4, 0.0, 0.0, 0.05], [0.0, 0.2, 0.1, 0.0], 9),
+    "bar": _zigzag([12.0, 80.0, -1.5708, 0, 0, 0, 0, 0, 0], [2.0, 0, 0, 0, 0, 0, 0, 0.05, 0],
+                   [0, 1.0, 0.05, 0, 0, 0, 0, 0, 0], 9),
+}
+
+
+def _times(oracle, W, **kw):
+    scene = oracle.scene
+    stats = {}
+    smooth = parameterize_smooth(oracle, W, scene.velocity_limits, scene.acceleration_limits,
+                                 joint_names=oracle.space.names, stats=stats, **kw)
+    rest = parameterize(oracle.plant, W, scene.velocity_limits, scene.acceleration_limits)
+    return smooth, rest, stats
+
+
+def _check_motion(oracle, trajectory, W):
+    """Limits (finite differences), no velocity jumps, start and goal exact and at rest."""
+    scene, X, t = oracle.scene, trajectory.positions, trajectory.times
+    v, a = scene.velocity_limits, scene.acceleration_limits
+    V = np.diff(X, axis=0) / np.diff(t)[:, None]
+    assert np.all(np.abs(V) <= v * 1.01 + 1e-9)
+    dt = t[1] - t[0]
+    uniform = np.flatnonzero(np.isclose(np.diff(t), dt))[:-1]  # the last interval may be shorter
+    A = (X[uniform + 2] - 2 * X[uniform + 1] + X[uniform]) / dt**2
+    assert np.all(np.abs(A) <= a * 1.01 + 1e-9)
+    # The reported velocities are within the limits, and are the motion's own (continuous, no jumps).
+    assert np.all(np.abs(trajectory.velocities) <= v * (1 + 1e-6) + 1e-9)
+    assert np.all(np.abs(trajectory.accelerations) <= a * (1 + 1e-6) + 1e-9)
+    assert np.all(np.abs(np.diff(trajectory.velocities, axis=0)) <= a * dt * 1.01 + 1e-9)
+    assert np.allclose(0.5 * (trajectory.velocities[1:] + trajectory.velocities[:-1]), V, atol=a.max() * dt)
+    assert np.array_equal(X[0], W[0]) and np.array_equal(X[-1], W[-1])
+    assert np.allclose(trajectory.velocities[[0, -1]], 0, atol=1e-9)
+
+
+def _check_free(oracle, W, **kw):
+    """The smooth motion sampled so densely that consecutive samples are at most 1/64 of the resolution apart
+    (weighted metric) is free under SceneGraph's own answer."""
+    space, scene = oracle.space, oracle.scene
+    coarse = parameterize_smooth(oracle, W, scene.velocity_limits, scene.acceleration_limits, **kw)
+    speed = np.linalg.norm(coarse.velocities * space.weights, axis=1).max()
+    fine = parameterize_smooth(oracle, W, scene.velocity_limits, scene.acceleration_limits,
+                               dt=space.resolution / 64 / speed / 1.5, **kw)
+    assert np.allclose(fine.duration, coarse.duration)
+    assert space.distance(fine.positions[:-1], fine.positions[1:]).max() <= space.resolution / 64
+    assert all(raw_free(oracle, q) for q in space.wrap(fine.positions))
+
+
+@pytest.mark.parametrize("name", list(ZIGZAGS))
+def test_a_zigzag_in_free_space_is_smooth_certified_and_free(oracles, name):
+    oracle = oracles(name)
+    W = ZIGZAGS[name]
+    smooth, _, stats = _times(oracle, W)
+    assert smooth.certified and stats["stops"] == 0 and stats["distance_queries"] > 0
+    _check_motion(oracle, smooth, W)
+    _check_free(oracle, W)
+
+
+def test_stopping_at_every_corner_is_slower_where_segments_are_short(oracles):
+    ratios = []
+    for name, W in ZIGZAGS.items():
+        smooth, rest, _ = _times(oracles(name), W)
+        ratios.append(smooth.duration / rest.duration)
+    assert np.median(ratios) <= 0.6
+
+
+@pytest.mark.parametrize("key", list(PINNED))
+def test_planned_paths_are_timed_smoothly_within_limits(oracles, key):
+    oracle = oracles(key.split()[0])
+    W = oracle.space.unwrap(np.array(PINNED[key]["path"]))
+    smooth, rest, stats = _times(oracle, W)
+    assert smooth.certified and stats["stops"] == 0
+    # On these long segments a stop costs v/a per corner only: faster, but not by as much as on the zigzags.
+    assert smooth.duration < 0.9 * rest.duration
+    _check_motion(oracle, smooth, W)
+    # It passes every waypoint in order, and its waypoint times are when it is nearest them.
+    assert np.all(np.diff(smooth.waypoint_times) > 0) and smooth.waypoint_times[-1] == pytest.approx(smooth.duration)
+
+
+def test_a_planned_window_path(oracles):
+    oracle = oracles("window")
+    result = app.plan(oracle, app.PlanSettings(seed=1, budget=app.Budget(seconds=20)))
+    W = oracle.space.unwrap(result.path)
+    smooth, rest, _ = _times(oracle, W)
+    assert smooth.duration < 0.8 * rest.duration
+    _check_motion(oracle, smooth, W)
+    if smooth.certified:
+        _check_free(oracle, W)
+
+
+def _round_the_pillar(clearance: float) -> np.ndarray:
+    """The quadrotor along the bottom face of maze pillar_1, then up its right face, `clearance` from both: a
+    wide blend of the corner between would cut into the pillar's corner."""
+    low, right = 9.0 - 0.35 - clearance, 5.1 + 0.35 + clearance
+    return np.array([[3.0, low, 1.5, 0.0], [right, low, 1.5, 0.0], [right, 11.5, 1.5, 0.0]])
+
+
+def test_a_blend_that_would_hit_an_obstacle_is_tightened(oracles):
+    oracle = oracles("maze")
+    W = _round_the_pillar(0.01)
+    smooth, rest, stats = _times(oracle, W)
+    assert smooth.certified and stats["rounds"] > 1 and stats["stops"] == 0
+    assert smooth.duration < rest.duration
+    _check_free(oracle, W)
+
+
+def test_a_blend_that_cannot_be_tightened_becomes_a_stop(oracles):
+    oracle = oracles("maze")
+    W = _round_the_pillar(0.01)
+    smooth, rest, stats = _times(oracle, W, tighten=0)
+    assert smooth.certified and stats["stops"] == 1
+    corner = np.argmin(np.abs(smooth.times - smooth.waypoint_times[1]))
+    assert np.allclose(smooth.positions[corner], W[1], atol=1e-3)
+    assert np.abs(smooth.velocities[corner]).max() < 0.1  # at rest there (within a sample)
+    assert smooth.duration == pytest.approx(rest.duration, rel=0.01)  # one corner, one stop: rest to rest
+    _check_motion(oracle, smooth, W)
+    _check_free(oracle, W, tighten=0)
+
+
+def test_a_path_that_cannot_be_certified_is_timed_but_not_certified(oracles):
+    oracle = oracles("maze")
+    W = _round_the_pillar(-1e-3)  # the straight legs themselves touch the pillar
+    smooth, _, _ = _times(oracle, W)
+    assert not smooth.certified and smooth.duration > 0
+
+
+def test_one_waypoint_is_a_motionless_trajectory(oracles):
+    oracle = oracles("maze")
+    q = oracle.scene.start
+    smooth, _, _ = _times(oracle, np.array([q, q]))
+    assert smooth.duration == 0 and np.array_equal(smooth.positions, [q])
