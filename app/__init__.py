@@ -8,6 +8,7 @@
 
 Everything a user needs is named in `__all__`; the rest of the package is implementation.
 """
+
 import os
 
 # Drake's parallel collision batches use OpenMP. By default its idle threads spin for a while after each batch,
@@ -27,13 +28,27 @@ from app.trajectory import Trajectory, TrajectoryFile  # noqa: E402
 
 __all__ = [
     # scenes and the collision oracle
-    "Scene", "load_scene", "scene_names", "CollisionOracle", "ConfigurationSpace",
+    "Scene",
+    "load_scene",
+    "scene_names",
+    "CollisionOracle",
+    "ConfigurationSpace",
     # planning
-    "plan", "PlanSettings", "PlanResult", "Query", "Budget",
+    "plan",
+    "PlanSettings",
+    "PlanResult",
+    "Query",
+    "Budget",
     # samplers
-    "SAMPLERS", "Sampler", "make_sampler",
+    "SAMPLERS",
+    "Sampler",
+    "make_sampler",
     # the motion
-    "Trajectory", "TrajectoryFile",
+    "Trajectory",
+    "TrajectoryFile",
     # errors
-    "UserError", "InvalidEndpoint", "NoPath", "SamplerBudgetExceeded",
+    "UserError",
+    "InvalidEndpoint",
+    "NoPath",
+    "SamplerBudgetExceeded",
 ]

@@ -1,4 +1,5 @@
 """How much a query may spend: wall-clock seconds and/or collision checks, whichever runs out first."""
+
 from __future__ import annotations
 
 import time
@@ -13,8 +14,9 @@ class Budget:
     checks: int | None = None
 
     def spent(self, seconds: float, checks: int) -> bool:
-        return ((self.seconds is not None and seconds >= self.seconds)
-                or (self.checks is not None and checks >= self.checks))
+        return (self.seconds is not None and seconds >= self.seconds) or (
+            self.checks is not None and checks >= self.checks
+        )
 
     def __str__(self) -> str:
         parts = []

@@ -28,6 +28,7 @@ unreported at both ends then passes, and Drake computes no more pairs than the t
 count as unreported when their own bound is at least D). Distances are cached per configuration, so ends shared by
 adjacent pieces, and by rounds of a caller that retries, are asked once.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -42,8 +43,10 @@ FLOOR_DIVISOR = 256
 # max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
 _MARGIN = 1.0 + 1e-6
 # Shape pairs Drake computes signed distance for in closed form.
-_EXACT = {frozenset(pair) for pair in [("Box",), ("Sphere",), ("Box", "Sphere"), ("Sphere", "Capsule"),
-                                       ("Sphere", "Cylinder")]}
+_EXACT = {
+    frozenset(pair)
+    for pair in [("Box",), ("Sphere",), ("Box", "Sphere"), ("Sphere", "Capsule"), ("Sphere", "Cylinder")]
+}
 # Alternating projections between two shapes, for the direction of their gap.
 PROJECTIONS = 2
 # Pair key: smaller geometry index * _KEY + larger.
@@ -113,8 +116,10 @@ def _rates(chain: list, radius: float, space) -> np.ndarray:
         elif kind == "weld":
             slide = np.linalg.norm(joint.X_FM().translation())
         else:
-            raise ValueError(f"joint '{joint.name()}' of type {kind}: the motion bound handles revolute, prismatic "
-                             "and weld joints only")
+            raise ValueError(
+                f"joint '{joint.name()}' of type {kind}: the motion bound handles revolute, prismatic "
+                "and weld joints only"
+            )
         reach += slide + np.linalg.norm(joint.frame_on_parent().GetFixedPoseInBodyFrame().translation())
     return rates
 
@@ -143,8 +148,12 @@ def _radius(kind: str, data, pose) -> float:
     if kind in ("box", "vertices"):
         corners = data if kind == "vertices" else np.array(list(itertools.product(*[[-h, h] for h in data])))
         return float(np.linalg.norm(pose.multiply(corners.T), axis=0).max())
-    extent = {"sphere": lambda: data, "cylinder": lambda: np.hypot(*data), "capsule": lambda: sum(data),
-              "ellipsoid": lambda: data.max()}[kind]()
+    extent = {
+        "sphere": lambda: data,
+        "cylinder": lambda: np.hypot(*data),
+        "capsule": lambda: sum(data),
+        "ellipsoid": lambda: data.max(),
+    }[kind]()
     return float(np.linalg.norm(pose.translation()) + extent)
 
 
@@ -159,10 +168,17 @@ class _Gaps:
         from pydrake.math import RigidTransform
 
         inspector = oracle.model.scene_graph().model_inspector()
-        self.pairs = np.array([(i, j) for i, j in itertools.combinations(range(len(geometries)), 2)
-                               if (robot[i] or robot[j]) and not exact[i, j]
-                               and (oracle.scene.self_collisions or not (robot[i] and robot[j]))
-                               and not inspector.CollisionFiltered(geometries[i], geometries[j])], int).reshape(-1, 2)
+        self.pairs = np.array(
+            [
+                (i, j)
+                for i, j in itertools.combinations(range(len(geometries)), 2)
+                if (robot[i] or robot[j])
+                and not exact[i, j]
+                and (oracle.scene.self_collisions or not (robot[i] and robot[j]))
+                and not inspector.CollisionFiltered(geometries[i], geometries[j])
+            ],
+            int,
+        ).reshape(-1, 2)
         self.keys = self.pairs[:, 0] * _KEY + self.pairs[:, 1]
         count = len(geometries)
         self.core, self.disc, self.ball = np.zeros((count, 3)), np.zeros(count), np.zeros(count)
@@ -211,8 +227,10 @@ class _Gaps:
         n = np.stack([on_a - on_b, on_a - self._project(B, on_a), nhat], 1)
         length = np.linalg.norm(n, axis=2)
         n = np.where(length[..., None] > 1e-12, n / np.maximum(length, 1e-300)[..., None], np.nan)
-        gaps = [np.einsum("ij,ij->i", n[:, k], A.p - B.p) - self._support(A, -n[:, k]) - self._support(B, n[:, k])
-                for k in range(n.shape[1])]
+        gaps = [
+            np.einsum("ij,ij->i", n[:, k], A.p - B.p) - self._support(A, -n[:, k]) - self._support(B, n[:, k])
+            for k in range(n.shape[1])
+        ]
         return np.nanmax(np.column_stack(gaps + [np.full(len(A.p), -np.inf)]), 1)
 
     def _support(self, S: _Posed, n: np.ndarray) -> np.ndarray:
@@ -315,8 +333,12 @@ class Certifier:
                 failed.append(i)
             else:
                 pieces += count
-        stats = {"failed": failed, "pieces": pieces, "distance_queries": self.oracle.distance_queries - queries,
-                 "seconds": time.perf_counter() - clock}
+        stats = {
+            "failed": failed,
+            "pieces": pieces,
+            "distance_queries": self.oracle.distance_queries - queries,
+            "seconds": time.perf_counter() - clock,
+        }
         return not failed, stats
 
     def distances(self, q: np.ndarray, max_distance: float) -> dict | None:
@@ -326,8 +348,10 @@ class Certifier:
         if end is None:
             return None
         geometries = list(self._indices)
-        return {frozenset((geometries[k // _KEY], geometries[k % _KEY])): d
-                for k, d in zip(end.keys.tolist(), end.distance.tolist())}
+        return {
+            frozenset((geometries[k // _KEY], geometries[k % _KEY])): d
+            for k, d in zip(end.keys.tolist(), end.distance.tolist())
+        }
 
     def _need(self, variation: np.ndarray) -> float:
         return self.bound.max_distance(self.bound.travel(variation))

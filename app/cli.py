@@ -4,6 +4,7 @@ Each command module (app/commands) exposes `register(subparsers)`, which adds it
 callable taking the parsed arguments; it returns on success and raises on failure. `main` prints what was raised
 as one line on stderr and exits with its code from EXIT_CODES.
 """
+
 import argparse
 import sys
 
@@ -52,6 +53,11 @@ def main(argv=None) -> int:
         code = exit_code(exc)
         print(f"error: {message}", file=sys.stderr)
         if "--json" in argv:
-            print_json({"success": False, "error": {"code": getattr(exc, "code", "PREEMPTED"), "message": message},
-                        "exit_code": code})
+            print_json(
+                {
+                    "success": False,
+                    "error": {"code": getattr(exc, "code", "PREEMPTED"), "message": message},
+                    "exit_code": code,
+                }
+            )
         return code

@@ -5,6 +5,7 @@ compare -- and an angle without joint limits is *continuous*: it lives on a circ
 differences take the short way round. Every distance, step and interpolation in the project is measured here, so
 samplers, roadmap, path and timing agree on what "straight" and "how far" mean.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -33,10 +34,15 @@ class ConfigurationSpace:
     @classmethod
     def of(cls, scene) -> ConfigurationSpace:
         """The space a Scene (or a custom scene) declares."""
-        return cls(lower=np.asarray(scene.lower, float), upper=np.asarray(scene.upper, float),
-                   weights=np.asarray(scene.weights, float), angular=np.asarray(scene.angular, bool),
-                   continuous=np.asarray(scene.continuous, bool), resolution=float(scene.resolution),
-                   names=list(scene.coordinate_names))
+        return cls(
+            lower=np.asarray(scene.lower, float),
+            upper=np.asarray(scene.upper, float),
+            weights=np.asarray(scene.weights, float),
+            angular=np.asarray(scene.angular, bool),
+            continuous=np.asarray(scene.continuous, bool),
+            resolution=float(scene.resolution),
+            names=list(scene.coordinate_names),
+        )
 
     @property
     def dim(self) -> int:
@@ -61,8 +67,11 @@ class ConfigurationSpace:
     def out_of_bounds(self, q: np.ndarray) -> list[str]:
         """Each coordinate of q outside its bounds, as 'name=value not in [lo, hi]'."""
         q = np.asarray(q, float)
-        return [f"{self._name(i)}={q[i]:g} not in [{self.lower[i]:g}, {self.upper[i]:g}]"
-                for i in range(self.dim) if not (self._lo[i] <= q[i] <= self._hi[i])]
+        return [
+            f"{self._name(i)}={q[i]:g} not in [{self.lower[i]:g}, {self.upper[i]:g}]"
+            for i in range(self.dim)
+            if not (self._lo[i] <= q[i] <= self._hi[i])
+        ]
 
     def check_configuration(self, q, what: str = "configuration") -> np.ndarray:
         """A user-supplied configuration as a float vector of the right length, or a UserError naming the fault."""

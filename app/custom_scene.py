@@ -30,6 +30,7 @@ from app import meshes
 from app.errors import UserError
 from app.io import write_atomically
 from app.scene import PACKAGES, Scene, robot_diagram_builder
+
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
 ROBOT_SUFFIXES = {".urdf", ".sdf"}
@@ -109,11 +110,12 @@ def parse_poses(values: list[float], count: int) -> list[list[float]]:
     if not values:
         return [[0.0] * 6] * count
     if not all(map(math.isfinite, values)) or len(values) not in (6, 6 * count):
-        raise UserError(f"env pose needs 6 finite numbers x,y,z,roll,pitch,yaw (once, or once per env); "
-                        f"got {len(values)}")
+        raise UserError(
+            f"env pose needs 6 finite numbers x,y,z,roll,pitch,yaw (once, or once per env); got {len(values)}"
+        )
     if len(values) == 6:
         return [values] * count
-    return [values[6 * i:6 * i + 6] for i in range(count)]
+    return [values[6 * i : 6 * i + 6] for i in range(count)]
 
 
 def _kind(path: Path, what: str) -> str:
@@ -124,8 +126,10 @@ def _kind(path: Path, what: str) -> str:
         return "model"
     if suffix in meshes.MESH_SUFFIXES:
         return "mesh"
-    raise UserError(f"{what} file {path.name}: unsupported type '{suffix}' (use .urdf, .sdf or a mesh: "
-                    f"{', '.join(sorted(meshes.MESH_SUFFIXES))})")
+    raise UserError(
+        f"{what} file {path.name}: unsupported type '{suffix}' (use .urdf, .sdf or a mesh: "
+        f"{', '.join(sorted(meshes.MESH_SUFFIXES))})"
+    )
 
 
 # ---- probing models -----------------------------------------------------------------------------------------------
@@ -161,8 +165,12 @@ def probe_model(path: Path, packages: dict[str, Path]) -> dict:
     if len(instances) != 1:
         raise UserError(f"{path.name}: expected one model, found {len(instances)}")
     floating = sorted(plant.get_body(b).name() for b in plant.GetFloatingBaseBodies())
-    return {"name": plant.GetModelInstanceName(instances[0]), "floating": floating,
-            "positions": plant.num_positions(), "static": plant.num_bodies() <= 1}
+    return {
+        "name": plant.GetModelInstanceName(instances[0]),
+        "floating": floating,
+        "positions": plant.num_positions(),
+        "static": plant.num_bodies() <= 1,
+    }
 
 
 def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str]) -> dict:
@@ -185,8 +193,9 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
             names[joint.position_start() + k] = joint.name()
             kinds[joint.position_start() + k] = joint.type_name()
     if plant.GetFloatingBaseBodies():
-        raise UserError("the robot still has a free-floating body after welding its root; "
-                        "connect its parts with joints")
+        raise UserError(
+            "the robot still has a free-floating body after welding its root; connect its parts with joints"
+        )
     bad = sorted({k for k in kinds if k not in ("revolute", "prismatic")})
     if bad:
         raise UserError(f"robot joints of type {', '.join(bad)} are not supported (revolute and prismatic only)")
@@ -213,23 +222,30 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
         raise UserError("the robot has no collision geometry")
     reach = float(np.max(np.linalg.norm(np.vstack(corners) - root, axis=1)))
     thin = float(np.median(widths))
-    return {"names": names, "kinds": kinds, "lower": plant.GetPositionLowerLimits(),
-            "upper": plant.GetPositionUpperLimits(), "velocity": plant.GetVelocityUpperLimits(), "reach": reach,
-            "thin": thin}
+    return {
+        "names": names,
+        "kinds": kinds,
+        "lower": plant.GetPositionLowerLimits(),
+        "upper": plant.GetPositionUpperLimits(),
+        "velocity": plant.GetVelocityUpperLimits(),
+        "reach": reach,
+        "thin": thin,
+    }
 
 
 # ---- model files with meshes Drake cannot read ------------------------------------------------------------------
 def resolve_uri(uri: str, relative_to: Path, packages: dict[str, Path]) -> Path | None:
     """package://NAME/rest, file:///abs, an absolute or a relative path -> a Path; None for other schemes."""
     if uri.startswith("package://"):
-        name, _, rest = uri[len("package://"):].partition("/")
+        name, _, rest = uri[len("package://") :].partition("/")
         known = {**{k: Path(v) for k, v in PACKAGES.items()}, **packages}
         if name not in known:
-            raise UserError(f"cannot load {relative_to.name}: unknown package '{name}' "
-                            f"(add the package path {name}=DIR)")
+            raise UserError(
+                f"cannot load {relative_to.name}: unknown package '{name}' (add the package path {name}=DIR)"
+            )
         return known[name] / rest
     if uri.startswith("file://"):
-        return Path(uri[len("file://"):])
+        return Path(uri[len("file://") :])
     if "://" in uri:
         return None
     path = Path(uri)
@@ -243,8 +259,13 @@ def _ref_parts(m) -> tuple[str, str, str]:
     return (m.group(1), m.group(2), m.group(3)) if m.group(2) else (m.group(4), m.group(5), m.group(6))
 
 
-def convert_model_meshes(path: Path, packages: dict[str, Path], cache_dir: Path | None,
-                         decompose_options: dict | None = None, info: list | None = None) -> Path:
+def convert_model_meshes(
+    path: Path,
+    packages: dict[str, Path],
+    cache_dir: Path | None,
+    decompose_options: dict | None = None,
+    info: list | None = None,
+) -> Path:
     """`path` itself when nothing needs changing; else a rewritten copy in the cache where
     - with `decompose_options` (environment models): each <collision> holding a mesh becomes one <collision> per
       validated convex piece of it (app.meshes.decompose), since Drake would use the mesh's convex hull;
@@ -265,7 +286,8 @@ def convert_model_meshes(path: Path, packages: dict[str, Path], cache_dir: Path 
         return Path(uri.split("?")[0]).suffix.lower() in meshes.CONVERTIBLE_SUFFIXES
 
     decompose_here = decompose_options is not None and any(
-        is_mesh(_ref_parts(m)[1]) for b in blocks.finditer(text) for m in refs.finditer(b.group(0)))
+        is_mesh(_ref_parts(m)[1]) for b in blocks.finditer(text) for m in refs.finditer(b.group(0))
+    )
     if not decompose_here and not any(convertible(_ref_parts(m)[1]) for m in refs.finditer(text)):
         return path
 
@@ -300,7 +322,7 @@ def convert_model_meshes(path: Path, packages: dict[str, Path], cache_dir: Path 
         for k, piece in enumerate(decomposition.pieces):
             head, _, tail = _ref_parts(m)
             uri = str(piece) if m.group(2) else f"file://{piece}"
-            copy = block[:m.start()] + f"{head}{uri}{tail}" + block[m.end():]
+            copy = block[: m.start()] + f"{head}{uri}{tail}" + block[m.end() :]
             copy = re.sub(r'(<collision\b[^>]*\bname\s*=\s*")([^"]*)(")', rf"\g<1>\g<2>_piece{k}\g<3>", copy, count=1)
             copies.append(copy)
         return "\n".join(copies)
@@ -323,24 +345,34 @@ def carrier_urdf(name: str, body_xml: str = "") -> str:
     `body` holding `body_xml` (collision/visual elements)."""
     links = ["origin", "px", "py", "pz", "yawed", "pitched", "body"]
     axes = ["1 0 0", "0 1 0", "0 0 1", "0 0 1", "0 1 0", "1 0 0"]
-    out = [f'<?xml version="1.0"?>\n<robot name="{name}" xmlns:drake="http://drake.mit.edu">',
-           '  <link name="origin"/>']
+    out = [
+        f'<?xml version="1.0"?>\n<robot name="{name}" xmlns:drake="http://drake.mit.edu">',
+        '  <link name="origin"/>',
+    ]
     for link in links[1:-1]:
         out.append(f'  <link name="{link}">{_INERTIAL}</link>')
     out.append(f'  <link name="body">{_INERTIAL}\n{body_xml}  </link>')
     for k, joint in enumerate(CARRIER_JOINTS):
         kind = "prismatic" if k < 3 else "continuous"
-        limit = '<limit lower="-1e4" upper="1e4" effort="1" velocity="10"/>' if k < 3 else \
-            '<limit effort="1" velocity="10"/>'
-        out.append(f'  <joint name="{joint}" type="{kind}"><parent link="{links[k]}"/><child link="{links[k + 1]}"/>'
-                   f'<axis xyz="{axes[k]}"/>{limit}</joint>')
+        limit = (
+            '<limit lower="-1e4" upper="1e4" effort="1" velocity="10"/>'
+            if k < 3
+            else '<limit effort="1" velocity="10"/>'
+        )
+        out.append(
+            f'  <joint name="{joint}" type="{kind}"><parent link="{links[k]}"/><child link="{links[k + 1]}"/>'
+            f'<axis xyz="{axes[k]}"/>{limit}</joint>'
+        )
     out.append("</robot>\n")
     return "\n".join(out)
 
 
 def _mesh_elements_urdf(decomposition: meshes.Decomposition) -> str:
-    lines = [f'    <collision name="piece{i}"><geometry><mesh filename="{p}"><drake:declare_convex/></mesh>'
-             f'</geometry></collision>' for i, p in enumerate(decomposition.pieces)]
+    lines = [
+        f'    <collision name="piece{i}"><geometry><mesh filename="{p}"><drake:declare_convex/></mesh>'
+        f"</geometry></collision>"
+        for i, p in enumerate(decomposition.pieces)
+    ]
     lines.append(f'    <visual><geometry><mesh filename="{decomposition.visual}"/></geometry></visual>')
     return "\n".join(lines) + "\n"
 
@@ -349,14 +381,22 @@ def env_sdf(name: str, decomposition: meshes.Decomposition, pose: list[float]) -
     """A static SDF model: the pieces as convex collision shapes, the original mesh as the visual, placed at pose."""
     x, y, z, r, p, w = pose
     rpy = " ".join(f"{math.radians(a):.17g}" for a in (r, p, w))
-    lines = ['<?xml version="1.0"?>', '<sdf version="1.9" xmlns:drake="http://drake.mit.edu">',
-             f'  <model name="{name}">', "    <static>true</static>", '    <link name="body">',
-             f"      <pose>{x:.17g} {y:.17g} {z:.17g} {rpy}</pose>"]
+    lines = [
+        '<?xml version="1.0"?>',
+        '<sdf version="1.9" xmlns:drake="http://drake.mit.edu">',
+        f'  <model name="{name}">',
+        "    <static>true</static>",
+        '    <link name="body">',
+        f"      <pose>{x:.17g} {y:.17g} {z:.17g} {rpy}</pose>",
+    ]
     for i, piece in enumerate(decomposition.pieces):
-        lines.append(f'      <collision name="piece{i}"><geometry><mesh><uri>file://{piece}</uri>'
-                     f'<drake:declare_convex/></mesh></geometry></collision>')
-    lines.append(f'      <visual name="mesh"><geometry><mesh><uri>file://{decomposition.visual}</uri></mesh>'
-                 f'</geometry></visual>')
+        lines.append(
+            f'      <collision name="piece{i}"><geometry><mesh><uri>file://{piece}</uri>'
+            f"<drake:declare_convex/></mesh></geometry></collision>"
+        )
+    lines.append(
+        f'      <visual name="mesh"><geometry><mesh><uri>file://{decomposition.visual}</uri></mesh></geometry></visual>'
+    )
     lines += ["    </link>", "  </model>", "</sdf>", ""]
     return "\n".join(lines)
 
@@ -367,8 +407,9 @@ def _quoted_uri(path: Path) -> str:
 
 def _pose_yaml(pose: list[float]) -> str:
     x, y, z, r, p, w = pose
-    return (f"    X_PC:\n      translation: [{x!r}, {y!r}, {z!r}]\n"
-            f"      rotation: !Rpy {{ deg: [{r!r}, {p!r}, {w!r}] }}\n")
+    return (
+        f"    X_PC:\n      translation: [{x!r}, {y!r}, {z!r}]\n      rotation: !Rpy {{ deg: [{r!r}, {p!r}, {w!r}] }}\n"
+    )
 
 
 def _world_box(bounds: np.ndarray, pose: list[float]) -> tuple[np.ndarray, np.ndarray]:
@@ -388,21 +429,27 @@ def _write(path: Path, text: str) -> None:
             return
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UserError(f"cannot write {path}: {exc.strerror or exc} "
-                        f"(set {meshes.CACHE_ENV} to a writable folder)") from None
+        raise UserError(
+            f"cannot write {path}: {exc.strerror or exc} (set {meshes.CACHE_ENV} to a writable folder)"
+        ) from None
     write_atomically(path, text)
 
 
 # ---- the builder --------------------------------------------------------------------------------------------------
-def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | None = None,
-                progress: bool = True) -> CustomScene:
+def build_scene(
+    spec: CustomSpec, base: Path | None = None, cache_dir: Path | None = None, progress: bool = True
+) -> CustomScene:
     """The Scene for `spec`. Relative paths are taken from `base` (the scene file's directory, or the cwd)."""
     import time
 
     started = time.perf_counter()
     inputs = _checked_inputs(spec, base or Path.cwd())
-    mesh_options = {"method": spec.mesh_method, "tolerance": spec.mesh_tolerance or None, "cache_dir": cache_dir,
-                    "progress": progress}
+    mesh_options = {
+        "method": spec.mesh_method,
+        "tolerance": spec.mesh_tolerance or None,
+        "cache_dir": cache_dir,
+        "progress": progress,
+    }
     models = _Models()
     robot_instances = _add_robot(models, inputs, mesh_options, cache_dir)
     robot_directives = list(models.directives)
@@ -413,8 +460,12 @@ def build_scene(spec: CustomSpec, base: Path | None = None, cache_dir: Path | No
     text = json.dumps(problem, indent=1) + "\n"  # JSON is YAML
     problem_path = scene_dir / f"problem-{hashlib.sha256(text.encode()).hexdigest()[:16]}.yaml"
     _write(problem_path, text)
-    info = {"robot": str(inputs.robot_path), "env": [str(p) for p in inputs.env_paths],
-            "decompositions": models.decompositions, "prepare_seconds": time.perf_counter() - started}
+    info = {
+        "robot": str(inputs.robot_path),
+        "env": [str(p) for p in inputs.env_paths],
+        "decompositions": models.decompositions,
+        "prepare_seconds": time.perf_counter() - started,
+    }
     name = f"{inputs.robot_path.stem}-in-{'+'.join(p.stem for p in inputs.env_paths) or 'nothing'}"
     load_started = time.perf_counter()
     scene = CustomScene(problem_path, inputs.packages, name, info)
@@ -439,6 +490,7 @@ class _Inputs:
 
 def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
     """Every check that needs no model loaded, so bad input fails before any (slow) mesh decomposition."""
+
     def resolve(p: str) -> Path:
         path = Path(p).expanduser()
         return (path if path.is_absolute() else base / path).resolve()
@@ -462,8 +514,9 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
     if not spec.start or not spec.goal:
         raise UserError("start and goal are required")
     bounds = parse_bounds(spec.bounds)
-    return _Inputs(packages, robot_path, robot_kind, robot_kind == "mesh" or spec.floating, env_paths, env_kinds,
-                   poses, bounds)
+    return _Inputs(
+        packages, robot_path, robot_kind, robot_kind == "mesh" or spec.floating, env_paths, env_kinds, poses, bounds
+    )
 
 
 @dataclass
@@ -481,8 +534,14 @@ def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: 
         decomposition = meshes.decompose(inputs.robot_path, **mesh_options)
         models.decompositions.append(_describe(inputs.robot_path, decomposition))
         models.files["robot.urdf"] = carrier_urdf("robot", _mesh_elements_urdf(decomposition))
-        models.directives += ["- add_model:", "    name: robot", "    file: file://@DIR@/robot.urdf",
-                              "- add_weld:", "    parent: world", "    child: robot::origin"]
+        models.directives += [
+            "- add_model:",
+            "    name: robot",
+            "    file: file://@DIR@/robot.urdf",
+            "- add_weld:",
+            "    parent: world",
+            "    child: robot::origin",
+        ]
         return ["robot"]
     robot_file = convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir)
     probe = probe_model(robot_file, inputs.packages)
@@ -492,19 +551,32 @@ def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: 
             models.directives += ["- add_weld:", "    parent: world", f"    child: robot::{body}"]
         return ["robot"]
     if len(probe["floating"]) != 1:
-        raise UserError(f"{inputs.robot_path.name}: a floating robot needs one root body not attached to the world, "
-                        f"found {len(probe['floating'])}")
+        raise UserError(
+            f"{inputs.robot_path.name}: a floating robot needs one root body not attached to the world, "
+            f"found {len(probe['floating'])}"
+        )
     # The carrier first, so that its x, y, z, yaw, pitch, roll are the first six coordinates.
     models.files["carrier.urdf"] = carrier_urdf("carrier")
-    models.directives += ["- add_model:", "    name: carrier", "    file: file://@DIR@/carrier.urdf",
-                          "- add_weld:", "    parent: world", "    child: carrier::origin",
-                          "- add_model:", "    name: robot", f"    file: {_quoted_uri(robot_file)}",
-                          "- add_weld:", "    parent: carrier::body", f"    child: robot::{probe['floating'][0]}"]
+    models.directives += [
+        "- add_model:",
+        "    name: carrier",
+        "    file: file://@DIR@/carrier.urdf",
+        "- add_weld:",
+        "    parent: world",
+        "    child: carrier::origin",
+        "- add_model:",
+        "    name: robot",
+        f"    file: {_quoted_uri(robot_file)}",
+        "- add_weld:",
+        "    parent: carrier::body",
+        f"    child: robot::{probe['floating'][0]}",
+    ]
     return ["carrier", "robot"]
 
 
-def _add_environment(models: _Models, inputs: _Inputs, mesh_options: dict,
-                     cache_dir: Path | None) -> list[tuple[np.ndarray, np.ndarray]]:
+def _add_environment(
+    models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: Path | None
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Directives for the environment models (static, or one rigid body welded at its pose); the world boxes
     (lo, hi) of the mesh ones, for default bounds."""
     boxes = []
@@ -521,13 +593,18 @@ def _add_environment(models: _Models, inputs: _Inputs, mesh_options: dict,
         probe = probe_model(model_file, inputs.packages)
         models.directives += ["- add_model:", f"    name: {name}", f"    file: {_quoted_uri(model_file)}"]
         if probe["floating"]:
-            models.directives += ["- add_weld:", "    parent: world", f"    child: {name}::{probe['floating'][0]}",
-                                  _pose_yaml(pose).rstrip("\n")]
+            models.directives += [
+                "- add_weld:",
+                "    parent: world",
+                f"    child: {name}::{probe['floating'][0]}",
+                _pose_yaml(pose).rstrip("\n"),
+            ]
             if len(probe["floating"]) > 1:
                 raise UserError(f"{path.name}: an environment model must be static or one rigid body")
         elif any(pose):
-            raise UserError(f"{path.name}: a static SDF model cannot be moved by an env pose; "
-                            f"set its <pose> in the file")
+            raise UserError(
+                f"{path.name}: a static SDF model cannot be moved by an env pose; set its <pose> in the file"
+            )
     return boxes
 
 
@@ -543,8 +620,13 @@ def _write_scene_dir(models: _Models, robot_directives: list[str], packages: dic
     return scene_dir
 
 
-def _problem(spec: CustomSpec, inputs: _Inputs, coords: dict, robot_instances: list[str],
-             env_boxes: list[tuple[np.ndarray, np.ndarray]]) -> dict:
+def _problem(
+    spec: CustomSpec,
+    inputs: _Inputs,
+    coords: dict,
+    robot_instances: list[str],
+    env_boxes: list[tuple[np.ndarray, np.ndarray]],
+) -> dict:
     """The problem file's keys: start, goal, limits, weights and resolution from the probed robot."""
     nq = len(coords["names"])
     start = _vector(spec.start, nq, "start", coords["names"])
@@ -558,17 +640,31 @@ def _problem(spec: CustomSpec, inputs: _Inputs, coords: dict, robot_instances: l
     env_names = ", ".join(p.name for p in inputs.env_paths) or "-"
     return {
         "description": spec.description or f"{inputs.robot_path.name} among {env_names}",
-        "directives": "scene.dmd.yaml", "robot": robot_instances, "collisions": spec.collisions,
-        "lower": lower.tolist(), "upper": upper.tolist(), "start": start.tolist(), "goal": goal.tolist(),
-        "weights": weights.tolist(), "resolution": float(resolution), "view": "3d",
+        "directives": "scene.dmd.yaml",
+        "robot": robot_instances,
+        "collisions": spec.collisions,
+        "lower": lower.tolist(),
+        "upper": upper.tolist(),
+        "start": start.tolist(),
+        "goal": goal.tolist(),
+        "weights": weights.tolist(),
+        "resolution": float(resolution),
+        "view": "3d",
         # A joint without a velocity limit gets 1 (m/s or rad/s), so the trajectory has a sensible duration.
-        "velocity_limits": np.where(np.isfinite(coords["velocity"]) & (coords["velocity"] > 0),
-                                    coords["velocity"], 1.0).tolist(),
+        "velocity_limits": np.where(
+            np.isfinite(coords["velocity"]) & (coords["velocity"] > 0), coords["velocity"], 1.0
+        ).tolist(),
     }
 
 
-def _limits(coords: dict, angular: np.ndarray, inputs: _Inputs, start: np.ndarray, goal: np.ndarray,
-            env_boxes: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+def _limits(
+    coords: dict,
+    angular: np.ndarray,
+    inputs: _Inputs,
+    start: np.ndarray,
+    goal: np.ndarray,
+    env_boxes: list[tuple[np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper limits: the given bounds, else the joints' own (angles without any: one turn); a floating robot's
     x, y, z default to the environment's box grown by the robot's reach and stretched to hold start and goal."""
     nq = len(coords["names"])
@@ -586,8 +682,11 @@ def _limits(coords: dict, angular: np.ndarray, inputs: _Inputs, start: np.ndarra
         elif floating and len(bounds) == 3:
             lower[:3], upper[:3] = [b[0] for b in bounds], [b[1] for b in bounds]
         else:
-            raise UserError(f"bounds: {nq} lo..hi items needed (one per coordinate: {', '.join(coords['names'])})"
-                            + (" or 3 for x, y, z" if floating else "") + f"; got {len(bounds)}")
+            raise UserError(
+                f"bounds: {nq} lo..hi items needed (one per coordinate: {', '.join(coords['names'])})"
+                + (" or 3 for x, y, z" if floating else "")
+                + f"; got {len(bounds)}"
+            )
     elif floating:
         if not env_boxes:
             raise UserError("a floating robot with no environment needs bounds for x, y, z")
@@ -606,12 +705,21 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
     if len(d.pieces) > 400:
         import sys
 
-        print(f"warning: {path.name} became {len(d.pieces)} convex pieces; Drake's set-up time grows with the square "
-              f"of that (about 5 s at 1000, 20 s at 2000): consider a larger mesh tolerance", file=sys.stderr)
-    return {"mesh": path.name, "method": d.method, "pieces": len(d.pieces), "from_cache": d.from_cache,
-            "seconds": round(d.seconds, 3), "validation": {k: d.validation.get(k) for k in
-                                                         ("ok", "tolerance", "near_surface_points", "free_points",
-                                                          "violations")}}
+        print(
+            f"warning: {path.name} became {len(d.pieces)} convex pieces; Drake's set-up time grows with the square "
+            f"of that (about 5 s at 1000, 20 s at 2000): consider a larger mesh tolerance",
+            file=sys.stderr,
+        )
+    return {
+        "mesh": path.name,
+        "method": d.method,
+        "pieces": len(d.pieces),
+        "from_cache": d.from_cache,
+        "seconds": round(d.seconds, 3),
+        "validation": {
+            k: d.validation.get(k) for k in ("ok", "tolerance", "near_surface_points", "free_points", "violations")
+        },
+    }
 
 
 def _vector(values, nq: int, what: str, names: list[str]) -> np.ndarray:

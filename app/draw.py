@@ -51,13 +51,17 @@ def _round_faces(shape, pose, segments: int = 16) -> list[np.ndarray]:
         profile = list(zip(r * np.cos(arc), r * np.sin(arc)))
     else:  # capsule: two half spheres joined by a cylinder
         h = shape.length() / 2
-        profile = ([(r * np.cos(a), -h + r * np.sin(a)) for a in arc[:4]]
-                   + [(r * np.cos(a), h + r * np.sin(a)) for a in arc[3:]])
+        profile = [(r * np.cos(a), -h + r * np.sin(a)) for a in arc[:4]] + [
+            (r * np.cos(a), h + r * np.sin(a)) for a in arc[3:]
+        ]
     theta = np.linspace(0, 2 * np.pi, segments + 1)
     rings = np.array([[(rho * np.cos(t), rho * np.sin(t), z) for t in theta] for rho, z in profile])
     world = rings @ pose.rotation().matrix().T + pose.translation()
-    return [np.array([world[i, j], world[i, j + 1], world[i + 1, j + 1], world[i + 1, j]])
-            for i in range(len(profile) - 1) for j in range(segments)]
+    return [
+        np.array([world[i, j], world[i, j + 1], world[i + 1, j + 1], world[i + 1, j]])
+        for i in range(len(profile) - 1)
+        for j in range(segments)
+    ]
 
 
 def _top_view(ax, points: np.ndarray, **style) -> None:
@@ -91,8 +95,10 @@ def _draw_shape(ax, shape, pose, three_d: bool, **style):
         points = np.array([hull.vertex(i) for i in range(hull.num_vertices())])  # scaled already
         world = points @ pose.rotation().matrix().T + pose.translation()
         if three_d:
-            faces = [world[[face.vertex(j) for j in range(face.num_vertices())]]
-                     for face in (hull.element(i) for i in range(hull.num_faces()))]
+            faces = [
+                world[[face.vertex(j) for j in range(face.num_vertices())]]
+                for face in (hull.element(i) for i in range(hull.num_faces()))
+            ]
             ax.add_collection3d(Poly3DCollection(faces, **style))
         else:
             _top_view(ax, world, **style)
@@ -112,11 +118,26 @@ def scene_figure(oracle, title: str | None = None):
     for lo, hi in scene.passage_boxes:
         if three_d:
             corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-            ax.add_collection3d(Poly3DCollection([corners[f] for f in _BOX_FACES], facecolor=(1, 0.8, 0, 0.12),
-                                                 edgecolor=(0.9, 0.6, 0, 0.8), linestyle="--"))
+            ax.add_collection3d(
+                Poly3DCollection(
+                    [corners[f] for f in _BOX_FACES],
+                    facecolor=(1, 0.8, 0, 0.12),
+                    edgecolor=(0.9, 0.6, 0, 0.8),
+                    linestyle="--",
+                )
+            )
         else:
-            ax.add_patch(Rectangle(lo[:2], *(hi - lo)[:2], fill=True, facecolor=(1, 0.85, 0, 0.25),
-                                   edgecolor=(0.9, 0.6, 0), linestyle="--", linewidth=1.2))
+            ax.add_patch(
+                Rectangle(
+                    lo[:2],
+                    *(hi - lo)[:2],
+                    fill=True,
+                    facecolor=(1, 0.85, 0, 0.25),
+                    edgecolor=(0.9, 0.6, 0),
+                    linestyle="--",
+                    linewidth=1.2,
+                )
+            )
     bounds = _workspace_bounds(oracle)
     if three_d:
         ax.set(xlim=bounds[0], ylim=bounds[1], zlim=bounds[2], xlabel="x", ylabel="y", zlabel="z")

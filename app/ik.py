@@ -17,6 +17,7 @@ Measured on the UR3 scenes: one pose takes 30-70 ms (about 5 ms per SNOPT solve)
 
 IK is set-up work, not planning: the oracle's check counter is left as it was found.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,6 +25,7 @@ import math
 import numpy as np
 
 from app.errors import InvalidEndpoint, UserError
+
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
 POSITION_TOLERANCE = 1e-3  # m
@@ -65,9 +67,19 @@ def _into_bounds(oracle, q) -> np.ndarray:
     return oracle.space.wrap(q)
 
 
-def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=None, seeds: int = 64,
-               keep: int = 3, position_tolerance: float = POSITION_TOLERANCE,
-               angle_tolerance: float = ANGLE_TOLERANCE, clearance: float = CLEARANCE) -> np.ndarray:
+def solve_pose(
+    oracle,
+    pose,
+    rng: np.random.Generator,
+    reference=None,
+    *,
+    frame=None,
+    seeds: int = 64,
+    keep: int = 3,
+    position_tolerance: float = POSITION_TOLERANCE,
+    angle_tolerance: float = ANGLE_TOLERANCE,
+    clearance: float = CLEARANCE,
+) -> np.ndarray:
     """A free configuration putting `frame` (default: the scene's tool frame) at `pose` (a pose name of the scene or
     a RigidTransform in the world), the nearest to `reference` (default: the scene's start) among the first `keep`
     found. Raises InvalidEndpoint if no seed gives one."""
@@ -93,16 +105,25 @@ def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=
         p = X_WT.translation()
         # A box inside the tolerance ball and a tighter angle, leaving room for SNOPT's feasibility tolerance.
         half = 0.9 * position_tolerance / math.sqrt(3.0)
-        ik.AddPositionConstraint(frameB=frame, p_BQ=np.zeros(3), frameA=plant.world_frame(),
-                                 p_AQ_lower=p - half, p_AQ_upper=p + half)
-        ik.AddOrientationConstraint(frameAbar=plant.world_frame(), R_AbarA=X_WT.rotation(),
-                                    frameBbar=frame, R_BbarB=RotationMatrix(), theta_bound=0.9 * angle_tolerance)
+        ik.AddPositionConstraint(
+            frameB=frame, p_BQ=np.zeros(3), frameA=plant.world_frame(), p_AQ_lower=p - half, p_AQ_upper=p + half
+        )
+        ik.AddOrientationConstraint(
+            frameAbar=plant.world_frame(),
+            R_AbarA=X_WT.rotation(),
+            frameBbar=frame,
+            R_BbarB=RotationMatrix(),
+            theta_bound=0.9 * angle_tolerance,
+        )
         # Translations are bounded; angles are not (SNOPT converges three times as often without them): a revolute
         # joint's kinematics repeat every 2 pi, so a solution is shifted into the bounds afterwards.
-        prog.AddBoundingBoxConstraint(np.where(oracle.space.angular, -np.inf, oracle.space.lower),
-                                      np.where(oracle.space.angular, np.inf, oracle.space.upper), q)
+        prog.AddBoundingBoxConstraint(
+            np.where(oracle.space.angular, -np.inf, oracle.space.lower),
+            np.where(oracle.space.angular, np.inf, oracle.space.upper),
+            q,
+        )
         # Small, so it picks among nearby solutions without fighting the constraints.
-        prog.AddQuadraticErrorCost(1e-2 * np.diag(oracle.space.weights ** 2), reference, q)
+        prog.AddQuadraticErrorCost(1e-2 * np.diag(oracle.space.weights**2), reference, q)
         if with_clearance:
             ik.AddMinimumDistanceLowerBoundConstraint(clearance, 0.05)
         found = []
@@ -128,14 +149,18 @@ def solve_pose(oracle, pose, rng: np.random.Generator, reference=None, *, frame=
         found = attempt(first, False, colliding)
         if not found and colliding:
             # The pose is reachable but every solution found collides: push those (and a few fresh seeds) clear.
-            second = colliding[:keep] + [rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds // 16)]
+            second = colliding[:keep] + [
+                rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds // 16)
+            ]
             found = attempt(second, True, [])
     finally:
         oracle.checks = checks_before
     if not found:
-        raise InvalidEndpoint(f"pose '{label}' cannot be reached collision-free by {frame.name()} "
-                              f"(tolerance {position_tolerance * 1000:g} mm, {math.degrees(angle_tolerance):g} deg)",
-                              "NO_IK_SOLUTION")
+        raise InvalidEndpoint(
+            f"pose '{label}' cannot be reached collision-free by {frame.name()} "
+            f"(tolerance {position_tolerance * 1000:g} mm, {math.degrees(angle_tolerance):g} deg)",
+            "NO_IK_SOLUTION",
+        )
     return min(found, key=lambda c: float(oracle.space.distance(reference, c)))
 
 

@@ -1,5 +1,6 @@
 """The one way the project writes a file: checked before any work, written through a temporary file beside it and
 renamed into place, so a reader (or a failed run) never leaves half a file."""
+
 from __future__ import annotations
 
 import os

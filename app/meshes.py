@@ -23,6 +23,7 @@ and renamed into place, so concurrent runs see a whole entry or none.
 Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (measured: 250 pieces
 0.4 s, 500 1.8 s, 1000 4.9 s, 2000 22 s), so merging faces into few pieces matters as much as the decomposition.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -39,6 +40,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import write_atomically
+
 # trimesh and coacd (optional, slow to import) are imported inside the functions that use them.
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
@@ -75,8 +77,9 @@ def load_mesh(path: str | Path):
     if not path.is_file():
         raise UserError(f"mesh file not found: {path}")
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise UserError(f"unsupported mesh format '{path.suffix}' ({path.name}); use one of "
-                        f"{', '.join(sorted(MESH_SUFFIXES))}")
+        raise UserError(
+            f"unsupported mesh format '{path.suffix}' ({path.name}); use one of {', '.join(sorted(MESH_SUFFIXES))}"
+        )
     try:
         import trimesh
     except ImportError:
@@ -84,8 +87,9 @@ def load_mesh(path: str | Path):
     try:
         loaded = trimesh.load(str(path), force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types (ValueError, KeyError, collada errors, ...)
-        raise UserError(f"cannot read mesh {path.name}: {' '.join(str(exc).split())[:200] or type(exc).__name__}") \
-            from None
+        raise UserError(
+            f"cannot read mesh {path.name}: {' '.join(str(exc).split())[:200] or type(exc).__name__}"
+        ) from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise UserError(f"cannot read mesh {path.name}: no triangles in it")
     mesh = loaded
@@ -149,8 +153,9 @@ def hull_piece(points: np.ndarray) -> Piece:
     return Piece(verts, faces, hull.equations.copy())
 
 
-def prism_piece(polygon_2d: np.ndarray, origin: np.ndarray, u: np.ndarray, v: np.ndarray, n: np.ndarray,
-                h_lo: float, h_hi: float) -> Piece:
+def prism_piece(
+    polygon_2d: np.ndarray, origin: np.ndarray, u: np.ndarray, v: np.ndarray, n: np.ndarray, h_lo: float, h_hi: float
+) -> Piece:
     """A convex polygon (counter-clockwise in the (u, v) plane, n = u x v) extruded from height h_lo to h_hi."""
     m = len(polygon_2d)
     base = origin + polygon_2d[:, :1] * u + polygon_2d[:, 1:2] * v
@@ -302,11 +307,18 @@ def coacd_pieces(meshes: list, threshold: float, timeout: float = 120.0, progres
             arrays[f"vertices{m}"] = np.asarray(mesh.vertices, float)
             arrays[f"faces{m}"] = np.asarray(mesh.faces, np.int64)
         np.savez(source, **arrays)
-        child = subprocess.Popen([sys.executable, "-c", _COACD_CHILD, str(source), str(target)],
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        child = subprocess.Popen(
+            [sys.executable, "-c", _COACD_CHILD, str(source), str(target)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         faces = sum(len(m.faces) for m in meshes)
-        bar = _progress(desc=f"CoACD ({len(meshes)} part(s), {faces} faces)", bar_format="{desc}: {elapsed}",
-                        mininterval=0.5, disable=not progress)
+        bar = _progress(
+            desc=f"CoACD ({len(meshes)} part(s), {faces} faces)",
+            bar_format="{desc}: {elapsed}",
+            mininterval=0.5,
+            disable=not progress,
+        )
         started = time.perf_counter()
         limit = timeout * len(meshes)
         try:
@@ -335,8 +347,13 @@ def classify(mesh) -> dict:
     closed = bool(mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0)
     volume = float(mesh.volume) if closed else 0.0
     hull_volume = float(mesh.convex_hull.volume) if closed else 0.0  # only a closed mesh can be its own hull
-    return {"faces": int(len(mesh.faces)), "closed": closed, "volume": volume, "hull_volume": hull_volume,
-            "convex": closed and hull_volume <= volume * (1 + 1e-6) + 1e-12}
+    return {
+        "faces": int(len(mesh.faces)),
+        "closed": closed,
+        "volume": volume,
+        "hull_volume": hull_volume,
+        "convex": closed and hull_volume <= volume * (1 + 1e-6) + 1e-12,
+    }
 
 
 def choose_method(facts: dict) -> list[str]:
@@ -358,7 +375,7 @@ def _inside_any(points: np.ndarray, pieces: list[Piece], margin: float) -> tuple
     xs = points[order, 0]
     for index, piece in enumerate(pieces):
         lo, hi = piece.vertices.min(axis=0) - margin, piece.vertices.max(axis=0) + margin
-        window = order[np.searchsorted(xs, lo[0], "left"):np.searchsorted(xs, hi[0], "right")]
+        window = order[np.searchsorted(xs, lo[0], "left") : np.searchsorted(xs, hi[0], "right")]
         cand = window[np.all((points[window, 1:] >= lo[1:]) & (points[window, 1:] <= hi[1:]), axis=1)]
         if len(cand) == 0:
             continue
@@ -383,7 +400,7 @@ def _within(points: np.ndarray, mesh, radius: float) -> np.ndarray:
     owner = np.repeat(np.arange(len(points)), np.asarray(counts, np.int64))
     triangles = np.asarray(mesh.triangles)
     for chunk in range(0, len(ids), 200_000):
-        tri, who = ids[chunk:chunk + 200_000], owner[chunk:chunk + 200_000]
+        tri, who = ids[chunk : chunk + 200_000], owner[chunk : chunk + 200_000]
         distance = np.linalg.norm(closest_point(triangles[tri], points[who]) - points[who], axis=1)
         near[who[distance < radius]] = True
     return near
@@ -414,8 +431,15 @@ class Validation:
     uncovered_faces: list = field(default_factory=list)  # faces with a surface sample no piece covers
 
 
-def validate(mesh, pieces: list[Piece], tolerance: float, samples: int = 6000, seed: int = 0,
-             solids: list | None = None, progress: bool = False) -> Validation:
+def validate(
+    mesh,
+    pieces: list[Piece],
+    tolerance: float,
+    samples: int = 6000,
+    seed: int = 0,
+    solids: list | None = None,
+    progress: bool = False,
+) -> Validation:
     """Does the decomposition keep every free point of the original mesh free, and cover its surface?
 
     `solids`: the mesh's closed parts (inside them is not free space); default: the whole mesh if it is closed.
@@ -452,7 +476,7 @@ def validate(mesh, pieces: list[Piece], tolerance: float, samples: int = 6000, s
     keep[keep] &= ~_inside_solids(candidates[keep], solids)
     bar.update(1)
     kept = candidates[keep]
-    n_near = int(keep[:len(near)].sum())
+    n_near = int(keep[: len(near)].sum())
     depth, which = _inside_any(kept, pieces, margin=0.0)
     bar.update(1)
     bad = depth > 1e-9 * diag
@@ -461,14 +485,22 @@ def validate(mesh, pieces: list[Piece], tolerance: float, samples: int = 6000, s
     bar.update(1)
     bar.close()
     missing = reach < -tolerance
-    result = Validation(ok=not bad.any() and not missing.any(), tolerance=tolerance, near_surface_points=n_near,
-                        free_points=int(keep[len(near):].sum()), violations=int(bad.sum()),
-                        worst_depth=float(depth[bad].max()) if bad.any() else 0.0, uncovered=int(missing.sum()),
-                        surface_points=len(surface), bad_pieces=sorted(set(which[bad].tolist())),
-                        uncovered_faces=sorted(set(surface_faces[missing].tolist())))
+    result = Validation(
+        ok=not bad.any() and not missing.any(),
+        tolerance=tolerance,
+        near_surface_points=n_near,
+        free_points=int(keep[len(near) :].sum()),
+        violations=int(bad.sum()),
+        worst_depth=float(depth[bad].max()) if bad.any() else 0.0,
+        uncovered=int(missing.sum()),
+        surface_points=len(surface),
+        bad_pieces=sorted(set(which[bad].tolist())),
+        uncovered_faces=sorted(set(surface_faces[missing].tolist())),
+    )
     if bad.any():
-        result.message = (f"{result.violations} of {len(kept)} free points are inside a piece "
-                          f"(up to {result.worst_depth:.3g} deep)")
+        result.message = (
+            f"{result.violations} of {len(kept)} free points are inside a piece (up to {result.worst_depth:.3g} deep)"
+        )
     elif missing.any():
         result.message = f"{result.uncovered} of {len(surface)} surface points are not covered by any piece"
     return result
@@ -483,12 +515,15 @@ def _components(mesh) -> list[np.ndarray]:
     """Face indices of each connected part (faces sharing an edge)."""
     import trimesh
 
-    return [np.asarray(c) for c in trimesh.graph.connected_components(
-        mesh.face_adjacency, nodes=np.arange(len(mesh.faces)), min_len=1)]
+    return [
+        np.asarray(c)
+        for c in trimesh.graph.connected_components(mesh.face_adjacency, nodes=np.arange(len(mesh.faces)), min_len=1)
+    ]
 
 
-def _decompose_parts(mesh, method: str, tolerance: float, coacd_threshold: float, coacd_timeout: float,
-                     progress: bool, label: str):
+def _decompose_parts(
+    mesh, method: str, tolerance: float, coacd_threshold: float, coacd_timeout: float, progress: bool, label: str
+):
     """Choose a method per connected part, build, validate the whole; a part whose pieces fail moves on to its next
     method. Returns (pieces, owner part per piece, the validation rounds, pieces per method)."""
     groups = _components(mesh)
@@ -520,8 +555,9 @@ def _decompose_parts(mesh, method: str, tolerance: float, coacd_threshold: float
         coacd_parts = [i for i in todo if orders[i][level[i]] == "coacd"]
         if coacd_parts:
             try:
-                for i, pieces in zip(coacd_parts, coacd_pieces([parts[i] for i in coacd_parts], coacd_threshold,
-                                                              coacd_timeout, progress)):
+                for i, pieces in zip(
+                    coacd_parts, coacd_pieces([parts[i] for i in coacd_parts], coacd_threshold, coacd_timeout, progress)
+                ):
                     built[i] = pieces
             except MethodFailed as exc:
                 notes.append(str(exc))
@@ -532,12 +568,12 @@ def _decompose_parts(mesh, method: str, tolerance: float, coacd_threshold: float
                 continue
         face_parts = [i for i in todo if orders[i][level[i]] == "faces"]
         if face_parts:
-
             face_ids = np.concatenate([groups[i] for i in face_parts])
             joined = mesh.submesh([face_ids], append=True)
             joined_owner = part_of_face[face_ids]
-            pieces, seeds = face_pieces(joined, slab=tolerance / 2, thickness=tolerance / 5, progress=progress,
-                                        with_seeds=True)
+            pieces, seeds = face_pieces(
+                joined, slab=tolerance / 2, thickness=tolerance / 5, progress=progress, with_seeds=True
+            )
             for i in face_parts:
                 built[i] = []
             for piece, seed in zip(pieces, seeds):
@@ -546,8 +582,10 @@ def _decompose_parts(mesh, method: str, tolerance: float, coacd_threshold: float
         for i in range(len(parts)):
             pieces += built[i]
             owner += [i] * len(built[i])
-        methods = {m: sum(len(built[i]) for i in range(len(parts)) if orders[i][level[i]] == m)
-                   for m in ("convex", "coacd", "faces")}
+        methods = {
+            m: sum(len(built[i]) for i in range(len(parts)) if orders[i][level[i]] == m)
+            for m in ("convex", "coacd", "faces")
+        }
         check = validate(mesh, pieces, tolerance, solids=solids, progress=progress)
         record = asdict(check)
         record.pop("bad_pieces"), record.pop("uncovered_faces")
@@ -557,8 +595,10 @@ def _decompose_parts(mesh, method: str, tolerance: float, coacd_threshold: float
         blamed = {owner[k] for k in check.bad_pieces} | {int(part_of_face[f]) for f in check.uncovered_faces}
         stuck = [i for i in blamed if level[i] + 1 >= len(orders[i])]
         if stuck or not blamed:
-            raise UserError(f"no valid convex decomposition for {label}: {check.message}"
-                            + (f" ({len(stuck)} part(s) have no other method)" if stuck else ""))
+            raise UserError(
+                f"no valid convex decomposition for {label}: {check.message}"
+                + (f" ({len(stuck)} part(s) have no other method)" if stuck else "")
+            )
         for i in blamed:
             level[i] += 1
             del built[i]
@@ -597,8 +637,15 @@ def default_tolerance(mesh) -> float:
     return 0.002 * float(np.linalg.norm(mesh.extents))
 
 
-def decompose(path: str | Path, method: str = "auto", tolerance: float | None = None, coacd_threshold: float = 0.03,
-              coacd_timeout: float = 120.0, cache_dir: Path | None = None, progress: bool = True) -> Decomposition:
+def decompose(
+    path: str | Path,
+    method: str = "auto",
+    tolerance: float | None = None,
+    coacd_threshold: float = 0.03,
+    coacd_timeout: float = 120.0,
+    cache_dir: Path | None = None,
+    progress: bool = True,
+) -> Decomposition:
     """Convex pieces for the mesh at `path`, from the cache when a valid entry exists, else built and cached."""
     path = Path(path)
     if method not in METHODS:
@@ -606,8 +653,13 @@ def decompose(path: str | Path, method: str = "auto", tolerance: float | None = 
     if not path.is_file():
         raise UserError(f"mesh file not found: {path}")
     digest = file_sha256(path)
-    params = {"method": method, "tolerance": tolerance, "coacd_threshold": coacd_threshold,
-              "version": DECOMPOSER_VERSION, "coacd": _coacd_version() if method in ("auto", "coacd") else None}
+    params = {
+        "method": method,
+        "tolerance": tolerance,
+        "coacd_threshold": coacd_threshold,
+        "version": DECOMPOSER_VERSION,
+        "coacd": _coacd_version() if method in ("auto", "coacd") else None,
+    }
     key = hashlib.sha256((digest + json.dumps(params, sort_keys=True)).encode()).hexdigest()[:32]
     root = (cache_dir or cache_root()) / "meshes"
     entry = root / key
@@ -625,8 +677,9 @@ def decompose(path: str | Path, method: str = "auto", tolerance: float | None = 
     if not tolerance > 0:
         raise UserError("mesh tolerance must be positive")
     facts = classify(mesh)
-    pieces, owner, tried, methods = _decompose_parts(mesh, method, tolerance, coacd_threshold, coacd_timeout,
-                                                     progress, path.name)
+    pieces, owner, tried, methods = _decompose_parts(
+        mesh, method, tolerance, coacd_threshold, coacd_timeout, progress, path.name
+    )
     facts["components"] = len(set(owner)) if owner else 0
 
     try:
@@ -639,19 +692,30 @@ def decompose(path: str | Path, method: str = "auto", tolerance: float | None = 
             files[name] = _write_obj(staging / name, piece.vertices, piece.faces)
             names.append(name)
         files["visual.obj"] = _write_obj(staging / "visual.obj", mesh.vertices, mesh.faces)
-        manifest = {"key": key, "source": str(path.resolve()), "source_sha256": digest, "params": params,
-                    "tolerance": tolerance, "method": _method_name(methods), "methods": methods, "tried": tried,
-                    "facts": facts,
-                    "bounds": mesh.bounds.tolist(), "pieces": names, "files": files,
-                    "build_seconds": time.perf_counter() - started}
+        manifest = {
+            "key": key,
+            "source": str(path.resolve()),
+            "source_sha256": digest,
+            "params": params,
+            "tolerance": tolerance,
+            "method": _method_name(methods),
+            "methods": methods,
+            "tried": tried,
+            "facts": facts,
+            "bounds": mesh.bounds.tolist(),
+            "pieces": names,
+            "files": files,
+            "build_seconds": time.perf_counter() - started,
+        }
         (staging / "manifest.json").write_text(json.dumps(manifest, indent=1))
         try:
             os.replace(staging, entry)  # atomic: a reader sees no entry or a whole one
         except OSError:  # another process won the race; use theirs if it is whole
             shutil.rmtree(staging, ignore_errors=True)
     except OSError as exc:
-        raise UserError(f"cannot write the mesh cache under {root}: {exc.strerror or exc} "
-                        f"(set {CACHE_ENV} to a writable folder)") from None
+        raise UserError(
+            f"cannot write the mesh cache under {root}: {exc.strerror or exc} (set {CACHE_ENV} to a writable folder)"
+        ) from None
     result = _read_entry(entry, key)
     if result is None:
         raise UserError(f"cannot write the mesh cache at {entry}")
@@ -672,8 +736,15 @@ def _read_entry(entry: Path, key: str) -> Decomposition | None:
         pieces = [entry / name for name in manifest["pieces"]]
         if not pieces or any(name not in manifest["files"] for name in manifest["pieces"]):
             return None
-        return Decomposition(directory=entry, method=manifest["method"], pieces=pieces, visual=entry / "visual.obj",
-                             facts=manifest["facts"], validation=manifest["tried"][-1], from_cache=True)
+        return Decomposition(
+            directory=entry,
+            method=manifest["method"],
+            pieces=pieces,
+            visual=entry / "visual.obj",
+            facts=manifest["facts"],
+            validation=manifest["tried"][-1],
+            from_cache=True,
+        )
     except (OSError, ValueError, KeyError, TypeError, IndexError):
         return None
 

@@ -26,12 +26,14 @@
 OMPL's RNG takes one seed per process (the first OmplProblem sets it): OMPL runs are not reproducible per seed.
 States from `space.allocState()` are owned by the Python wrapper: never `freeState` them (a segfault follows).
 """
+
 import math
 
 import numpy as np
 
 from app.errors import UserError
 from app.samplers import make_sampler
+
 # Importing this module loads OMPL (an optional dependency; the samplers below subclass its classes), so callers
 # import it only where OMPL is needed.
 
@@ -133,8 +135,12 @@ class OmplSpace:
         """The longest valid segment OMPL uses per subspace, in our weighted metric (after set-up)."""
         if not self.compound:
             return np.array([self.space.getLongestValidSegmentLength()])
-        return np.array([self.space.getSubspace(c).getLongestValidSegmentLength() * self.space.getSubspaceWeight(c)
-                         for c in range(self.space.getSubspaceCount())])
+        return np.array(
+            [
+                self.space.getSubspace(c).getLongestValidSegmentLength() * self.space.getSubspaceWeight(c)
+                for c in range(self.space.getSubspaceCount())
+            ]
+        )
 
     def write(self, state, q) -> None:
         q = self.cspace.wrap(np.asarray(q, float))  # continuous angles into [-pi, pi): in bounds either way
@@ -216,10 +222,15 @@ def motion_spacing(cspace, wrap_angles: bool = True, edges: int = 200, seed: int
         largest = max(largest, float(steps.max()))
         ratios.append(len(seen) / max(1, math.ceil(length / r - 1e-9)))
     ratios = np.array(ratios)
-    return {"space": space.kind, "fractions": space.fractions().tolist(), "edges": edges,
-            "max_spacing_over_resolution": largest / r,
-            "checks_over_exact_median": float(np.median(ratios)),
-            "checks_over_exact_p90": float(np.percentile(ratios, 90)), "checks_over_exact_max": float(ratios.max())}
+    return {
+        "space": space.kind,
+        "fractions": space.fractions().tolist(),
+        "edges": edges,
+        "max_spacing_over_resolution": largest / r,
+        "checks_over_exact_median": float(np.median(ratios)),
+        "checks_over_exact_p90": float(np.percentile(ratios, 90)),
+        "checks_over_exact_max": float(ratios.max()),
+    }
 
 
 class OmplProblem:

@@ -16,6 +16,7 @@ query context (geometry filter), and a test holds them to agreement.
 `checks` counts every configuration handed to Drake for a collision answer (the paper's gamma_c); an edge check
 counts the configurations it looked at. Configurations outside the bounds are rejected before Drake and not counted.
 """
+
 from __future__ import annotations
 
 import functools
@@ -28,6 +29,7 @@ import numpy as np
 from app.budget import BudgetSpent, Stop
 from app.cspace import ConfigurationSpace
 from app.scene import Scene
+
 # pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
 
 # Below this many configurations the checker's batch set-up costs more than the raw loop saves.
@@ -36,8 +38,6 @@ _BATCH_MIN = 8
 _PROBE_EVERY = 16
 # Most configurations one edge-check call hands Drake at once (a few tenths of a second), so a stop is polled often.
 _MAX_BATCH = 4096
-
-
 
 
 def default_threads() -> int:
@@ -64,31 +64,38 @@ class CollisionOracle:
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
         self.checker = SceneGraphCollisionChecker(
-            model=scene.diagram, robot_model_instances=scene.robot_instances, edge_step_size=scene.resolution,
-            env_collision_padding=0.0, self_collision_padding=0.0)
+            model=scene.diagram,
+            robot_model_instances=scene.robot_instances,
+            edge_step_size=scene.resolution,
+            env_collision_padding=0.0,
+            self_collision_padding=0.0,
+        )
         self.model = self.checker.model()
         self.plant = self.model.plant()
         scene_graph = self.model.scene_graph()
         inspector = scene_graph.model_inspector()
-        robot_bodies = [self.plant.get_body(b) for inst in scene.robot_instances
-                        for b in self.plant.GetBodyIndices(inst)]
-        self._robot_geometries = {g for body in robot_bodies
-                                  for g in self.plant.GetCollisionGeometriesForBody(body)}
+        robot_bodies = [
+            self.plant.get_body(b) for inst in scene.robot_instances for b in self.plant.GetBodyIndices(inst)
+        ]
+        self._robot_geometries = {g for body in robot_bodies for g in self.plant.GetCollisionGeometriesForBody(body)}
 
         # Unfiltered context: says *what* a configuration touches (environment, self) for diagnostics.
         self._diag_root = self.model.CreateDefaultContext()
         self._diag = self.plant.GetMyContextFromRoot(self._diag_root)
         if not scene.self_collisions:
             for i, a in enumerate(robot_bodies):
-                for b in robot_bodies[i + 1:]:
+                for b in robot_bodies[i + 1 :]:
                     self.checker.SetCollisionFilteredBetween(a, b, True)
         # Policy context: the scene's collision pairs, used for every counted answer.
         self._root = self.policy_context()
         self._ctx = self.plant.GetMyContextFromRoot(self._root)
         self._query_port = self.plant.get_geometry_query_input_port()
         self._inspector = inspector
-        self._passage_frame = (self.plant.GetFrameByName(scene.passage_frame.name(), scene.passage_frame.model_instance())
-                               if scene.passage_frame is not None else None)
+        self._passage_frame = (
+            self.plant.GetFrameByName(scene.passage_frame.name(), scene.passage_frame.model_instance())
+            if scene.passage_frame is not None
+            else None
+        )
         # What `frame_positions` tracks: the passage frame, or without one (a custom scene) the robot's last body.
         last_body = self.plant.GetBodyIndices(scene.robot_instances[-1])[-1]
         self._tracked_frame = self._passage_frame or self.plant.get_body(last_body).body_frame()
@@ -102,7 +109,8 @@ class CollisionOracle:
         if not self.scene.self_collisions:
             scene_graph = self.model.scene_graph()
             scene_graph.collision_filter_manager(scene_graph.GetMyMutableContextFromRoot(root)).Apply(
-                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(list(self._robot_geometries))))
+                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(list(self._robot_geometries)))
+            )
         return root
 
     def reset(self) -> None:
@@ -173,8 +181,9 @@ class CollisionOracle:
             return "batch" if best == "raw" else "raw"
         return best
 
-    def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None,
-                   ends_free: bool = False) -> np.ndarray:
+    def edges_free(
+        self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False
+    ) -> np.ndarray:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
 
         Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
@@ -184,8 +193,14 @@ class CollisionOracle:
         """
         return self.edges_status(Q1, Q2, resolution, ends_free)[0]
 
-    def edges_status(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False,
-                     until_one_collides: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def edges_status(
+        self,
+        Q1: np.ndarray,
+        Q2: np.ndarray,
+        resolution: float | None = None,
+        ends_free: bool = False,
+        until_one_collides: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(free, decided) flags for the edges, checked as `edges_free` does. With `until_one_collides` the check
         ends after the first coarse-to-fine round in which any edge collides (the edges of one candidate path: one
         collision condemns the path, and finishing its free edges would be wasted); edges not finished by then are
@@ -194,7 +209,7 @@ class CollisionOracle:
         Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
         D = space.difference(Q1, Q2)
         n = space.segments(Q1, Q2, resolution)
-        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0:] for k in n.tolist()]
+        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0 :] for k in n.tolist()]
         free = np.ones(len(Q1), bool)
         cursor = np.zeros(len(Q1), int)
         chunk = 1
@@ -202,13 +217,13 @@ class CollisionOracle:
             live = [i for i in np.flatnonzero(free).tolist() if cursor[i] < len(orders[i])]
             if not live:
                 return free, np.ones(len(Q1), bool)
-            takes = [orders[i][cursor[i]:cursor[i] + chunk] for i in live]
+            takes = [orders[i][cursor[i] : cursor[i] + chunk] for i in live]
             lengths = np.array([len(t) for t in takes])
             cursor[live] += lengths
             owner = np.repeat(live, lengths)
             t = np.concatenate(takes) / n[owner]
             points = space.wrap(Q1[owner] + t[:, None] * D[owner])
-            ok = np.concatenate([self.are_free(points[b:b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
+            ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
             hit_owners = np.unique(owner[~ok])
             free[hit_owners] = False
             if until_one_collides and len(hit_owners):
@@ -252,12 +267,12 @@ class CollisionOracle:
         try:
             pairs = [(p.id_A, p.id_B) for p in query.ComputePointPairPenetration()]
         except RuntimeError:  # a shape pair without penetration support: fall back to signed distances
-            pairs = [(p.id_A, p.id_B) for p in query.ComputeSignedDistancePairwiseClosestPoints(0.0)
-                     if p.distance < 0]
+            pairs = [(p.id_A, p.id_B) for p in query.ComputeSignedDistancePairwiseClosestPoints(0.0) if p.distance < 0]
         names = set()
         for a, b in pairs:
-            bodies = sorted(self.plant.GetBodyFromFrameId(self._inspector.GetFrameId(g)).scoped_name().to_string()
-                            for g in (a, b))
+            bodies = sorted(
+                self.plant.GetBodyFromFrameId(self._inspector.GetFrameId(g)).scoped_name().to_string() for g in (a, b)
+            )
             names.add((bodies[0], bodies[1]))
         return sorted(names)
 

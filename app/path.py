@@ -6,6 +6,7 @@ coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the
 result at FINE x that resolution, and smooths again at the fine resolution in the rare case a shortcut fails there
 (checking every accepted shortcut at the fine resolution doubled the cost of smoothing on the maze).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -50,8 +51,14 @@ def _point_at(oracle, P: np.ndarray, cum: np.ndarray, s: np.ndarray) -> tuple[np
     return oracle.space.wrap(P[seg] + t[:, None] * d), seg
 
 
-def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, candidates: int = 8,
-             resolution: float | None = None) -> tuple[np.ndarray, dict]:
+def shortcut(
+    oracle,
+    P: np.ndarray,
+    rng: np.random.Generator,
+    rounds: int = 50,
+    candidates: int = 8,
+    resolution: float | None = None,
+) -> tuple[np.ndarray, dict]:
     """Shorten P with a greedy pass over its waypoints, `rounds` rounds of random shortcuts, a last greedy pass.
 
     Greedy: from each kept waypoint, jump to the farthest later waypoint it sees directly. Random: each round draws
@@ -65,8 +72,14 @@ def shortcut(oracle, P: np.ndarray, rng: np.random.Generator, rounds: int = 50, 
     """
     resolution = resolution or oracle.space.resolution
     P = dedupe(P)
-    stats = {"greedy_removed": 0, "random_accepted": 0, "candidates_checked": 0,
-             "length_before": path_length(oracle, P), "resolution": resolution, "stopped": False}
+    stats = {
+        "greedy_removed": 0,
+        "random_accepted": 0,
+        "candidates_checked": 0,
+        "length_before": path_length(oracle, P),
+        "resolution": resolution,
+        "stopped": False,
+    }
     try:
         if len(P) > 2:
             P = _greedy(oracle, P, resolution, stats)
@@ -98,10 +111,11 @@ def _random_shortcut(oracle, P, rng, candidates: int, resolution: float, stats: 
         stats["candidates_checked"] += 1
         # The shortcut also leaves a piece of each edge it cuts: points along a piece are not points the whole
         # edge was checked at, so the pieces are checked too, and every edge of P stays checked at `resolution`.
-        if oracle.edges_free(np.array([qa[c], P[ia[c]], qb[c]]), np.array([qb[c], qa[c], P[ib[c] + 1]]),
-                             resolution).all():
+        if oracle.edges_free(
+            np.array([qa[c], P[ia[c]], qb[c]]), np.array([qb[c], qa[c], P[ib[c] + 1]]), resolution
+        ).all():
             stats["random_accepted"] += 1
-            return dedupe(np.vstack([P[:ia[c] + 1], qa[c], qb[c], P[ib[c] + 1:]]))
+            return dedupe(np.vstack([P[: ia[c] + 1], qa[c], qb[c], P[ib[c] + 1 :]]))
     return P
 
 

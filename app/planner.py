@@ -6,6 +6,7 @@
 
 `plan(oracle, PlanSettings(...))` runs one `Query` through those phases and returns a PlanResult.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -83,8 +84,7 @@ class PlanSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise UserError(f"{name} must be a non-negative whole number, got {value!r}")
-        if self.k is not None and (isinstance(self.k, bool) or not isinstance(self.k, (int, np.integer))
-                                   or self.k < 1):
+        if self.k is not None and (isinstance(self.k, bool) or not isinstance(self.k, (int, np.integer)) or self.k < 1):
             raise UserError(f"k must be a positive whole number, got {self.k!r}")
         if isinstance(self.dt, (int, float)) and self.dt < MIN_DT:
             raise UserError(f"dt must be at least {MIN_DT:g} s (a {1 / MIN_DT:g} Hz controller), got {self.dt!r}")
@@ -92,8 +92,12 @@ class PlanSettings:
             value = getattr(self, name)
             if value is None and name == "step":
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(value) or value <= 0:
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float, np.floating, np.integer))
+                or not math.isfinite(value)
+                or value <= 0
+            ):
                 raise UserError(f"{name} must be a positive finite number, got {value!r}")
         if not isinstance(self.budget, Budget):
             raise UserError(f"budget must be a Budget, got {self.budget!r}")
@@ -124,7 +128,7 @@ class PlanResult:
     distance_queries: int = 0  # signed-distance queries of the certificates (apart from collision_checks)
     # The roadmap itself (nodes `Q`, provenance `kinds`, networkx `graph`) and the roadmap path's node indices,
     # for viewers; not part of the JSON.
-    graph: "Roadmap | None" = field(default=None, repr=False)
+    graph: Roadmap | None = field(default=None, repr=False)
     path_nodes: list = field(default_factory=list, repr=False)
 
     def narrow_samples(self) -> tuple[np.ndarray, np.ndarray]:
@@ -144,15 +148,29 @@ class PlanResult:
 
     def to_json(self) -> dict:
         return {
-            "success": self.success, "scene": self.scene, "sampler": self.sampler, "seed": self.seed,
-            "step": self.step, "start": self.start.tolist(), "goal": self.goal.tolist(),
-            "path": self.path.tolist(), "roadmap_path": self.roadmap_path.tolist(),
-            "path_length": self.smoothing.get("length_after"), "roadmap_path_length": self.smoothing.get("raw_length"),
-            "trajectory": self.trajectory.to_json(), "collision_checks": self.collision_checks,
-            "checks": self.checks, "seconds": self.seconds, "roadmap": self.roadmap,
-            "narrow_on_path": self.narrow_on_path, "rounds": self.rounds, "budget": self.budget,
-            "smoothing": self.smoothing, "sampler_stats": self.sampler_stats,
-            "narrow_from_round": self.narrow_from_round, "distance_queries": self.distance_queries,
+            "success": self.success,
+            "scene": self.scene,
+            "sampler": self.sampler,
+            "seed": self.seed,
+            "step": self.step,
+            "start": self.start.tolist(),
+            "goal": self.goal.tolist(),
+            "path": self.path.tolist(),
+            "roadmap_path": self.roadmap_path.tolist(),
+            "path_length": self.smoothing.get("length_after"),
+            "roadmap_path_length": self.smoothing.get("raw_length"),
+            "trajectory": self.trajectory.to_json(),
+            "collision_checks": self.collision_checks,
+            "checks": self.checks,
+            "seconds": self.seconds,
+            "roadmap": self.roadmap,
+            "narrow_on_path": self.narrow_on_path,
+            "rounds": self.rounds,
+            "budget": self.budget,
+            "smoothing": self.smoothing,
+            "sampler_stats": self.sampler_stats,
+            "narrow_from_round": self.narrow_from_round,
+            "distance_queries": self.distance_queries,
             "certified": self.trajectory.certified,
         }
 
@@ -163,13 +181,17 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
     q = oracle.space.check_configuration(q, what)
     bad = oracle.space.out_of_bounds(q)
     if bad:
-        raise InvalidEndpoint(f"{what} is out of bounds: {'; '.join(bad)}",
-                              "START_STATE_INVALID" if what == "start" else "GOAL_STATE_INVALID")
+        raise InvalidEndpoint(
+            f"{what} is out of bounds: {'; '.join(bad)}",
+            "START_STATE_INVALID" if what == "start" else "GOAL_STATE_INVALID",
+        )
     if not oracle.is_free(q):
         pairs = oracle.colliding_bodies(q)
         touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
-        raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}",
-                              "START_STATE_IN_COLLISION" if what == "start" else "GOAL_IN_COLLISION")
+        raise InvalidEndpoint(
+            f"{what} is in collision: {touching or 'contact reported by the checker'}",
+            "START_STATE_IN_COLLISION" if what == "start" else "GOAL_IN_COLLISION",
+        )
     return oracle.space.wrap(q)
 
 
@@ -228,16 +250,19 @@ class Query:
         seeds = np.random.SeedSequence(settings.seed).spawn(3)
         self._rngs = {"narrow": np.random.default_rng(seeds[0]), "uniform": np.random.default_rng(seeds[1])}
         self._smoothing_seed = seeds[2]
-        self._samplers = {"narrow": make_sampler(settings.sampler, oracle, step=self.step, **settings.sampler_params),
-                          "uniform": make_sampler("uniform", oracle, step=self.step)}
+        self._samplers = {
+            "narrow": make_sampler(settings.sampler, oracle, step=self.step, **settings.sampler_params),
+            "uniform": make_sampler("uniform", oracle, step=self.step),
+        }
         self.sampler_stats = {"narrow": {}, "uniform": {}}
         self.drawn = {"narrow": 0, "uniform": 0}
         self.rounds = 0
         # Narrow-passage samples from the first round after start's and goal's components stopped merging.
         self.narrow_from_round: int | None = 1 if settings.full_roadmap else None
         # A single query checks only the edges its candidate paths use; a full roadmap is checked whole.
-        self.roadmap = Roadmap(oracle, k=settings.k, skip_connected=settings.skip_connected,
-                               lazy=not settings.full_roadmap)
+        self.roadmap = Roadmap(
+            oracle, k=settings.k, skip_connected=settings.skip_connected, lazy=not settings.full_roadmap
+        )
         self.start_node = int(self.roadmap.add(self.start, START, connect=False)[0])
         self.goal_node = int(self.roadmap.add(self.goal, GOAL, connect=False)[0])
         self.fine = FINE * self.roadmap.resolution
@@ -277,7 +302,7 @@ class Query:
         if self.narrow_from_round is None or self.rounds + 1 < self.narrow_from_round:
             return 0, math.ceil(s.uniform / 4)
         k = self.rounds + 1 - self.narrow_from_round
-        return min(math.ceil(s.narrow / 4), math.ceil(s.narrow / NARROW_RAMP) * 2 ** k), math.ceil(s.uniform / 4)
+        return min(math.ceil(s.narrow / 4), math.ceil(s.narrow / NARROW_RAMP) * 2**k), math.ceil(s.uniform / 4)
 
     def _draw(self, kind: str, count: int) -> np.ndarray:
         """`count` samples from the narrow or uniform sampler, resuming its walkers; a sampler that cannot find
@@ -337,9 +362,15 @@ class Query:
             share = max(SMOOTHING_MIN, int(SMOOTHING_SHARE * self.elapsed()[1]))
             self.oracle.stop = outer.within(share, reserve=recheck)
         try:
-            path, stats = self._timed("smoothing", shortcut, self.oracle, raw,
-                                      np.random.default_rng(self._smoothing_seed), rounds=self.settings.smooth_rounds,
-                                      resolution=self.fine if self.fine_only else None)
+            path, stats = self._timed(
+                "smoothing",
+                shortcut,
+                self.oracle,
+                raw,
+                np.random.default_rng(self._smoothing_seed),
+                rounds=self.settings.smooth_rounds,
+                resolution=self.fine if self.fine_only else None,
+            )
         finally:
             self.oracle.stop = outer
         stats["fine_only"] = self.fine_only
@@ -359,8 +390,9 @@ class Query:
         if self._certifier is None:
             self._certifier = Certifier(self.oracle)
         position, variation = polyline(self.oracle.space, path)
-        return self._timed("certify", self._certifier.certify, position, variation,
-                           itertools.pairwise(range(len(path))))
+        return self._timed(
+            "certify", self._certifier.certify, position, variation, itertools.pairwise(range(len(path)))
+        )
 
     def connect_and_smooth(self) -> tuple[list[int], np.ndarray, dict] | None:
         """(roadmap path, smoothed path, smoothing stats) once start and goal connect, else None.
@@ -394,12 +426,21 @@ class Query:
         """Toppra along the path with its corners blended where the blends can be proved free (app.timing)."""
         scene = self.oracle.scene
         try:
-            return self._timed("timing", parameterize_smooth, self.oracle, self.oracle.space.unwrap(path),
-                               scene.velocity_limits, scene.acceleration_limits, self.settings.dt,
-                               self.oracle.space.names, certifier=self._certifier)
+            return self._timed(
+                "timing",
+                parameterize_smooth,
+                self.oracle,
+                self.oracle.space.unwrap(path),
+                scene.velocity_limits,
+                scene.acceleration_limits,
+                self.settings.dt,
+                self.oracle.space.names,
+                certifier=self._certifier,
+            )
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
-            raise NoPath(f"path found on {scene.name} but not time-parameterized: "
-                         f"{' '.join(str(exc).split())}") from None
+            raise NoPath(
+                f"path found on {scene.name} but not time-parameterized: {' '.join(str(exc).split())}"
+            ) from None
 
     def solve(self) -> PlanResult:
         """The straight motion if it is free; else grow round by round until start and goal connect, then smooth,
@@ -411,8 +452,11 @@ class Query:
                 with self._unlimited():
                     proved, certificate = self.certify(path)
                 if proved:  # else the roadmap may find a route it can prove
-                    return self._result([self.start_node, self.goal_node], path,
-                                        {"straight": True, "certificate": {**certificate, "proved": True}})
+                    return self._result(
+                        [self.start_node, self.goal_node],
+                        path,
+                        {"straight": True, "certificate": {**certificate, "proved": True}},
+                    )
             found = None
             sizes = self.round_sizes()
             while sizes is not None:
@@ -445,21 +489,28 @@ class Query:
     def _failure(self, message: str, **details) -> NoPath:
         seconds, spent = self.elapsed()
         error = NoPath(message, "TIMED_OUT" if self.stopped else None)
-        error.details = {"roadmap": self.roadmap.stats(), "rounds": self.rounds, "collision_checks": spent,
-                         "seconds": seconds, "stopped": self.stopped, **details}
+        error.details = {
+            "roadmap": self.roadmap.stats(),
+            "rounds": self.rounds,
+            "collision_checks": spent,
+            "seconds": seconds,
+            "stopped": self.stopped,
+            **details,
+        }
         return error
 
     def _not_connected(self) -> NoPath:
         stats, s = self.roadmap.stats(), self.settings
         sizes = self.roadmap.component_sizes(self.start_node, self.goal_node)
         seconds, spent = self.elapsed()
-        ending = (f", budget {s.budget} spent ({self.stopped})" if self.stopped
-                  else "; the roadmap may not grow further")
+        ending = f", budget {s.budget} spent ({self.stopped})" if self.stopped else "; the roadmap may not grow further"
         return self._failure(
             f"no path from start to goal on {self.oracle.scene.name}: roadmap of {stats['nodes']} nodes "
             f"({stats['narrow_nodes']} narrow-passage samples from {s.sampler}, {stats['uniform_nodes']} uniform), "
             f"start and goal not joined by edges checked free; {stats['edges_tried']} edges decided, {spent} "
-            f"collision checks, {seconds:.1f} s, {self.rounds} round(s)" + ending, components_of_start_goal=sizes)
+            f"collision checks, {seconds:.1f} s, {self.rounds} round(s)" + ending,
+            components_of_start_goal=sizes,
+        )
 
     def _result(self, nodes: list[int], path: np.ndarray, stats: dict) -> PlanResult:
         from app.roadmap import NARROW
@@ -471,10 +522,27 @@ class Query:
         trajectory = self.time(path)
         self.seconds["total"] = self.elapsed()[0]
         return PlanResult(
-            success=True, scene=self.oracle.scene.name, sampler=s.sampler, seed=int(s.seed), step=self.step,
-            start=self.start, goal=self.goal, path=path, roadmap_path=raw, trajectory=trajectory,
-            collision_checks=self.elapsed()[1], checks=self.checks, seconds=self.seconds, roadmap=roadmap.stats(),
-            narrow_on_path=int(sum(roadmap.kinds[i] == NARROW for i in nodes)), rounds=self.rounds,
-            budget=str(s.budget), smoothing=stats, sampler_stats=self.sampler_stats,
-            narrow_from_round=self.narrow_from_round, graph=roadmap, path_nodes=list(nodes),
-            distance_queries=self.oracle.distance_queries - self._queries0)
+            success=True,
+            scene=self.oracle.scene.name,
+            sampler=s.sampler,
+            seed=int(s.seed),
+            step=self.step,
+            start=self.start,
+            goal=self.goal,
+            path=path,
+            roadmap_path=raw,
+            trajectory=trajectory,
+            collision_checks=self.elapsed()[1],
+            checks=self.checks,
+            seconds=self.seconds,
+            roadmap=roadmap.stats(),
+            narrow_on_path=int(sum(roadmap.kinds[i] == NARROW for i in nodes)),
+            rounds=self.rounds,
+            budget=str(s.budget),
+            smoothing=stats,
+            sampler_stats=self.sampler_stats,
+            narrow_from_round=self.narrow_from_round,
+            graph=roadmap,
+            path_nodes=list(nodes),
+            distance_queries=self.oracle.distance_queries - self._queries0,
+        )

@@ -2,10 +2,10 @@
 
 Nearest neighbours use the scene's own configuration metric, exactly: coordinates are scaled by their weights, and
 every continuous angle becomes a periodic axis of length 2*pi*w in scipy's toroidal k-d tree (`cKDTree(boxsize=...)`;
-a box size of 0 leaves an axis flat). The tree's distance is then sqrt(sum (w_i * d_i)^2) with d_i the short way round
-on continuous angles -- the very number `ConfigurationSpace.distance` gives -- so no neighbour is missed or misranked across the
-+-pi seam (embedding an angle as (w cos, w sin) would rank by chord length instead of arc length, which is not the
-metric the edges are checked and weighed in).
+a box size of 0 leaves an axis flat). The tree's distance is then sqrt(sum (w_i * d_i)^2) with d_i the short way
+round on continuous angles -- the very number `ConfigurationSpace.distance` gives -- so no neighbour is missed or
+misranked across the +-pi seam (embedding an angle as (w cos, w sin) would rank by chord length instead of arc
+length, which is not the metric the edges are checked and weighed in).
 
 Edges are checked by `oracle.edges_free`, coarse-to-fine and batched, at the scene's resolution, in one of two ways:
 - eager (a multi-query roadmap, the paper's PRM): every k-nearest edge is checked as nodes are connected (one call
@@ -17,6 +17,7 @@ Edges are checked by `oracle.edges_free`, coarse-to-fine and batched, at the sce
   `bench jobs` measure the query mode, lazy and stopping when connected, against the full roadmap).
 Shortcut smoothing (app/path.py) then recovers the path quality a denser graph would have given.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,7 +27,6 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
-
 
 START, GOAL, UNIFORM, NARROW = "start", "goal", "uniform", "narrow"
 
@@ -41,8 +41,15 @@ def prm_star_k(n: int, dim: int) -> int:
 class Roadmap:
     """An undirected PRM graph over configurations, each node remembering where it came from (its `kind`)."""
 
-    def __init__(self, oracle, k: int | None = 10, resolution: float | None = None, skip_connected: bool = True,
-                 chunk: int = 32, lazy: bool = False):
+    def __init__(
+        self,
+        oracle,
+        k: int | None = 10,
+        resolution: float | None = None,
+        skip_connected: bool = True,
+        chunk: int = 32,
+        lazy: bool = False,
+    ):
         if k is not None and k < 1:
             raise ValueError("k must be positive")
         self.oracle = oracle
@@ -123,7 +130,7 @@ class Roadmap:
         step = self.chunk if self.skip_connected and not self.lazy else len(nodes)
         added = 0
         for begin in range(0, len(nodes), step):
-            added += self._connect_chunk(nodes[begin:begin + step])
+            added += self._connect_chunk(nodes[begin : begin + step])
         return added
 
     def _connect_chunk(self, nodes: np.ndarray) -> int:
@@ -161,8 +168,9 @@ class Roadmap:
 
     def _add_edges(self, P: np.ndarray, checked: bool) -> None:
         lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else []
-        self.graph.add_edges_from((int(a), int(b), {"weight": float(w), "checked": checked})
-                                  for (a, b), w in zip(P, lengths))
+        self.graph.add_edges_from(
+            (int(a), int(b), {"weight": float(w), "checked": checked}) for (a, b), w in zip(P, lengths)
+        )
         if checked:
             for a, b in P:
                 self._components.union(int(a), int(b))
@@ -191,9 +199,10 @@ class Roadmap:
         checked = {(min(u, v), max(u, v)) for u, v, done in self.graph.edges(data="checked") if done}
         U, V = edges[:, 0].astype(int), edges[:, 1].astype(int)
         # Both directions, with the positions of each edge's two entries kept for removals.
-        matrix = csr_matrix((np.concatenate([edges[:, 2], edges[:, 2]]), (np.concatenate([U, V]),
-                                                                         np.concatenate([V, U]))),
-                            shape=(len(self), len(self)))
+        matrix = csr_matrix(
+            (np.concatenate([edges[:, 2], edges[:, 2]]), (np.concatenate([U, V]), np.concatenate([V, U]))),
+            shape=(len(self), len(self)),
+        )
         matrix.sort_indices()
         while True:
             dist, pred = dijkstra(matrix, indices=a, return_predecessors=True)
@@ -203,12 +212,14 @@ class Roadmap:
             while nodes[-1] != a:
                 nodes.append(int(pred[nodes[-1]]))
             nodes.reverse()
-            P = np.array([(u, v) for u, v in zip(nodes[:-1], nodes[1:]) if (min(u, v), max(u, v)) not in checked],
-                         int).reshape(-1, 2)
+            P = np.array(
+                [(u, v) for u, v in zip(nodes[:-1], nodes[1:]) if (min(u, v), max(u, v)) not in checked], int
+            ).reshape(-1, 2)
             if not len(P):
                 return nodes
-            free, decided = self.oracle.edges_status(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True,
-                                                     until_one_collides=True)
+            free, decided = self.oracle.edges_status(
+                self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True, until_one_collides=True
+            )
             self.edges_tried += int(decided.sum())
             for (u, v), ok, known in zip(P, free, decided):
                 if not known:
@@ -236,11 +247,19 @@ class Roadmap:
         collide), `edges_tried` counts edges checked in full."""
         counts = {kind: self.kinds.count(kind) for kind in (UNIFORM, NARROW)}
         unchecked = sum(1 for *_, checked in self.graph.edges(data="checked") if not checked)
-        return {"nodes": len(self), "edges": self.graph.number_of_edges(), "edges_unchecked": unchecked,
-                "components": self.components(), "edges_tried": self.edges_tried,
-                "edges_proposed": self.edges_proposed, "uniform_nodes": counts[UNIFORM],
-                "narrow_nodes": counts[NARROW], "k": self.k_used, "lazy": self.lazy,
-                "skip_connected": self.skip_connected and not self.lazy}
+        return {
+            "nodes": len(self),
+            "edges": self.graph.number_of_edges(),
+            "edges_unchecked": unchecked,
+            "components": self.components(),
+            "edges_tried": self.edges_tried,
+            "edges_proposed": self.edges_proposed,
+            "uniform_nodes": counts[UNIFORM],
+            "narrow_nodes": counts[NARROW],
+            "k": self.k_used,
+            "lazy": self.lazy,
+            "skip_connected": self.skip_connected and not self.lazy,
+        }
 
 
 def _drop(matrix: csr_matrix, u: int, v: int) -> None:

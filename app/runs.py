@@ -9,6 +9,7 @@ joint-space move where it is proved free (a seam step of a few centimetres needs
 Legs start and end at rest, so the joined trajectory stops at each pose (where a welder strikes or a gripper
 closes) and nowhere else.
 """
+
 import time
 from dataclasses import dataclass, replace
 
@@ -45,9 +46,17 @@ class Leg:
     on_path: np.ndarray
 
     def to_json(self) -> dict:
-        return {"from": self.start, "to": self.goal, "method": self.method, "narrow_samples": self.narrow_samples,
-                "narrow_on_path": self.narrow_on_path, "collision_checks": self.collision_checks,
-                "seconds": self.seconds, "duration": self.duration, "path": self.path.tolist()}
+        return {
+            "from": self.start,
+            "to": self.goal,
+            "method": self.method,
+            "narrow_samples": self.narrow_samples,
+            "narrow_on_path": self.narrow_on_path,
+            "collision_checks": self.collision_checks,
+            "seconds": self.seconds,
+            "duration": self.duration,
+            "path": self.path.tolist(),
+        }
 
 
 @dataclass
@@ -62,18 +71,29 @@ class RunResult:
     configurations: dict  # pose name -> configuration
 
     def to_json(self) -> dict:
-        return {"success": True, "scene": self.scene, "sampler": self.sampler, "seed": self.seed,
-                "legs": [leg.to_json() for leg in self.legs], "trajectory": self.trajectory.to_json(),
-                "seconds": self.seconds, "collision_checks": self.collision_checks,
-                "configurations": {k: v.tolist() for k, v in self.configurations.items()}}
+        return {
+            "success": True,
+            "scene": self.scene,
+            "sampler": self.sampler,
+            "seed": self.seed,
+            "legs": [leg.to_json() for leg in self.legs],
+            "trajectory": self.trajectory.to_json(),
+            "seconds": self.seconds,
+            "collision_checks": self.collision_checks,
+            "configurations": {k: v.tolist() for k, v in self.configurations.items()},
+        }
 
     def trajectory_file(self) -> TrajectoryFile:
         """What `run --out` writes: the joined trajectory with every planned leg's narrow-passage samples."""
         narrow = [leg.narrow for leg in self.legs if len(leg.narrow)]
         on_path = [leg.on_path for leg in self.legs if len(leg.narrow)]
-        return TrajectoryFile(scene=self.scene, trajectory=self.trajectory,
-                              narrow=np.concatenate(narrow) if narrow else None,
-                              on_path=np.concatenate(on_path) if on_path else None)
+        return TrajectoryFile(
+            scene=self.scene,
+            trajectory=self.trajectory,
+            narrow=np.concatenate(narrow) if narrow else None,
+            on_path=np.concatenate(on_path) if on_path else None,
+        )
+
 
 def route(oracle, job: str) -> list[str]:
     if job not in ROUTES:
@@ -108,13 +128,34 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         method = "straight" if result.smoothing.get("straight") else sampler
         samples, on_path = result.narrow_samples()
         narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
-        legs.append(Leg(a, b, method, int(narrow_count), int(used), oracle.checks - c, time.perf_counter() - t,
-                        trajectory.duration, path, trajectory, samples, on_path))
+        legs.append(
+            Leg(
+                a,
+                b,
+                method,
+                int(narrow_count),
+                int(used),
+                oracle.checks - c,
+                time.perf_counter() - t,
+                trajectory.duration,
+                path,
+                trajectory,
+                samples,
+                on_path,
+            )
+        )
 
     planning = time.perf_counter() - clock - ik_seconds
-    return RunResult(oracle.scene.name, sampler, seed, legs, join([leg.trajectory for leg in legs], oracle),
-                     {"ik": ik_seconds, "planning": planning, "total": time.perf_counter() - clock},
-                     oracle.checks - checks0, configurations)
+    return RunResult(
+        oracle.scene.name,
+        sampler,
+        seed,
+        legs,
+        join([leg.trajectory for leg in legs], oracle),
+        {"ik": ik_seconds, "planning": planning, "total": time.perf_counter() - clock},
+        oracle.checks - checks0,
+        configurations,
+    )
 
 
 def join(trajectories: list[Trajectory], oracle) -> Trajectory:
@@ -136,5 +177,8 @@ def join(trajectories: list[Trajectory], oracle) -> Trajectory:
         parts["waypoint_times"].append(leg.waypoint_times[skip:] + offset)
         offset += leg.duration
         end = leg.positions[-1] + shift
-    return Trajectory(joint_names=trajectories[0].joint_names, certified=all(t.certified for t in trajectories),
-                      **{key: np.concatenate(value) for key, value in parts.items()})
+    return Trajectory(
+        joint_names=trajectories[0].joint_names,
+        certified=all(t.certified for t in trajectories),
+        **{key: np.concatenate(value) for key, value in parts.items()},
+    )

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import UserError
+
 # pydrake is imported inside the functions that use it, so that importing the package (as the command line does)
 # does not load Drake.
 
@@ -167,16 +168,19 @@ class Scene:
         diagonal = float(np.linalg.norm((self.upper - self.lower) * self.weights))
         if not (math.isfinite(problem.resolution) and problem.resolution >= MIN_RESOLUTION * diagonal):
             # Edges are checked at points this far apart: a finer step makes an edge check of millions of points.
-            raise UserError(f"bad scene file {self.path.name}: resolution must be a finite number of at least "
-                            f"{MIN_RESOLUTION:g} x the bounds' diagonal ({MIN_RESOLUTION * diagonal:.3g})")
+            raise UserError(
+                f"bad scene file {self.path.name}: resolution must be a finite number of at least "
+                f"{MIN_RESOLUTION:g} x the bounds' diagonal ({MIN_RESOLUTION * diagonal:.3g})"
+            )
         self.resolution = float(problem.resolution)
         if not (problem.step >= 0 and math.isfinite(problem.step)):
             raise UserError(f"bad scene file {self.path.name}: step must be a non-negative number")
         self.step = float(problem.step) or None
         model_velocity = self.plant.GetVelocityUpperLimits()
         self.velocity_limits = self._vector("velocity_limits", problem.velocity_limits, model_velocity)
-        self.acceleration_limits = self._vector("acceleration_limits", problem.acceleration_limits,
-                                                2.0 * self.velocity_limits)
+        self.acceleration_limits = self._vector(
+            "acceleration_limits", problem.acceleration_limits, 2.0 * self.velocity_limits
+        )
         self.self_collisions = problem.collisions == "all"
 
         spec = problem.passage
@@ -184,8 +188,9 @@ class Scene:
             raise UserError(f"bad scene file {self.path.name}: passage frame '{spec.frame}' not in the model")
         self.passage_frame = self.plant.GetFrameByName(spec.frame) if spec.frame else None
         try:
-            self.passage_boxes = [(np.array(b.lo, float).reshape(3), np.array(b.hi, float).reshape(3))
-                                  for b in spec.boxes]
+            self.passage_boxes = [
+                (np.array(b.lo, float).reshape(3), np.array(b.hi, float).reshape(3)) for b in spec.boxes
+            ]
         except ValueError:
             raise UserError(f"bad scene file {self.path.name}: passage boxes need 3-vectors lo and hi") from None
         self._read_poses(problem)
@@ -231,8 +236,9 @@ class Scene:
             return np.asarray(default, float).copy()
         vector = np.asarray(values, float)
         if vector.shape != (self.dim,) or not np.all(np.isfinite(vector)):
-            raise UserError(f"bad scene file {self.path.name}: '{key}' needs {self.dim} finite numbers, "
-                            f"got {len(values)}")
+            raise UserError(
+                f"bad scene file {self.path.name}: '{key}' needs {self.dim} finite numbers, got {len(values)}"
+            )
         return vector
 
     def summary(self) -> dict:

@@ -15,6 +15,7 @@ certified stays certified when a neighbouring blend shrinks.
 
 Waypoints must be unwrapped first (`ConfigurationSpace.unwrap`), so that continuous angles take the short way.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -23,8 +24,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-# pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
+# pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 from app.certify import Certifier
 from app.path import dedupe
 from app.trajectory import Trajectory
@@ -235,9 +236,16 @@ def _sample(timed: list, W: np.ndarray, waypoint_times: np.ndarray, dt: float, j
         accelerations[i] = trajectory.EvalDerivative(local, 2).ravel()
     positions[-1], velocities[-1] = W[-1], 0.0  # exactly the goal, at rest
     names = list(joint_names) if joint_names is not None else [f"q[{i}]" for i in range(dim)]
-    return Trajectory(joint_names=names, times=times, positions=positions, velocities=velocities,
-                      accelerations=accelerations, waypoints=W.copy(), waypoint_times=waypoint_times,
-                      certified=certified)
+    return Trajectory(
+        joint_names=names,
+        times=times,
+        positions=positions,
+        velocities=velocities,
+        accelerations=accelerations,
+        waypoints=W.copy(),
+        waypoint_times=waypoint_times,
+        certified=certified,
+    )
 
 
 def _prepare(waypoints, velocity_limits, acceleration_limits, weights):
@@ -256,8 +264,14 @@ def _prepare(waypoints, velocity_limits, acceleration_limits, weights):
     return W, v, a, np.vstack([tangent, tangent[-1:]]) if len(W) > 1 else tangent, arc
 
 
-def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acceleration_limits: np.ndarray,
-                 dt: float = 0.02, joint_names: list[str] | None = None) -> Trajectory:
+def parameterize(
+    plant,
+    waypoints: np.ndarray,
+    velocity_limits: np.ndarray,
+    acceleration_limits: np.ndarray,
+    dt: float = 0.02,
+    joint_names: list[str] | None = None,
+) -> Trajectory:
     """Rest to rest at every waypoint: each straight segment timed on its own (what a scripted job's leg wants
     where it stops). Not certified: it is exactly the polyline, as free as its checks say."""
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, np.ones(np.shape(waypoints)[-1]))
@@ -265,10 +279,18 @@ def parameterize(plant, waypoints: np.ndarray, velocity_limits: np.ndarray, acce
     return _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified=False)
 
 
-def parameterize_smooth(oracle, waypoints: np.ndarray, velocity_limits: np.ndarray,
-                        acceleration_limits: np.ndarray, dt: float = 0.02, joint_names: list[str] | None = None,
-                        floor: float | None = None, tighten: int = TIGHTEN, stats: dict | None = None,
-                        certifier: Certifier | None = None) -> Trajectory:
+def parameterize_smooth(
+    oracle,
+    waypoints: np.ndarray,
+    velocity_limits: np.ndarray,
+    acceleration_limits: np.ndarray,
+    dt: float = 0.02,
+    joint_names: list[str] | None = None,
+    floor: float | None = None,
+    tighten: int = TIGHTEN,
+    stats: dict | None = None,
+    certifier: Certifier | None = None,
+) -> Trajectory:
     """Blended corners, certified (see the module doc), timed with Toppra.
 
     The trajectory is `certified` when the whole executed curve is (blends and straight pieces); if a straight

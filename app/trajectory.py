@@ -18,6 +18,7 @@ start, positions, velocities, accelerations), stored by columns:
 
 Anything else in the file is an error, so a misspelt key is found rather than ignored.
 """
+
 from __future__ import annotations
 
 import json
@@ -49,10 +50,16 @@ class Trajectory:
         return float(self.times[-1]) if len(self.times) else 0.0
 
     def to_json(self) -> dict:
-        return {"joint_names": list(self.joint_names), "time_from_start": self.times.tolist(),
-                "positions": self.positions.tolist(), "velocities": self.velocities.tolist(),
-                "accelerations": self.accelerations.tolist(), "waypoints": self.waypoints.tolist(),
-                "waypoint_times": self.waypoint_times.tolist(), "certified": bool(self.certified)}
+        return {
+            "joint_names": list(self.joint_names),
+            "time_from_start": self.times.tolist(),
+            "positions": self.positions.tolist(),
+            "velocities": self.velocities.tolist(),
+            "accelerations": self.accelerations.tolist(),
+            "waypoints": self.waypoints.tolist(),
+            "waypoint_times": self.waypoint_times.tolist(),
+            "certified": bool(self.certified),
+        }
 
 
 @dataclass
@@ -92,8 +99,20 @@ class TrajectoryFile:
             raise UserError(f"{source}: expected a JSON object (schema {SCHEMA})")
         if obj.get("schema") != SCHEMA:
             raise UserError(f"{source}: schema is {obj.get('schema')!r}, expected {SCHEMA!r}")
-        known = {"schema", "scene", "joint_names", "time_from_start", "positions", "velocities", "accelerations",
-                 "waypoints", "waypoint_times", "certified", "narrow_samples", "narrow_on_path"}
+        known = {
+            "schema",
+            "scene",
+            "joint_names",
+            "time_from_start",
+            "positions",
+            "velocities",
+            "accelerations",
+            "waypoints",
+            "waypoint_times",
+            "certified",
+            "narrow_samples",
+            "narrow_on_path",
+        }
         unknown = set(obj) - known
         if unknown:
             raise UserError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}")
@@ -120,8 +139,16 @@ class TrajectoryFile:
             raise UserError(f"{source}: {len(waypoint_times)} waypoint times for {len(waypoints)} waypoints")
         if not isinstance(obj["certified"], bool):
             raise UserError(f"{source}: 'certified' must be true or false")
-        trajectory = Trajectory(names, times, columns["positions"], columns["velocities"], columns["accelerations"],
-                                waypoints, waypoint_times, obj["certified"])
+        trajectory = Trajectory(
+            names,
+            times,
+            columns["positions"],
+            columns["velocities"],
+            columns["accelerations"],
+            waypoints,
+            waypoint_times,
+            obj["certified"],
+        )
         narrow = on_path = None
         if ("narrow_samples" in obj) != ("narrow_on_path" in obj):
             raise UserError(f"{source}: 'narrow_samples' and 'narrow_on_path' go together")

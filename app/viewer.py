@@ -13,6 +13,7 @@ Meshcat opens a server on localhost even to export HTML. Drake refuses that when
 
 pydrake is imported in the functions that use it, so importing this module (as the command line does) stays cheap.
 """
+
 from __future__ import annotations
 
 import logging
@@ -66,9 +67,11 @@ def start_meshcat(port: int | None = None):
         return Meshcat(params)
     except RuntimeError as exc:
         if "DRAKE_ALLOW_NETWORK" in str(exc):
-            raise UserError("Meshcat is disabled by DRAKE_ALLOW_NETWORK="
-                            f"{os.environ.get('DRAKE_ALLOW_NETWORK', '')!r}; add 'meshcat' to it "
-                            "(e.g. DRAKE_ALLOW_NETWORK=meshcat) to view or export HTML") from None
+            raise UserError(
+                "Meshcat is disabled by DRAKE_ALLOW_NETWORK="
+                f"{os.environ.get('DRAKE_ALLOW_NETWORK', '')!r}; add 'meshcat' to it "
+                "(e.g. DRAKE_ALLOW_NETWORK=meshcat) to view or export HTML"
+            ) from None
         raise UserError(f"cannot start Meshcat: {' '.join(str(exc).split())[:200]}") from None
 
 
@@ -98,8 +101,16 @@ def _bounding_radius(shape) -> float:
 class Viewer:
     """A scene in Meshcat. Keep the Viewer (it holds the Meshcat server) for as long as the page should be served."""
 
-    def __init__(self, scene: Scene | str, *, frame: str | None = None, collision: bool = False,
-                 meshcat=None, marker_size: float | None = None, obstacle_opacity: float | None = None):
+    def __init__(
+        self,
+        scene: Scene | str,
+        *,
+        frame: str | None = None,
+        collision: bool = False,
+        meshcat=None,
+        marker_size: float | None = None,
+        obstacle_opacity: float | None = None,
+    ):
         from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
 
         self.scene = scene if isinstance(scene, Scene) else Scene(scene)
@@ -109,16 +120,25 @@ class Viewer:
         builder = robot_diagram_builder()
         self.scene.add_models(builder.parser())
         builder.plant().Finalize()
-        params = MeshcatVisualizerParams(role=Role.kIllustration, prefix="illustration",
-                                         default_color=_rgba(ROBOT_COLOUR))
+        params = MeshcatVisualizerParams(
+            role=Role.kIllustration, prefix="illustration", default_color=_rgba(ROBOT_COLOUR)
+        )
         self._period = params.publish_period  # also the recording's 1/fps
         self._visualizer = MeshcatVisualizer.AddToBuilder(
-            builder.builder(), builder.scene_graph(), self.meshcat, params)
+            builder.builder(), builder.scene_graph(), self.meshcat, params
+        )
         if collision:  # hidden at first; the Meshcat controls toggle it
             MeshcatVisualizer.AddToBuilder(
-                builder.builder(), builder.scene_graph(), self.meshcat,
-                MeshcatVisualizerParams(role=Role.kProximity, prefix="collision", visible_by_default=False,
-                                        default_color=_rgba((0.9, 0.3, 0.9, 0.4))))
+                builder.builder(),
+                builder.scene_graph(),
+                self.meshcat,
+                MeshcatVisualizerParams(
+                    role=Role.kProximity,
+                    prefix="collision",
+                    visible_by_default=False,
+                    default_color=_rgba((0.9, 0.3, 0.9, 0.4)),
+                ),
+            )
         self.diagram = builder.Build()
         self.plant = self.diagram.plant()
         self.dim = self.plant.num_positions()
@@ -174,14 +194,18 @@ class Viewer:
         from pydrake.geometry import Role
 
         inspector = self.diagram.scene_graph().model_inspector()
-        robot_frames = {self.plant.GetBodyFrameIdOrThrow(b) for i in self.scene.robot_instances
-                        for b in self.plant.GetBodyIndices(i)}
+        robot_frames = {
+            self.plant.GetBodyFrameIdOrThrow(b)
+            for i in self.scene.robot_instances
+            for b in self.plant.GetBodyIndices(i)
+        }
         for gid in inspector.GetAllGeometryIds(Role.kIllustration):
             frame = inspector.GetFrameId(gid)
             if frame in robot_frames:
                 continue
-            frame_path = ("" if frame == inspector.world_frame_id()
-                          else "/" + inspector.GetName(frame).replace("::", "/"))
+            frame_path = (
+                "" if frame == inspector.world_frame_id() else "/" + inspector.GetName(frame).replace("::", "/")
+            )
             path = f"{ILLUSTRATION_PATH}{frame_path}/{inspector.GetName(gid).replace('::', '/')}"
             self.meshcat.SetProperty(path, "modulated_opacity", float(opacity))
 
@@ -300,8 +324,9 @@ class Viewer:
         return self.meshcat.web_url()
 
 
-def show(scene: Scene | str, data: ViewData, *, frame: str | None = None, collision: bool = False,
-         meshcat=None) -> Viewer:
+def show(
+    scene: Scene | str, data: ViewData, *, frame: str | None = None, collision: bool = False, meshcat=None
+) -> Viewer:
     """A Viewer with everything in `data` drawn and the trajectory (if any) recorded."""
     viewer = Viewer(scene, frame=frame, collision=collision, meshcat=meshcat)
     if data.narrow is not None and len(data.narrow):
@@ -316,8 +341,9 @@ def show(scene: Scene | str, data: ViewData, *, frame: str | None = None, collis
     return viewer
 
 
-def publish(scene: Scene | str, data: ViewData, *, html: str | None = None, frame: str | None = None,
-            collision: bool = False) -> Viewer:
+def publish(
+    scene: Scene | str, data: ViewData, *, html: str | None = None, frame: str | None = None, collision: bool = False
+) -> Viewer:
     """What `--meshcat` / `--html FILE` do for any command: `data` shown in a Meshcat served on localhost
     (`viewer.url()`), and the standalone page written to `html` when given (checked before the viewer is built)."""
     if html:

@@ -5,6 +5,7 @@ construct one unless the download cache already holds it. We never use drake_mod
 private cache with an empty stand-in: a stray package://drake_models/... then fails with "file not found",
 immediately and offline, instead of downloading.
 """
+
 import atexit
 import hashlib
 import json
@@ -33,7 +34,8 @@ def _offline_drake_cache() -> Path:
     (package / "package.xml").write_text(
         '<?xml version="1.0"?><package format="2"><name>drake_models</name><version>0</version>'
         "<description>offline stand-in</description><maintainer email='x@example.com'>x</maintainer>"
-        "<license>none</license></package>")
+        "<license>none</license></package>"
+    )
     return cache
 
 
@@ -64,6 +66,7 @@ def oracles():
 @pytest.fixture
 def cli(capsys):
     """`cli("plan", "bar", ...)`: app.cli.main on these arguments; returncode, stdout and stderr of that call."""
+
     def run(*args) -> subprocess.CompletedProcess:
         capsys.readouterr()  # what earlier calls printed is not this call's output
         code = main([str(a) for a in args])
@@ -76,10 +79,16 @@ def cli(capsys):
 @pytest.fixture
 def run_app():
     """`run_app("plan", "bar", ..., env=None)`: `python -m app ...` in a child process."""
+
     def run(*args, env=None, timeout=300) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-m", "app", *map(str, args)], capture_output=True, text=True,
-                              env=os.environ.copy() if env is None else env, stdin=subprocess.DEVNULL,
-                              timeout=timeout)
+        return subprocess.run(
+            [sys.executable, "-m", "app", *map(str, args)],
+            capture_output=True,
+            text=True,
+            env=os.environ.copy() if env is None else env,
+            stdin=subprocess.DEVNULL,
+            timeout=timeout,
+        )
 
     return run
 
@@ -88,6 +97,7 @@ def run_app():
 def one_line_error():
     """`one_line_error(result, code)`: the command failed with exit code `code` and said so in one line on stderr,
     "error: ...", without a traceback; returns that line."""
+
     def check(result: subprocess.CompletedProcess, code: int) -> str:
         assert result.returncode == code, (result.returncode, result.stderr)
         lines = result.stderr.strip().splitlines()

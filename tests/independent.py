@@ -1,5 +1,6 @@
 """Independent checks for tests: collision answers asked of SceneGraph directly, and points along a polyline
 computed here, so a test does not grade the oracle's paths with the oracle's own code."""
+
 import math
 
 import numpy as np

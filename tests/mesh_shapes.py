@@ -1,11 +1,13 @@
 """Meshes the mesh tests generate (no files shipped): a closed U-shaped channel, the same U as loose boxes, a bent
 open sheet. The channel runs along x; its slot is 2 wide (|y| < 1) and open at the top (z > 0.5)."""
+
 import numpy as np
 import trimesh
 
 # The U's cross-section in the (y, z) plane, counter-clockwise: floor 0..0.5, walls 0.5 thick up to z = 2.
-U_SECTION = np.array([(-1.5, 0.0), (1.5, 0.0), (1.5, 2.0), (1.0, 2.0), (1.0, 0.5), (-1.0, 0.5), (-1.0, 2.0),
-                      (-1.5, 2.0)])
+U_SECTION = np.array(
+    [(-1.5, 0.0), (1.5, 0.0), (1.5, 2.0), (1.0, 2.0), (1.0, 0.5), (-1.0, 0.5), (-1.0, 2.0), (-1.5, 2.0)]
+)
 
 
 def _ear_clip(poly: np.ndarray) -> list[tuple[int, int, int]]:
@@ -56,9 +58,13 @@ def u_channel(length: float = 4.0) -> trimesh.Trimesh:
 def u_boxes(length: float = 4.0) -> trimesh.Trimesh:
     """The same U as three overlapping boxes in one mesh: not watertight (a typical export)."""
     T = trimesh.transformations.translation_matrix
-    return trimesh.util.concatenate([trimesh.creation.box([length, 3, 0.5], T([0, 0, 0.25])),
-                                     trimesh.creation.box([length, 0.5, 2], T([0, -1.25, 1.0])),
-                                     trimesh.creation.box([length, 0.5, 2], T([0, 1.25, 1.0]))])
+    return trimesh.util.concatenate(
+        [
+            trimesh.creation.box([length, 3, 0.5], T([0, 0, 0.25])),
+            trimesh.creation.box([length, 0.5, 2], T([0, -1.25, 1.0])),
+            trimesh.creation.box([length, 0.5, 2], T([0, 1.25, 1.0])),
+        ]
+    )
 
 
 def bent_sheet(radius: float = 2.0, angle: float = np.pi, width: float = 3.0, n_arc: int = 24) -> trimesh.Trimesh:

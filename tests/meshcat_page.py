@@ -3,6 +3,7 @@
 The page replays the scene as msgpack commands embedded as base64 `data:` URLs; this decodes them with a small
 msgpack reader (msgpack is not a dependency of the project).
 """
+
 import base64
 import re
 import struct
@@ -31,7 +32,7 @@ def _read(b, i):  # noqa: C901 - one branch per msgpack type
         return _array(b, i, t & 0x0F)
     if 0xA0 <= t <= 0xBF:
         n = t & 0x1F
-        return bytes(b[i:i + n]).decode(), i + n
+        return bytes(b[i : i + n]).decode(), i + n
     if t >= 0xE0:
         return t - 0x100, i
     simple = {0xC0: None, 0xC2: False, 0xC3: True}
@@ -40,13 +41,23 @@ def _read(b, i):  # noqa: C901 - one branch per msgpack type
     sizes = {0xC4: 1, 0xC5: 2, 0xC6: 4, 0xD9: 1, 0xDA: 2, 0xDB: 4}  # bin and str with a length
     if t in sizes:
         n, i = _uint(b, i, sizes[t])
-        raw = bytes(b[i:i + n])
+        raw = bytes(b[i : i + n])
         return (raw if t <= 0xC6 else raw.decode()), i + n
-    numbers = {0xCA: ">f", 0xCB: ">d", 0xCC: ">B", 0xCD: ">H", 0xCE: ">I", 0xCF: ">Q",
-               0xD0: ">b", 0xD1: ">h", 0xD2: ">i", 0xD3: ">q"}
+    numbers = {
+        0xCA: ">f",
+        0xCB: ">d",
+        0xCC: ">B",
+        0xCD: ">H",
+        0xCE: ">I",
+        0xCF: ">Q",
+        0xD0: ">b",
+        0xD1: ">h",
+        0xD2: ">i",
+        0xD3: ">q",
+    }
     if t in numbers:
         size = struct.calcsize(numbers[t])
-        return struct.unpack(numbers[t], b[i:i + size])[0], i + size
+        return struct.unpack(numbers[t], b[i : i + size])[0], i + size
     if t in (0xDC, 0xDD):
         n, i = _uint(b, i, 2 if t == 0xDC else 4)
         return _array(b, i, n)
@@ -61,11 +72,11 @@ def _read(b, i):  # noqa: C901 - one branch per msgpack type
     else:
         raise ValueError(f"msgpack type byte {t:#x} not understood")
     ext_type = b[i]
-    return ("ext", ext_type, bytes(b[i + 1:i + 1 + n])), i + 1 + n
+    return ("ext", ext_type, bytes(b[i + 1 : i + 1 + n])), i + 1 + n
 
 
 def _uint(b, i, size):
-    return int.from_bytes(b[i:i + size], "big"), i + size
+    return int.from_bytes(b[i : i + size], "big"), i + size
 
 
 def _array(b, i, n):

@@ -1,4 +1,5 @@
 """The public API: what `import app` offers, and the README's example run exactly as printed."""
+
 import re
 import subprocess
 import sys
@@ -13,8 +14,17 @@ def test_all_names_exist_and_nothing_else_is_promised():
     assert len(set(app.__all__)) == len(app.__all__)
     for name in app.__all__:
         assert getattr(app, name) is not None
-    assert {"plan", "PlanSettings", "CollisionOracle", "load_scene", "Trajectory", "Budget", "make_sampler",
-            "SAMPLERS", "NoPath"} <= set(app.__all__)
+    assert {
+        "plan",
+        "PlanSettings",
+        "CollisionOracle",
+        "load_scene",
+        "Trajectory",
+        "Budget",
+        "make_sampler",
+        "SAMPLERS",
+        "NoPath",
+    } <= set(app.__all__)
 
 
 def test_readme_python_example_runs_as_printed(tmp_path):
@@ -32,7 +42,14 @@ def test_readme_python_example_runs_as_printed(tmp_path):
 def test_settings_are_validated_once_when_built():
     import pytest
 
-    for bad in [dict(sampler="nope"), dict(narrow=-1), dict(k=0), dict(dt=0.0), dict(step=float("inf")),
-                dict(seed=1.5), dict(budget="30s")]:
+    for bad in [
+        dict(sampler="nope"),
+        dict(narrow=-1),
+        dict(k=0),
+        dict(dt=0.0),
+        dict(step=float("inf")),
+        dict(seed=1.5),
+        dict(budget="30s"),
+    ]:
         with pytest.raises(app.UserError):
             app.PlanSettings(**bad)

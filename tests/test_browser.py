@@ -7,6 +7,7 @@ almost none, and the two screenshots must differ. Screenshots go to out/browser-
 
 Run with `make browser-test`, which installs Chromium (Debian package `chromium`) when it is missing.
 """
+
 import os
 import shutil
 import subprocess
@@ -32,21 +33,35 @@ def find_browser() -> str | None:
 
 pytestmark = [
     pytest.mark.browser,
-    pytest.mark.skipif(find_browser() is None,
-                       reason="Chromium not installed (make browser-test installs the Debian package 'chromium')"),
+    pytest.mark.skipif(
+        find_browser() is None,
+        reason="Chromium not installed (make browser-test installs the Debian package 'chromium')",
+    ),
 ]
 
 
 def chromium_command(browser: str, page: Path, screenshot: Path, profile: str) -> list[str]:
     return [
-        browser, "--headless", "--no-sandbox", "--disable-gpu",
+        browser,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
         # WebGL without a GPU: SwiftShader, asked for explicitly (Chromium is retiring the silent fallback).
-        "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
+        "--enable-unsafe-swiftshader",
+        "--use-angle=swiftshader",
         # Offline and quiet: no network, no updates, no first-run work, a fresh profile.
-        "--disable-quic", "--no-first-run", "--disable-background-networking", "--disable-component-update",
-        "--disable-sync", "--disable-extensions", "--hide-scrollbars", f"--user-data-dir={profile}",
-        f"--window-size={WINDOW[0]},{WINDOW[1]}", "--virtual-time-budget=4000",
-        f"--screenshot={screenshot}", page.as_uri(),
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--disable-extensions",
+        "--hide-scrollbars",
+        f"--user-data-dir={profile}",
+        f"--window-size={WINDOW[0]},{WINDOW[1]}",
+        "--virtual-time-budget=4000",
+        f"--screenshot={screenshot}",
+        page.as_uri(),
     ]
 
 
@@ -58,8 +73,14 @@ def screenshot_all(pages: dict[Path, Path]) -> None:
         for i, (page, shot) in enumerate(pages.items()):
             shot.unlink(missing_ok=True)
             command = chromium_command(browser, page, shot, os.path.join(profiles, str(i)))
-            runs.append((shot, subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                                stderr=subprocess.STDOUT, text=True)))
+            runs.append(
+                (
+                    shot,
+                    subprocess.Popen(
+                        command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+                    ),
+                )
+            )
         for shot, run in runs:
             try:
                 output, _ = run.communicate(timeout=180)
@@ -95,8 +116,9 @@ def test_exported_page_draws_the_robot_in_chromium(scene, oracles, monkeypatch, 
     start, goal = oracle.scene.start, oracle.scene.goal
     Q = oracle.space.interpolate(start, start + 0.3 * (goal - start), resolution=1.0)
     times = np.linspace(0.0, 1.0, len(Q))
-    viewer = show(oracle.scene, ViewData(times=times, positions=Q, narrow=Q[::4],
-                                         on_path=np.arange(len(Q[::4])) % 2 == 0))
+    viewer = show(
+        oracle.scene, ViewData(times=times, positions=Q, narrow=Q[::4], on_path=np.arange(len(Q[::4])) % 2 == 0)
+    )
     page, hidden_page = tmp_path / f"{scene}.html", tmp_path / f"{scene}-hidden.html"
     viewer.write_html(page)
     for name in oracle.scene.problem.robot:

@@ -1,14 +1,15 @@
 """Continuous certification (app.certify): it rejects a motion that grazes an obstacle between checked points, what
 it certifies is free under an independent check at 1/64 of the resolution, and its motion bound is never exceeded
 by the robot's own kinematics."""
+
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
-from independent import fine_points, raw_free
 
 from app.certify import Certifier, certify_path, motion_bound, polyline
+from independent import fine_points, raw_free
 
 PINNED = json.loads((Path(__file__).parent / "data" / "pinned_plans.json").read_text())
 
@@ -183,7 +184,7 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(oracle
     query = oracle.query_object(q)
     rng = np.random.default_rng(0)
     a, b = (_surface(inspector.GetShape(g), query.GetPoseInWorld(g), rng) for g in (wrist, torch))
-    sampled = min(np.linalg.norm(a[:, i:i + 500, None] - b[:, None], axis=0).min() for i in range(0, a.shape[1], 500))
+    sampled = min(np.linalg.norm(a[:, i : i + 500, None] - b[:, None], axis=0).min() for i in range(0, a.shape[1], 500))
     assert query.ComputeSignedDistancePairClosestPoints(wrist, torch).distance > sampled + 0.02
     ours = Certifier(oracle).distances(q, 0.1)[frozenset((wrist, torch))]
     assert sampled - 1e-3 < ours <= sampled

@@ -1,4 +1,5 @@
 """The claim judge on small synthetic stores whose answers are known."""
+
 import numpy as np
 
 from app.bench.claims import judge
@@ -14,16 +15,44 @@ def fill(store, experiment, scene, method, step, metric_fn, n=20):
 def sampling_store(tmp_path, lfbs_quality, rbbs_quality_by_step, lfbs_checks, rbbs_checks):
     store = ResultStore(tmp_path / "s.sqlite")
     for step in (2, 10, 20):
-        fill(store, "sampling", "bar", "lfbs", step, lambda r: {
-            "passage_fraction": lfbs_quality + 0.02 * r.standard_normal(),
-            "collision_checks": lfbs_checks + r.integers(50)})
-        fill(store, "sampling", "bar", "rbbs", step, lambda r, quality=rbbs_quality_by_step[step]: {
-            "passage_fraction": quality + 0.02 * r.standard_normal(),
-            "collision_checks": rbbs_checks + r.integers(50)})
-        fill(store, "sampling", "bar", "rwbs", step, lambda r: {
-            "passage_fraction": lfbs_quality + 0.02 * r.standard_normal(), "collision_checks": lfbs_checks})
-        fill(store, "sampling", "bar", "gaussian", step, lambda r: {
-            "passage_fraction": 0.01 + 0.005 * r.random(), "collision_checks": 100 + r.integers(10)})
+        fill(
+            store,
+            "sampling",
+            "bar",
+            "lfbs",
+            step,
+            lambda r: {
+                "passage_fraction": lfbs_quality + 0.02 * r.standard_normal(),
+                "collision_checks": lfbs_checks + r.integers(50),
+            },
+        )
+        fill(
+            store,
+            "sampling",
+            "bar",
+            "rbbs",
+            step,
+            lambda r, quality=rbbs_quality_by_step[step]: {
+                "passage_fraction": quality + 0.02 * r.standard_normal(),
+                "collision_checks": rbbs_checks + r.integers(50),
+            },
+        )
+        fill(
+            store,
+            "sampling",
+            "bar",
+            "rwbs",
+            step,
+            lambda r: {"passage_fraction": lfbs_quality + 0.02 * r.standard_normal(), "collision_checks": lfbs_checks},
+        )
+        fill(
+            store,
+            "sampling",
+            "bar",
+            "gaussian",
+            step,
+            lambda r: {"passage_fraction": 0.01 + 0.005 * r.random(), "collision_checks": 100 + r.integers(10)},
+        )
     return store
 
 
@@ -53,8 +82,9 @@ def test_prm_claim_counts_success_and_time(tmp_path):
     store = ResultStore(tmp_path / "p.sqlite")
     for scene in ("maze", "tunnel"):
         fill(store, "prm", scene, "lfbs", 0.5, lambda r: {"success": 1.0, "seconds": 1 + r.random()})
-        fill(store, "prm", scene, "rbbs", 0.5,
-             lambda r: {"success": float(r.random() < 0.5), "seconds": 3 + r.random()})
+        fill(
+            store, "prm", scene, "rbbs", 0.5, lambda r: {"success": float(r.random() < 0.5), "seconds": 3 + r.random()}
+        )
     fill(store, "prm", "tunnel", "lfbs", 1.0, lambda r: {"success": 0.0, "seconds": 5.0})
     fill(store, "prm", "tunnel", "rbbs", 1.0, lambda r: {"success": 1.0, "seconds": 1.0})
     verdict = by_claim(store)["C4"]

@@ -1,5 +1,6 @@
 """The command line: listing, drawing, one-line errors with the agreed exit codes, the argument types, and the
 entry point itself (start-up without Drake, the exit code of the process)."""
+
 import argparse
 import json
 import re
@@ -64,15 +65,18 @@ def write_scene(tmp_path: Path, text: str) -> Path:
 BAR = (SCENES_DIR / "bar.yaml").read_text()
 
 
-@pytest.mark.parametrize("text, expected", [
-    (BAR + "colour: red\n", "colour"),  # unknown key
-    (re.sub(r"(?m)^start: .*$", "start: [10, 50, 0]", BAR), "'start' needs 9"),
-    (BAR.replace("resolution: 0.5", "resolution: [0.5"), "bad scene file"),  # malformed YAML
-    (BAR.replace("resolution: 0.5", "resolution: fast"), "bad scene file"),  # wrong type
-    (BAR.replace("collisions: environment", "collisions: some"), "collisions must be"),
-    (BAR.replace("frame: base", "frame: nose"), "passage frame 'nose'"),
-    (BAR.replace("robot: [arm]", "robot: [rover]"), "no model instance named 'rover'"),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (BAR + "colour: red\n", "colour"),  # unknown key
+        (re.sub(r"(?m)^start: .*$", "start: [10, 50, 0]", BAR), "'start' needs 9"),
+        (BAR.replace("resolution: 0.5", "resolution: [0.5"), "bad scene file"),  # malformed YAML
+        (BAR.replace("resolution: 0.5", "resolution: fast"), "bad scene file"),  # wrong type
+        (BAR.replace("collisions: environment", "collisions: some"), "collisions must be"),
+        (BAR.replace("frame: base", "frame: nose"), "passage frame 'nose'"),
+        (BAR.replace("robot: [arm]", "robot: [rover]"), "no model instance named 'rover'"),
+    ],
+)
 def test_bad_scene_files_are_rejected_with_a_reason(tmp_path, cli, one_line_error, text, expected):
     path = write_scene(tmp_path, text)
     with pytest.raises(UserError, match=expected):
@@ -106,13 +110,29 @@ def test_every_error_class_has_its_exit_code():
     import app.samplers.uniform
     import app.samplers.walk
 
-    modules = [errors, app.samplers, app.samplers.base, app.samplers.bridge, app.samplers.levy,
-               app.samplers.uniform, app.samplers.walk]
-    classes = {obj for module in modules for obj in vars(module).values()
-               if isinstance(obj, type) and issubclass(obj, BaseException)}
+    modules = [
+        errors,
+        app.samplers,
+        app.samplers.base,
+        app.samplers.bridge,
+        app.samplers.levy,
+        app.samplers.uniform,
+        app.samplers.walk,
+    ]
+    classes = {
+        obj
+        for module in modules
+        for obj in vars(module).values()
+        if isinstance(obj, type) and issubclass(obj, BaseException)
+    }
     assert classes and classes <= set(EXIT_CODES)
     assert {cls.__name__: code for cls, code in EXIT_CODES.items()} == {
-        "NoPath": 1, "SamplerBudgetExceeded": 1, "UserError": 2, "InvalidEndpoint": 3, "KeyboardInterrupt": 130}
+        "NoPath": 1,
+        "SamplerBudgetExceeded": 1,
+        "UserError": 2,
+        "InvalidEndpoint": 3,
+        "KeyboardInterrupt": 130,
+    }
     assert not any(hasattr(cls, "exit_code") for cls in classes)  # the core does not know about exit codes
     assert exit_code(errors.NoPath("x")) == 1 and exit_code(errors.InvalidEndpoint("x")) == 3
 
@@ -133,15 +153,25 @@ def test_comma_lists_are_parsed_one_way():
     assert comma_list(" bar, joint3d,,") == ["bar", "joint3d"]
     assert sampler_names("lfbs, rbbs") == ["lfbs", "rbbs"]
     assert names_from(["welding", "window"], "job")("window") == ["window"]
-    for parse, text, words in [(comma_list, " , ", "at least one"), (sampler_names, "lfbs,levy", "unknown sampler"),
-                               (names_from(["welding"], "job"), "parking", "unknown job 'parking'")]:
+    for parse, text, words in [
+        (comma_list, " , ", "at least one"),
+        (sampler_names, "lfbs,levy", "unknown sampler"),
+        (names_from(["welding"], "job"), "parking", "unknown job 'parking'"),
+    ]:
         with pytest.raises(argparse.ArgumentTypeError, match=words):
             parse(text)
 
 
-@pytest.mark.parametrize("args", [["plan", "bar", "--sampler", "magic"], ["bench", "plan", "--samplers", "lfbs,magic"],
-                                  ["bench", "sampling", "--steps", "2,-1"], ["bench", "paper", "--parts", "everything"],
-                                  ["plan", "bar", "--budget", "forever"]])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["plan", "bar", "--sampler", "magic"],
+        ["bench", "plan", "--samplers", "lfbs,magic"],
+        ["bench", "sampling", "--steps", "2,-1"],
+        ["bench", "paper", "--parts", "everything"],
+        ["plan", "bar", "--budget", "forever"],
+    ],
+)
 def test_bad_values_are_refused_by_the_parser(cli, one_line_error, args):
     line = one_line_error(cli(*args), 2)
     assert re.search(r"argument (--sampler|--samplers|--steps|--parts|--budget)", line), line
@@ -150,23 +180,31 @@ def test_bad_values_are_refused_by_the_parser(cli, one_line_error, args):
 def test_help_does_not_load_drake():
     """The command line starts fast: building every command's parser imports neither Drake nor the heavy
     libraries (they load when a command needs them)."""
-    code = ("import sys; from app.cli import build_parser; build_parser(); "
-            "print(sorted(m for m in ('pydrake', 'ompl', 'matplotlib', 'scipy', 'networkx', 'distributed') "
-            "if m in sys.modules))")
+    code = (
+        "import sys; from app.cli import build_parser; build_parser(); "
+        "print(sorted(m for m in ('pydrake', 'ompl', 'matplotlib', 'scipy', 'networkx', 'distributed') "
+        "if m in sys.modules))"
+    )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[]"
 
 
-@pytest.mark.parametrize("args, code, error", [
-    (["plan", "bar", "--start", "1,2,3"], 2, "INVALID_INPUT"),
-    (["plan", "bar", "--sampler", "nope"], 2, "INVALID_INPUT"),
-    (["plan", "bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, "START_STATE_IN_COLLISION"),
-    (["plan", "bar", "--goal", "500,50,0,0,0,0,0,0,0"], 3, "GOAL_STATE_INVALID"),
-    (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "TIMED_OUT"),
-    (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--full-roadmap"], 1,
-     "PLANNING_FAILED"),
-])
+@pytest.mark.parametrize(
+    "args, code, error",
+    [
+        (["plan", "bar", "--start", "1,2,3"], 2, "INVALID_INPUT"),
+        (["plan", "bar", "--sampler", "nope"], 2, "INVALID_INPUT"),
+        (["plan", "bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, "START_STATE_IN_COLLISION"),
+        (["plan", "bar", "--goal", "500,50,0,0,0,0,0,0,0"], 3, "GOAL_STATE_INVALID"),
+        (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "TIMED_OUT"),
+        (
+            ["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--full-roadmap"],
+            1,
+            "PLANNING_FAILED",
+        ),
+    ],
+)
 def test_json_answers_failures_with_one_object_and_a_stable_code(cli, args, code, error):
     result = cli(*args, "--json")
     assert result.returncode == code

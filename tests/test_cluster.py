@@ -3,6 +3,7 @@
 The cluster runs in a child process: Dask's event-loop threads may trigger Python's garbage collector, and a
 Drake object left over from an earlier test being destroyed off the main thread aborts the whole interpreter.
 """
+
 import os
 import subprocess
 import sys
@@ -53,8 +54,9 @@ def test_dask_cluster_and_local_pool_give_the_same_rows(tmp_path):
     # The script's own folder comes first on its sys.path: PYTHONPATH makes it (and Dask's workers) import the
     # app under test rather than whichever copy is installed.
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
-    result = subprocess.run([sys.executable, str(tmp_path / "dask_sweep.py")], capture_output=True, text=True,
-                            env=env, timeout=600)
+    result = subprocess.run(
+        [sys.executable, str(tmp_path / "dask_sweep.py")], capture_output=True, text=True, env=env, timeout=600
+    )
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.split() == [str(len(specs)), "0"]  # all ran once; the second sweep resumed to nothing
     remote = ResultStore(tmp_path / "dask.sqlite")

@@ -1,5 +1,6 @@
 """Bring your own robot and environment (app.custom_scene): a mesh robot flies through a non-convex mesh channel
 whose convex hull would block it, URDF robots with package paths, custom scene files, and bad input."""
+
 import numpy as np
 import pytest
 
@@ -99,8 +100,13 @@ def test_env_pose_moves_the_mesh(files, cache):
     from app.oracle import CollisionOracle
 
     # Channel turned to run along y and lifted by 10: the slot is now |x| < 1, z in 10.5..12.
-    spec = _spec(files, env_pose=[0, 0, 10, 0, 0, 90], bounds=["-1.7..1.7,-3.5..3.5,10.8..12.2"],
-                 start=[0, -3, 11.5, 0, 0, 0], goal=[0, 3, 11.5, 0, 0, 0])
+    spec = _spec(
+        files,
+        env_pose=[0, 0, 10, 0, 0, 90],
+        bounds=["-1.7..1.7,-3.5..3.5,10.8..12.2"],
+        start=[0, -3, 11.5, 0, 0, 0],
+        goal=[0, 3, 11.5, 0, 0, 0],
+    )
     oracle = CollisionOracle(build_scene(spec, cache_dir=cache, progress=False))
     assert oracle.edge_free(oracle.scene.start, oracle.scene.goal)
     assert not oracle.is_free(np.array([1.25, 0, 11.5, 0, 0, 0]))
@@ -110,7 +116,8 @@ def test_custom_scene_file(files, cache):
     scene_file = files / "byo.yaml"
     scene_file.write_text(
         "robot: cube.obj\nenv: [channel.stl]\nbounds: ['-3.5..3.5', '-1.7..1.7', '0.8..2.2']\n"
-        f"start: {START}\ngoal: {GOAL}\n")
+        f"start: {START}\ngoal: {GOAL}\n"
+    )
     scene = load_scene(str(scene_file), cache_dir=cache)
     assert scene.dim == 6 and scene.name == "cube-in-channel"
     with pytest.raises(UserError, match="bad scene file"):
@@ -125,18 +132,37 @@ def test_every_scene_command_takes_a_custom_scene_file(files, tmp_path, monkeypa
     scene_file = files / "byo_cli.yaml"
     scene_file.write_text(
         "robot: cube.obj\nenv: [channel.stl]\nbounds: ['-3.5..3.5', '-1.7..1.7', '0.8..2.2']\n"
-        f"start: {START}\ngoal: {GOAL}\n")
+        f"start: {START}\ngoal: {GOAL}\n"
+    )
     scene = str(scene_file)
     assert main(["show", scene, "--png", str(tmp_path / "show.png")]) == 0
-    assert main(["sample", scene, "--sampler", "lfbs", "-k", "5", "--step", "0.5", "--png",
-                 str(tmp_path / "samples.png")]) == 0
+    assert (
+        main(["sample", scene, "--sampler", "lfbs", "-k", "5", "--step", "0.5", "--png", str(tmp_path / "samples.png")])
+        == 0
+    )
     assert "no passage region declared" in capsys.readouterr().out
-    assert main(["plan", scene, "--narrow", "60", "--uniform", "120", "--seed", "1", "--smooth", "5",
-                 "--out", str(tmp_path / "traj.json")]) == 0
+    assert (
+        main(
+            [
+                "plan",
+                scene,
+                "--narrow",
+                "60",
+                "--uniform",
+                "120",
+                "--seed",
+                "1",
+                "--smooth",
+                "5",
+                "--out",
+                str(tmp_path / "traj.json"),
+            ]
+        )
+        == 0
+    )
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # the viewer needs Meshcat even to export a page
     assert main(["view", scene, "--trajectory", str(tmp_path / "traj.json"), "--html", str(tmp_path / "v.html")]) == 0
     assert "cube" in (tmp_path / "v.html").read_text()
-
 
 
 def test_pictures_draw_mesh_pieces(channel_oracle):
@@ -174,9 +200,13 @@ def arm_package(tmp_path_factory):
     trimesh.creation.box([1.0, 0.1, 0.1]).export(root / "meshes" / "link.stl")
     (root / "arm.urdf").write_text(ARM)
     # The same arm with an STL collision mesh (Drake cannot read it) and a relative DAE visual.
-    (root / "arm_stl.urdf").write_text(ARM.replace("link.obj", "link.stl").replace(
-        "<collision><origin", '<visual><origin xyz="0.5 0 0"/><geometry><mesh filename="meshes/link.dae"/>'
-        "</geometry></visual>\n    <collision><origin"))
+    (root / "arm_stl.urdf").write_text(
+        ARM.replace("link.obj", "link.stl").replace(
+            "<collision><origin",
+            '<visual><origin xyz="0.5 0 0"/><geometry><mesh filename="meshes/link.dae"/>'
+            "</geometry></visual>\n    <collision><origin",
+        )
+    )
     trimesh.creation.box([1.0, 0.1, 0.1]).export(root / "meshes" / "link.dae")
     return root
 
@@ -188,8 +218,13 @@ def test_urdf_arm_with_a_package_path(arm_package, tmp_path, urdf):
     # A post at x = 0.8, y = 0 stands in the link's way at j1 = 0 (the link reaches x = 1, at z = 0.3).
     post = trimesh.creation.box([0.1, 0.1, 1.0], trimesh.transformations.translation_matrix([0.8, 0, 0.5]))
     post.export(tmp_path / "post.stl")
-    spec = CustomSpec(robot=str(arm_package / urdf), package_path=[f"my_arm={arm_package}"],
-                      env=[str(tmp_path / "post.stl")], start=[1.0], goal=[-1.0])
+    spec = CustomSpec(
+        robot=str(arm_package / urdf),
+        package_path=[f"my_arm={arm_package}"],
+        env=[str(tmp_path / "post.stl")],
+        start=[1.0],
+        goal=[-1.0],
+    )
     scene = build_scene(spec, cache_dir=tmp_path, progress=False)
     assert scene.dim == 1 and scene.lower.tolist() == [-3] and scene.upper.tolist() == [3]
     oracle = CollisionOracle(scene)
@@ -204,19 +239,22 @@ def test_unknown_package_is_one_line(arm_package, tmp_path, urdf):
         build_scene(spec, cache_dir=tmp_path, progress=False)
 
 
-@pytest.mark.parametrize("change, message", [
-    (dict(robot="missing.urdf"), "robot file not found"),
-    (dict(env=["missing.stl"]), "environment file not found"),
-    (dict(robot="broken.urdf"), "cannot load broken.urdf"),
-    (dict(env=["garbage.stl"]), "cannot read mesh garbage.stl"),
-    (dict(robot="cube.txt"), "unsupported type"),
-    (dict(bounds=["1..0"]), "bad bounds item"),
-    (dict(bounds=["0..1", "0..1"]), "6 lo..hi items needed"),
-    (dict(start=[0, 0]), "start needs 6 finite numbers"),
-    (dict(env_pose=[1, 2]), "env pose needs 6"),
-    (dict(package_path=["nodir"]), "NAME=DIR"),
-    (dict(package_path=["p=/no/such/dir"]), "directory not found"),
-])
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (dict(robot="missing.urdf"), "robot file not found"),
+        (dict(env=["missing.stl"]), "environment file not found"),
+        (dict(robot="broken.urdf"), "cannot load broken.urdf"),
+        (dict(env=["garbage.stl"]), "cannot read mesh garbage.stl"),
+        (dict(robot="cube.txt"), "unsupported type"),
+        (dict(bounds=["1..0"]), "bad bounds item"),
+        (dict(bounds=["0..1", "0..1"]), "6 lo..hi items needed"),
+        (dict(start=[0, 0]), "start needs 6 finite numbers"),
+        (dict(env_pose=[1, 2]), "env pose needs 6"),
+        (dict(package_path=["nodir"]), "NAME=DIR"),
+        (dict(package_path=["p=/no/such/dir"]), "directory not found"),
+    ],
+)
 def test_bad_input_is_a_one_line_user_error(files, cache, change, message):
     (files / "broken.urdf").write_text("<robot name='b'><link name='a'></robot>")
     (files / "garbage.stl").write_bytes(b"garbage")
@@ -243,18 +281,40 @@ def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):
 def test_cli_flags(files, arm_package, tmp_path, monkeypatch, cli, one_line_error):
     """`plan --robot ... --env ...`: exit codes and one-line errors."""
     monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path))
-    common = ["plan", "--robot", str(files / "cube.obj"), "--env", str(files / "channel.stl"),
-              "--bounds=" + ",".join(BOUNDS), "--goal", ",".join(map(str, GOAL))]
+    common = [
+        "plan",
+        "--robot",
+        str(files / "cube.obj"),
+        "--env",
+        str(files / "channel.stl"),
+        "--bounds=" + ",".join(BOUNDS),
+        "--goal",
+        ",".join(map(str, GOAL)),
+    ]
     assert "start" in one_line_error(cli(*common, "--start", "0,1.25,1.5,0,0,0"), 3)
     out = tmp_path / "traj.json"
-    result = cli(*common, "--start=" + ",".join(map(str, START)), "--narrow", "60", "--uniform", "120", "--seed", "1",
-                 "--json", "--out", out)
+    result = cli(
+        *common,
+        "--start=" + ",".join(map(str, START)),
+        "--narrow",
+        "60",
+        "--uniform",
+        "120",
+        "--seed",
+        "1",
+        "--json",
+        "--out",
+        out,
+    )
     assert result.returncode == 0, result.stderr
     assert out.is_file() and '"success":true' in result.stdout
     bad = [
         (["plan", "--robot", str(files / "nope.urdf"), "--start", "0", "--goal", "0"], 2, "robot file not found"),
-        (["plan", "--robot", str(arm_package / "arm.urdf"), "--start", "0", "--goal", "0"], 2,
-         "unknown package 'my_arm'"),
+        (
+            ["plan", "--robot", str(arm_package / "arm.urdf"), "--start", "0", "--goal", "0"],
+            2,
+            "unknown package 'my_arm'",
+        ),
         (common + ["--start=" + ",".join(map(str, START)), "--env-pose", "1,2"], 2, "env pose needs 6"),
         (common + ["--start=" + ",".join(map(str, START)), "--env-pose", "1,2,x"], 2, "argument --env-pose"),
         (common + ["--start=" + ",".join(map(str, START)), "--bounds", "0..x"], 2, "bad bounds item"),
@@ -283,9 +343,15 @@ def test_floating_urdf_robot_among_sdf_obstacles(tmp_path, cache):
 
     (tmp_path / "puck.urdf").write_text(PUCK_URDF)
     (tmp_path / "block.sdf").write_text(BLOCK_SDF.format(static=""))
-    spec = CustomSpec(robot=str(tmp_path / "puck.urdf"), floating=True, env=[str(tmp_path / "block.sdf")],
-                      env_pose=[1, 0, 0, 0, 0, 45], start=[0, 0, 0, 0, 0, 0], goal=[2, 0, 0, 0, 0, 0],
-                      bounds=["-1..3,-1..1,-1..1"])
+    spec = CustomSpec(
+        robot=str(tmp_path / "puck.urdf"),
+        floating=True,
+        env=[str(tmp_path / "block.sdf")],
+        env_pose=[1, 0, 0, 0, 0, 45],
+        start=[0, 0, 0, 0, 0, 0],
+        goal=[2, 0, 0, 0, 0, 0],
+        bounds=["-1..3,-1..1,-1..1"],
+    )
     scene = build_scene(spec, cache_dir=cache, progress=False)
     assert scene.coordinate_names == ["x", "y", "z", "yaw", "pitch", "roll"]
     oracle = CollisionOracle(scene)
@@ -297,8 +363,15 @@ def test_floating_urdf_robot_among_sdf_obstacles(tmp_path, cache):
 def test_static_sdf_cannot_be_moved(tmp_path, cache):
     (tmp_path / "puck.urdf").write_text(PUCK_URDF)
     (tmp_path / "static.sdf").write_text(BLOCK_SDF.format(static="<static>true</static>"))
-    spec = CustomSpec(robot=str(tmp_path / "puck.urdf"), floating=True, env=[str(tmp_path / "static.sdf")],
-                      env_pose=[1, 0, 0, 0, 0, 0], start=[0] * 6, goal=[0] * 6, bounds=["-1..3,-1..1,-1..1"])
+    spec = CustomSpec(
+        robot=str(tmp_path / "puck.urdf"),
+        floating=True,
+        env=[str(tmp_path / "static.sdf")],
+        env_pose=[1, 0, 0, 0, 0, 0],
+        start=[0] * 6,
+        goal=[0] * 6,
+        bounds=["-1..3,-1..1,-1..1"],
+    )
     with pytest.raises(UserError, match="static SDF model cannot be moved"):
         build_scene(spec, cache_dir=cache, progress=False)
     spec.env_pose = []
@@ -306,8 +379,14 @@ def test_static_sdf_cannot_be_moved(tmp_path, cache):
 
 
 def test_floating_arm_has_the_carrier_first(arm_package, cache):
-    spec = CustomSpec(robot=str(arm_package / "arm.urdf"), package_path=[f"my_arm={arm_package}"], floating=True,
-                      start=[0, 0, 0, 0, 0, 0, 1], goal=[1, 1, 1, 0, 0, 0, -1], bounds=["-2..2,-2..2,-2..2"])
+    spec = CustomSpec(
+        robot=str(arm_package / "arm.urdf"),
+        package_path=[f"my_arm={arm_package}"],
+        floating=True,
+        start=[0, 0, 0, 0, 0, 0, 1],
+        goal=[1, 1, 1, 0, 0, 0, -1],
+        bounds=["-2..2,-2..2,-2..2"],
+    )
     scene = build_scene(spec, cache_dir=cache, progress=False)
     assert scene.coordinate_names == ["x", "y", "z", "yaw", "pitch", "roll", "j1"]
     assert scene.lower.tolist()[:3] == [-2, -2, -2] and scene.lower[6] == -3 and scene.upper[6] == 3

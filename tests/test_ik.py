@@ -1,4 +1,5 @@
 """Inverse kinematics: tool poses of the arm scenes to free configurations, checked by forward kinematics."""
+
 import math
 
 import numpy as np
@@ -51,10 +52,16 @@ def test_weld_seam_solutions_form_a_chain(oracles):
 
 def test_the_problem_file_goals_reach_their_poses(oracles):
     # goals are stored to 4 decimals, so allow a fraction of a millimetre more
-    assert_reaches(oracles("welding"), oracles("welding").scene.goal, oracles("welding").scene.poses["seam_0"],
-                   2e-3, math.radians(1))
-    assert_reaches(oracles("window"), oracles("window").scene.goal, oracles("window").scene.poses["reach"],
-                   2e-3, math.radians(1))
+    assert_reaches(
+        oracles("welding"),
+        oracles("welding").scene.goal,
+        oracles("welding").scene.poses["seam_0"],
+        2e-3,
+        math.radians(1),
+    )
+    assert_reaches(
+        oracles("window"), oracles("window").scene.goal, oracles("window").scene.poses["reach"], 2e-3, math.radians(1)
+    )
 
 
 def test_the_reference_is_preferred(oracles):

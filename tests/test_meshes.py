@@ -1,4 +1,5 @@
 """app.meshes: conversion, the per-mesh method choice, validation (it must be able to fail) and the cache."""
+
 import time
 
 import numpy as np
@@ -113,13 +114,16 @@ def test_collada_is_read(tmp_path):
     assert len(mesh.faces) == 36
 
 
-@pytest.mark.parametrize("content, suffix, message", [
-    (None, ".stl", "not found"),
-    (b"this is not a mesh at all\n", ".stl", "cannot read mesh"),
-    (b"<COLLADA><broken", ".dae", "cannot read mesh"),
-    (b"solid x\nendsolid x\n", ".stl", "cannot read mesh"),
-    (b"v 0 0 0\n", ".xyz", "unsupported mesh format"),
-])
+@pytest.mark.parametrize(
+    "content, suffix, message",
+    [
+        (None, ".stl", "not found"),
+        (b"this is not a mesh at all\n", ".stl", "cannot read mesh"),
+        (b"<COLLADA><broken", ".dae", "cannot read mesh"),
+        (b"solid x\nendsolid x\n", ".stl", "cannot read mesh"),
+        (b"v 0 0 0\n", ".xyz", "unsupported mesh format"),
+    ],
+)
 def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message):
     path = tmp_path / f"bad{suffix}"
     if content is not None:
@@ -131,6 +135,7 @@ def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message)
 
 def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch):
     """As measured on thin-walled scenes: CoACD's pieces put free space in collision -> validation rejects them."""
+
     def hull_instead(parts, *args, **kwargs):
         return [[meshes.hull_piece(p.vertices)] for p in parts]
 

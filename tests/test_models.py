@@ -1,4 +1,5 @@
 """The committed planar-arm URDFs are exactly what their generator writes."""
+
 import importlib.util
 
 import pytest

@@ -5,6 +5,7 @@ through our oracle, the motion-check rule, and the benchmark's summary and ratio
 OMPL's RNG takes one seed per process (the first OmplProblem sets it), so these tests check properties that hold
 for any draw, not particular states. nanobind may print leak warnings when the interpreter exits: harmless.
 """
+
 import json
 
 import numpy as np
@@ -21,8 +22,15 @@ from app.bench.ompl import PROTOCOL, best_ompl, compare, parse_method, run_trial
 from app.bench.store import TrialSpec
 from app.cspace import ConfigurationSpace
 from app.errors import UserError
-from app.ompl_bridge import (BridgeTestSampler, GaussianSampler, OmplProblem, OmplSpace, ProjectSampler,
-                             motion_check_steps, motion_spacing)
+from app.ompl_bridge import (
+    BridgeTestSampler,
+    GaussianSampler,
+    OmplProblem,
+    OmplSpace,
+    ProjectSampler,
+    motion_check_steps,
+    motion_spacing,
+)
 from app.planner import default_step
 from app.scene import Scene
 
@@ -148,8 +156,23 @@ def test_the_oracle_counts_ompls_validity_calls(problem):
 def test_bench_ompl_ends_without_ompls_leak_report(tmp_path, run_app):
     """`python -m app` ends right after a command that loaded OMPL, so its answer is the last thing printed (not
     nanobind's report of objects alive at interpreter shutdown)."""
-    result = run_app("bench", "ompl", "--scenes", SCENE, "--methods", "ompl:RRTConnect", "--seeds", "1",
-                     "--budget", "5", "--store", tmp_path / "ompl.sqlite", "--png", tmp_path / "ompl.png", "--json")
+    result = run_app(
+        "bench",
+        "ompl",
+        "--scenes",
+        SCENE,
+        "--methods",
+        "ompl:RRTConnect",
+        "--seeds",
+        "1",
+        "--budget",
+        "5",
+        "--store",
+        tmp_path / "ompl.sqlite",
+        "--png",
+        tmp_path / "ompl.png",
+        "--json",
+    )
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     scene = report["scenes"][0]
@@ -161,8 +184,9 @@ def test_bench_ompl_ends_without_ompls_leak_report(tmp_path, run_app):
 
 def test_rrtconnect_through_the_oracle_counts_checks_and_returns_a_fine_checked_path(oracles):
     oracle = oracles(SCENE)
-    spec = TrialSpec("ompl", SCENE, "ompl:RRTConnect", default_step(oracle.scene), 0,
-                     {"budget": BUDGET, "protocol": PROTOCOL})
+    spec = TrialSpec(
+        "ompl", SCENE, "ompl:RRTConnect", default_step(oracle.scene), 0, {"budget": BUDGET, "protocol": PROTOCOL}
+    )
     before = oracle.checks
     m = run_trial_spec(oracle, spec)
     assert m["success"] == 1.0 and m["space"] == "compound", m
@@ -186,7 +210,7 @@ def test_bitstar_in_the_real_vector_space_solves_bar_3link_with_a_fine_checked_p
 
 def test_motion_checks_are_never_coarser_than_the_resolution():
     steps = motion_check_steps([141.4, 12 * np.pi, 8 * np.pi], 0.5)
-    assert np.isclose(np.sum(steps ** 2), 0.25)
+    assert np.isclose(np.sum(steps**2), 0.25)
     for scene in (SCENE, "maze"):
         cspace = ConfigurationSpace.of(Scene(scene))
         for wrap in (True, False):
@@ -226,8 +250,13 @@ def test_method_names():
 
 
 def _row(scene, method, success, checks, seconds=1.0, smoothing=100, length=10.0):
-    m = {"solved": 1.0 if success else 0.0, "success": 1.0 if success else 0.0, "checks": checks,
-         "seconds": seconds, "late": 0.0}
+    m = {
+        "solved": 1.0 if success else 0.0,
+        "success": 1.0 if success else 0.0,
+        "checks": checks,
+        "seconds": seconds,
+        "late": 0.0,
+    }
     if success:
         m.update(smoothing_checks=smoothing, path_length=length, fine_check_passed=1.0)
     return {"scene": scene, "method": method, "metrics": m}
@@ -236,10 +265,15 @@ def _row(scene, method, success, checks, seconds=1.0, smoothing=100, length=10.0
 def test_summary_and_ratio_on_synthetic_rows():
     from scipy.stats import binomtest
 
-    rows = ([_row("s", "ours:default", True, c) for c in (100, 200, 300)] + [_row("s", "ours:default", False, 9999)]
-            + [_row("s", "ompl:RRTConnect", True, c) for c in (400, 500)] + [_row("s", "ompl:RRTConnect", False, 1)] * 2
-            + [_row("s", "ompl:PRM", True, c) for c in (1000, 2000)] + [_row("s", "ompl:PRM", False, 1)] * 2
-            + [_row("s", "ompl:KPIECE1", False, 5)] * 4)
+    rows = (
+        [_row("s", "ours:default", True, c) for c in (100, 200, 300)]
+        + [_row("s", "ours:default", False, 9999)]
+        + [_row("s", "ompl:RRTConnect", True, c) for c in (400, 500)]
+        + [_row("s", "ompl:RRTConnect", False, 1)] * 2
+        + [_row("s", "ompl:PRM", True, c) for c in (1000, 2000)]
+        + [_row("s", "ompl:PRM", False, 1)] * 2
+        + [_row("s", "ompl:KPIECE1", False, 5)] * 4
+    )
     table = {r["method"]: r for r in summarise(rows)}
     ours = table["ours:default"]
     assert ours["runs"] == 4 and ours["successes"] == 3 and ours["success_rate"] == 0.75

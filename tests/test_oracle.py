@@ -1,4 +1,5 @@
 """The collision oracle against an independent SceneGraph reference, and its counters."""
+
 import numpy as np
 import pytest
 
@@ -101,6 +102,7 @@ def test_known_free_ends_are_skipped_and_a_path_check_ends_at_its_first_collisio
     assert np.array_equal(free[decided], full[decided])  # what it decided is right
     assert (~free[decided]).any() and not decided.all()  # at least one collision found, some edges left open
     assert np.all(free[~decided])  # an undecided edge has not been seen to collide
+
 
 def test_distance_takes_the_short_way_round_on_continuous_angles(oracles):
     oracle = oracles("bar")

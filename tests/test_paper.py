@@ -1,5 +1,6 @@
 """`bench paper`: deterministic sweeps, a report with the claim verdicts and figures, and a resumed run that runs
 nothing new. The default-run test uses a tiny configuration (one scene, two samplers, one trial per cell)."""
+
 import pytest
 
 from app.bench import jobs, paper
@@ -7,13 +8,27 @@ from app.bench.runner import EXPERIMENTS
 from app.bench.store import ResultStore, TrialSpec
 from app.cli import main
 
-TINY = ["bench", "paper", "--quick", "--trials", "1", "--scenes", "bar-3link", "--samplers", "lfbs,rbbs",
-        "--parts", "sampling", "--max-checks", "20000", "--workers", "1"]
+TINY = [
+    "bench",
+    "paper",
+    "--quick",
+    "--trials",
+    "1",
+    "--scenes",
+    "bar-3link",
+    "--samplers",
+    "lfbs,rbbs",
+    "--parts",
+    "sampling",
+    "--max-checks",
+    "20000",
+    "--workers",
+    "1",
+]
 
 
 def test_sweeps_are_deterministic_and_share_the_bar_cells():
-    config = paper.Config(trials=2, steps=[2.0, 10.0], samplers=["lfbs", "rbbs", "gaussian"], prm_seeds=1,
-                          ur3_runs=1)
+    config = paper.Config(trials=2, steps=[2.0, 10.0], samplers=["lfbs", "rbbs", "gaussian"], prm_seeds=1, ur3_runs=1)
     first = [(name, [s.key for s in specs]) for name, specs in paper.sweeps(config)]
     second = [(name, [s.key for s in specs]) for name, specs in paper.sweeps(config)]
     assert first == second

@@ -1,6 +1,7 @@
 """Same seed, same plan: `plan bar --seed 0` and `plan maze --seed 1` give the paths recorded in
 tests/data/pinned_plans.json. A change that alters them on purpose (a new planning rule) records them anew and
 says why in its commit."""
+
 import json
 from pathlib import Path
 

@@ -1,5 +1,6 @@
 """The planner: roadmap metric, budget syntax, collision-free paths under an independent fine check, Toppra timing
 within the limits, reproducibility, and the command line's exit codes."""
+
 import dataclasses
 import json
 import math
@@ -8,9 +9,9 @@ import time
 import numpy as np
 import pytest
 
+from app.budget import Budget
 from app.errors import InvalidEndpoint, NoPath, UserError
 from app.planner import PlanSettings, plan
-from app.budget import Budget
 from app.roadmap import Roadmap
 from independent import fine_points, raw_free
 
@@ -98,8 +99,9 @@ def test_trajectory_respects_limits_and_joins_start_to_goal(oracles, planned, na
     # The velocities and accelerations it reports are within the limits and are the motion's own.
     assert np.all(np.abs(traj.velocities) <= scene.velocity_limits * (1 + 1e-6) + 1e-9)
     assert np.all(np.abs(traj.accelerations) <= scene.acceleration_limits * (1 + 1e-6) + 1e-9)
-    assert np.allclose(0.5 * (traj.velocities[1:] + traj.velocities[:-1]), V,
-                       atol=float(np.max(scene.acceleration_limits)) * dt)
+    assert np.allclose(
+        0.5 * (traj.velocities[1:] + traj.velocities[:-1]), V, atol=float(np.max(scene.acceleration_limits)) * dt
+    )
     assert np.allclose(traj.velocities[[0, -1]], 0) and traj.joint_names == scene.coordinate_names
     # Corners are blended (velocity never jumps: the acceleration bound above), and the blended curve is proved.
     assert traj.certified and result.distance_queries > 0
@@ -154,8 +156,14 @@ def test_shortcuts_keep_every_edge_checked_at_their_resolution():
     from app.path import shortcut, verify
 
     oracle = CollisionOracle.__new__(CollisionOracle)  # the path code needs only the metric and are_free
-    oracle.space = ConfigurationSpace(lower=np.full(2, -20.0), upper=np.full(2, 20.0), weights=np.ones(2),
-                                      angular=np.zeros(2, bool), continuous=np.zeros(2, bool), resolution=1.0)
+    oracle.space = ConfigurationSpace(
+        lower=np.full(2, -20.0),
+        upper=np.full(2, 20.0),
+        weights=np.ones(2),
+        angular=np.zeros(2, bool),
+        continuous=np.zeros(2, bool),
+        resolution=1.0,
+    )
     oracle.checks = 0
 
     def are_free(Q):
@@ -232,8 +240,9 @@ def test_parameters_that_would_never_end_are_refused(oracles):
 
 def test_budget_adds_rounds_until_spent(oracles):
     with pytest.raises(NoPath, match=r"budget 8000checks spent") as info:
-        plan(oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=8, seed=0,
-                                               budget=Budget(checks=8000)))
+        plan(
+            oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=8, seed=0, budget=Budget(checks=8000))
+        )
     assert info.value.details["rounds"] > 1
     assert info.value.details["roadmap"]["nodes"] > 10
 
@@ -251,12 +260,37 @@ def test_joint3d_through_the_hole_with_a_budget(oracles):
 def test_cli_plan_json_and_out(tmp_path, cli):
     out = tmp_path / "traj.json"
     start, goal = ",".join(map(str, JOINT3D_ENDS["start"])), ",".join(map(str, JOINT3D_ENDS["goal"]))
-    result = cli("plan", "joint3d", "--narrow", "60", "--uniform", "90", "--seed", "1", "--start", start,
-                 "--goal", goal, "--json", "--out", out)
+    result = cli(
+        "plan",
+        "joint3d",
+        "--narrow",
+        "60",
+        "--uniform",
+        "90",
+        "--seed",
+        "1",
+        "--start",
+        start,
+        "--goal",
+        goal,
+        "--json",
+        "--out",
+        out,
+    )
     assert result.returncode == 0, result.stderr
     doc = json.loads(result.stdout)
-    for key in ["success", "scene", "sampler", "seed", "path", "trajectory", "collision_checks", "seconds", "roadmap",
-                "narrow_on_path"]:
+    for key in [
+        "success",
+        "scene",
+        "sampler",
+        "seed",
+        "path",
+        "trajectory",
+        "collision_checks",
+        "seconds",
+        "roadmap",
+        "narrow_on_path",
+    ]:
         assert key in doc
     assert doc["success"] is True and doc["sampler"] == "lfbs"
     assert set(doc["roadmap"]) >= {"nodes", "edges", "components"}
@@ -272,26 +306,44 @@ def test_cli_plan_json_and_out(tmp_path, cli):
 
 
 def test_cli_human_summary(cli):
-    result = cli("plan", "joint3d", "--narrow", "20", "--uniform", "30", "--seed", "1",
-                     "--start", "20,25,75,0,0,0", "--goal", "30,25,75,0,0,0")
+    result = cli(
+        "plan",
+        "joint3d",
+        "--narrow",
+        "20",
+        "--uniform",
+        "30",
+        "--seed",
+        "1",
+        "--start",
+        "20,25,75,0,0,0",
+        "--goal",
+        "30,25,75,0,0,0",
+    )
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("plan joint3d: path found") and "collision checks" in result.stdout
 
 
-@pytest.mark.parametrize("args, code, words", [
-    (["bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, ["start", "collision", "obstacles::obstacles"]),
-    (["bar", "--goal", "150,50,0,0,0,0,0,0,0"], 3, ["goal", "out of bounds"]),
-    (["joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--budget", "1checks"], 1,
-     ["no path", "not joined", "budget 1checks spent"]),
-    (["bar", "--sampler", "magic"], 2, ["unknown sampler", "lfbs"]),
-    (["atlantis"], 2, ["unknown scene"]),
-    (["bar", "--narrow", "-1"], 2, ["--narrow"]),
-    (["bar", "--uniform", "many"], 2, ["--uniform"]),
-    (["bar", "--step", "nan"], 2, ["--step"]),
-    (["bar", "--budget", "forever"], 2, ["budget"]),
-    (["bar", "--start", "1,2,3"], 2, ["start", "9"]),
-    (["bar", "--goal", "1,2,nan,4,5,6,7,8,9"], 2, ["--goal"]),
-])
+@pytest.mark.parametrize(
+    "args, code, words",
+    [
+        (["bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, ["start", "collision", "obstacles::obstacles"]),
+        (["bar", "--goal", "150,50,0,0,0,0,0,0,0"], 3, ["goal", "out of bounds"]),
+        (
+            ["joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--budget", "1checks"],
+            1,
+            ["no path", "not joined", "budget 1checks spent"],
+        ),
+        (["bar", "--sampler", "magic"], 2, ["unknown sampler", "lfbs"]),
+        (["atlantis"], 2, ["unknown scene"]),
+        (["bar", "--narrow", "-1"], 2, ["--narrow"]),
+        (["bar", "--uniform", "many"], 2, ["--uniform"]),
+        (["bar", "--step", "nan"], 2, ["--step"]),
+        (["bar", "--budget", "forever"], 2, ["budget"]),
+        (["bar", "--start", "1,2,3"], 2, ["start", "9"]),
+        (["bar", "--goal", "1,2,nan,4,5,6,7,8,9"], 2, ["--goal"]),
+    ],
+)
 def test_cli_errors_are_one_line_with_the_agreed_code(tmp_path, cli, one_line_error, args, code, words):
     out = tmp_path / "traj.json"
     result = cli("plan", *args, "--out", out)
@@ -310,16 +362,49 @@ def test_cli_out_into_a_missing_folder_is_exit_2(tmp_path, cli, one_line_error):
 def test_cli_plan_html_shows_the_trajectory(tmp_path, cli, monkeypatch):
     page = tmp_path / "plan.html"
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # the viewer's Meshcat needs it, even to export
-    result = cli("plan", "joint3d", "--narrow", "20", "--uniform", "30", "--seed", "1", "--start", "20,25,75,0,0,0",
-                 "--goal", "30,25,75,0,0,1", "--html", page)
+    result = cli(
+        "plan",
+        "joint3d",
+        "--narrow",
+        "20",
+        "--uniform",
+        "30",
+        "--seed",
+        "1",
+        "--start",
+        "20,25,75,0,0,0",
+        "--goal",
+        "30,25,75,0,0,1",
+        "--html",
+        page,
+    )
     assert result.returncode == 0, result.stderr
     assert page.read_text().lstrip().lower().startswith("<!doctype html")
 
 
 def test_bench_plan_runs_and_resumes_from_its_store(tmp_path, cli, one_line_error):
     store = tmp_path / "bench.sqlite"
-    args = ["bench", "plan", "--seeds", "2", "--scenes", "joint3d", "--samplers", "uniform,lfbs", "--narrow", "10",
-            "--uniform", "10", "--smooth", "0", "--roadmap", "both", "--store", str(store), "--json"]
+    args = [
+        "bench",
+        "plan",
+        "--seeds",
+        "2",
+        "--scenes",
+        "joint3d",
+        "--samplers",
+        "uniform,lfbs",
+        "--narrow",
+        "10",
+        "--uniform",
+        "10",
+        "--smooth",
+        "0",
+        "--roadmap",
+        "both",
+        "--store",
+        str(store),
+        "--json",
+    ]
     result = cli(*args)
     assert result.returncode == 0, result.stderr
     table = {(row["sampler"], row["roadmap"]): row for row in json.loads(result.stdout)["plan"]}

@@ -1,4 +1,5 @@
 """The quadrotor and the UR3-on-cart models, and the maze, tunnel, welding and window scenes built on them."""
+
 import importlib.util
 import math
 import re
@@ -25,10 +26,7 @@ def dh_forward(q) -> np.ndarray:
     T = np.eye(4)
     for qi, d, a, alpha in zip(q, DH_D, DH_A, DH_ALPHA):
         c, s, ca, sa = math.cos(qi), math.sin(qi), math.cos(alpha), math.sin(alpha)
-        T = T @ np.array([[c, -s * ca, s * sa, a * c],
-                          [s, c * ca, -c * sa, a * s],
-                          [0, sa, ca, d],
-                          [0, 0, 0, 1]])
+        T = T @ np.array([[c, -s * ca, s * sa, a * c], [s, c * ca, -c * sa, a * s], [0, sa, ca, d], [0, 0, 0, 1]])
     return T
 
 
@@ -69,8 +67,13 @@ def _pair_counts(oracle, Q) -> Counter:
     for q in Q:
         plant.SetPositions(context, q)
         pairs = plant.get_geometry_query_input_port().Eval(context).ComputePointPairPenetration()
-        counts.update({tuple(sorted((inspector.GetName(p.id_A), inspector.GetName(p.id_B)))) for p in pairs
-                       if oracle.is_robot_geometry(p.id_A) and oracle.is_robot_geometry(p.id_B)})
+        counts.update(
+            {
+                tuple(sorted((inspector.GetName(p.id_A), inspector.GetName(p.id_B))))
+                for p in pairs
+                if oracle.is_robot_geometry(p.id_A) and oracle.is_robot_geometry(p.id_B)
+            }
+        )
     return counts
 
 
@@ -174,13 +177,16 @@ def test_welding_seam_pose_is_read_as_position_and_rpy_degrees(oracles):
 WINDOW = (SCENES_DIR / "window.yaml").read_text()
 
 
-@pytest.mark.parametrize("text, expected", [
-    (WINDOW.replace("tool_frame: tcp", "tool_frame: nose"), "tool frame 'nose'"),
-    (WINDOW.replace("tool_frame: tcp\n", ""), "'poses' need a 'tool_frame'"),
-    (WINDOW.replace("{name: place,", "{name: reach,"), "unique name"),
-    (WINDOW.replace("xyz: [0.10, 0.40, 0.45]", "xyz: [0.10, 0.40]"), "pose 'place' needs xyz"),
-    (re.sub(r"rpy_deg: \[180, 0, 0\]", "rpy: [3.14, 0, 0]", WINDOW), "rpy"),  # unknown key
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (WINDOW.replace("tool_frame: tcp", "tool_frame: nose"), "tool frame 'nose'"),
+        (WINDOW.replace("tool_frame: tcp\n", ""), "'poses' need a 'tool_frame'"),
+        (WINDOW.replace("{name: place,", "{name: reach,"), "unique name"),
+        (WINDOW.replace("xyz: [0.10, 0.40, 0.45]", "xyz: [0.10, 0.40]"), "pose 'place' needs xyz"),
+        (re.sub(r"rpy_deg: \[180, 0, 0\]", "rpy: [3.14, 0, 0]", WINDOW), "rpy"),  # unknown key
+    ],
+)
 def test_bad_pose_entries_are_rejected(tmp_path, text, expected):
     (tmp_path / "window.dmd.yaml").write_text((SCENES_DIR / "window.dmd.yaml").read_text())
     path = tmp_path / "custom.yaml"

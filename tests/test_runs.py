@@ -1,4 +1,5 @@
 """The scripted UR3 jobs (`run welding|window`): IK goals, legs planned or straight, one joined trajectory."""
+
 import json
 
 import numpy as np
@@ -17,8 +18,7 @@ def window_run(oracles):
 def test_window_route_goes_through_the_window_and_back(oracles, window_run):
     oracle = oracles("window")
     legs = [(leg.start, leg.goal) for leg in window_run.legs]
-    assert legs == [(HOME, "window"), ("window", "reach"), ("reach", "window"), ("window", "place"),
-                    ("place", HOME)]
+    assert legs == [(HOME, "window"), ("window", "reach"), ("reach", "window"), ("window", "place"), ("place", HOME)]
     assert any(leg.method == "lfbs" for leg in window_run.legs)  # at least one leg needed the planner
     for a, b in zip(window_run.legs[:-1], window_run.legs[1:]):  # legs meet where the previous one stopped
         assert oracle.space.distance(a.path[-1], b.path[0]) < 1e-9

@@ -1,4 +1,5 @@
 """The seven samplers: free in-bounds samples, real bridges, heavy Lévy tails, reproducibility, honest counts, CLI."""
+
 import json
 
 import numpy as np
@@ -37,8 +38,7 @@ def test_registry_names_and_errors(oracles):
 
 
 def test_four_walkers_are_one_class_with_two_switches(oracles):
-    expected = {"rws": ("gaussian", False), "lfs": ("levy", False), "rwbs": ("gaussian", True),
-                "lfbs": ("levy", True)}
+    expected = {"rws": ("gaussian", False), "lfs": ("levy", False), "rwbs": ("gaussian", True), "lfbs": ("levy", True)}
     for name, (law, bridge) in expected.items():
         s = make_sampler(name, oracles("bar"), step=5)
         assert type(s) is Walker and (s.step_law, s.bridge, s.name) == (law, bridge, name)
@@ -143,8 +143,12 @@ def test_budget_is_bounded_and_reported(oracles):
 
 
 @settings(max_examples=6, deadline=None)
-@given(step=st.floats(2.0, 20.0), seed=st.integers(0, 10_000), walkers=st.sampled_from([None, 1, 7, 64]),
-       name=st.sampled_from(["rws", "lfs", "rwbs", "lfbs"]))
+@given(
+    step=st.floats(2.0, 20.0),
+    seed=st.integers(0, 10_000),
+    walkers=st.sampled_from([None, 1, 7, 64]),
+    name=st.sampled_from(["rws", "lfs", "rwbs", "lfbs"]),
+)
 def test_walkers_free_in_bounds_for_any_step_and_pool(oracles, step, seed, walkers, name):
     oracle = oracles("bar")
     sampler = make_sampler(name, oracle, step=step, walkers=walkers)
@@ -196,9 +200,14 @@ def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(oracles):
 
 
 # ---- CLI ---------------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("args", [
-    ["--sampler", "levy"], ["--sampler", "lfbs", "-k", "0"], ["--sampler", "lfbs", "--step", "nan"],
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--sampler", "levy"],
+        ["--sampler", "lfbs", "-k", "0"],
+        ["--sampler", "lfbs", "--step", "nan"],
+    ],
+)
 def test_cli_bad_input_is_one_line_exit_2(cli, one_line_error, args):
     result = cli("sample", "bar", *args)
     one_line_error(result, 2)
@@ -207,11 +216,20 @@ def test_cli_bad_input_is_one_line_exit_2(cli, one_line_error, args):
 
 def test_cli_json(tmp_path, cli):
     png = tmp_path / "s.png"
-    result = cli("sample", "bar", "--sampler", "lfbs", "-k", "5", "--step", "10", "--seed", "4", "--json",
-                 "--png", png)
+    result = cli("sample", "bar", "--sampler", "lfbs", "-k", "5", "--step", "10", "--seed", "4", "--json", "--png", png)
     assert result.returncode == 0, result.stderr
     out = json.loads(result.stdout)
-    for key in ("scene", "sampler", "k", "step", "seed", "samples", "collision_checks", "seconds",
-                "passage_fraction", "gave_up"):
+    for key in (
+        "scene",
+        "sampler",
+        "k",
+        "step",
+        "seed",
+        "samples",
+        "collision_checks",
+        "seconds",
+        "passage_fraction",
+        "gave_up",
+    ):
         assert key in out
     assert len(out["samples"]) == 5 and out["collision_checks"] > 0 and png.stat().st_size > 0

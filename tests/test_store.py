@@ -1,5 +1,6 @@
 """The results store survives a kill: a resumed sweep loses and duplicates nothing; a store of another schema is
 refused."""
+
 import os
 import signal
 import sqlite3
@@ -24,10 +25,12 @@ def toy_specs(n, sleep=0.0):
 def test_keys_depend_on_everything_that_defines_a_trial():
     a = TrialSpec("sampling", "bar", "lfbs", 10, 3, {"k": 30})
     assert a.key == TrialSpec("sampling", "bar", "lfbs", 10.0, 3, {"k": 30}).key
-    for other in (TrialSpec("sampling", "bar", "lfbs", 10, 4, {"k": 30}),
-                  TrialSpec("sampling", "bar", "rbbs", 10, 3, {"k": 30}),
-                  TrialSpec("sampling", "bar", "lfbs", 10, 3, {"k": 31}),
-                  TrialSpec("prm", "bar", "lfbs", 10, 3, {"k": 30})):
+    for other in (
+        TrialSpec("sampling", "bar", "lfbs", 10, 4, {"k": 30}),
+        TrialSpec("sampling", "bar", "rbbs", 10, 3, {"k": 30}),
+        TrialSpec("sampling", "bar", "lfbs", 10, 3, {"k": 31}),
+        TrialSpec("prm", "bar", "lfbs", 10, 3, {"k": 30}),
+    ):
         assert other.key != a.key
 
 
@@ -69,11 +72,14 @@ def test_a_store_of_another_schema_is_refused(tmp_path, user_version, schema):
     with pytest.raises(UserError) as caught:
         ResultStore(path)
     message = str(caught.value)
-    assert message == (f"results store {path} has schema {schema}, this code writes {SCHEMA_VERSION}: "
-                       "move it away and run again")
+    assert message == (
+        f"results store {path} has schema {schema}, this code writes {SCHEMA_VERSION}: move it away and run again"
+    )
     db = sqlite3.connect(path)  # untouched
-    assert db.execute("SELECT COUNT(*), (SELECT user_version FROM pragma_user_version) FROM trials").fetchone() \
-        == (1, user_version)
+    assert db.execute("SELECT COUNT(*), (SELECT user_version FROM pragma_user_version) FROM trials").fetchone() == (
+        1,
+        user_version,
+    )
     db.close()
 
 
@@ -100,8 +106,9 @@ def test_a_killed_sweep_resumes_without_loss_or_duplicates(tmp_path):
         specs = [TrialSpec("toy", "bar-3link", "uniform", 1.0, s, {{"n": 20, "sleep": 0.05}}) for s in range(40)]
         run_sweep(specs, ResultStore({str(db)!r}), workers=1)
     """)
-    child = subprocess.Popen([sys.executable, "-c", script], env=os.environ.copy(),
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    child = subprocess.Popen(
+        [sys.executable, "-c", script], env=os.environ.copy(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     deadline = time.time() + 120
     while time.time() < deadline:  # kill it in the middle of the sweep
         if db.exists() and 5 <= ResultStore(db).count() < 40:

@@ -2,15 +2,16 @@
 curve. Checked independently of what Toppra reports: limits from finite differences of the positions, collisions
 of samples no more than 1/64 of the resolution apart by SceneGraph directly, start and goal exact, no velocity
 jumps; and it is faster than stopping at every waypoint."""
+
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
-from independent import raw_free
 
 import app
 from app.timing import parameterize, parameterize_smooth
+from independent import raw_free
 
 PINNED = json.loads((Path(__file__).parent / "data" / "pinned_plans.json").read_text())
 
@@ -24,16 +25,18 @@ def _zigzag(start, step, wiggle, n) -> np.ndarray:
 # Polylines in free space: the quadrotor in the maze's open south-east room, the planar arm's base beside the wall.
 ZIGZAGS = {
     "maze": _zigzag([14.5, 2.0, 1.5, 0.0], [0.4, 0.0, 0.0, 0.05], [0.0, 0.2, 0.1, 0.0], 9),
-    "bar": _zigzag([12.0, 80.0, -1.5708, 0, 0, 0, 0, 0, 0], [2.0, 0, 0, 0, 0, 0, 0, 0.05, 0],
-                   [0, 1.0, 0.05, 0, 0, 0, 0, 0, 0], 9),
+    "bar": _zigzag(
+        [12.0, 80.0, -1.5708, 0, 0, 0, 0, 0, 0], [2.0, 0, 0, 0, 0, 0, 0, 0.05, 0], [0, 1.0, 0.05, 0, 0, 0, 0, 0, 0], 9
+    ),
 }
 
 
 def _times(oracle, W, **kw):
     scene = oracle.scene
     stats = {}
-    smooth = parameterize_smooth(oracle, W, scene.velocity_limits, scene.acceleration_limits,
-                                 joint_names=oracle.space.names, stats=stats, **kw)
+    smooth = parameterize_smooth(
+        oracle, W, scene.velocity_limits, scene.acceleration_limits, joint_names=oracle.space.names, stats=stats, **kw
+    )
     rest = parameterize(oracle.plant, W, scene.velocity_limits, scene.acceleration_limits)
     return smooth, rest, stats
 
@@ -63,8 +66,9 @@ def _check_free(oracle, W, **kw):
     space, scene = oracle.space, oracle.scene
     coarse = parameterize_smooth(oracle, W, scene.velocity_limits, scene.acceleration_limits, **kw)
     speed = np.linalg.norm(coarse.velocities * space.weights, axis=1).max()
-    fine = parameterize_smooth(oracle, W, scene.velocity_limits, scene.acceleration_limits,
-                               dt=space.resolution / 64 / speed / 1.5, **kw)
+    fine = parameterize_smooth(
+        oracle, W, scene.velocity_limits, scene.acceleration_limits, dt=space.resolution / 64 / speed / 1.5, **kw
+    )
     assert np.allclose(fine.duration, coarse.duration)
     assert space.distance(fine.positions[:-1], fine.positions[1:]).max() <= space.resolution / 64
     assert all(raw_free(oracle, q) for q in space.wrap(fine.positions))

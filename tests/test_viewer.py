@@ -3,6 +3,7 @@
 Tests run with DRAKE_ALLOW_NETWORK=none (conftest), which also disables Meshcat. Drake reads the variable each time a
 Meshcat is made, so tests that need one allow it with monkeypatch (in-process) or in a subprocess's environment.
 """
+
 import json
 import os
 import re
@@ -33,11 +34,18 @@ def trajectory_doc(times, positions, narrow=None, on_path=None, path=None) -> di
 
     times, positions = np.asarray(times, float), np.asarray(positions, float)
     waypoints = positions[[0, -1]] if path is None else np.asarray(path, float)
-    doc = {"schema": SCHEMA, "scene": "test", "joint_names": [f"j{i}" for i in range(positions.shape[1])],
-           "time_from_start": times.tolist(), "positions": positions.tolist(),
-           "velocities": np.zeros_like(positions).tolist(), "accelerations": np.zeros_like(positions).tolist(),
-           "waypoints": waypoints.tolist(), "waypoint_times": np.linspace(0, times[-1], len(waypoints)).tolist(),
-           "certified": False}
+    doc = {
+        "schema": SCHEMA,
+        "scene": "test",
+        "joint_names": [f"j{i}" for i in range(positions.shape[1])],
+        "time_from_start": times.tolist(),
+        "positions": positions.tolist(),
+        "velocities": np.zeros_like(positions).tolist(),
+        "accelerations": np.zeros_like(positions).tolist(),
+        "waypoints": waypoints.tolist(),
+        "waypoint_times": np.linspace(0, times[-1], len(waypoints)).tolist(),
+        "certified": False,
+    }
     if narrow is not None:
         doc["narrow_samples"], doc["narrow_on_path"] = np.asarray(narrow).tolist(), list(on_path)
     return doc
@@ -76,8 +84,10 @@ def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, ora
     flags = np.array(on_path)
     yellow = lambda r, g, b: r > 200 and g > 180 and b < 60  # noqa: E731
     red = lambda r, g, b: r > 200 and g < 60 and b < 60  # noqa: E731
-    for path, is_colour, expected in [("/samples/narrow", yellow, frame_xyz[~flags]),
-                                      ("/samples/on_path", red, frame_xyz[flags])]:
+    for path, is_colour, expected in [
+        ("/samples/narrow", yellow, frame_xyz[~flags]),
+        ("/samples/on_path", red, frame_xyz[flags]),
+    ]:
         cloud = clouds[path]
         (material,) = cloud["materials"]
         rgb = material["color"]
@@ -116,8 +126,11 @@ def test_viewer_frame_positions_agree_with_the_oracle(oracles, meshcat_allowed):
         Viewer(oracle.scene, frame="no_such_frame", meshcat=viewer.meshcat)
     assert viewer.url().startswith("http://localhost:")
     # A 3D scene's obstacles are see-through, so the robot shows behind walls; the robot stays opaque.
-    opacity = {c["path"]: c["value"] for c in commands(viewer.html())
-               if c["type"] == "set_property" and c["property"] == "modulated_opacity"}
+    opacity = {
+        c["path"]: c["value"]
+        for c in commands(viewer.html())
+        if c["type"] == "set_property" and c["property"] == "modulated_opacity"
+    }
     obstacles = [v for p, v in opacity.items() if p.startswith("/drake/illustration/obstacles/")]
     robot = [v for p, v in opacity.items() if p.startswith("/drake/illustration/lbody/")]
     assert obstacles and all(v < 1 for v in obstacles)
@@ -144,22 +157,25 @@ def _bad(**change):
     return json.dumps(doc)
 
 
-@pytest.mark.parametrize("content, needle", [
-    (None, "not found"),
-    ('{"time_from_start": [0, 1], "positions": ', "cannot read"),
-    ('[1, 2]', "JSON object"),
-    (_bad(schema="other/9"), "schema"),
-    (_bad(speed=3), "unknown key"),
-    (_bad(velocities=None), "missing key"),
-    (_bad(time_from_start=[0.0]), "rows of 'positions' for 1 times"),
-    (_bad(time_from_start=[1.0, 0.0]), "non-decreasing"),
-    (_bad(positions=[[0] * 8 + ["x"]] * 2), "numbers"),
-    (_bad(joint_names=["a"]), "joint_names"),
-    (_bad(narrow_samples=[[1, 2]], narrow_on_path=[True]), "narrow_samples"),
-    (_bad(narrow_samples=[[0] * 9], narrow_on_path=[True, False]), "narrow_on_path"),
-    (_bad(narrow_samples=[[0] * 9]), "go together"),
-    (_bad(certified="yes"), "certified"),
-])
+@pytest.mark.parametrize(
+    "content, needle",
+    [
+        (None, "not found"),
+        ('{"time_from_start": [0, 1], "positions": ', "cannot read"),
+        ("[1, 2]", "JSON object"),
+        (_bad(schema="other/9"), "schema"),
+        (_bad(speed=3), "unknown key"),
+        (_bad(velocities=None), "missing key"),
+        (_bad(time_from_start=[0.0]), "rows of 'positions' for 1 times"),
+        (_bad(time_from_start=[1.0, 0.0]), "non-decreasing"),
+        (_bad(positions=[[0] * 8 + ["x"]] * 2), "numbers"),
+        (_bad(joint_names=["a"]), "joint_names"),
+        (_bad(narrow_samples=[[1, 2]], narrow_on_path=[True]), "narrow_samples"),
+        (_bad(narrow_samples=[[0] * 9], narrow_on_path=[True, False]), "narrow_on_path"),
+        (_bad(narrow_samples=[[0] * 9]), "go together"),
+        (_bad(certified="yes"), "certified"),
+    ],
+)
 def test_bad_trajectory_files_are_one_line_exit_2(tmp_path, cli, one_line_error, content, needle):
     trajectory = tmp_path / "t.json"
     if content is not None:

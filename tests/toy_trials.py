@@ -1,4 +1,5 @@
 """A cheap deterministic trial for testing the store and runners: a few seeded collision checks."""
+
 import time
 
 import numpy as np

@@ -5,6 +5,7 @@ the claimed way and, where the claim is about distributions, a one-sided Mann-Wh
 level. The verdict counts them: all hold -> reproduced, none -> not reproduced, some -> partly. No tuning toward
 the paper: the thresholds are fixed here and printed in the report.
 """
+
 from collections import defaultdict
 from dataclasses import dataclass, field
 
@@ -73,10 +74,13 @@ def claim_c1(rows) -> Verdict:
                 continue
             holds, p = _greater(mine, rbbs)
             outcomes.append(holds)
-            evidence.append(f"{scene}: {walker} mean passage fraction {mine.mean():.3f} vs rbbs {rbbs.mean():.3f} "
-                            f"(p={p:.2g}) -> {'holds' if holds else 'fails'}")
-    return Verdict("C1", "Bridge walkers (LFBS, RWBS) put more samples in the passage than RBBS.",
-                   _verdict(outcomes), evidence)
+            evidence.append(
+                f"{scene}: {walker} mean passage fraction {mine.mean():.3f} vs rbbs {rbbs.mean():.3f} "
+                f"(p={p:.2g}) -> {'holds' if holds else 'fails'}"
+            )
+    return Verdict(
+        "C1", "Bridge walkers (LFBS, RWBS) put more samples in the passage than RBBS.", _verdict(outcomes), evidence
+    )
 
 
 def claim_c2(rows) -> Verdict:
@@ -93,11 +97,14 @@ def claim_c2(rows) -> Verdict:
             continue
         holds = spread["lfbs"][0] < spread["rbbs"][0]
         outcomes.append(holds)
-        evidence.append(f"{scene}: across steps lfbs passage fraction {spread['lfbs'][1]:.3f}-{spread['lfbs'][2]:.3f} "
-                        f"(range {spread['lfbs'][0]:.3f}), rbbs {spread['rbbs'][1]:.3f}-{spread['rbbs'][2]:.3f} "
-                        f"(range {spread['rbbs'][0]:.3f}) -> {'holds' if holds else 'fails'}")
-    return Verdict("C2", "LFBS sample quality is insensitive to the step a; RBBS's is not.", _verdict(outcomes),
-                   evidence)
+        evidence.append(
+            f"{scene}: across steps lfbs passage fraction {spread['lfbs'][1]:.3f}-{spread['lfbs'][2]:.3f} "
+            f"(range {spread['lfbs'][0]:.3f}), rbbs {spread['rbbs'][1]:.3f}-{spread['rbbs'][2]:.3f} "
+            f"(range {spread['rbbs'][0]:.3f}) -> {'holds' if holds else 'fails'}"
+        )
+    return Verdict(
+        "C2", "LFBS sample quality is insensitive to the step a; RBBS's is not.", _verdict(outcomes), evidence
+    )
 
 
 def claim_c3(rows, scene="bar") -> Verdict:
@@ -109,8 +116,10 @@ def claim_c3(rows, scene="bar") -> Verdict:
             continue
         holds, p = _greater(rbbs, lfbs)
         outcomes.append(holds)
-        evidence.append(f"{scene} a={step:g}: median checks lfbs {np.median(lfbs):.0f} vs rbbs {np.median(rbbs):.0f} "
-                        f"(p={p:.2g}) -> {'holds' if holds else 'fails'}")
+        evidence.append(
+            f"{scene} a={step:g}: median checks lfbs {np.median(lfbs):.0f} vs rbbs {np.median(rbbs):.0f} "
+            f"(p={p:.2g}) -> {'holds' if holds else 'fails'}"
+        )
     return Verdict("C3", f"LFBS needs fewer collision calls than RBBS in {scene}.", _verdict(outcomes), evidence)
 
 
@@ -126,11 +135,17 @@ def claim_c4(rows) -> Verdict:
         faster = lfbs_t is not None and rbbs_t is not None and np.median(lfbs_t) < np.median(rbbs_t)
         holds = bool(lfbs_ok.mean() >= rbbs_ok.mean() and faster)
         outcomes.append(holds)
-        evidence.append(f"{scene} a={step:g}: success lfbs {lfbs_ok.mean():.0%} vs rbbs {rbbs_ok.mean():.0%}; "
-                        f"median time lfbs {np.median(lfbs_t):.2f}s vs rbbs {np.median(rbbs_t):.2f}s "
-                        f"-> {'holds' if holds else 'fails'}")
-    return Verdict("C4", "LFBS-PRM is faster and succeeds at least as often as RBBS-PRM (maze, tunnel).",
-                   _verdict(outcomes), evidence)
+        evidence.append(
+            f"{scene} a={step:g}: success lfbs {lfbs_ok.mean():.0%} vs rbbs {rbbs_ok.mean():.0%}; "
+            f"median time lfbs {np.median(lfbs_t):.2f}s vs rbbs {np.median(rbbs_t):.2f}s "
+            f"-> {'holds' if holds else 'fails'}"
+        )
+    return Verdict(
+        "C4",
+        "LFBS-PRM is faster and succeeds at least as often as RBBS-PRM (maze, tunnel).",
+        _verdict(outcomes),
+        evidence,
+    )
 
 
 def claim_c5(rows) -> Verdict:
@@ -147,12 +162,18 @@ def claim_c5(rows) -> Verdict:
             poorer = all(q.mean() < _pooled(quality, scene, b).mean() for b in bridges)
             outcomes.append(cheaper and poorer)
             best = max(bridges, key=lambda b: _pooled(quality, scene, b).mean())
-            evidence.append(f"{scene}: {cheap} median checks {np.median(c):.0f} (bridges ≥ "
-                            f"{min(np.median(_pooled(checks, scene, b)) for b in bridges):.0f}), passage fraction "
-                            f"{q.mean():.3f} (best bridge {best} {_pooled(quality, scene, best).mean():.3f}) -> "
-                            f"{'holds' if cheaper and poorer else 'fails'}")
-    return Verdict("C5", "Gaussian, RWS and LFS are cheap but poor: fewer checks, fewer passage samples than the "
-                   "bridge samplers.", _verdict(outcomes), evidence)
+            evidence.append(
+                f"{scene}: {cheap} median checks {np.median(c):.0f} (bridges ≥ "
+                f"{min(np.median(_pooled(checks, scene, b)) for b in bridges):.0f}), passage fraction "
+                f"{q.mean():.3f} (best bridge {best} {_pooled(quality, scene, best).mean():.3f}) -> "
+                f"{'holds' if cheaper and poorer else 'fails'}"
+            )
+    return Verdict(
+        "C5",
+        "Gaussian, RWS and LFS are cheap but poor: fewer checks, fewer passage samples than the bridge samplers.",
+        _verdict(outcomes),
+        evidence,
+    )
 
 
 def judge(rows) -> list[Verdict]:

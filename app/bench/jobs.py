@@ -6,6 +6,7 @@ protocol) in one run.
 Trials are experiment "ur3" in the results store (`bench paper` times the paper's UR3 set-up with the same trial),
 so a killed run resumes.
 """
+
 import time
 from dataclasses import replace
 
@@ -29,17 +30,37 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     oracle.reset()
     start = time.perf_counter()
     try:
-        settings = replace(JOB_SETTINGS, sampler=spec.method, seed=spec.seed, narrow=int(p["narrow"]),
-                           uniform=int(p["uniform"]), step=spec.step, budget=Budget(seconds=float(p["budget"])),
-                           full_roadmap=bool(p["full_roadmap"]))
+        settings = replace(
+            JOB_SETTINGS,
+            sampler=spec.method,
+            seed=spec.seed,
+            narrow=int(p["narrow"]),
+            uniform=int(p["uniform"]),
+            step=spec.step,
+            budget=Budget(seconds=float(p["budget"])),
+            full_roadmap=bool(p["full_roadmap"]),
+        )
         r = run_job(oracle, spec.scene, settings)
     except UserError as exc:  # NoPath, or IK finding no collision-free pose
-        return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_ik": None,
-                "seconds_planning": None, "collision_checks": oracle.checks, "error": str(exc)[:200]}
+        return {
+            "success": 0.0,
+            "seconds": time.perf_counter() - start,
+            "seconds_ik": None,
+            "seconds_planning": None,
+            "collision_checks": oracle.checks,
+            "error": str(exc)[:200],
+        }
     planned = [leg for leg in r.legs if leg.method != "straight"]
-    return {"success": 1.0, "seconds": r.seconds["total"], "seconds_ik": r.seconds["ik"],
-            "seconds_planning": r.seconds["planning"], "collision_checks": r.collision_checks,
-            "legs": len(r.legs), "planned_legs": len(planned), "duration": r.trajectory.duration}
+    return {
+        "success": 1.0,
+        "seconds": r.seconds["total"],
+        "seconds_ik": r.seconds["ik"],
+        "seconds_planning": r.seconds["planning"],
+        "collision_checks": r.collision_checks,
+        "legs": len(r.legs),
+        "planned_legs": len(planned),
+        "duration": r.trajectory.duration,
+    }
 
 
 def _stat(metrics: list[dict], key: str, fn=np.median) -> float | None:
@@ -58,20 +79,42 @@ def table(rows) -> list[dict]:
     out = []
     for (job, sampler, mode), metrics in sorted(cells.items()):
         ok = [m for m in metrics if m["success"]]
-        out.append({"job": job, "sampler": sampler, "roadmap": mode, "runs": len(metrics), "successes": len(ok),
-                    "median_total": _stat(ok, "seconds"), "min_total": _stat(ok, "seconds", np.min),
-                    "max_total": _stat(ok, "seconds", np.max), "median_ik": _stat(ok, "seconds_ik"),
-                    "median_planning": _stat(ok, "seconds_planning"),
-                    "median_checks": float(np.median([m["collision_checks"] for m in metrics]))})
+        out.append(
+            {
+                "job": job,
+                "sampler": sampler,
+                "roadmap": mode,
+                "runs": len(metrics),
+                "successes": len(ok),
+                "median_total": _stat(ok, "seconds"),
+                "min_total": _stat(ok, "seconds", np.min),
+                "max_total": _stat(ok, "seconds", np.max),
+                "median_ik": _stat(ok, "seconds_ik"),
+                "median_planning": _stat(ok, "seconds_planning"),
+                "median_checks": float(np.median([m["collision_checks"] for m in metrics])),
+            }
+        )
     return out
 
 
-def measure(jobs: list[str], samplers: list[str], seeds: int, modes: list[str], narrow: int, uniform: int,
-            budget: float, store) -> list[dict]:
+def measure(
+    jobs: list[str], samplers: list[str], seeds: int, modes: list[str], narrow: int, uniform: int, budget: float, store
+) -> list[dict]:
     """Every job x sampler x roadmap mode (`MODES`) for seeds 0..seeds-1, in this process (trials `store` lacks are
     run), as `table` rows. budget: seconds per planned leg."""
     steps = {job: default_step(Scene(job)) for job in jobs}
-    todo = [TrialSpec("ur3", job, sampler, steps[job], seed,
-                      {"narrow": narrow, "uniform": uniform, "budget": budget, "full_roadmap": MODES[mode]})
-            for job in jobs for sampler in samplers for mode in modes for seed in range(seeds)]
+    todo = [
+        TrialSpec(
+            "ur3",
+            job,
+            sampler,
+            steps[job],
+            seed,
+            {"narrow": narrow, "uniform": uniform, "budget": budget, "full_roadmap": MODES[mode]},
+        )
+        for job in jobs
+        for sampler in samplers
+        for mode in modes
+        for seed in range(seeds)
+    ]
     return table(sweep(todo, store, workers=1, desc="bench jobs"))

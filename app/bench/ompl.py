@@ -19,6 +19,7 @@ a valid-state sampler (ompl-uniform, ompl-obstacle, ompl-gaussian, ompl-bridge, 
 state spaces and motion-check spacing are described in app.ompl_bridge; `motion_checks` reports the spacing
 measured per scene. OMPL's RNG is seeded once per process, so an OMPL run is not reproducible from its seed.
 """
+
 import time
 
 import numpy as np
@@ -31,6 +32,7 @@ from app.path import FINE, path_length
 from app.planner import PlanSettings, default_step, plan
 from app.samplers import check_name
 from app.scene import Scene
+
 # app.ompl_bridge loads OMPL (optional) when imported: it is imported by the functions that run OMPL, so that the
 # command line starts, and the other benchmarks run, without it. Its planner names are repeated here for that reason.
 
@@ -59,14 +61,18 @@ def parse_method(name: str) -> dict:
     if kind == "ompl" and rest:
         planner, _, sampler = rest.partition("+")
         if planner not in OMPL_PLANNERS:
-            raise UserError(f"bad method '{name}': unknown OMPL planner '{planner}' (known: {', '.join(OMPL_PLANNERS)})")
+            raise UserError(
+                f"bad method '{name}': unknown OMPL planner '{planner}' (known: {', '.join(OMPL_PLANNERS)})"
+            )
         if sampler and planner != "PRM":
             raise UserError(f"bad method '{name}': only OMPL's PRM draws from a valid-state sampler")
         if sampler and sampler not in OMPL_PRM_SAMPLERS:
             check_name(sampler)
         return {"ours": False, "planner": planner, "sampler": sampler or None}
-    raise UserError(f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER[:full], ompl:PLANNER "
-                    f"({', '.join(OMPL_PLANNERS)}) or ompl:PRM+SAMPLER")
+    raise UserError(
+        f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER[:full], ompl:PLANNER "
+        f"({', '.join(OMPL_PLANNERS)}) or ompl:PRM+SAMPLER"
+    )
 
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
@@ -76,25 +82,39 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     metrics = (_ours if method["ours"] else _ompl)(oracle, spec, method, budget)
     # A run succeeds when its first solution came within the budget and its smoothed path passes the fine check.
     metrics["late"] = float(bool(metrics["solved"]) and metrics["seconds"] > budget)
-    metrics["success"] = float(bool(metrics["solved"]) and not metrics["late"]
-                               and bool(metrics.get("fine_check_passed", 0.0)))
+    metrics["success"] = float(
+        bool(metrics["solved"]) and not metrics["late"] and bool(metrics.get("fine_check_passed", 0.0))
+    )
     return metrics
 
 
 def _ours(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
     checks0, start = oracle.checks, time.perf_counter()
     try:
-        r = plan(oracle, PlanSettings(sampler=method["sampler"], step=spec.step, seed=spec.seed,
-                                      budget=Budget(seconds=budget), full_roadmap=method["full"]))
+        r = plan(
+            oracle,
+            PlanSettings(
+                sampler=method["sampler"],
+                step=spec.step,
+                seed=spec.seed,
+                budget=Budget(seconds=budget),
+                full_roadmap=method["full"],
+            ),
+        )
     except NoPath:
         return {"solved": 0.0, "seconds": time.perf_counter() - start, "checks": oracle.checks - checks0}
     smoothing, timing = r.checks["smoothing"], r.checks.get("timing", 0)
-    return {"solved": 1.0, "checks": r.collision_checks - smoothing - timing,
-            "seconds": r.seconds["total"] - r.seconds["smoothing"] - r.seconds.get("timing", 0.0),
-            "smoothing_checks": smoothing, "smoothing_seconds": r.seconds["smoothing"],
-            "raw_length": r.smoothing["raw_length"], "path_length": r.smoothing["length_after"],
-            # every edge of our planner's path has passed the fine check (its re-check is part of smoothing)
-            "fine_check_passed": 1.0}
+    return {
+        "solved": 1.0,
+        "checks": r.collision_checks - smoothing - timing,
+        "seconds": r.seconds["total"] - r.seconds["smoothing"] - r.seconds.get("timing", 0.0),
+        "smoothing_checks": smoothing,
+        "smoothing_seconds": r.seconds["smoothing"],
+        "raw_length": r.smoothing["raw_length"],
+        "path_length": r.smoothing["length_after"],
+        # every edge of our planner's path has passed the fine check (its re-check is part of smoothing)
+        "fine_check_passed": 1.0,
+    }
 
 
 def _ompl(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
@@ -106,8 +126,12 @@ def _ompl(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
         problem.use_sampler(sampler, **({} if sampler in OMPL_PRM_SAMPLERS else {"step": spec.step}))
     checks0, start = oracle.checks, time.perf_counter()
     solved = problem.solve(budget)
-    out = {"solved": float(solved), "seconds": time.perf_counter() - start, "checks": oracle.checks - checks0,
-           "space": problem.map.kind}
+    out = {
+        "solved": float(solved),
+        "seconds": time.perf_counter() - start,
+        "checks": oracle.checks - checks0,
+        "space": problem.map.kind,
+    }
     if not solved:
         return out
     raw = problem.solution_for_oracle()
@@ -120,9 +144,13 @@ def _ompl(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
     # Whether the first solution, before smoothing, would have passed: tells the planner's grazes from the
     # simplifier's. Both checks are ours, not OMPL's work: counted apart.
     raw_free = oracle.edges_free(raw[:-1], raw[1:], fine)
-    out.update(verify_checks=oracle.checks - checks0, fine_check_passed=float(free.all()),
-               raw_fine_check_passed=float(raw_free.all()), raw_length=path_length(oracle, raw),
-               path_length=path_length(oracle, path))
+    out.update(
+        verify_checks=oracle.checks - checks0,
+        fine_check_passed=float(free.all()),
+        raw_fine_check_passed=float(raw_free.all()),
+        raw_length=path_length(oracle, raw),
+        path_length=path_length(oracle, path),
+    )
     return out
 
 
@@ -131,8 +159,9 @@ def specs(scenes, methods, seeds, budget, step) -> list[TrialSpec]:
     for scene in scenes:
         a = step or default_step(Scene(scene))
         params = {"budget": budget, "protocol": PROTOCOL}
-        out.extend(TrialSpec("ompl", scene, method, a, seed, dict(params)) for method in methods
-                   for seed in range(seeds))
+        out.extend(
+            TrialSpec("ompl", scene, method, a, seed, dict(params)) for method in methods for seed in range(seeds)
+        )
     return out
 
 
@@ -155,21 +184,28 @@ def summarise(rows) -> list[dict]:
         won = [m for m in metrics if m["success"]]
         n, k = len(metrics), len(won)
         ci = binomtest(k, n).proportion_ci(confidence_level=0.95)
-        table.append({
-            "scene": scene, "method": method, "runs": n, "successes": k, "success_rate": k / n,
-            "success_ci": [float(ci.low), float(ci.high)],
-            "median_checks": _median([m["checks"] for m in won]),
-            "median_seconds": _median([m["seconds"] for m in won]),
-            "median_smoothing_checks": _median([m.get("smoothing_checks") for m in won]),
-            "median_path_length": _median([m.get("path_length") for m in won]),
-            "checks_spent": _median([m["checks"] for m in metrics]),
-            # a path found, but later than the budget, or failing our fine check after smoothing
-            "late": sum(1 for m in metrics if m.get("late")),
-            "failed_fine_check": sum(1 for m in metrics if m["solved"] and not m.get("fine_check_passed", 0.0)),
-            # of those, how many had a first solution (before smoothing) that passed it
-            "failed_fine_check_after_smoothing": sum(1 for m in metrics if m["solved"] and not m["fine_check_passed"]
-                                                     and m.get("raw_fine_check_passed")),
-        })
+        table.append(
+            {
+                "scene": scene,
+                "method": method,
+                "runs": n,
+                "successes": k,
+                "success_rate": k / n,
+                "success_ci": [float(ci.low), float(ci.high)],
+                "median_checks": _median([m["checks"] for m in won]),
+                "median_seconds": _median([m["seconds"] for m in won]),
+                "median_smoothing_checks": _median([m.get("smoothing_checks") for m in won]),
+                "median_path_length": _median([m.get("path_length") for m in won]),
+                "checks_spent": _median([m["checks"] for m in metrics]),
+                # a path found, but later than the budget, or failing our fine check after smoothing
+                "late": sum(1 for m in metrics if m.get("late")),
+                "failed_fine_check": sum(1 for m in metrics if m["solved"] and not m.get("fine_check_passed", 0.0)),
+                # of those, how many had a first solution (before smoothing) that passed it
+                "failed_fine_check_after_smoothing": sum(
+                    1 for m in metrics if m["solved"] and not m["fine_check_passed"] and m.get("raw_fine_check_passed")
+                ),
+            }
+        )
     return table
 
 
@@ -189,8 +225,12 @@ def compare(rows: list[dict], ours: str = OURS) -> dict:
     ratio = None
     if best is not None and mine is not None and best["median_checks"] and mine["median_checks"] is not None:
         ratio = mine["median_checks"] / best["median_checks"]
-    return {"ours": ours, "best_ompl": best["method"] if best is not None else None, "checks_ratio": ratio,
-            "rule": "best OMPL method: most successes, ties broken by fewer median checks to the first solution"}
+    return {
+        "ours": ours,
+        "best_ompl": best["method"] if best is not None else None,
+        "checks_ratio": ratio,
+        "rule": "best OMPL method: most successes, ties broken by fewer median checks to the first solution",
+    }
 
 
 def motion_checks(scene: str, methods: list[str], edges: int = 200) -> list[dict]:
@@ -211,8 +251,9 @@ def motion_checks(scene: str, methods: list[str], edges: int = 200) -> list[dict
     return out
 
 
-def measure(scenes: list[str], methods: list[str], seeds: int, budget: float, step: float | None, store,
-            workers: int = 1) -> dict:
+def measure(
+    scenes: list[str], methods: list[str], seeds: int, budget: float, step: float | None, store, workers: int = 1
+) -> dict:
     """Every scene x method for seeds 0..seeds-1 on `budget` seconds each (trials `store` lacks are run).
 
     Returns {"scenes": [{"scene", "methods": summarise rows in `methods` order, "comparison": compare(...),
@@ -230,8 +271,14 @@ def measure(scenes: list[str], methods: list[str], seeds: int, budget: float, st
     for scene in scenes:
         cells = {r["method"]: r for r in table if r["scene"] == scene}
         ordered = [cells[m] for m in methods if m in cells]
-        out.append({"scene": scene, "methods": ordered, "comparison": compare(ordered),
-                    "motion_checks": motion_checks(scene, methods)})
+        out.append(
+            {
+                "scene": scene,
+                "methods": ordered,
+                "comparison": compare(ordered),
+                "motion_checks": motion_checks(scene, methods),
+            }
+        )
     return {"scenes": out, "budget_seconds": budget, "seeds": seeds}
 
 
@@ -256,8 +303,12 @@ def figure(report: dict, path: str) -> None:
         if m.startswith("ours:"):
             style[m] = {"marker": "*", "color": "tab:red" if m == OURS else "tab:orange", "ms": 15, "zorder": 5}
         else:
-            style[m] = {"marker": next(ompl_markers, "o"), "color": f"C{[0, 2, 4, 5, 6, 7, 8, 9, 1, 3][i % 10]}",
-                        "ms": 8, "zorder": 3}
+            style[m] = {
+                "marker": next(ompl_markers, "o"),
+                "color": f"C{[0, 2, 4, 5, 6, 7, 8, 9, 1, 3][i % 10]}",
+                "ms": 8,
+                "zorder": 3,
+            }
     cols = min(5, len(scenes))
     rows = -(-len(scenes) // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.3 * cols, 3.0 * rows), squeeze=False)
@@ -270,11 +321,20 @@ def figure(report: dict, path: str) -> None:
                 continue
             y = r["success_rate"]
             err = [[y - r["success_ci"][0]], [r["success_ci"][1] - y]]
-            ax.errorbar([x], [y], yerr=err, fmt="none", ecolor=st["color"], alpha=0.5, capsize=2,
-                        zorder=st["zorder"] - 1)
-            ax.plot([x], [y], linestyle="none", marker=st["marker"], ms=st["ms"], color=st["color"],
-                    markerfacecolor=st["color"] if solved else "none", markeredgecolor=st["color"],
-                    zorder=st["zorder"])
+            ax.errorbar(
+                [x], [y], yerr=err, fmt="none", ecolor=st["color"], alpha=0.5, capsize=2, zorder=st["zorder"] - 1
+            )
+            ax.plot(
+                [x],
+                [y],
+                linestyle="none",
+                marker=st["marker"],
+                ms=st["ms"],
+                color=st["color"],
+                markerfacecolor=st["color"] if solved else "none",
+                markeredgecolor=st["color"],
+                zorder=st["zorder"],
+            )
         ax.set_xscale("log")
         ax.set_ylim(-0.08, 1.08)
         ax.margins(x=0.25)
@@ -287,18 +347,37 @@ def figure(report: dict, path: str) -> None:
         ax.set_title(title, fontsize=9)
         ax.grid(alpha=0.3, which="both")
         ax.tick_params(labelsize=8)
-    for ax in axes.flat[len(scenes):]:
+    for ax in axes.flat[len(scenes) :]:
         ax.set_visible(False)
     for ax in axes[:, 0]:
         ax.set_ylabel("success rate", fontsize=9)
     for ax in axes[-1, :]:
         ax.set_xlabel("median checks to first solution", fontsize=9)
-    handles = [Line2D([], [], linestyle="none", marker=style[m]["marker"], color=style[m]["color"],
-                      ms=min(style[m]["ms"], 11), label=m) for m in methods]
-    fig.legend(handles=handles, loc="lower center", ncol=min(len(methods), 6), fontsize=9, frameon=False,
-               bbox_to_anchor=(0.5, -0.02))
-    fig.suptitle(f"{report['seeds']} runs per method, {report['budget_seconds']:g} s budget each; bars: 95 % binomial "
-                 f"interval; hollow: no successful run (x: median checks spent)\npanel titles: our median checks over the "
-                 f"best OMPL planner's (most successes, then fewer checks)", fontsize=9)
+    handles = [
+        Line2D(
+            [],
+            [],
+            linestyle="none",
+            marker=style[m]["marker"],
+            color=style[m]["color"],
+            ms=min(style[m]["ms"], 11),
+            label=m,
+        )
+        for m in methods
+    ]
+    fig.legend(
+        handles=handles,
+        loc="lower center",
+        ncol=min(len(methods), 6),
+        fontsize=9,
+        frameon=False,
+        bbox_to_anchor=(0.5, -0.02),
+    )
+    fig.suptitle(
+        f"{report['seeds']} runs per method, {report['budget_seconds']:g} s budget each; bars: 95 % binomial "
+        f"interval; hollow: no successful run (x: median checks spent)\npanel titles: our median checks over the "
+        f"best OMPL planner's (most successes, then fewer checks)",
+        fontsize=9,
+    )
     fig.tight_layout(rect=(0, 0.06 + 0.02 * (len(methods) > 6), 1, 1))
     save(fig, path)

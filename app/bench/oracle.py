@@ -4,6 +4,7 @@ Raw, 1-thread and 2-thread runs are interleaved per repeat so machine noise hits
 the repeats counts. The raw loop is what a user would write by hand: set positions, evaluate the query port, ask
 (`CollisionOracle.query_object` does the first two, on the oracle's policy context).
 """
+
 import time
 
 import numpy as np
@@ -42,9 +43,17 @@ def bench_oracle(scene_names: list[str], n: int, repeats: int, seed: int) -> lis
             times["one"].append(t_one)
             times["two"].append(t_two)
         med = {k: float(np.median(v)) for k, v in times.items()}
-        rows.append({
-            "scene": name, "configurations": n, "repeats": repeats, "free_fraction": float(raw.mean()),
-            "raw_per_s": n / med["raw"], "oracle_1_per_s": n / med["one"], "oracle_2_per_s": n / med["two"],
-            "ratio_1": med["raw"] / med["one"], "ratio_2": med["raw"] / med["two"],
-        })
+        rows.append(
+            {
+                "scene": name,
+                "configurations": n,
+                "repeats": repeats,
+                "free_fraction": float(raw.mean()),
+                "raw_per_s": n / med["raw"],
+                "oracle_1_per_s": n / med["one"],
+                "oracle_2_per_s": n / med["two"],
+                "ratio_1": med["raw"] / med["one"],
+                "ratio_2": med["raw"] / med["two"],
+            }
+        )
     return rows

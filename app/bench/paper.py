@@ -15,6 +15,7 @@ run started again with the same options skips every stored trial):
 The report is built from the store alone (`--report-only` rebuilds it without running anything): the claims C1-C5
 judged by `app.bench.claims.judge`, markdown tables, and PNG figures next to report.md.
 """
+
 from __future__ import annotations
 
 import os
@@ -46,9 +47,11 @@ UR3_SAMPLERS = ["lfbs", "rbbs"]
 # The paper: 200 LFBS samples, a 100-node PRM, built whole before the query.
 UR3_SIZE = {"narrow": 200, "uniform": 100, "budget": 30.0, "full_roadmap": True}
 PICTURE_STEPS = {"bar": 2.0, "joint": 10.0, "joint3d": 10.0, "teeth3d": 10.0}  # the paper's Figs. 3, 5, 6
-PAPER_TABLE1 = {"bar-3link": [6.9561, 6.1784, 6.3532, 6.4736, 6.8388],
-                "bar-5link": [7.4344, 7.60037, 7.9361, 9.9487, 12.005],
-                "bar": [10.923, 9.3731, 9.5287, 12.665, 17.128]}  # RBBS t_eps (s) at steps 2, 5, 10, 15, 20
+PAPER_TABLE1 = {
+    "bar-3link": [6.9561, 6.1784, 6.3532, 6.4736, 6.8388],
+    "bar-5link": [7.4344, 7.60037, 7.9361, 9.9487, 12.005],
+    "bar": [10.923, 9.3731, 9.5287, 12.665, 17.128],
+}  # RBBS t_eps (s) at steps 2, 5, 10, 15, 20
 PAPER_UR3 = {"welding": 233.0, "window": 253.0}  # LFBS-PRM, average seconds
 
 
@@ -68,27 +71,47 @@ class Config:
 
 # ----------------------------------------------------------------------------------------------------- the sweeps
 
+
 def sampling_specs(scenes, samplers, steps, trials, k=30, max_checks=200_000) -> list[TrialSpec]:
     params = {"k": int(k), "max_checks": int(max_checks)}
-    return [TrialSpec("sampling", scene, sampler, float(step), seed, dict(params))
-            for scene in scenes for sampler in samplers for step in steps for seed in range(trials)]
+    return [
+        TrialSpec("sampling", scene, sampler, float(step), seed, dict(params))
+        for scene in scenes
+        for sampler in samplers
+        for step in steps
+        for seed in range(trials)
+    ]
 
 
 def ur3_specs(runs: int) -> list[TrialSpec]:
     steps = {job: default_step(Scene(job)) for job in UR3_JOBS}
-    return [TrialSpec("ur3", job, sampler, steps[job], seed, dict(UR3_SIZE))
-            for job in UR3_JOBS for sampler in UR3_SAMPLERS for seed in range(runs)]
+    return [
+        TrialSpec("ur3", job, sampler, steps[job], seed, dict(UR3_SIZE))
+        for job in UR3_JOBS
+        for sampler in UR3_SAMPLERS
+        for seed in range(runs)
+    ]
 
 
 def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
     """Every sweep's specs, in a fixed order: the same options always give the same list (and keys)."""
     out = []
     if "sampling" in config.parts:
-        out.append(("sampling", sampling_specs(config.scenes, config.samplers, config.steps, config.trials,
-                                               config.k, config.max_checks)))
+        out.append(
+            (
+                "sampling",
+                sampling_specs(
+                    config.scenes, config.samplers, config.steps, config.trials, config.k, config.max_checks
+                ),
+            )
+        )
     if "table1" in config.parts:
-        out.append(("table1", sampling_specs(TABLE1_SCENES, TABLE1_METHODS, config.steps, config.trials, config.k,
-                                             config.max_checks)))
+        out.append(
+            (
+                "table1",
+                sampling_specs(TABLE1_SCENES, TABLE1_METHODS, config.steps, config.trials, config.k, config.max_checks),
+            )
+        )
     if "prm" in config.parts:
         out.append(("prm", uav.specs(config.prm_seeds)))  # the maze/tunnel cells of `bench uav`
     if "ur3" in config.parts:
@@ -97,6 +120,7 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
 
 
 # --------------------------------------------------------------------------------------------------- the report
+
 
 def _sampling_rows(rows) -> list[dict]:
     """Store rows of experiment "sampling" in the shape `sampling.summarise` reads."""
@@ -142,8 +166,10 @@ def machine() -> list[str]:
         drake = version("drake")
     except Exception:  # noqa: BLE001 - a report line, never a failure
         drake = "unknown"
-    return [f"{platform.node()}: {platform.system()} {platform.release()}, {cpu}, {os.cpu_count()} cores",
-            f"Python {sys.version.split()[0]}, Drake {drake}, numpy {np.__version__}"]
+    return [
+        f"{platform.node()}: {platform.system()} {platform.release()}, {cpu}, {os.cpu_count()} cores",
+        f"Python {sys.version.split()[0]}, Drake {drake}, numpy {np.__version__}",
+    ]
 
 
 def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[tuple[str, list[tuple[str, str]]]]:
@@ -159,8 +185,9 @@ def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[
             r = sampling.run_trial(oracle, sampler, step, 0, k=30, max_checks=max_checks, keep_samples=True)
             name = f"samples-{scene}-{sampler}.png"
             note = "" if r["ok"] else f" — over the {max_checks}-check budget, no samples"
-            draw_samples(oracle, r["samples"], str(folder / name),
-                         title=f"{scene}: {sampler}, step {step:g}, seed 0{note}")
+            draw_samples(
+                oracle, r["samples"], str(folder / name), title=f"{scene}: {sampler}, step {step:g}, seed 0{note}"
+            )
             pictures.append((f"{sampler}{note}", name))
         out.append((f"{scene} (step {step:g})", pictures))
     return out
@@ -196,8 +223,13 @@ def _figure_prm(table: list[dict], path: Path) -> None:
     save(fig, str(path))
 
 
-def build_report(store: ResultStore, folder: Path, config: Config | None = None, pictures: bool = True,
-                 wall_seconds: float | None = None) -> Path:
+def build_report(
+    store: ResultStore,
+    folder: Path,
+    config: Config | None = None,
+    pictures: bool = True,
+    wall_seconds: float | None = None,
+) -> Path:
     """report.md and its figures from what the store holds (every row of every experiment in it)."""
     folder = Path(folder)
     rows = store.rows()
@@ -216,43 +248,60 @@ def build_report(store: ResultStore, folder: Path, config: Config | None = None,
     return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
 
 
-def _overview_section(store: ResultStore, rows, folder: Path, config: Config | None,
-                      wall_seconds: float | None) -> list[str]:
+def _overview_section(
+    store: ResultStore, rows, folder: Path, config: Config | None, wall_seconds: float | None
+) -> list[str]:
     """Title, then the machine, the code versions and trial counts in the store, and this invocation's options."""
     lines = ["# Levy-flight narrow-passage PRM: the paper's Section IV, reproduced", ""]
-    lines += [f"Generated {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())} from `{store.path.name}` "
-              f"({len(rows)} trials). Rebuild with `python -m app bench paper --out {folder} --report-only`.", ""]
+    lines += [
+        f"Generated {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())} from `{store.path.name}` "
+        f"({len(rows)} trials). Rebuild with `python -m app bench paper --out {folder} --report-only`.",
+        "",
+    ]
     by_experiment = {}
     for r in rows:
         by_experiment[r["experiment"]] = by_experiment.get(r["experiment"], 0) + 1
     versions = sorted({r["code_version"] for r in rows})
     lines += ["## Machine, code, trials", ""]
     lines += [f"- Machine: {m}" for m in machine()]
-    lines += [f"- Code version(s) of the stored trials: {', '.join(f'`{v}`' for v in versions) or '–'}",
-              "- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items()))
-                                              or "none")]
+    lines += [
+        f"- Code version(s) of the stored trials: {', '.join(f'`{v}`' for v in versions) or '–'}",
+        "- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items())) or "none"),
+    ]
     if config is not None:
-        lines += [f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per "
-                  f"sampling cell, steps {', '.join(f'{a:g}' for a in config.steps)}, K_c = {config.k}, check budget "
-                  f"{config.max_checks} per sampling trial, {config.prm_seeds} seeds per PRM cell, "
-                  f"{config.ur3_runs} run(s) per UR3 job and sampler; parts: {', '.join(config.parts)}"]
+        lines += [
+            f"- Options of this invocation{' (--quick)' if config.quick else ''}: {config.trials} trials per "
+            f"sampling cell, steps {', '.join(f'{a:g}' for a in config.steps)}, K_c = {config.k}, check budget "
+            f"{config.max_checks} per sampling trial, {config.prm_seeds} seeds per PRM cell, "
+            f"{config.ur3_runs} run(s) per UR3 job and sampler; parts: {', '.join(config.parts)}"
+        ]
     if wall_seconds is not None:
         lines.append(f"- Wall time of this run's sweeps: {wall_seconds:.0f} s")
     if config is not None and config.quick:
-        lines.append("- **Quick run**: a handful of trials per cell. The verdicts below show the pipeline works; "
-                     "with so few trials most comparisons cannot reach significance, so they are not conclusive.")
-    lines += ["- Timings come from trials run side by side on the worker processes; they compare samplers "
-              "measured alike, not absolute speeds.", ""]
+        lines.append(
+            "- **Quick run**: a handful of trials per cell. The verdicts below show the pipeline works; "
+            "with so few trials most comparisons cannot reach significance, so they are not conclusive."
+        )
+    lines += [
+        "- Timings come from trials run side by side on the worker processes; they compare samplers "
+        "measured alike, not absolute speeds.",
+        "",
+    ]
     return lines
 
 
 def _claims_section(rows) -> list[str]:
     """The verdict table of claims C1-C5, then each claim's evidence."""
-    lines = ["## Claims", "",
-             f"Each claim is a set of comparisons; one holds when the medians point the claimed way and, for "
-             f"distributions, a one-sided Mann-Whitney U test agrees at the {ALPHA:g} level. All hold: reproduced; "
-             "none: not reproduced; some: partly; no rows: no data (`app/bench/claims.py`).", "",
-             "| claim | verdict | statement |", "|---|---|---|"]
+    lines = [
+        "## Claims",
+        "",
+        f"Each claim is a set of comparisons; one holds when the medians point the claimed way and, for "
+        f"distributions, a one-sided Mann-Whitney U test agrees at the {ALPHA:g} level. All hold: reproduced; "
+        "none: not reproduced; some: partly; no rows: no data (`app/bench/claims.py`).",
+        "",
+        "| claim | verdict | statement |",
+        "|---|---|---|",
+    ]
     verdicts = judge(rows)
     lines += [f"| {v.claim} | **{v.verdict}** | {v.text} |" for v in verdicts]
     lines.append("")
@@ -266,20 +315,29 @@ def _claims_section(rows) -> list[str]:
 def _sampling_section(srows: list[dict], summary: list[dict], folder: Path) -> list[str]:
     """Per scene, a table of the sampling metrics per sampler and step, and their figure (drawn into `folder`)."""
     censored = sum(bool(r["censored"]) for r in srows)
-    lines = ["## Sampling experiment (Figs. 4 and 7)", "",
-             f"{len(srows)} trials of K_c samples each; {censored} of them spent their collision-check budget "
-             "(censored): for those t_eps and gamma_c are lower bounds (marked ≥ where any trial in the cell was "
-             "censored) and they have no passage fraction. Cells: median [2.5 %, 97.5 % of trials].", ""]
+    lines = [
+        "## Sampling experiment (Figs. 4 and 7)",
+        "",
+        f"{len(srows)} trials of K_c samples each; {censored} of them spent their collision-check budget "
+        "(censored): for those t_eps and gamma_c are lower bounds (marked ≥ where any trial in the cell was "
+        "censored) and they have no passage fraction. Cells: median [2.5 %, 97.5 % of trials].",
+        "",
+    ]
     for scene in dict.fromkeys(s["scene"] for s in summary):
         cells = [s for s in summary if s["scene"] == scene]
-        lines += [f"### {scene}", "",
-                  "| sampler | step | trials | censored | t_eps s | gamma_c | passage fraction |",
-                  "|---|---:|---:|---:|---|---|---|"]
+        lines += [
+            f"### {scene}",
+            "",
+            "| sampler | step | trials | censored | t_eps s | gamma_c | passage fraction |",
+            "|---|---:|---:|---:|---|---|---|",
+        ]
         for s in cells:
             mark = "≥" if s["censored"] else ""
-            lines.append(f"| {s['sampler']} | {s['step']:g} | {s['trials']} | {s['censored']} | "
-                         f"{_interval(s, 'seconds', 3, mark)} | {_interval(s, 'collision_checks', 4, mark)} | "
-                         f"{_interval(s, 'passage_fraction', 2)} |")
+            lines.append(
+                f"| {s['sampler']} | {s['step']:g} | {s['trials']} | {s['censored']} | "
+                f"{_interval(s, 'seconds', 3, mark)} | {_interval(s, 'collision_checks', 4, mark)} | "
+                f"{_interval(s, 'passage_fraction', 2)} |"
+            )
         name = f"sampling-{scene}.png"
         sampling.figure(cells, str(folder / name))
         lines += ["", f"![{scene}: metrics vs step]({name})", ""]
@@ -288,15 +346,23 @@ def _sampling_section(srows: list[dict], summary: list[dict], folder: Path) -> l
 
 def _table1_section(summary: list[dict]) -> list[str]:
     """The paper's Table 1: median t_eps per bar scene and step for RBBS and LFBS, the paper's RBBS values beside."""
-    lines = ["## Table 1: t_eps (s) vs step, bar scenes", "",
-             "Median t_eps over trials (≥: some trials censored at the check budget, so a lower bound); the "
-             "paper's RBBS values in brackets.", ""]
+    lines = [
+        "## Table 1: t_eps (s) vs step, bar scenes",
+        "",
+        "Median t_eps over trials (≥: some trials censored at the check budget, so a lower bound); the "
+        "paper's RBBS values in brackets.",
+        "",
+    ]
     steps = sorted({s["step"] for s in summary if s["scene"] in TABLE1_SCENES})
     if not steps:
         return lines + ["No rows.", ""]
     for method in TABLE1_METHODS:
-        lines += [f"**{method.upper()}**", "", "| scene | " + " | ".join(f"a={a:g}" for a in steps) + " |",
-                  "|---|" + "---:|" * len(steps)]
+        lines += [
+            f"**{method.upper()}**",
+            "",
+            "| scene | " + " | ".join(f"a={a:g}" for a in steps) + " |",
+            "|---|" + "---:|" * len(steps),
+        ]
         for scene in TABLE1_SCENES:
             cells = {s["step"]: s for s in summary if s["scene"] == scene and s["sampler"] == method}
             if not cells:
@@ -315,8 +381,12 @@ def _table1_section(summary: list[dict]) -> list[str]:
 
 def _pictures_section(config: Config, folder: Path) -> list[str]:
     """One seed's samples per scene and sampler of this invocation, drawn into `folder` (not read from the store)."""
-    lines = ["## Sample pictures (Figs. 3, 5, 6)", "",
-             "Seed 0, K_c = 30 samples (red: in the passage). bar at step 2, the others at step 10.", ""]
+    lines = [
+        "## Sample pictures (Figs. 3, 5, 6)",
+        "",
+        "Seed 0, K_c = 30 samples (red: in the passage). bar at step 2, the others at step 10.",
+        "",
+    ]
     for title, items in _figure_sample_pictures(config.scenes, config.samplers, config.max_checks, folder):
         lines += [f"### {title}", ""]
         lines += [f"![{label}]({name})" for label, name in items]
@@ -331,19 +401,22 @@ def _prm_section(rows, folder: Path) -> list[str]:
     if not prm_rows:
         return lines + ["No rows.", ""]
     table = uav.table(prm_rows)
-    lines += ["The whole roadmap, every edge checked, k = 10 (maze 200 narrow + 300 uniform, tunnel 100 + 200). "
-              "t_eps = sampling time (successful runs), T_PRM = whole plan; medians; paper seconds in brackets.",
-              "",
-              "| scene | step | sampler | runs | success | t_eps s | T_PRM s | checks |",
-              "|---|---:|---|---:|---:|---:|---:|---:|"]
+    lines += [
+        "The whole roadmap, every edge checked, k = 10 (maze 200 narrow + 300 uniform, tunnel 100 + 200). "
+        "t_eps = sampling time (successful runs), T_PRM = whole plan; medians; paper seconds in brackets.",
+        "",
+        "| scene | step | sampler | runs | success | t_eps s | T_PRM s | checks |",
+        "|---|---:|---|---:|---:|---:|---:|---:|",
+    ]
     for r in table:
         paper = uav.PAPER_SECONDS.get((r["scene"], r["step"]))
-        pe, pt = ((paper[0], paper[1]) if r["sampler"] == "lfbs" else (paper[2], paper[3])) if paper else \
-            (None, None)
+        pe, pt = ((paper[0], paper[1]) if r["sampler"] == "lfbs" else (paper[2], paper[3])) if paper else (None, None)
         eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "–"
-        lines.append(f"| {r['scene']} | {r['step']:g} | {r['sampler']} | {r['runs']} | "
-                     f"{r['success_rate']:.0%} | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
-                     f"{r['median_checks']:.0f} |")
+        lines.append(
+            f"| {r['scene']} | {r['step']:g} | {r['sampler']} | {r['runs']} | "
+            f"{r['success_rate']:.0%} | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
+            f"{r['median_checks']:.0f} |"
+        )
     _figure_prm(table, folder / "prm.png")
     return lines + ["", "![PRM success and time](prm.png)", ""]
 
@@ -354,18 +427,23 @@ def _ur3_section(rows) -> list[str]:
     ur3 = jobs.table(rows)
     if not ur3:
         return lines + ["No rows.", ""]
-    lines += [f"`app.runs.run_job`: IK for the route's poses, then each leg straight or by PRM "
-              f"(a full roadmap of {UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples, "
-              f"{UR3_SIZE['budget']:g} s per leg). Medians over successful runs; the paper's LFBS average in "
-              "brackets (Gazebo/MoveIt set-up, step 0.5).", "",
-              "| job | sampler | roadmap | runs | success | total s | IK s | planning s | checks |",
-              "|---|---|---|---:|---:|---:|---:|---:|---:|"]
+    lines += [
+        f"`app.runs.run_job`: IK for the route's poses, then each leg straight or by PRM "
+        f"(a full roadmap of {UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples, "
+        f"{UR3_SIZE['budget']:g} s per leg). Medians over successful runs; the paper's LFBS average in "
+        "brackets (Gazebo/MoveIt set-up, step 0.5).",
+        "",
+        "| job | sampler | roadmap | runs | success | total s | IK s | planning s | checks |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
     for r in ur3:
         paper = f" ({PAPER_UR3[r['job']]:g})" if r["sampler"] == "lfbs" and r["job"] in PAPER_UR3 else ""
-        lines.append(f"| {r['job']} | {r['sampler']} | {r['roadmap']} | {r['runs']} | "
-                     f"{r['successes']}/{r['runs']} | "
-                     f"{_fmt(r['median_total'])}{paper} | {_fmt(r['median_ik'])} | "
-                     f"{_fmt(r['median_planning'])} | {r['median_checks']:.0f} |")
+        lines.append(
+            f"| {r['job']} | {r['sampler']} | {r['roadmap']} | {r['runs']} | "
+            f"{r['successes']}/{r['runs']} | "
+            f"{_fmt(r['median_total'])}{paper} | {_fmt(r['median_ik'])} | "
+            f"{_fmt(r['median_planning'])} | {r['median_checks']:.0f} |"
+        )
     return lines + [""]
 
 

@@ -6,6 +6,7 @@ rows go to the results store (`experiment` "prm"), so a killed run resumes and t
 `run_trial_spec` also serves other benchmarks: params {"mode": "budget", "budget": seconds} plans in rounds until
 connected or out of time (as `plan --budget 30s`).
 """
+
 import time
 
 import numpy as np
@@ -20,8 +21,12 @@ from app.scene import Scene
 COMPARED_SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]  # the default of `bench plan --samplers`
 MODES = {"query": False, "full": True}  # roadmap mode -> plan(full_roadmap=...)
 # What a plain `plan` does: the same roadmap size, k (None: k-PRM*) and smoothing.
-SIZE = {"narrow": PlanSettings.narrow, "uniform": PlanSettings.uniform, "k": PlanSettings.k,
-        "smooth": PlanSettings.smooth_rounds}
+SIZE = {
+    "narrow": PlanSettings.narrow,
+    "uniform": PlanSettings.uniform,
+    "k": PlanSettings.k,
+    "smooth": PlanSettings.smooth_rounds,
+}
 
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
@@ -29,29 +34,58 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     p = spec.params
     # Without a budget of its own a trial has the planner's default; the paper's fixed roadmap is not cut short.
     full_roadmap = bool(p.get("full_roadmap", True))
-    budget = (Budget(seconds=float(p["budget"])) if p.get("mode") == "budget"
-              else Budget() if full_roadmap else DEFAULT_BUDGET)
+    budget = (
+        Budget(seconds=float(p["budget"]))
+        if p.get("mode") == "budget"
+        else Budget()
+        if full_roadmap
+        else DEFAULT_BUDGET
+    )
     narrow = int(p.get("narrow", SIZE["narrow"]))
     uniform = int(p.get("uniform", SIZE["uniform"]))
     if spec.method == "uniform":  # the same roadmap size, all of it uniform
         narrow, uniform = 0, narrow + uniform
     checks0, start = oracle.checks, time.perf_counter()
     try:
-        r = plan(oracle, PlanSettings(sampler=spec.method, narrow=narrow, uniform=uniform, step=spec.step,
-                                      seed=spec.seed, budget=budget, k=p.get("k", SIZE["k"]),
-                                      smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
-                                      full_roadmap=full_roadmap))
+        r = plan(
+            oracle,
+            PlanSettings(
+                sampler=spec.method,
+                narrow=narrow,
+                uniform=uniform,
+                step=spec.step,
+                seed=spec.seed,
+                budget=budget,
+                k=p.get("k", SIZE["k"]),
+                smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
+                full_roadmap=full_roadmap,
+            ),
+        )
     except NoPath as exc:
         d = getattr(exc, "details", {})
-        return {"success": 0.0, "seconds": time.perf_counter() - start, "seconds_to_path": None,
-                "collision_checks": oracle.checks - checks0, "nodes": d.get("roadmap", {}).get("nodes"),
-                "components": d.get("roadmap", {}).get("components"), "rounds": d.get("rounds")}
+        return {
+            "success": 0.0,
+            "seconds": time.perf_counter() - start,
+            "seconds_to_path": None,
+            "collision_checks": oracle.checks - checks0,
+            "nodes": d.get("roadmap", {}).get("nodes"),
+            "components": d.get("roadmap", {}).get("components"),
+            "rounds": d.get("rounds"),
+        }
     s = r.seconds
-    return {"success": 1.0, "seconds": s["total"], "seconds_sampling": s["sampling"],
-            "seconds_to_path": s["sampling"] + s["roadmap"] + s["search"],
-            "collision_checks": r.collision_checks, "nodes": r.roadmap["nodes"],
-            "components": r.roadmap["components"], "rounds": r.rounds, "narrow_on_path": r.narrow_on_path,
-            "path_length": r.smoothing["length_after"], "duration": r.trajectory.duration}
+    return {
+        "success": 1.0,
+        "seconds": s["total"],
+        "seconds_sampling": s["sampling"],
+        "seconds_to_path": s["sampling"] + s["roadmap"] + s["search"],
+        "collision_checks": r.collision_checks,
+        "nodes": r.roadmap["nodes"],
+        "components": r.roadmap["components"],
+        "rounds": r.rounds,
+        "narrow_on_path": r.narrow_on_path,
+        "path_length": r.smoothing["length_after"],
+        "duration": r.trajectory.duration,
+    }
 
 
 def specs(scenes, samplers, seeds, params, step) -> list[TrialSpec]:
@@ -74,12 +108,20 @@ def summarise(rows) -> list[dict]:
         checks = np.array([m["collision_checks"] for m in metrics])
         to_path = np.array([m["seconds_to_path"] for m in metrics if m["success"]])
         narrow = np.array([m["narrow_on_path"] for m in metrics if m["success"]])
-        table.append({"scene": scene, "sampler": method, "roadmap": mode, "runs": len(metrics),
-                      "successes": int(ok.sum()),
-                      "success_rate": float(ok.mean()), "median_seconds": float(np.median(seconds)),
-                      "median_seconds_to_path": float(np.median(to_path)) if ok.any() else None,
-                      "median_checks": float(np.median(checks)),
-                      "median_narrow_on_path": float(np.median(narrow)) if ok.any() else None})
+        table.append(
+            {
+                "scene": scene,
+                "sampler": method,
+                "roadmap": mode,
+                "runs": len(metrics),
+                "successes": int(ok.sum()),
+                "success_rate": float(ok.mean()),
+                "median_seconds": float(np.median(seconds)),
+                "median_seconds_to_path": float(np.median(to_path)) if ok.any() else None,
+                "median_checks": float(np.median(checks)),
+                "median_narrow_on_path": float(np.median(narrow)) if ok.any() else None,
+            }
+        )
     return table
 
 
@@ -92,8 +134,16 @@ def trial_params(narrow: int, uniform: int, k: int | None, smooth: int, budget: 
     return params
 
 
-def measure(scenes: list[str], samplers: list[str], seeds: int, params: dict, store, modes=("query",),
-            step: float | None = None, workers: int = 1) -> list[dict]:
+def measure(
+    scenes: list[str],
+    samplers: list[str],
+    seeds: int,
+    params: dict,
+    store,
+    modes=("query",),
+    step: float | None = None,
+    workers: int = 1,
+) -> list[dict]:
     """The plan trials (`trial_params`) of every scene x sampler x roadmap mode (`MODES`) for seeds 0..seeds-1 that
     `store` lacks, then the summary of exactly these trials: one row per scene x sampler x mode, in that order."""
     todo = []

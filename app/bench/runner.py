@@ -6,6 +6,7 @@ the parallelism is across processes. With one worker, trials run in this process
 as a plain `plan` would. Only trials the store does not hold yet are sent; rows are stored as they
 come back, so a killed sweep resumes where it stopped.
 """
+
 import importlib
 import multiprocessing
 import os
@@ -17,6 +18,7 @@ from app.bench.store import ResultStore, TrialSpec
 from app.errors import UserError
 from app.oracle import CollisionOracle, default_threads
 from app.scene import Scene
+
 # Dask (optional) is imported only for a sweep sent to a scheduler.
 
 # experiment name -> "module:function" taking (oracle, spec) and returning a dict of metrics.
@@ -58,8 +60,9 @@ def connect(scheduler):
         raise UserError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
 
 
-def run_sweep(specs: list[TrialSpec], store: ResultStore, workers: int = 0, scheduler=None,
-              desc: str = "trials") -> int:
+def run_sweep(
+    specs: list[TrialSpec], store: ResultStore, workers: int = 0, scheduler=None, desc: str = "trials"
+) -> int:
     """Run the specs the store lacks; returns how many ran. workers=0: all local cores. `scheduler`: a Dask
     scheduler address or a client from `connect` (connect first to fail before anything is written)."""
     pending = store.pending(specs)

@@ -5,6 +5,7 @@ collision checks gamma_c, the fraction of samples in the scene's passage, and wh
 (environment, the robot itself, both, neither, within `margin`). `run_trial` is one such trial and returns a plain
 row, so a process pool or a results store can run and keep the same trials.
 """
+
 from __future__ import annotations
 
 import time
@@ -32,8 +33,17 @@ def sits_between(oracle, samples: np.ndarray, margin: float) -> dict[str, float]
     return {key: value / n for key, value in counts.items()}
 
 
-def run_trial(oracle, sampler_name: str, step: float, seed: int, k: int = 30, margin: float | None = None,
-              max_checks: int | None = None, keep_samples: bool = False, **params) -> dict:
+def run_trial(
+    oracle,
+    sampler_name: str,
+    step: float,
+    seed: int,
+    k: int = 30,
+    margin: float | None = None,
+    max_checks: int | None = None,
+    keep_samples: bool = False,
+    **params,
+) -> dict:
     """One trial: k samples from `sampler_name` at `step` with seed `seed`, and what they cost and where they are.
 
     A trial that exhausts its check budget returns ok=False with the checks it spent (a censored value).
@@ -50,10 +60,17 @@ def run_trial(oracle, sampler_name: str, step: float, seed: int, k: int = 30, ma
         samples, ok = np.empty((0, oracle.space.dim)), False
     seconds = time.perf_counter() - start
     row = {
-        "scene": oracle.scene.name, "sampler": sampler_name, "step": float(step), "seed": int(seed), "k": int(k),
-        "ok": ok, "seconds": seconds, "collision_checks": int(oracle.checks - before),
+        "scene": oracle.scene.name,
+        "sampler": sampler_name,
+        "step": float(step),
+        "seed": int(seed),
+        "k": int(k),
+        "ok": ok,
+        "seconds": seconds,
+        "collision_checks": int(oracle.checks - before),
         "passage_fraction": float(oracle.in_passage(samples).mean()) if len(samples) else float("nan"),
-        "gave_up": int(sampler.stats.get("gave_up", 0)), "attempts": int(sampler.stats.get("attempts", 0)),
+        "gave_up": int(sampler.stats.get("gave_up", 0)),
+        "attempts": int(sampler.stats.get("attempts", 0)),
     }
     if margin is not None and len(samples):
         row.update({f"near_{key}": v for key, v in sits_between(oracle, samples, margin).items()})
@@ -76,8 +93,16 @@ def run_trial_spec(oracle, spec) -> dict:
     margin = p.get("margin")
     margin = 2 * oracle.space.resolution if margin is None else float(margin)
     oracle.reset()
-    row = run_trial(oracle, spec.method, spec.step, spec.seed, k=int(p.get("k", 30)), margin=margin,
-                    max_checks=p.get("max_checks"), keep_samples=True)
+    row = run_trial(
+        oracle,
+        spec.method,
+        spec.step,
+        spec.seed,
+        k=int(p.get("k", 30)),
+        margin=margin,
+        max_checks=p.get("max_checks"),
+        keep_samples=True,
+    )
     samples = np.round(np.asarray(row.pop("samples"), float), 9)
     row.pop("bridges", None)
     row["sample_checksum"] = hashlib.sha256(samples.tobytes()).hexdigest()[:16] if len(samples) else None
@@ -94,8 +119,13 @@ def summarise(rows: list[dict]) -> list[dict]:
         cells.setdefault((r["scene"], r["sampler"], r["step"]), []).append(r)
     out = []
     for (scene, sampler, step), group in cells.items():
-        s = {"scene": scene, "sampler": sampler, "step": step, "trials": len(group),
-             "censored": sum(not r["ok"] for r in group)}
+        s = {
+            "scene": scene,
+            "sampler": sampler,
+            "step": step,
+            "trials": len(group),
+            "censored": sum(not r["ok"] for r in group),
+        }
         for key, _ in METRICS:
             values = np.array([r[key] for r in group], float)
             values = values[np.isfinite(values)]
@@ -123,19 +153,20 @@ def figure(summary: list[dict], path: str) -> None:
 
     scenes = list(dict.fromkeys(s["scene"] for s in summary))
     samplers = list(dict.fromkeys(s["sampler"] for s in summary))
-    fig, axes = plt.subplots(len(scenes), len(METRICS), figsize=(4.2 * len(METRICS), 3.4 * len(scenes)),
-                             squeeze=False)
+    fig, axes = plt.subplots(len(scenes), len(METRICS), figsize=(4.2 * len(METRICS), 3.4 * len(scenes)), squeeze=False)
     for i, scene in enumerate(scenes):
         for j, (key, label) in enumerate(METRICS):
             ax = axes[i][j]
             for n, sampler in enumerate(samplers):
-                cell = sorted((s for s in summary if s["scene"] == scene and s["sampler"] == sampler),
-                              key=lambda s: s["step"])
+                cell = sorted(
+                    (s for s in summary if s["scene"] == scene and s["sampler"] == sampler), key=lambda s: s["step"]
+                )
                 x = [s["step"] for s in cell]
                 med = [s[key]["median"] for s in cell]
                 ax.plot(x, med, marker="o", ms=3, color=f"C{n}", label=sampler)
-                ax.fill_between(x, [s[key]["lo"] for s in cell], [s[key]["hi"] for s in cell],
-                                color=f"C{n}", alpha=0.12)
+                ax.fill_between(
+                    x, [s[key]["lo"] for s in cell], [s[key]["hi"] for s in cell], color=f"C{n}", alpha=0.12
+                )
                 censored = [(s["step"], s[key]["median"]) for s in cell if s["censored"]]
                 if censored:  # some trials spent the whole budget: the median is a lower bound
                     ax.scatter(*zip(*censored), marker="^", s=40, facecolors="none", edgecolors=f"C{n}")
@@ -144,14 +175,27 @@ def figure(summary: list[dict], path: str) -> None:
             ax.set(xlabel="step a", ylabel=label, title=f"{scene}: {label}")
             ax.grid(alpha=0.3)
     axes[0][-1].legend(fontsize=7)
-    fig.text(0.01, 0.0, "bands: 95 % interval over trials; open triangles: some trials hit the check budget "
-                        "(the median is a lower bound)", fontsize=7)
+    fig.text(
+        0.01,
+        0.0,
+        "bands: 95 % interval over trials; open triangles: some trials hit the check budget "
+        "(the median is a lower bound)",
+        fontsize=7,
+    )
     fig.tight_layout()
     save(fig, path)
 
 
-def measure(scenes: list[str], samplers: list[str], steps: list[float], trials: int, k: int = 30,
-            margin: float | None = None, max_checks: int | None = None, threads: int | None = None) -> list[dict]:
+def measure(
+    scenes: list[str],
+    samplers: list[str],
+    steps: list[float],
+    trials: int,
+    k: int = 30,
+    margin: float | None = None,
+    max_checks: int | None = None,
+    threads: int | None = None,
+) -> list[dict]:
     """Every scene x sampler x step trial for seeds 0..trials-1, in this process (a progress bar on stderr); the
     rows in that order. margin None: twice each scene's resolution."""
     oracles = {name: CollisionOracle(Scene(name), threads=threads) for name in scenes}

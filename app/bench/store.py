@@ -8,6 +8,7 @@ half row. Reports are built from the store, not from memory.
 The file records its schema version (SQLite's user_version). A store of another version is refused rather than
 read: rows are never reinterpreted, so the code that reads them needs no branch for how older code wrote them.
 """
+
 import hashlib
 import json
 import sqlite3
@@ -55,8 +56,9 @@ class TrialSpec:
 
     @property
     def key(self) -> str:
-        text = json.dumps([self.experiment, self.scene, self.method, float(self.step), int(self.seed), self.params],
-                          sort_keys=True)
+        text = json.dumps(
+            [self.experiment, self.scene, self.method, float(self.step), int(self.seed), self.params], sort_keys=True
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
@@ -74,10 +76,16 @@ def _plain(value):
 def code_version() -> str:
     """The git commit (with '+dirty' for uncommitted changes), or the package version outside a checkout."""
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True,
-                                text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
         return commit + ("+dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         from importlib.metadata import PackageNotFoundError, version
@@ -105,14 +113,17 @@ class ResultStore:
         # table and the version are written in one transaction).
         version, has_trials = self._db.execute(
             "SELECT (SELECT user_version FROM pragma_user_version), "
-            "EXISTS (SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'trials')").fetchone()
+            "EXISTS (SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'trials')"
+        ).fetchone()
         if not has_trials and version == 0:  # a new store
             self._db.executescript(SCHEMA)
             return
         found = version or 1
         if found != SCHEMA_VERSION:
-            raise UserError(f"results store {self.path} has schema {found}, this code writes {SCHEMA_VERSION}: "
-                            f"move it away and run again")
+            raise UserError(
+                f"results store {self.path} has schema {found}, this code writes {SCHEMA_VERSION}: "
+                f"move it away and run again"
+            )
 
     def close(self) -> None:
         self._db.close()
@@ -128,15 +139,28 @@ class ResultStore:
         with self._db:  # one transaction per row: a kill loses at most the row being written
             self._db.execute(
                 "INSERT OR IGNORE INTO trials VALUES (?,?,?,?,?,?,?,?,?,?)",
-                (spec.key, spec.experiment, spec.scene, spec.method, float(spec.step), int(spec.seed),
-                 json.dumps(spec.params, sort_keys=True, default=_plain), json.dumps(metrics, default=_plain),
-                 self._version, time.time()))
+                (
+                    spec.key,
+                    spec.experiment,
+                    spec.scene,
+                    spec.method,
+                    float(spec.step),
+                    int(spec.seed),
+                    json.dumps(spec.params, sort_keys=True, default=_plain),
+                    json.dumps(metrics, default=_plain),
+                    self._version,
+                    time.time(),
+                ),
+            )
 
     def rows_for(self, specs: list[TrialSpec]) -> list[dict]:
         """The stored rows of exactly these trials (a store may hold other sweeps, or other parameters)."""
         wanted = {s.key for s in specs}
-        return [r for r in self.rows() if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"], r["seed"],
-                                                     r["params"]).key in wanted]
+        return [
+            r
+            for r in self.rows()
+            if TrialSpec(r["experiment"], r["scene"], r["method"], r["step"], r["seed"], r["params"]).key in wanted
+        ]
 
     def rows(self, experiment: str | None = None) -> list[dict]:
         query = "SELECT experiment, scene, method, step, seed, params, metrics, code_version FROM trials"
@@ -146,9 +170,20 @@ class ResultStore:
             args = (experiment,)
         out = []
         for experiment_, scene, method, step, seed, params, metrics, version in self._db.execute(
-                query + " ORDER BY experiment, scene, method, step, seed", args):
-            out.append({"experiment": experiment_, "scene": scene, "method": method, "step": step, "seed": seed,
-                        "params": json.loads(params), "metrics": json.loads(metrics), "code_version": version})
+            query + " ORDER BY experiment, scene, method, step, seed", args
+        ):
+            out.append(
+                {
+                    "experiment": experiment_,
+                    "scene": scene,
+                    "method": method,
+                    "step": step,
+                    "seed": seed,
+                    "params": json.loads(params),
+                    "metrics": json.loads(metrics),
+                    "code_version": version,
+                }
+            )
         return out
 
     def count(self) -> int:

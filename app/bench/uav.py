@@ -5,26 +5,36 @@ and 1. Columns as in the paper -- t_eps (sampling time) and T_PRM (whole plan) -
 give: success rate over seeds and collision checks. Trials are `bench plan --roadmap full` trials (the whole
 roadmap, every edge checked, k = 10, no budget) in the same results store, so a killed run resumes.
 """
+
 import numpy as np
 
 from app.bench.runner import sweep
 from app.bench.store import TrialSpec
 
-PAPER = {"maze": {"narrow": 200, "uniform": 300, "steps": [0.5, 1.0]},
-         "tunnel": {"narrow": 100, "uniform": 200, "steps": [0.2, 0.5, 1.0]}}
-PAPER_SECONDS = {("maze", 0.5): (78.49, 298.57, 162.48, 396.83), ("maze", 1.0): (40.22, 269.91, 102.87, 330.6),
-                 ("tunnel", 0.2): (74.81, 202.20, 124.56, 253.09), ("tunnel", 0.5): (46.67, 192.20, 102.6, 248.27),
-                 ("tunnel", 1.0): (28.40, 172.09, 75.11, 224.65)}  # t_eps LFBS, T_PRM LFBS, t_eps RBBS, T_PRM RBBS
+PAPER = {
+    "maze": {"narrow": 200, "uniform": 300, "steps": [0.5, 1.0]},
+    "tunnel": {"narrow": 100, "uniform": 200, "steps": [0.2, 0.5, 1.0]},
+}
+PAPER_SECONDS = {
+    ("maze", 0.5): (78.49, 298.57, 162.48, 396.83),
+    ("maze", 1.0): (40.22, 269.91, 102.87, 330.6),
+    ("tunnel", 0.2): (74.81, 202.20, 124.56, 253.09),
+    ("tunnel", 0.5): (46.67, 192.20, 102.6, 248.27),
+    ("tunnel", 1.0): (28.40, 172.09, 75.11, 224.65),
+}  # t_eps LFBS, T_PRM LFBS, t_eps RBBS, T_PRM RBBS
 COMPARED_SAMPLERS = ["lfbs", "rbbs"]
 
 
 def specs(seeds: int, scenes=PAPER) -> list[TrialSpec]:
     out = []
     for scene, setup in scenes.items():
-        params = {"narrow": setup["narrow"], "uniform": setup["uniform"], "k": 10, "smooth": 10,
-                  "full_roadmap": True}
-        out.extend(TrialSpec("prm", scene, sampler, step, seed, params)
-                   for step in setup["steps"] for sampler in COMPARED_SAMPLERS for seed in range(seeds))
+        params = {"narrow": setup["narrow"], "uniform": setup["uniform"], "k": 10, "smooth": 10, "full_roadmap": True}
+        out.extend(
+            TrialSpec("prm", scene, sampler, step, seed, params)
+            for step in setup["steps"]
+            for sampler in COMPARED_SAMPLERS
+            for seed in range(seeds)
+        )
     return out
 
 
@@ -36,11 +46,18 @@ def table(rows) -> list[dict]:
     for (scene, step, sampler), metrics in sorted(cells.items()):
         ok = np.array([m["success"] for m in metrics], bool)
         sampling = [m["seconds_sampling"] for m in metrics if m.get("seconds_sampling") is not None]
-        out.append({"scene": scene, "step": step, "sampler": sampler, "runs": len(metrics),
-                    "success_rate": float(ok.mean()),
-                    "median_t_eps": float(np.median(sampling)) if sampling else None,
-                    "median_t_prm": float(np.median([m["seconds"] for m in metrics])),
-                    "median_checks": float(np.median([m["collision_checks"] for m in metrics]))})
+        out.append(
+            {
+                "scene": scene,
+                "step": step,
+                "sampler": sampler,
+                "runs": len(metrics),
+                "success_rate": float(ok.mean()),
+                "median_t_eps": float(np.median(sampling)) if sampling else None,
+                "median_t_prm": float(np.median([m["seconds"] for m in metrics])),
+                "median_checks": float(np.median([m["collision_checks"] for m in metrics])),
+            }
+        )
     return out
 
 

@@ -3,6 +3,7 @@
 Beside them: `common` (argument types, the JSON answer), `custom` (the --robot/--env flags) and the viewer flags
 in `view`, shared by the commands that take them.
 """
+
 from app.commands import bench, plan, run, sample, scenes, view
 
 MODULES = [scenes, sample, plan, run, view, bench]

@@ -3,6 +3,7 @@ given, and the one-line JSON answer.
 
 A type raises argparse.ArgumentTypeError; the parser turns that into one line naming the flag (exit code 2).
 """
+
 import argparse
 import json
 import math
@@ -54,6 +55,7 @@ def comma_list(text: str) -> list[str]:
 
 def names_from(known, what: str):
     """A type for a comma-separated list of names out of `known` (jobs, sweep parts, ...)."""
+
     def names(text: str) -> list[str]:
         items = comma_list(text)
         unknown = [item for item in items if item not in known]

@@ -1,7 +1,15 @@
 """`plan SCENE ...`: PRM with narrow-passage samples, shortcut smoothing and Toppra timing (app.planner.plan)."""
+
 from app.commands import custom, view
-from app.commands.common import (float_list, non_negative_int, parse_budget, positive_float, positive_int,
-                                 print_json, sampler_name)
+from app.commands.common import (
+    float_list,
+    non_negative_int,
+    parse_budget,
+    positive_float,
+    positive_int,
+    print_json,
+    sampler_name,
+)
 from app.io import check_output
 from app.oracle import CollisionOracle
 from app.planner import PlanSettings, plan
@@ -12,40 +20,78 @@ DEFAULTS = PlanSettings()
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("plan", help="plan a path (PRM + narrow-passage samples) and time it with Toppra")
-    p.add_argument("scene", nargs="?",
-                   help="scene name, problem-file path or custom scene file (or --robot/--env instead)")
-    p.add_argument("--sampler", type=sampler_name, default=DEFAULTS.sampler,
-                   help=f"narrow-passage sampler (default {DEFAULTS.sampler})")
-    p.add_argument("--narrow", type=non_negative_int, default=DEFAULTS.narrow,
-                   help=f"narrow-passage samples: per round narrow/16 at first, doubling up to narrow/4; with "
-                        f"--full-roadmap all of them (default {DEFAULTS.narrow})")
-    p.add_argument("--uniform", type=non_negative_int, default=DEFAULTS.uniform,
-                   help=f"uniform free samples: uniform/4 per round; with --full-roadmap all of them "
-                        f"(default {DEFAULTS.uniform})")
-    p.add_argument("--step", type=positive_float, default=None,
-                   help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
-                        "of the scene's extent)")
+    p.add_argument(
+        "scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env instead)"
+    )
+    p.add_argument(
+        "--sampler",
+        type=sampler_name,
+        default=DEFAULTS.sampler,
+        help=f"narrow-passage sampler (default {DEFAULTS.sampler})",
+    )
+    p.add_argument(
+        "--narrow",
+        type=non_negative_int,
+        default=DEFAULTS.narrow,
+        help=f"narrow-passage samples: per round narrow/16 at first, doubling up to narrow/4; with "
+        f"--full-roadmap all of them (default {DEFAULTS.narrow})",
+    )
+    p.add_argument(
+        "--uniform",
+        type=non_negative_int,
+        default=DEFAULTS.uniform,
+        help=f"uniform free samples: uniform/4 per round; with --full-roadmap all of them (default {DEFAULTS.uniform})",
+    )
+    p.add_argument(
+        "--step",
+        type=positive_float,
+        default=None,
+        help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
+        "of the scene's extent)",
+    )
     p.add_argument("--seed", type=non_negative_int, default=DEFAULTS.seed)
-    p.add_argument("--budget", type=parse_budget, default=DEFAULTS.budget,
-                   help="what the query may spend before it gives up: 30s, 2min, 200000checks, 200kchecks, or both "
-                        f"as 30s,200kchecks (default {DEFAULTS.budget})")
-    p.add_argument("--full-roadmap", action="store_true",
-                   help="build the whole roadmap (all --narrow + --uniform samples, every edge checked) before the "
-                        "query, as in the paper; default: add samples a quarter at a time, check edges lazily, and "
-                        "stop as soon as start and goal connect")
-    p.add_argument("-k", "--neighbours", type=positive_int, default=DEFAULTS.k,
-                   help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d "
-                        "dimensions)")
-    p.add_argument("--smooth", type=non_negative_int, default=DEFAULTS.smooth_rounds,
-                   help=f"random shortcut rounds after the greedy pass (default {DEFAULTS.smooth_rounds})")
-    p.add_argument("--dt", type=positive_float, default=DEFAULTS.dt,
-                   help=f"trajectory sample period in seconds (default {DEFAULTS.dt})")
+    p.add_argument(
+        "--budget",
+        type=parse_budget,
+        default=DEFAULTS.budget,
+        help="what the query may spend before it gives up: 30s, 2min, 200000checks, 200kchecks, or both "
+        f"as 30s,200kchecks (default {DEFAULTS.budget})",
+    )
+    p.add_argument(
+        "--full-roadmap",
+        action="store_true",
+        help="build the whole roadmap (all --narrow + --uniform samples, every edge checked) before the "
+        "query, as in the paper; default: add samples a quarter at a time, check edges lazily, and "
+        "stop as soon as start and goal connect",
+    )
+    p.add_argument(
+        "-k",
+        "--neighbours",
+        type=positive_int,
+        default=DEFAULTS.k,
+        help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d dimensions)",
+    )
+    p.add_argument(
+        "--smooth",
+        type=non_negative_int,
+        default=DEFAULTS.smooth_rounds,
+        help=f"random shortcut rounds after the greedy pass (default {DEFAULTS.smooth_rounds})",
+    )
+    p.add_argument(
+        "--dt",
+        type=positive_float,
+        default=DEFAULTS.dt,
+        help=f"trajectory sample period in seconds (default {DEFAULTS.dt})",
+    )
     p.add_argument("--start", type=float_list, default=None, help="comma-separated start configuration")
     p.add_argument("--goal", type=float_list, default=None, help="comma-separated goal configuration")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    p.add_argument("--out", default=None,
-                   help="write the trajectory (times, positions, path, narrow samples) as JSON for `view "
-                        "--trajectory`; only on success")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="write the trajectory (times, positions, path, narrow samples) as JSON for `view "
+        "--trajectory`; only on success",
+    )
     view.add_arguments(p)  # --html / --meshcat / --frame / --collision: show the planned trajectory
     custom.add_arguments(p)  # --robot / --package-path / --env / --env-pose / --bounds ...
     p.set_defaults(func=run)
@@ -53,9 +99,18 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     # Everything that can be wrong with the input is found before the (slow) planning starts.
-    settings = PlanSettings(sampler=args.sampler, narrow=args.narrow, uniform=args.uniform, step=args.step,
-                            seed=args.seed, budget=args.budget, k=args.neighbours, smooth_rounds=args.smooth, dt=args.dt,
-                            full_roadmap=args.full_roadmap)
+    settings = PlanSettings(
+        sampler=args.sampler,
+        narrow=args.narrow,
+        uniform=args.uniform,
+        step=args.step,
+        seed=args.seed,
+        budget=args.budget,
+        k=args.neighbours,
+        smooth_rounds=args.smooth,
+        dt=args.dt,
+        full_roadmap=args.full_roadmap,
+    )
     out = check_output(args.out) if args.out else None
     if args.html:
         check_output(args.html)
@@ -75,8 +130,11 @@ def run(args) -> int:
 
 def summary(r) -> str:
     m, s, t = r.roadmap, r.seconds, r.trajectory
-    edges = (f"{m['edges']} candidate edges, {m['edges_tried']} checked when a search used them (lazy)" if m["lazy"] else
-             f"{m['edges']} edges, {m['components']} components, {m['edges_tried']} edges tried")
+    edges = (
+        f"{m['edges']} candidate edges, {m['edges_tried']} checked when a search used them (lazy)"
+        if m["lazy"]
+        else f"{m['edges']} edges, {m['components']} components, {m['edges_tried']} edges tried"
+    )
     lines = [
         f"plan {r.scene}: path found with {r.sampler} (seed {r.seed}, step {r.step:g})",
         f"  roadmap   {m['nodes']} nodes ({m['narrow_nodes']} {r.sampler}, {m['uniform_nodes']} uniform), "

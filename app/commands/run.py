@@ -1,4 +1,5 @@
 """`run welding|window`: the scripted UR3 jobs, planned leg by leg into one trajectory, with a summary table."""
+
 from dataclasses import replace
 
 from app.commands.common import non_negative_int, parse_budget, positive_float, print_json, sampler_name
@@ -20,8 +21,11 @@ def register(subparsers) -> None:
     p.add_argument("--uniform", type=non_negative_int, default=40, help="uniform samples per planned leg")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument("--budget", type=parse_budget, default="30s", help="per planned leg, e.g. 30s or 500kchecks")
-    p.add_argument("--full-roadmap", action="store_true",
-                   help="per planned leg, draw every sample and check every edge before the query (as `plan`)")
+    p.add_argument(
+        "--full-roadmap",
+        action="store_true",
+        help="per planned leg, draw every sample and check every edge before the query (as `plan`)",
+    )
     p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
     p.add_argument("--json", action="store_true")
     add_arguments(p)
@@ -31,8 +35,16 @@ def register(subparsers) -> None:
 def run(args) -> int:
     if args.job not in ROUTES:
         raise UserError(f"unknown job '{args.job}' (known: {', '.join(ROUTES)})")
-    settings = replace(JOB_SETTINGS, sampler=args.sampler, seed=args.seed, narrow=args.narrow, uniform=args.uniform,
-                       step=args.step, budget=args.budget, full_roadmap=args.full_roadmap)
+    settings = replace(
+        JOB_SETTINGS,
+        sampler=args.sampler,
+        seed=args.seed,
+        narrow=args.narrow,
+        uniform=args.uniform,
+        step=args.step,
+        budget=args.budget,
+        full_roadmap=args.full_roadmap,
+    )
     for target in (args.out, args.html):
         if target:
             check_output(target)
@@ -48,10 +60,14 @@ def run(args) -> int:
         print(f"{result.scene}: {len(result.legs)} legs, sampler {result.sampler}, seed {result.seed}")
         print(f"{'leg':<20} {'method':<9} {'narrow':>7} {'on path':>8} {'checks':>8} {'plan s':>7} {'move s':>7}")
         for leg in result.legs:
-            print(f"{leg.start + ' -> ' + leg.goal:<20} {leg.method:<9} {leg.narrow_samples:>7} "
-                  f"{leg.narrow_on_path:>8} {leg.collision_checks:>8} {leg.seconds:>7.2f} {leg.duration:>7.2f}")
+            print(
+                f"{leg.start + ' -> ' + leg.goal:<20} {leg.method:<9} {leg.narrow_samples:>7} "
+                f"{leg.narrow_on_path:>8} {leg.collision_checks:>8} {leg.seconds:>7.2f} {leg.duration:>7.2f}"
+            )
         s = result.seconds
-        print(f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
-              f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)")
+        print(
+            f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
+            f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)"
+        )
     wait(args)
     return 0

@@ -1,4 +1,5 @@
 """`sample SCENE --sampler NAME`: draw k narrow-passage samples, report them (JSON or a summary) and draw them."""
+
 from app.bench.sampling import run_trial
 from app.commands.common import non_negative_int, positive_float, positive_int, print_json, sampler_name
 from app.custom_scene import load_scene
@@ -9,11 +10,16 @@ from app.oracle import CollisionOracle
 def register(subparsers) -> None:
     p = subparsers.add_parser("sample", help="draw k samples with one of the seven samplers")
     p.add_argument("scene", help="scene name, problem-file path or custom scene file")
-    p.add_argument("--sampler", type=sampler_name, required=True,
-                   help="uniform, gaussian, rbbs, rws, lfs, rwbs or lfbs")
+    p.add_argument(
+        "--sampler", type=sampler_name, required=True, help="uniform, gaussian, rbbs, rws, lfs, rwbs or lfbs"
+    )
     p.add_argument("-k", type=positive_int, default=30, help="number of samples (default 30)")
-    p.add_argument("--step", type=positive_float, default=10.0,
-                   help="step a / bridge length / Gaussian sigma, weighted workspace units (default 10)")
+    p.add_argument(
+        "--step",
+        type=positive_float,
+        default=10.0,
+        help="step a / bridge length / Gaussian sigma, weighted workspace units (default 10)",
+    )
     p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--threads", type=positive_int, default=None, help="oracle threads (default: up to 2)")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -25,19 +31,31 @@ def run(args) -> int:
     oracle = CollisionOracle(load_scene(args.scene), threads=args.threads)
     result = run_trial(oracle, args.sampler, args.step, args.seed, k=args.k, keep_samples=True)
     if not result["ok"]:
-        raise SamplerBudgetExceeded(f"{args.sampler}: no {args.k} samples within {result['collision_checks']} "
-                                    f"collision checks")
+        raise SamplerBudgetExceeded(
+            f"{args.sampler}: no {args.k} samples within {result['collision_checks']} collision checks"
+        )
     samples = result["samples"]
     if args.png:
         from app.draw import draw_samples  # loads matplotlib: only when a picture is asked for
 
-        draw_samples(oracle, samples, args.png, title=f"{oracle.scene.name}: {args.sampler}, k={args.k}, "
-                                                      f"step {args.step:g}, seed {args.seed}")
+        draw_samples(
+            oracle,
+            samples,
+            args.png,
+            title=f"{oracle.scene.name}: {args.sampler}, k={args.k}, step {args.step:g}, seed {args.seed}",
+        )
     out = {
-        "scene": oracle.scene.name, "sampler": args.sampler, "k": args.k, "step": args.step, "seed": args.seed,
-        "samples": samples.tolist(), "collision_checks": result["collision_checks"],
-        "seconds": result["seconds"], "passage_fraction": result["passage_fraction"],
-        "gave_up": result["gave_up"], "attempts": result["attempts"],
+        "scene": oracle.scene.name,
+        "sampler": args.sampler,
+        "k": args.k,
+        "step": args.step,
+        "seed": args.seed,
+        "samples": samples.tolist(),
+        "collision_checks": result["collision_checks"],
+        "seconds": result["seconds"],
+        "passage_fraction": result["passage_fraction"],
+        "gave_up": result["gave_up"],
+        "attempts": result["attempts"],
     }
     bridges = result["bridges"]
     if bridges is not None:
@@ -45,10 +63,15 @@ def run(args) -> int:
     if args.json:
         print_json(out)
     else:
-        passage = (f"{100 * out['passage_fraction']:.0f} % in the passage" if oracle.scene.passage_boxes
-                   else "no passage region declared")
-        print(f"{out['scene']} {out['sampler']}: {args.k} samples in {out['seconds']:.3f} s, "
-              f"{out['collision_checks']} collision checks, {passage}, {out['gave_up']} gave up")
+        passage = (
+            f"{100 * out['passage_fraction']:.0f} % in the passage"
+            if oracle.scene.passage_boxes
+            else "no passage region declared"
+        )
+        print(
+            f"{out['scene']} {out['sampler']}: {args.k} samples in {out['seconds']:.3f} s, "
+            f"{out['collision_checks']} collision checks, {passage}, {out['gave_up']} gave up"
+        )
         if args.png:
             print(args.png)
     return 0

@@ -1,4 +1,5 @@
 """`scenes` lists the shipped scenes; `show` draws one to a PNG."""
+
 from app.commands.common import print_json
 from app.custom_scene import load_scene
 from app.oracle import CollisionOracle

@@ -2,6 +2,7 @@
 
 `add_arguments` and `publish_from_args` give any command (plan, run) the same --html / --meshcat / --frame flags.
 """
+
 import sys
 
 from app.custom_scene import load_scene
@@ -13,8 +14,11 @@ from app.viewer import ViewData, publish
 def add_arguments(p) -> None:
     """The viewer flags, for any command that has a scene and a trajectory to show."""
     p.add_argument("--html", metavar="FILE", help="write a standalone Meshcat page (robot animation, samples, path)")
-    p.add_argument("--meshcat", action="store_true",
-                   help="serve it on localhost, print the URL, wait for Enter (not when stdin is not a terminal)")
+    p.add_argument(
+        "--meshcat",
+        action="store_true",
+        help="serve it on localhost, print the URL, wait for Enter (not when stdin is not a terminal)",
+    )
     p.add_argument("--frame", help="robot frame whose positions draw samples and path (default: the passage frame)")
     p.add_argument("--collision", action="store_true", help="also load the collision geometry (hidden at first)")
 
@@ -43,8 +47,9 @@ def wait(args) -> None:
 def register(subparsers) -> None:
     p = subparsers.add_parser("view", help="show a trajectory in Meshcat and/or export a standalone HTML page")
     p.add_argument("scene", help="scene name, problem-file path or custom scene file")
-    p.add_argument("--trajectory", required=True, metavar="FILE.json",
-                   help="a trajectory file written by plan --out or run --out")
+    p.add_argument(
+        "--trajectory", required=True, metavar="FILE.json", help="a trajectory file written by plan --out or run --out"
+    )
     add_arguments(p)
     p.set_defaults(func=run_view)
 

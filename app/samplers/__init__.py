@@ -3,6 +3,7 @@
 Every sampler talks only to the collision oracle. `make_sampler(name, oracle, step=..., **params)` builds one;
 `sampler.sample(k, rng)` returns k free configurations and leaves its statistics in `sampler.stats`.
 """
+
 from __future__ import annotations
 
 from functools import partial

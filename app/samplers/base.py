@@ -8,6 +8,7 @@ candidates that are then not needed is still counted by the oracle (gamma_c is h
 Steps are measured in the oracle's weighted metric: a coordinate's weight is the lever arm it swings, so a
 displacement of `s` workspace units along an angle is s / weight radians.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -28,8 +29,9 @@ class Sampler:
     name = ""
     has_bridges = False
 
-    def __init__(self, oracle, step: float = 10.0, max_checks: int = 2_000_000, max_rounds: int = 100_000,
-                 redraws: int = 20):
+    def __init__(
+        self, oracle, step: float = 10.0, max_checks: int = 2_000_000, max_rounds: int = 100_000, redraws: int = 20
+    ):
         if not np.isfinite(step) or step <= 0:
             raise UserError(f"step must be a positive finite number, got {step}")
         self.oracle = oracle
@@ -67,15 +69,16 @@ class Sampler:
                 raise SamplerBudgetExceeded(
                     f"{self.name}: gave up after {spent} collision checks and {self.stats['rounds']} rounds "
                     f"with {have} of {k} samples (its limits per call: {self.max_checks} checks, "
-                    f"{self.max_rounds} rounds; another step may need fewer)")
+                    f"{self.max_rounds} rounds; another step may need fewer)"
+                )
             self.stats["rounds"] += 1
             oracle.poll()
             got, ends = self._round(rng, k - have)
             if len(got):
-                got = got[:k - have]
+                got = got[: k - have]
                 samples.append(got)
                 if ends is not None:
-                    bridges.append(ends[:len(got)])
+                    bridges.append(ends[: len(got)])
                 have += len(got)
         self.stats["checks"] = oracle.checks - start
         out = np.concatenate(samples)

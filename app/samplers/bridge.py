@@ -1,5 +1,6 @@
 """Randomised bridge builder, RBBS (D. Hsu, T. Jiang, J. Reif, Z. Sun, ICRA 2003): two colliding endpoints a bridge
 length `a` apart (weighted metric, uniform direction) whose midpoint is free."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -11,6 +11,7 @@ the Lévy-flight literature it cites (Yang's Cuckoo search, Lévy PSO). Mantegna
 K(alpha) and the averaging of n draws) only reshapes the body of the distribution and is left out, as the
 Cuckoo-search code does.
 """
+
 from __future__ import annotations
 
 import functools
@@ -49,5 +50,5 @@ def hill_tail_index(x: np.ndarray, tail_fraction: float = 0.01) -> float:
     """Hill's estimate of the tail index of |x| from its largest `tail_fraction` of values."""
     a = np.sort(np.abs(np.asarray(x, float).ravel()))[::-1]
     k = max(2, int(len(a) * tail_fraction))
-    logs = np.log(a[:k + 1])
+    logs = np.log(a[: k + 1])
     return float(1.0 / np.mean(logs[:k] - logs[k]))

@@ -1,4 +1,5 @@
 """Uniform sampling, and Boor's Gaussian sampler (V. Boor, M. Overmars, A. van der Stappen, ICRA 1999)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -43,7 +44,7 @@ class GaussianSampler(Sampler):
         Q2, ok = self._propose(rng, Q1, lambda r, m: self._offsets(r, m, self.sigma, exact=False))
         Q1, Q2 = Q1[ok], Q2[ok]  # a pair whose second point left the bounds is dropped (bounds are no obstacle)
         free = oracle.are_free(np.concatenate([Q1, Q2]))
-        f1, f2 = free[:len(Q1)], free[len(Q1):]
+        f1, f2 = free[: len(Q1)], free[len(Q1) :]
         self.stats["attempts"] += n
         keep = f1 != f2
         self._rate = max(keep.mean() if len(keep) else 0.0, 0.005)

@@ -14,6 +14,7 @@ replaces q when q' collides). A walk that has not ended after `max_steps` steps 
 Many walkers advance in lockstep: one step of all of them is a few numpy operations and one `oracle.are_free`
 call (plus one for the bridge ends), which is what makes the samplers fast despite a walk being sequential.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -28,9 +29,19 @@ _EXP_CLIP = 30.0
 class Walker(Sampler):
     """Random-walk sampler. step_law: 'gaussian' | 'levy'; bridge: off | on."""
 
-    def __init__(self, oracle, step: float = 10.0, step_law: str = "levy", bridge: bool = False,
-                 alpha: float = 1.9, alpha_angle: float = 1.1, max_steps: int = 500,
-                 walkers: int | None = None, name: str | None = None, **kw):
+    def __init__(
+        self,
+        oracle,
+        step: float = 10.0,
+        step_law: str = "levy",
+        bridge: bool = False,
+        alpha: float = 1.9,
+        alpha_angle: float = 1.1,
+        max_steps: int = 500,
+        walkers: int | None = None,
+        name: str | None = None,
+        **kw,
+    ):
         super().__init__(oracle, step=step, **kw)
         if step_law not in ("gaussian", "levy"):
             raise ValueError(f"step_law must be 'gaussian' or 'levy', not {step_law!r}")
@@ -39,8 +50,12 @@ class Walker(Sampler):
         self.alpha, self.alpha_angle = float(alpha), float(alpha_angle)
         self.max_steps = int(max_steps)
         self.walkers = walkers  # pool size; None: sized to what is still needed (see _pool_size)
-        self.name = name or {("gaussian", False): "rws", ("levy", False): "lfs",
-                             ("gaussian", True): "rwbs", ("levy", True): "lfbs"}[(step_law, self.bridge)]
+        self.name = (
+            name
+            or {("gaussian", False): "rws", ("levy", False): "lfs", ("gaussian", True): "rwbs", ("levy", True): "lfbs"}[
+                (step_law, self.bridge)
+            ]
+        )
         self._angular = np.asarray(oracle.space.angular, bool)
 
     # ---- steps ---------------------------------------------------------------------------------------------
@@ -57,10 +72,10 @@ class Walker(Sampler):
         m = int(ang.sum())
         G = rng.standard_normal((n, dim + 2 + 2 * m))  # direction, (U, V) for the length, (U, V) per angle
         u = G[:, :dim] / np.sqrt(np.einsum("ij,ij->i", G[:, :dim], G[:, :dim]))[:, None]
-        length = a * (1.0 + np.abs(mantegna(G[:, dim:dim + 1], G[:, dim + 1:dim + 2], self.alpha)))
+        length = a * (1.0 + np.abs(mantegna(G[:, dim : dim + 1], G[:, dim + 1 : dim + 2], self.alpha)))
         d = u * length / oracle.space.weights
         if m:
-            L = mantegna(G[:, dim + 2:dim + 2 + m], G[:, dim + 2 + m:], self.alpha_angle)
+            L = mantegna(G[:, dim + 2 : dim + 2 + m], G[:, dim + 2 + m :], self.alpha_angle)
             delta = u[:, ang] * a * (1.0 + np.abs(L)) / oracle.space.weights[ang]
             d[:, ang] = 2 * np.pi * (1.0 - np.exp(np.minimum(-delta / (2 * np.pi), _EXP_CLIP)))
         return d

@@ -1,4 +1,5 @@
 """`bench jobs`: the UR3 welding and window runs timed end to end, query mode vs full roadmap (app.bench.jobs)."""
+
 from app.bench.jobs import JOBS, measure
 from app.bench.plan import MODES
 from app.commands.common import names_from, non_negative_int, positive_float, positive_int, print_json, sampler_names
@@ -6,12 +7,17 @@ from app.commands.common import names_from, non_negative_int, positive_float, po
 
 def register(kinds) -> None:
     p = kinds.add_parser("jobs", help="UR3 welding/window runs timed end to end; query vs full roadmap side by side")
-    p.add_argument("--jobs", type=names_from(JOBS, "job"), default=",".join(JOBS),
-                   help="comma-separated: welding, window")
+    p.add_argument(
+        "--jobs", type=names_from(JOBS, "job"), default=",".join(JOBS), help="comma-separated: welding, window"
+    )
     p.add_argument("--samplers", type=sampler_names, default="lfbs", help="comma-separated sampler names")
     p.add_argument("--seeds", type=positive_int, default=10, help="seeds 0..N-1 per job, sampler and mode")
-    p.add_argument("--roadmap", choices=[*MODES, "both"], default="both",
-                   help="query: the planner's default; full: the whole roadmap first; both: side by side")
+    p.add_argument(
+        "--roadmap",
+        choices=[*MODES, "both"],
+        default="both",
+        help="query: the planner's default; full: the whole roadmap first; both: side by side",
+    )
     p.add_argument("--narrow", type=non_negative_int, default=40, help="narrow-passage samples per planned leg")
     p.add_argument("--uniform", type=non_negative_int, default=40, help="uniform samples per planned leg")
     p.add_argument("--budget", type=positive_float, default=30.0, metavar="SECONDS", help="per planned leg")
@@ -26,20 +32,28 @@ def run(args) -> int:
     if args.json:
         print_json({"jobs": result, "seeds": args.seeds})
         return 0
-    print(f"{args.seeds} seeds; per planned leg up to {args.narrow} narrow + {args.uniform} uniform samples, "
-          f"{args.budget:g} s budget; seconds are IK + planning + smoothing + Toppra, medians (min-max) of successes")
-    print(f"{'job':<8} {'sampler':<8} {'roadmap':<8} {'success':>8} {'median s':>9} {'min-max s':>12} {'IK s':>6} "
-          f"{'checks':>8}")
+    print(
+        f"{args.seeds} seeds; per planned leg up to {args.narrow} narrow + {args.uniform} uniform samples, "
+        f"{args.budget:g} s budget; seconds are IK + planning + smoothing + Toppra, medians (min-max) of successes"
+    )
+    print(
+        f"{'job':<8} {'sampler':<8} {'roadmap':<8} {'success':>8} {'median s':>9} {'min-max s':>12} {'IK s':>6} "
+        f"{'checks':>8}"
+    )
     cells = {(r["job"], r["sampler"], r["roadmap"]): r for r in result}
     for r in result:
         total = "-" if r["median_total"] is None else f"{r['median_total']:.2f}"
         spread = "-" if r["min_total"] is None else f"{r['min_total']:.2f}-{r['max_total']:.2f}"
         ik = "-" if r["median_ik"] is None else f"{r['median_ik']:.2f}"
-        print(f"{r['job']:<8} {r['sampler']:<8} {r['roadmap']:<8} {r['successes']:>4}/{r['runs']:<3} {total:>9} "
-              f"{spread:>12} {ik:>6} {r['median_checks']:>8.0f}")
+        print(
+            f"{r['job']:<8} {r['sampler']:<8} {r['roadmap']:<8} {r['successes']:>4}/{r['runs']:<3} {total:>9} "
+            f"{spread:>12} {ik:>6} {r['median_checks']:>8.0f}"
+        )
     for (job, sampler, mode), r in cells.items():
         full = cells.get((job, sampler, "full"))
         if mode == "query" and full and r["median_total"] and full["median_total"]:
-            print(f"{job} {sampler}: the query mode takes {r['median_total'] / full['median_total']:.2f}x the full "
-                  f"roadmap's median time and {r['median_checks'] / full['median_checks']:.2f}x its checks")
+            print(
+                f"{job} {sampler}: the query mode takes {r['median_total'] / full['median_total']:.2f}x the full "
+                f"roadmap's median time and {r['median_checks'] / full['median_checks']:.2f}x its checks"
+            )
     return 0

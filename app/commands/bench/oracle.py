@@ -1,4 +1,5 @@
 """`bench oracle`: oracle checks/s against a raw HasCollisions loop (app.bench.oracle)."""
+
 from app.bench.oracle import bench_oracle
 from app.commands.common import comma_list, positive_int, print_json
 
@@ -20,6 +21,8 @@ def run(args) -> int:
         return 0
     print(f"{'scene':<10} {'raw k/s':>9} {'1 thread k/s':>13} {'ratio':>6} {'2 threads k/s':>14} {'ratio':>6}")
     for r in rows:
-        print(f"{r['scene']:<10} {r['raw_per_s'] / 1e3:>9.1f} {r['oracle_1_per_s'] / 1e3:>13.1f} "
-              f"{r['ratio_1']:>6.2f} {r['oracle_2_per_s'] / 1e3:>14.1f} {r['ratio_2']:>6.2f}")
+        print(
+            f"{r['scene']:<10} {r['raw_per_s'] / 1e3:>9.1f} {r['oracle_1_per_s'] / 1e3:>13.1f} "
+            f"{r['ratio_1']:>6.2f} {r['oracle_2_per_s'] / 1e3:>14.1f} {r['ratio_2']:>6.2f}"
+        )
     return 0

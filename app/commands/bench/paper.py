@@ -1,5 +1,6 @@
 """`bench paper`: the paper's Section IV in one command -- every sweep into one store, then DIR/report.md
 (app.bench.paper)."""
+
 import time
 from pathlib import Path
 
@@ -12,25 +13,40 @@ from app.samplers import SAMPLERS
 
 def register(kinds) -> None:
     p = kinds.add_parser("paper", help="the paper's Section IV: all sweeps into one store, then DIR/report.md")
-    p.add_argument("--trials", type=positive_int, default=None,
-                   help="trials (seeds) per sampling cell (default 300, --quick 3)")
-    p.add_argument("--quick", action="store_true",
-                   help="a few minutes: 3 trials, steps 2 and 10, 2 PRM seeds, 1 UR3 run per job")
+    p.add_argument(
+        "--trials", type=positive_int, default=None, help="trials (seeds) per sampling cell (default 300, --quick 3)"
+    )
+    p.add_argument(
+        "--quick", action="store_true", help="a few minutes: 3 trials, steps 2 and 10, 2 PRM seeds, 1 UR3 run per job"
+    )
     p.add_argument("--workers", type=int, default=0, help="local processes (default: all cores)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:PORT", default=None,
-                   help="run the trials on this Dask scheduler instead of local processes")
+    p.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:PORT",
+        default=None,
+        help="run the trials on this Dask scheduler instead of local processes",
+    )
     p.add_argument("--out", default="out/paper", help="report folder, with results.sqlite (default out/paper)")
     p.add_argument("--report-only", action="store_true", help="rebuild report.md from the store; run nothing")
-    p.add_argument("--parts", type=names_from(PARTS, "part"), default=",".join(PARTS),
-                   help=f"sweeps to run (default {','.join(PARTS)})")
-    p.add_argument("--scenes", type=comma_list, default=None,
-                   help=f"sampling-sweep scenes (default {','.join(SAMPLING_SCENES)})")
-    p.add_argument("--samplers", type=sampler_names, default=",".join(SAMPLERS),
-                   help="sampling-sweep samplers (default all seven)")
-    p.add_argument("--steps", type=positive_float_list, default=None,
-                   help="steps (default 2,5,10,15,20; --quick 2,10)")
-    p.add_argument("--max-checks", type=positive_int, default=200_000,
-                   help="collision-check budget per sampling trial; a trial that spends it is censored")
+    p.add_argument(
+        "--parts",
+        type=names_from(PARTS, "part"),
+        default=",".join(PARTS),
+        help=f"sweeps to run (default {','.join(PARTS)})",
+    )
+    p.add_argument(
+        "--scenes", type=comma_list, default=None, help=f"sampling-sweep scenes (default {','.join(SAMPLING_SCENES)})"
+    )
+    p.add_argument(
+        "--samplers", type=sampler_names, default=",".join(SAMPLERS), help="sampling-sweep samplers (default all seven)"
+    )
+    p.add_argument("--steps", type=positive_float_list, default=None, help="steps (default 2,5,10,15,20; --quick 2,10)")
+    p.add_argument(
+        "--max-checks",
+        type=positive_int,
+        default=200_000,
+        help="collision-check budget per sampling trial; a trial that spends it is censored",
+    )
     p.add_argument("--prm-seeds", type=positive_int, default=None, help="seeds per PRM cell (default 30, --quick 2)")
     p.add_argument("--ur3-runs", type=positive_int, default=None, help="runs per UR3 job (default 5, --quick 1)")
     p.set_defaults(func=run)
@@ -39,11 +55,17 @@ def register(kinds) -> None:
 def config_from_args(args) -> Config:
     """The sweeps' options; --quick changes the defaults of the options not given."""
     quick = args.quick
-    return Config(trials=args.trials or (3 if quick else 300),
-                  steps=list(args.steps or (QUICK_STEPS if quick else STEPS)),
-                  scenes=args.scenes or list(SAMPLING_SCENES), samplers=args.samplers, max_checks=args.max_checks,
-                  prm_seeds=args.prm_seeds or (2 if quick else 30), ur3_runs=args.ur3_runs or (1 if quick else 5),
-                  parts=args.parts, quick=bool(quick))
+    return Config(
+        trials=args.trials or (3 if quick else 300),
+        steps=list(args.steps or (QUICK_STEPS if quick else STEPS)),
+        scenes=args.scenes or list(SAMPLING_SCENES),
+        samplers=args.samplers,
+        max_checks=args.max_checks,
+        prm_seeds=args.prm_seeds or (2 if quick else 30),
+        ur3_runs=args.ur3_runs or (1 if quick else 5),
+        parts=args.parts,
+        quick=bool(quick),
+    )
 
 
 def run(args) -> int:

@@ -1,4 +1,5 @@
 """`bench plan`: PRM success rate and median time per sampler at one roadmap size (app.bench.plan)."""
+
 from app.bench.plan import COMPARED_SAMPLERS, MODES, SIZE, measure, trial_params
 from app.commands.common import comma_list, non_negative_int, positive_float, positive_int, print_json, sampler_names
 
@@ -6,24 +7,46 @@ from app.commands.common import comma_list, non_negative_int, positive_float, po
 def register(kinds) -> None:
     p = kinds.add_parser("plan", help="PRM success rate and median time per sampler (fixed roadmap size)")
     p.add_argument("--scenes", type=comma_list, default="bar,joint3d", help="comma-separated scene names")
-    p.add_argument("--samplers", type=sampler_names, default=",".join(COMPARED_SAMPLERS),
-                   help="comma-separated sampler names")
+    p.add_argument(
+        "--samplers", type=sampler_names, default=",".join(COMPARED_SAMPLERS), help="comma-separated sampler names"
+    )
     p.add_argument("--seeds", type=positive_int, default=50, help="seeds 0..N-1 per scene and sampler")
-    p.add_argument("--narrow", type=non_negative_int, default=SIZE["narrow"],
-                   help="narrow-passage samples per roadmap (uniform: that many more uniform samples)")
+    p.add_argument(
+        "--narrow",
+        type=non_negative_int,
+        default=SIZE["narrow"],
+        help="narrow-passage samples per roadmap (uniform: that many more uniform samples)",
+    )
     p.add_argument("--uniform", type=non_negative_int, default=SIZE["uniform"], help="uniform samples per roadmap")
-    p.add_argument("-k", "--neighbours", type=positive_int, default=SIZE["k"],
-                   help="k nearest neighbours (default: k-PRM*'s, as `plan`)")
+    p.add_argument(
+        "-k",
+        "--neighbours",
+        type=positive_int,
+        default=SIZE["k"],
+        help="k nearest neighbours (default: k-PRM*'s, as `plan`)",
+    )
     p.add_argument("--smooth", type=non_negative_int, default=SIZE["smooth"], help="random shortcut rounds")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
-    p.add_argument("--budget", type=positive_float, default=None, metavar="SECONDS",
-                   help="instead of one round, add samples in rounds until connected or this many seconds pass")
-    p.add_argument("--roadmap", choices=[*MODES, "both"], default="query",
-                   help="query: the planner's default (lazy, a quarter at a time until connected); full: the whole "
-                        "roadmap, every edge checked (the paper's protocol); both: side by side")
-    p.add_argument("--workers", type=positive_int, default=1,
-                   help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread "
-                        "each)")
+    p.add_argument(
+        "--budget",
+        type=positive_float,
+        default=None,
+        metavar="SECONDS",
+        help="instead of one round, add samples in rounds until connected or this many seconds pass",
+    )
+    p.add_argument(
+        "--roadmap",
+        choices=[*MODES, "both"],
+        default="query",
+        help="query: the planner's default (lazy, a quarter at a time until connected); full: the whole "
+        "roadmap, every edge checked (the paper's protocol); both: side by side",
+    )
+    p.add_argument(
+        "--workers",
+        type=positive_int,
+        default=1,
+        help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread each)",
+    )
     p.add_argument("--store", default="out/bench-plan.sqlite", help="results store (resumes a killed run)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
@@ -32,28 +55,37 @@ def register(kinds) -> None:
 def run(args) -> int:
     params = trial_params(args.narrow, args.uniform, args.neighbours, args.smooth, budget=args.budget)
     modes = list(MODES) if args.roadmap == "both" else [args.roadmap]
-    table = measure(args.scenes, args.samplers, args.seeds, params, args.store, modes=modes, step=args.step,
-                    workers=args.workers)
+    table = measure(
+        args.scenes, args.samplers, args.seeds, params, args.store, modes=modes, step=args.step, workers=args.workers
+    )
     if args.json:
         print_json({"plan": table, "seeds": args.seeds, "params": params})
         return 0
     budget = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
-    print(f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
-          f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
-          f"query: lazy edges, a quarter of the samples at a time until connected; full: the whole roadmap, every "
-          f"edge checked{budget}")
-    print(f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
-          f"{'median checks':>14} {'narrow on path':>15}")
+    print(
+        f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
+        f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
+        f"query: lazy edges, a quarter of the samples at a time until connected; full: the whole roadmap, every "
+        f"edge checked{budget}"
+    )
+    print(
+        f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
+        f"{'median checks':>14} {'narrow on path':>15}"
+    )
     for r in table:
         to_path = f"{r['median_seconds_to_path']:.2f}" if r["median_seconds_to_path"] is not None else "-"
         narrow = f"{r['median_narrow_on_path']:.0f}" if r["median_narrow_on_path"] is not None else "-"
-        print(f"{r['scene']:<9} {r['sampler']:<9} {r['roadmap']:<8} {r['success_rate']:>8.0%} "
-              f"{r['median_seconds']:>9.2f} {to_path:>10} {r['median_checks']:>14.0f} {narrow:>15}")
+        print(
+            f"{r['scene']:<9} {r['sampler']:<9} {r['roadmap']:<8} {r['success_rate']:>8.0%} "
+            f"{r['median_seconds']:>9.2f} {to_path:>10} {r['median_checks']:>14.0f} {narrow:>15}"
+        )
     cells = {(r["scene"], r["sampler"], r["roadmap"]): r for r in table}
     for (scene, sampler, mode), r in cells.items():
         full = cells.get((scene, sampler, "full"))
         if mode == "query" and full:
-            print(f"{scene} {sampler}: query/full median time {r['median_seconds'] / full['median_seconds']:.2f}x, "
-                  f"checks {r['median_checks'] / full['median_checks']:.2f}x, success {r['success_rate']:.0%} vs "
-                  f"{full['success_rate']:.0%}")
+            print(
+                f"{scene} {sampler}: query/full median time {r['median_seconds'] / full['median_seconds']:.2f}x, "
+                f"checks {r['median_checks'] / full['median_checks']:.2f}x, success {r['success_rate']:.0%} vs "
+                f"{full['success_rate']:.0%}"
+            )
     return 0

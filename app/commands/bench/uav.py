@@ -1,4 +1,5 @@
 """`bench uav`: the paper's maze and tunnel PRM tables, LFBS vs RBBS (app.bench.uav)."""
+
 from app.bench.uav import PAPER_SECONDS, measure
 from app.commands.common import positive_int, print_json
 
@@ -17,15 +18,27 @@ def run(args) -> int:
     if args.json:
         print_json({"uav": result, "seeds": args.seeds})
         return 0
-    print(f"{args.seeds} seeds per cell; whole roadmap, every edge checked, k 10 (maze 200 + 300, tunnel 100 + 200 "
-          "samples); t_eps = narrow+uniform sampling time of successful runs, T_PRM = whole plan; paper's seconds in brackets")
-    print(f"{'scene':<7} {'step':>5} {'sampler':<8} {'success':>8} {'t_eps s':>9} {'T_PRM s':>9} {'checks':>9} "
-          f"{'paper t_eps':>12} {'paper T_PRM':>12}")
+    print(
+        f"{args.seeds} seeds per cell; whole roadmap, every edge checked, k 10 (maze 200 + 300, tunnel 100 + 200 "
+        "samples); t_eps = narrow+uniform sampling time of successful runs, T_PRM = whole plan; "
+        "paper's seconds in brackets"
+    )
+    print(
+        f"{'scene':<7} {'step':>5} {'sampler':<8} {'success':>8} {'t_eps s':>9} {'T_PRM s':>9} {'checks':>9} "
+        f"{'paper t_eps':>12} {'paper T_PRM':>12}"
+    )
     for r in result:
         paper = PAPER_SECONDS.get((r["scene"], r["step"]))
-        t_eps, t_prm = (paper[0], paper[1]) if paper and r["sampler"] == "lfbs" else (paper[2], paper[3]) if paper \
+        t_eps, t_prm = (
+            (paper[0], paper[1])
+            if paper and r["sampler"] == "lfbs"
+            else (paper[2], paper[3])
+            if paper
             else (None, None)
+        )
         eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "-"
-        print(f"{r['scene']:<7} {r['step']:>5g} {r['sampler']:<8} {r['success_rate']:>8.0%} {eps:>9} "
-              f"{r['median_t_prm']:>9.2f} {r['median_checks']:>9.0f} {t_eps!s:>12} {t_prm!s:>12}")
+        print(
+            f"{r['scene']:<7} {r['step']:>5g} {r['sampler']:<8} {r['success_rate']:>8.0%} {eps:>9} "
+            f"{r['median_t_prm']:>9.2f} {r['median_checks']:>9.0f} {t_eps!s:>12} {t_prm!s:>12}"
+        )
     return 0
