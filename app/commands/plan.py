@@ -142,9 +142,10 @@ def summary(r) -> str:
         f"  path      {len(r.roadmap_path)} roadmap nodes ({r.narrow_on_path} from {r.sampler}), length "
         f"{r.smoothing['raw_length']:.1f} -> {len(r.path)} waypoints, length {r.smoothing['length_after']:.1f} "
         f"after smoothing",
-        f"  timing    {t.duration:.2f} s trajectory, {len(t.times)} samples (stops at each waypoint)",
-        f"  cost      {r.collision_checks} collision checks, {s['total']:.2f} s (sampling {s['sampling']:.2f}, "
-        f"roadmap {s['roadmap']:.2f}, search {s['search']:.2f}, smoothing {s['smoothing']:.2f}, "
-        f"timing {s['timing']:.2f})",
+        f"  motion    {t.duration:.2f} s trajectory, {len(t.times)} samples, corners blended, "
+        + ("certified free (continuous)" if t.certified else "NOT certified: fine-checked only"),
+        f"  cost      {r.collision_checks} collision checks + {r.distance_queries} distance queries, "
+        f"{s['total']:.2f} s (sampling {s['sampling']:.2f}, roadmap {s['roadmap']:.2f}, search {s['search']:.2f}, "
+        f"smoothing {s['smoothing']:.2f}, certify {s['certify']:.2f}, timing {s['timing']:.2f})",
     ]
     return "\n".join(lines)
