@@ -292,6 +292,7 @@ def figure(report: dict, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
+    from matplotlib.ticker import NullFormatter
 
     from app.draw import save
 
@@ -336,6 +337,7 @@ def figure(report: dict, path: str) -> None:
                 zorder=st["zorder"],
             )
         ax.set_xscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # labels at 2x, 3x ... 10^k overlapped on narrow panels
         ax.set_ylim(-0.08, 1.08)
         ax.margins(x=0.25)
         c = s["comparison"]
