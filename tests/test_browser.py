@@ -65,29 +65,45 @@ def chromium_command(browser: str, page: Path, screenshot: Path, profile: str) -
     ]
 
 
-def screenshot_all(pages: dict[Path, Path]) -> None:
-    """Screenshot every page in parallel (one Chromium each, fresh profiles)."""
+def screenshot_all(pages: dict[Path, Path], attempts: int = 3, timeout: float = 90.0) -> None:
+    """Screenshot every page in parallel (one Chromium each, fresh profiles). Headless Chromium now and then never
+    finishes a page's virtual time (seen on a quiet machine too, with the same page drawing in seconds on the next
+    try): a run that has written nothing after `timeout` seconds is killed and started again, up to `attempts`."""
     browser = find_browser()
     with tempfile.TemporaryDirectory(prefix="npp-chromium-") as profiles:
-        runs = []
-        for i, (page, shot) in enumerate(pages.items()):
-            shot.unlink(missing_ok=True)
-            command = chromium_command(browser, page, shot, os.path.join(profiles, str(i)))
-            runs.append(
-                (
-                    shot,
-                    subprocess.Popen(
-                        command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-                    ),
+        todo, outputs = dict(pages), {}
+        for attempt in range(attempts):
+            runs = []
+            for i, (page, shot) in enumerate(todo.items()):
+                shot.unlink(missing_ok=True)
+                command = chromium_command(browser, page, shot, os.path.join(profiles, f"{attempt}-{i}"))
+                runs.append(
+                    (
+                        page,
+                        shot,
+                        subprocess.Popen(
+                            command,
+                            stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT,
+                            text=True,
+                        ),
+                    )
                 )
-            )
-        for shot, run in runs:
-            try:
-                output, _ = run.communicate(timeout=180)
-            except subprocess.TimeoutExpired:
-                run.kill()
-                output, _ = run.communicate()
-            assert shot.is_file(), f"Chromium wrote no screenshot (exit {run.returncode}):\n{output[-2000:]}"
+            for page, shot, run in runs:
+                try:
+                    outputs[page], _ = run.communicate(timeout=timeout)
+                except subprocess.TimeoutExpired:
+                    run.kill()
+                    outputs[page], _ = run.communicate()
+                if shot.is_file():
+                    del todo[page]
+            if not todo:
+                return
+        page = next(iter(todo))
+        raise AssertionError(
+            f"Chromium wrote no screenshot of {page.name} in {attempts} tries:\n{outputs[page][-2000:]}"
+        )
 
 
 def robot_pixels(png: Path) -> int:
