@@ -255,9 +255,8 @@ class Query:
             "uniform": make_sampler("uniform", oracle, step=self.step),
         }
         self.sampler_stats = {"narrow": {}, "uniform": {}}
-        self.drawn = {"narrow": 0, "uniform": 0}
         self.rounds = 0
-        # Narrow-passage samples from the first round after start's and goal's components stopped merging.
+        # Narrow-passage samples from the round after the first one that left start and goal apart.
         self.narrow_from_round: int | None = 1 if settings.full_roadmap else None
         # A single query checks only the edges its candidate paths use; a full roadmap is checked whole.
         self.roadmap = Roadmap(
@@ -328,8 +327,6 @@ class Query:
         self.rounds += 1
         N = self._timed("sampling", self._draw, "narrow", narrow)
         U = self._timed("sampling", self._draw, "uniform", uniform)
-        self.drawn["narrow"] += len(N)
-        self.drawn["uniform"] += len(U)
         new = np.concatenate([self.roadmap.add(N, NARROW, connect=False), self.roadmap.add(U, UNIFORM, connect=False)])
         if self.rounds == 1:
             new = np.concatenate([[self.start_node, self.goal_node], new])

@@ -15,24 +15,23 @@ from app.errors import UserError
 from app.samplers import check_name
 
 
-def positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive: {text}")
-    return value
+def _whole_number_at_least(least: int, fault: str):
+    """An argparse type: a whole number >= least, else `fault` (e.g. "must be positive") with the text."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if value < least:
+            raise argparse.ArgumentTypeError(f"{fault}: {text}")
+        return value
+
+    return parse
 
 
-def non_negative_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must not be negative: {text}")
-    return value
+positive_int = _whole_number_at_least(1, "must be positive")
+non_negative_int = _whole_number_at_least(0, "must not be negative")
 
 
 def positive_float(text: str) -> float:
