@@ -11,7 +11,8 @@ So no fixed choice fits both a walker's batches (mostly colliding proposals) and
 free): `are_free` keeps a running cost per configuration for each path, takes the cheaper, and re-measures the
 other now and then, so it follows the caller's phase and the machine's load. Both paths give the same answers.
 Both see the same collision pairs: the scene's policy is applied to the checker (body pairs) and to the raw
-query context (geometry filter), and a test holds them to agreement.
+query context (geometry filter), and a test holds them to agreement. An SRDF's disabled pairs need neither: the
+Scene filters them on the SceneGraph model, which the checker and every context start from.
 
 `checks` counts every configuration handed to Drake for a collision answer (the paper's gamma_c); an edge check
 counts the configurations it looked at. Configurations outside the bounds are rejected before Drake and not counted.
@@ -245,7 +246,8 @@ class CollisionOracle:
         return min((p.distance for p in pairs), default=float(max_distance))
 
     def contacts(self, q: np.ndarray, margin: float = 0.0) -> dict[str, bool]:
-        """What the robot touches (or comes within `margin` of) at q, regardless of the policy: environment, self."""
+        """What the robot touches (or comes within `margin` of) at q, environment and self, whether or not the scene
+        counts self-collision (pairs Drake or the SRDF filter are never reported)."""
         self.plant.SetPositions(self._diag, np.asarray(q, float))
         query = self._query_port.Eval(self._diag)
         pairs = query.ComputeSignedDistancePairwiseClosestPoints(max(margin, 1e-9))

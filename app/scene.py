@@ -57,6 +57,9 @@ class ProblemFile:
     # Which collisions count: "environment" (robot vs. obstacles) or "all" (also robot vs. itself).
     collisions: str = "environment"
     collisions_why: str = ""
+    # An SRDF (MoveIt's format; a path relative to the problem file, or package://npp_robots/...) whose
+    # <disable_collisions link1= link2=/> robot body pairs are never checked (Drake already skips parent/child pairs).
+    srdf: str = ""
     lower: list[float] = field(default_factory=list)  # default: the model's joint limits
     upper: list[float] = field(default_factory=list)
     start: list[float] = field(default_factory=list)
@@ -118,6 +121,46 @@ def read_problem(path: Path) -> ProblemFile:
     return problem
 
 
+def read_srdf(path: Path) -> list[tuple[str, str]]:
+    """The (link1, link2) pairs of an SRDF's <disable_collisions> elements."""
+    import xml.etree.ElementTree as ET
+
+    if not path.is_file():
+        raise UserError(f"SRDF file not found: {path}")
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise UserError(f"bad SRDF {path.name}: {exc}") from None
+    pairs = []
+    for element in root.iter("disable_collisions"):
+        a, b = element.get("link1"), element.get("link2")
+        if not a or not b:
+            raise UserError(f"bad SRDF {path.name}: <disable_collisions> needs link1 and link2")
+        pairs.append((a, b))
+    return pairs
+
+
+def exclude_body_pairs(plant, scene_graph, instances, pairs: list[tuple[str, str]], srdf) -> None:
+    """Exclude collisions between the geometries of each named body pair of the robot `instances` on the
+    SceneGraph model (before contexts are made). Names no robot body carries -> one UserError naming them all."""
+    from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+
+    def body(name):
+        found = [plant.GetBodyByName(name, i) for i in instances if plant.HasBodyNamed(name, i)]
+        return found[0] if found else None
+
+    unknown = sorted({name for pair in pairs for name in pair if body(name) is None})
+    if unknown:
+        raise UserError(f"SRDF {Path(srdf).name}: unknown link(s) {', '.join(unknown)} (not bodies of the robot)")
+    declaration = CollisionFilterDeclaration()
+    for a, b in pairs:
+        declaration.ExcludeBetween(
+            GeometrySet(plant.GetCollisionGeometriesForBody(body(a))),
+            GeometrySet(plant.GetCollisionGeometriesForBody(body(b))),
+        )
+    scene_graph.collision_filter_manager().Apply(declaration)
+
+
 class Scene:
     """A loaded scene: the Drake RobotDiagram and the configuration-space facts read from it and the problem file."""
 
@@ -136,6 +179,10 @@ class Scene:
                 raise UserError(f"bad scene file {self.path.name}: no model instance named '{name}'")
         self.robot_instances = [plant.GetModelInstanceByName(n) for n in problem.robot]
         plant.Finalize()
+        # On the SceneGraph model itself, so every context, the collision checker (which copies the model's filters
+        # when made) and the certificate's pair list all see the same pairs.
+        self.disabled_pairs = read_srdf(self._file(problem.srdf)) if problem.srdf else []
+        exclude_body_pairs(plant, builder.scene_graph(), self.robot_instances, self.disabled_pairs, problem.srdf)
         self.diagram = builder.Build()
         self.plant = self.diagram.plant()
 
@@ -229,6 +276,15 @@ class Scene:
         except Exception as exc:
             raise UserError(f"cannot load {self.problem.directives}: {' '.join(str(exc).split())[:300]}") from None
 
+    def _file(self, uri: str) -> Path:
+        """A file named in the problem file: package://NAME/rest of a shipped package, else relative to the file."""
+        if uri.startswith("package://"):
+            name, _, rest = uri[len("package://") :].partition("/")
+            if name not in PACKAGES:
+                raise UserError(f"bad scene file {self.path.name}: unknown package '{name}' in {uri}")
+            return PACKAGES[name] / rest
+        return self.path.parent / uri
+
     def _vector(self, key: str, values: list[float], default: "np.ndarray | None") -> np.ndarray:
         if not values:
             if default is None:
@@ -252,6 +308,8 @@ class Scene:
             "start": self.start.tolist(),
             "goal": self.goal.tolist(),
             "collisions": self.problem.collisions,
+            "self_collision": self.self_collisions,
+            "disabled_pairs": len(self.disabled_pairs),
             "passage_frame": self.problem.passage.frame,
             "passage_boxes": [dataclasses.asdict(b) for b in self.problem.passage.boxes],
             "tool_frame": self.problem.tool_frame,

@@ -91,6 +91,28 @@ def test_ur3_self_collision_geometry_is_sane(oracles):
     assert any("cart" not in a and "cart" not in b for a, b in counts)
 
 
+def test_ur3_srdf_pairs_never_touch(oracles, tmp_path):
+    """The UR3 scenes load robots/ur3_on_cart.srdf; its pairs, checked here on the same scene without it at fresh
+    random configurations, never come within a few millimetres (the generator kept 1 cm)."""
+    from app.oracle import CollisionOracle
+
+    disabled = {frozenset(pair) for pair in oracles("window").scene.disabled_pairs}
+    assert disabled and oracles("welding").scene.disabled_pairs == oracles("window").scene.disabled_pairs
+    (tmp_path / "window.dmd.yaml").write_text((SCENES_DIR / "window.dmd.yaml").read_text())
+    (tmp_path / "window.yaml").write_text(re.sub(r"srdf: .*\n", "", WINDOW))
+    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml")))
+    assert not oracle.scene.disabled_pairs
+    plant, inspector = oracle.plant, oracle.model.scene_graph().model_inspector()
+    context = plant.GetMyContextFromRoot(oracle.model.CreateDefaultContext())
+    close = set()
+    for q in oracle.space.uniform(np.random.default_rng(11), 2000):
+        plant.SetPositions(context, q)
+        for p in plant.get_geometry_query_input_port().Eval(context).ComputeSignedDistancePairwiseClosestPoints(0.003):
+            bodies = frozenset(plant.GetBodyFromFrameId(inspector.GetFrameId(g)).name() for g in (p.id_A, p.id_B))
+            close.add(bodies)
+    assert close and not close & disabled
+
+
 def test_quadrotor_model_and_safety_hull(oracles):
     from pydrake.geometry import Cylinder, Role
 
