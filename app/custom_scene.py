@@ -12,6 +12,9 @@ Inputs (the keys of a custom scene file, see `CustomSpec`; `plan` takes the same
   robots/l_body.urdf), so its first six coordinates are x, y, z, yaw, pitch, roll.
 - env: mesh files (decomposed into validated convex pieces, see app.meshes) or .sdf/.urdf files; `env_pose`
   x,y,z (m), roll,pitch,yaw (degrees) places them (once for all, or once per env).
+- collisions / srdf: self-collision counts unless `collisions: environment`; an SRDF's <disable_collisions> pairs
+  (adjacent links, pairs that cannot touch) are left out. Mesh links are decomposed like environment meshes, so
+  self-collision is judged on the validated pieces, not on Drake's convex hull of each link.
 - bounds: per coordinate `lo..hi`, comma separated: either one per coordinate, or, for a floating robot, three for
   x, y, z only (the angles then wrap on [-pi, pi); further joints keep their model limits). Default for a floating
   robot: the environment's bounding box, grown by the robot's radius, and stretched to include start and goal;
@@ -47,10 +50,11 @@ class CustomSpec:
     floating: bool = False  # carry a URDF/SDF robot's root in SE(3) instead of welding it to the world
     env: list[str] = field(default_factory=list)  # mesh or .sdf/.urdf files
     env_pose: list[float] = field(default_factory=list)  # 6 numbers (x,y,z m; roll,pitch,yaw deg), or 6 per env
-    start: list[float] = field(default_factory=list)
-    goal: list[float] = field(default_factory=list)
+    start: list[float] = field(default_factory=list)  # empty: the robot's home (zero, clipped into the bounds)
+    goal: list[float] = field(default_factory=list)  # empty: the home too (a caller then sets it, e.g. from a pose)
     bounds: list[str] = field(default_factory=list)  # "lo..hi" per coordinate, or per x,y,z of a floating robot
-    collisions: str = "environment"
+    collisions: str = "all"  # "all": the robot against itself too; "environment": only against the obstacles
+    srdf: str = ""  # MoveIt SRDF whose <disable_collisions> body pairs are not checked
     resolution: float = 0.0  # edge-check step in the weighted metric; 0: a quarter of the robot's smallest extent
     mesh_method: str = "auto"  # auto | convex | coacd | faces
     mesh_tolerance: float = 0.0  # 0: 0.2 % of each mesh's bounding-box diagonal
@@ -267,10 +271,11 @@ def convert_model_meshes(
     info: list | None = None,
 ) -> Path:
     """`path` itself when nothing needs changing; else a rewritten copy in the cache where
-    - with `decompose_options` (environment models): each <collision> holding a mesh becomes one <collision> per
-      validated convex piece of it (app.meshes.decompose), since Drake would use the mesh's convex hull;
-    - mesh references Drake cannot read (.stl, .dae, ...) point to converted .obj files (for a robot's links that
-      means their convex hull, conservative, as usual);
+    - with `decompose_options` (environment models and robots' mesh links): each <collision> holding a mesh becomes
+      one <collision> per validated convex piece of it (app.meshes.decompose), since Drake would use the mesh's
+      convex hull; the pieces stay on the link's body, so they are never checked against each other;
+    - mesh references Drake cannot read (.stl, .dae, ...) point to converted .obj files (without decompose_options
+      that means their convex hull, conservative);
     - every other relative or package:// reference is made absolute (the copy lives elsewhere).
     `info` collects what each decomposition did."""
     import re
@@ -466,6 +471,8 @@ def build_scene(
         "decompositions": models.decompositions,
         "prepare_seconds": time.perf_counter() - started,
     }
+    if models.hull_robot_file is not None:
+        info["mesh_links"] = hull_disagreement(scene_dir, *models.hull_robot_file, inputs, robot_instances)
     name = f"{inputs.robot_path.stem}-in-{'+'.join(p.stem for p in inputs.env_paths) or 'nothing'}"
     load_started = time.perf_counter()
     scene = CustomScene(problem_path, inputs.packages, name, info)
@@ -486,6 +493,7 @@ class _Inputs:
     env_kinds: list[str]
     env_poses: list[list[float]]
     bounds: list[tuple[float, float]]
+    srdf_path: Path | None
 
 
 def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
@@ -511,11 +519,20 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
     poses = parse_poses(spec.env_pose, len(env_paths)) if env_paths else []
     if spec.env_pose and not env_paths:
         raise UserError("an env pose needs an environment file")
-    if not spec.start or not spec.goal:
-        raise UserError("start and goal are required")
+    srdf_path = resolve(spec.srdf) if spec.srdf else None
+    if srdf_path is not None and not srdf_path.is_file():
+        raise UserError(f"SRDF file not found: {spec.srdf}")
     bounds = parse_bounds(spec.bounds)
     return _Inputs(
-        packages, robot_path, robot_kind, robot_kind == "mesh" or spec.floating, env_paths, env_kinds, poses, bounds
+        packages,
+        robot_path,
+        robot_kind,
+        robot_kind == "mesh" or spec.floating,
+        env_paths,
+        env_kinds,
+        poses,
+        bounds,
+        srdf_path,
     )
 
 
@@ -526,6 +543,8 @@ class _Models:
     directives: list[str] = field(default_factory=lambda: ["directives:"])
     files: dict[str, str] = field(default_factory=dict)  # generated file name -> text
     decompositions: list[dict] = field(default_factory=list)  # what each mesh decomposition did
+    # (the robot file with decomposed mesh links, the same with Drake's hull per mesh link), if it has mesh links
+    hull_robot_file: tuple[Path, Path] | None = None
 
 
 def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: Path | None) -> list[str]:
@@ -543,7 +562,12 @@ def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: 
             "    child: robot::origin",
         ]
         return ["robot"]
-    robot_file = convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir)
+    before = len(models.decompositions)
+    found = models.decompositions
+    robot_file = convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir, mesh_options, found)
+    if len(models.decompositions) > before:
+        # The same robot with Drake's convex hull per mesh link, to measure what the decomposition changes.
+        models.hull_robot_file = (robot_file, convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir))
     probe = probe_model(robot_file, inputs.packages)
     if not inputs.floating:
         models.directives += ["- add_model:", "    name: robot", f"    file: {_quoted_uri(robot_file)}"]
@@ -629,10 +653,13 @@ def _problem(
 ) -> dict:
     """The problem file's keys: start, goal, limits, weights and resolution from the probed robot."""
     nq = len(coords["names"])
-    start = _vector(spec.start, nq, "start", coords["names"])
-    goal = _vector(spec.goal, nq, "goal", coords["names"])
     angular = np.array([k == "revolute" for k in coords["kinds"]])
+    home = np.zeros(nq)
+    start = _vector(spec.start, nq, "start", coords["names"]) if spec.start else home
+    goal = _vector(spec.goal, nq, "goal", coords["names"]) if spec.goal else home
     lower, upper = _limits(coords, angular, inputs, start, goal, env_boxes)
+    start = start if spec.start else np.clip(home, lower, upper)
+    goal = goal if spec.goal else np.clip(home, lower, upper)
     # Weights: an angle's weight is the lever arm it swings (the robot's radius or reach), metres weigh 1.
     lever = max(coords["reach"], 1e-6)
     weights = np.where(angular, lever, 1.0)
@@ -643,6 +670,7 @@ def _problem(
         "directives": "scene.dmd.yaml",
         "robot": robot_instances,
         "collisions": spec.collisions,
+        "srdf": str(inputs.srdf_path or ""),
         "lower": lower.tolist(),
         "upper": upper.tolist(),
         "start": start.tolist(),
@@ -727,6 +755,50 @@ def _vector(values, nq: int, what: str, names: list[str]) -> np.ndarray:
     if vector.shape != (nq,) or not np.all(np.isfinite(vector)):
         raise UserError(f"{what} needs {nq} finite numbers ({', '.join(names)}), got {len(values)}")
     return vector
+
+
+def hull_disagreement(
+    scene_dir: Path, pieces_file: Path, hull_file: Path, inputs: _Inputs, robot_instances: list[str], samples=300
+) -> dict:
+    """How often the robot alone collides with itself at uniform random configurations (seeded), with its mesh links
+    as Drake's convex hulls and as the validated pieces (SRDF pairs left out in both): `hull_only` is the fraction
+    that collide as hulls but not as pieces, what the decomposition saves self-collision checking from."""
+    from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
+
+    from app.scene import exclude_body_pairs, read_srdf
+
+    pairs = read_srdf(inputs.srdf_path) if inputs.srdf_path else []
+    exact = scene_dir / "robot.dmd.yaml"
+    hulls = scene_dir / "robot-hulls.dmd.yaml"
+    _write(hulls, exact.read_text().replace(str(pieces_file), str(hull_file)))
+    rng = np.random.default_rng(0)
+    collide = []
+    for directives in (hulls, exact):
+        builder = _new_builder(inputs.packages)
+        plant = builder.plant()
+        ProcessModelDirectives(LoadModelDirectives(str(directives)), builder.parser())
+        plant.Finalize()
+        instances = [plant.GetModelInstanceByName(n) for n in robot_instances]
+        exclude_body_pairs(plant, builder.scene_graph(), instances, pairs, inputs.srdf_path)
+        diagram = builder.Build()
+        root = diagram.CreateDefaultContext()
+        context = diagram.plant().GetMyContextFromRoot(root)
+        if not collide:  # the same configurations for both, within the joint limits (none: one turn)
+            lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+            lower, upper = np.where(np.isfinite(lower), lower, -math.pi), np.where(np.isfinite(upper), upper, math.pi)
+            Q = rng.uniform(lower, upper, (samples, plant.num_positions()))
+        port = diagram.plant().get_geometry_query_input_port()
+        hits = []
+        for q in Q:
+            diagram.plant().SetPositions(context, q)
+            hits.append(port.Eval(context).HasCollisions())
+        collide.append(np.array(hits))
+    return {
+        "samples": samples,
+        "hull_self_collision": float(collide[0].mean()),
+        "pieces_self_collision": float(collide[1].mean()),
+        "hull_only": float((collide[0] & ~collide[1]).mean()),
+    }
 
 
 # ---- entry points -------------------------------------------------------------------------------------------------

@@ -74,6 +74,7 @@ def solve_pose(
     reference=None,
     *,
     frame=None,
+    label: str | None = None,
     seeds: int = 64,
     keep: int = 3,
     position_tolerance: float = POSITION_TOLERANCE,
@@ -82,12 +83,13 @@ def solve_pose(
 ) -> np.ndarray:
     """A free configuration putting `frame` (default: the scene's tool frame) at `pose` (a pose name of the scene or
     a RigidTransform in the world), the nearest to `reference` (default: the scene's start) among the first `keep`
-    found. Raises InvalidEndpoint if no seed gives one."""
+    found; `label` names the pose in errors. Raises InvalidEndpoint if no seed gives one."""
     from pydrake.math import RotationMatrix
     from pydrake.multibody.inverse_kinematics import InverseKinematics
     from pydrake.solvers import Solve
 
-    label, X_WT = _pose(oracle, pose)
+    default_label, X_WT = _pose(oracle, pose)
+    label = label or default_label
     scene = oracle.scene
     frame = frame or scene.tool_frame
     if frame is None:
@@ -182,3 +184,44 @@ def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **
         if oracle.space.distance(again, chain[i + 1]) < oracle.space.distance(chain[i], chain[i + 1]):
             chain[i] = again
     return dict(zip(names, chain))
+
+
+def robot_frame(oracle, name: str | None = None):
+    """The robot's frame `name`; without a name the scene's tool frame, else the robot's last body: the one with
+    the most joints between it and the world (the tip of the kinematic chain; the latest in the model on a tie)."""
+    plant, scene = oracle.plant, oracle.scene
+    bodies = [plant.get_body(b) for instance in scene.robot_instances for b in plant.GetBodyIndices(instance)]
+    if name:
+        frames = [plant.GetFrameByName(name, i) for i in scene.robot_instances if plant.HasFrameNamed(name, i)]
+        if not frames:
+            raise UserError(f"unknown tool frame '{name}' (robot bodies: {', '.join(b.name() for b in bodies)})")
+        return frames[0]
+    if scene.tool_frame is not None:
+        return scene.tool_frame
+    parent = {}
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        parent[joint.child_body().index()] = joint.parent_body().index()
+
+    def depth(body) -> int:
+        index, count = body.index(), 0
+        while index in parent:
+            index, count = parent[index], count + 1
+        return count
+
+    return max(reversed(bodies), key=depth).body_frame()
+
+
+def pose_goal(oracle, values, *, tool: str | None = None, reference=None, seed: int = 0) -> np.ndarray:
+    """A free configuration putting the robot's `tool` frame (see robot_frame) at the world pose `values`:
+    x, y, z in metres, roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll)), the nearest to `reference`
+    (default: the scene's start) of those found from several seeds. Unreachable: InvalidEndpoint NO_IK_SOLUTION."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    values = np.asarray(values, float)
+    if values.shape != (6,) or not np.all(np.isfinite(values)):
+        raise UserError(f"a pose needs 6 finite numbers x,y,z (m), roll,pitch,yaw (deg); got {values.size}")
+    pose = RigidTransform(RollPitchYaw(np.radians(values[3:])), values[:3])
+    label = ",".join(f"{v:g}" for v in values)
+    frame = robot_frame(oracle, tool)
+    return solve_pose(oracle, pose, np.random.default_rng(seed), reference, frame=frame, label=label)

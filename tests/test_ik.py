@@ -101,3 +101,20 @@ def test_a_scene_without_a_tool_frame_has_no_poses(oracles):
 
     with pytest.raises(UserError, match="no tool frame"):
         ik.solve_pose(oracles("bar"), RigidTransform(), np.random.default_rng(0))
+
+
+def test_pose_goal_places_the_scene_tool_frame_by_default(oracles):
+    """`plan --goal-pose` on a shipped UR3 scene: metres and degrees, the scene's tool frame (tcp), the solution nearest
+    the reference; another frame by name."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    oracle = oracles("window")
+    assert ik.robot_frame(oracle).name() == "tcp"
+    q = ik.pose_goal(oracle, [0.6, 0.0, 0.66, 0, 90, 0])
+    assert_reaches(oracle, q, RigidTransform(RollPitchYaw(0, math.pi / 2, 0), [0.6, 0.0, 0.66]))
+    assert oracle.is_free(q)
+    # The scene's goal solves this very pose ('reach'): given as the reference, it is what comes back.
+    near = ik.pose_goal(oracle, [0.6, 0.0, 0.66, 0, 90, 0], reference=oracle.scene.goal)
+    assert oracle.space.distance(near, oracle.scene.goal) < 0.01
+    assert ik.robot_frame(oracle, "tool0").name() == "tool0"
+    assert ik.robot_frame(oracles("bar")).body().name() == "link7"  # no tool frame: the chain's last body

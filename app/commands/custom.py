@@ -1,6 +1,8 @@
 """The --robot / --env flags (bring your own robot and environment), for a command that takes a scene: they build
 an app.custom_scene.CustomSpec, from which app.custom_scene.build_scene makes the scene."""
 
+import argparse
+
 from app import meshes
 from app.commands.common import float_list
 from app.custom_scene import CustomSpec, build_scene, load_scene
@@ -68,8 +70,14 @@ def add_arguments(parser) -> None:
     )
     group.add_argument(
         "--self-collision",
-        action="store_true",
-        help="count the robot's collisions with itself too (default: only with the environment)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="count the robot's collisions with itself (default: on; a mesh robot is one body and has none)",
+    )
+    group.add_argument(
+        "--srdf",
+        metavar="FILE",
+        help="MoveIt SRDF: its <disable_collisions link1= link2=/> pairs are not checked",
     )
 
 
@@ -89,6 +97,7 @@ def spec_from_args(args) -> CustomSpec | None:
         goal=list(args.goal or []),
         bounds=[args.bounds] if args.bounds else [],
         collisions="all" if args.self_collision else "environment",
+        srdf=args.srdf or "",
         resolution=args.resolution,
         mesh_method=args.mesh_method,
         mesh_tolerance=args.mesh_tolerance,

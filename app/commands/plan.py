@@ -1,5 +1,7 @@
 """`plan SCENE ...`: PRM with narrow-passage samples, shortcut smoothing and Toppra timing (app.planner.plan)."""
 
+import argparse
+
 from app.commands import custom, view
 from app.commands.common import (
     float_list,
@@ -10,6 +12,8 @@ from app.commands.common import (
     print_json,
     sampler_name,
 )
+from app.errors import UserError
+from app.ik import pose_goal
 from app.io import check_output
 from app.oracle import CollisionOracle
 from app.planner import PlanSettings, plan
@@ -85,6 +89,19 @@ def register(subparsers) -> None:
     )
     p.add_argument("--start", type=float_list, default=None, help="comma-separated start configuration")
     p.add_argument("--goal", type=float_list, default=None, help="comma-separated goal configuration")
+    for end in ("start", "goal"):
+        p.add_argument(
+            f"--{end}-pose",
+            metavar="X,Y,Z,R,P,Y",
+            type=pose,
+            help=f"{end} as a pose of the tool frame (metres; roll,pitch,yaw in degrees), solved by IK nearest "
+            + ("the scene's start" if end == "start" else "the start"),
+        )
+    p.add_argument(
+        "--tool",
+        metavar="FRAME",
+        help="the robot frame the poses place (default: the scene's tool frame, else the robot's last body)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
         "--out",
@@ -111,21 +128,45 @@ def run(args) -> int:
         dt=args.dt,
         full_roadmap=args.full_roadmap,
     )
+    for end in ("start", "goal"):
+        if getattr(args, end) is not None and getattr(args, f"{end}_pose") is not None:
+            raise UserError(f"give either --{end} or --{end}-pose, not both")
+    if args.tool and args.start_pose is None and args.goal_pose is None:
+        raise UserError("--tool needs --start-pose or --goal-pose")
     out = check_output(args.out) if args.out else None
     if args.html:
         check_output(args.html)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
-    result = plan(oracle, settings, start=args.start, goal=args.goal)
+    start, goal = args.start, args.goal
+    if args.start_pose is not None:
+        start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
+    if args.goal_pose is not None:
+        goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed)
+    result = plan(oracle, settings, start=start, goal=goal)
     # Files first, the answer last: a failure writing one leaves no success printed.
     view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
     if out is not None:
         result.trajectory_file().write(out)
     if args.json:
-        print_json(result.to_json())
+        print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
     else:
         print(summary(result))
+        print(f"  collisions {collisions(oracle.scene)}")
     view.wait(args)
     return 0
+
+
+def pose(text: str) -> list[float]:
+    values = float_list(text)
+    if len(values) != 6:
+        raise argparse.ArgumentTypeError(f"needs 6 numbers x,y,z,roll,pitch,yaw, got {len(values)}: {text!r}")
+    return values
+
+
+def collisions(scene) -> str:
+    if not scene.self_collisions:
+        return "robot vs environment only (self-collision off)"
+    return f"robot vs environment and itself ({len(scene.disabled_pairs)} SRDF pairs left out)"
 
 
 def summary(r) -> str:
