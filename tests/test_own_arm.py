@@ -191,10 +191,12 @@ def test_unknown_srdf_link_is_one_line(arm, tmp_path, cli, one_line_error, monke
     result = cli("plan", "--robot", "my_arm.urdf", "--srdf", tmp_path / "typo.srdf", "--start", "0,0,0,0,0,0")
     line = one_line_error(result, 2)
     assert "elbw" in line and "wrsit" in line and "forearm" not in line
+    assert "--srdf needs --robot" in one_line_error(cli("plan", "window", "--srdf", tmp_path / "typo.srdf"), 2)
 
 
 def test_mesh_links_are_decomposed_and_the_hull_difference_measured(arm):
-    scene = _oracle(arm).scene
+    """Without the SRDF: the upper arm's hull fills the L's corner and meets the base, which its pieces never do."""
+    scene = _oracle(arm, srdf="").scene
     links = [d for d in scene.info["decompositions"] if d["mesh"] == "l.obj"]
     assert links and all(d["pieces"] >= 2 and d["validation"]["ok"] for d in links)
     measured = scene.info["mesh_links"]

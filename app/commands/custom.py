@@ -84,8 +84,9 @@ def add_arguments(parser) -> None:
 def spec_from_args(args) -> CustomSpec | None:
     """A CustomSpec from parsed flags, or None when no --robot was given. `args.start`/`args.goal` are lists."""
     if not args.robot:
-        if args.env:
-            raise UserError("--env needs --robot")
+        for flag in ("env", "srdf"):
+            if getattr(args, flag):
+                raise UserError(f"--{flag} needs --robot (a scene file takes srdf: as a key)")
         return None
     return CustomSpec(
         robot=args.robot,
