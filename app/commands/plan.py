@@ -111,6 +111,7 @@ def run(args) -> int:
         dt=args.dt,
         full_roadmap=args.full_roadmap,
     )
+    view.check_arguments(args)
     out = check_output(args.out) if args.out else None
     if args.html:
         check_output(args.html)
