@@ -4,12 +4,18 @@ A trial is a pure function of its TrialSpec (seeded), so where it runs does not 
 process keeps one oracle per scene (building a Drake diagram per trial would dominate the cost) on one thread:
 the parallelism is across processes. With one worker, trials run in this process on all the oracle's threads,
 as a plain `plan` would. Only trials the store does not hold yet are sent; rows are stored as they
-come back, so a killed sweep resumes where it stopped.
+come back, so a killed sweep resumes where it stopped. Local workers end with the sweep's process, however it
+dies (even by SIGKILL): a worker outliving it would wait forever for trials on a queue no one feeds.
 """
 
+import ctypes
 import importlib
 import multiprocessing
 import os
+import signal
+import sys
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from tqdm import tqdm
@@ -44,6 +50,27 @@ def execute(spec: TrialSpec, threads: int = 1) -> tuple[TrialSpec, dict]:
     module, function = EXPERIMENTS[spec.experiment].split(":")
     trial = getattr(importlib.import_module(module), function)
     return spec, trial(_oracle(spec.scene, threads), spec)
+
+
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+def _exit_with_parent(parent: int) -> None:
+    """A local worker's initializer: end this process when `parent` (the sweep's process) dies. On Linux the kernel
+    kills it (prctl PR_SET_PDEATHSIG, at once, even in the middle of a Drake call); elsewhere a thread notices the
+    worker has been re-parented."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    else:
+        threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    if os.getppid() != parent:  # it died before the request above was in place
+        os._exit(1)
+
+
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os._exit(1)
 
 
 def connect(scheduler):
@@ -96,7 +123,9 @@ def _results(pending: list[TrialSpec], workers: int, client):
     else:
         # spawn, not fork: a forked child would inherit Drake's thread pools mid-state.
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        with ProcessPoolExecutor(
+            max_workers=workers, mp_context=context, initializer=_exit_with_parent, initargs=(os.getpid(),)
+        ) as pool:
             futures = [pool.submit(execute, spec) for spec in pending]
             try:
                 for future in as_completed(futures):
