@@ -20,7 +20,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from tqdm import tqdm
 
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import ResultStore, Reuse, TrialSpec
 from app.errors import UserError
 from app.oracle import CollisionOracle, default_threads
 from app.scene import Scene
@@ -88,11 +88,17 @@ def connect(scheduler):
 
 
 def run_sweep(
-    specs: list[TrialSpec], store: ResultStore, workers: int = 0, scheduler=None, desc: str = "trials"
+    specs: list[TrialSpec],
+    store: ResultStore,
+    workers: int = 0,
+    scheduler=None,
+    desc: str = "trials",
+    fresh: bool = False,
 ) -> int:
-    """Run the specs the store lacks; returns how many ran. workers=0: all local cores. `scheduler`: a Dask
-    scheduler address or a client from `connect` (connect first to fail before anything is written)."""
-    pending = store.pending(specs)
+    """Run the specs the store has no reusable row for (`ResultStore.pending`: with `fresh`, rows of other code
+    versions are not reused); returns how many ran. workers=0: all local cores. `scheduler`: a Dask scheduler
+    address or a client from `connect` (connect first to fail before anything is written)."""
+    pending = store.pending(specs, fresh=fresh)
     if not pending:
         return 0
     if scheduler is not None:
@@ -107,11 +113,18 @@ def run_sweep(
     return len(pending)
 
 
-def sweep(specs: list[TrialSpec], store_path, workers: int = 1, desc: str = "trials") -> list[dict]:
-    """Run what `store_path` lacks of `specs` (a benchmark command's sweep) and return the rows of `specs`."""
+def sweep(
+    specs: list[TrialSpec], store_path, workers: int = 1, desc: str = "trials", fresh: bool = False
+) -> tuple[list[dict], Reuse]:
+    """A benchmark command's sweep: run what `store_path` has no reusable row for (`run_sweep`); the rows of `specs`
+    and what was reused of them."""
     store = ResultStore(store_path)
-    run_sweep(specs, store, workers=workers, desc=desc)
-    return store.rows_for(specs)
+    try:
+        reuse = store.reuse(specs, fresh=fresh)
+        run_sweep(specs, store, workers=workers, desc=desc, fresh=fresh)
+        return store.rows_for(specs), reuse
+    finally:
+        store.close()
 
 
 def _results(pending: list[TrialSpec], workers: int, client):
