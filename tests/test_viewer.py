@@ -233,19 +233,21 @@ def _served_plan(stdout: Path, *flags) -> tuple[subprocess.Popen, queue.Queue]:
     """`plan bar-3link --json --meshcat *flags` in a child process without a terminal (stdin /dev/null, as in Docker
     without -t), its answer into the file `stdout` (a pipe would fill up unread); its stderr lines arrive on the queue
     (None at its end)."""
-    child = subprocess.Popen(
-        [sys.executable, "-m", "app", "plan", "bar-3link", "--json", "--meshcat", *flags],
-        stdin=subprocess.DEVNULL,
-        stdout=stdout.open("w"),
-        stderr=subprocess.PIPE,
-        text=True,
-        env=dict(os.environ, DRAKE_ALLOW_NETWORK="meshcat"),
-    )
+    with stdout.open("w") as answer:  # the child has its own copy of the file
+        child = subprocess.Popen(
+            [sys.executable, "-m", "app", "plan", "bar-3link", "--json", "--meshcat", *flags],
+            stdin=subprocess.DEVNULL,
+            stdout=answer,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=dict(os.environ, DRAKE_ALLOW_NETWORK="meshcat"),
+        )
     lines = queue.Queue()
 
     def forward():
-        for line in child.stderr:
-            lines.put(line)
+        with child.stderr:
+            for line in child.stderr:
+                lines.put(line)
         lines.put(None)
 
     threading.Thread(target=forward, daemon=True).start()
@@ -253,7 +255,7 @@ def _served_plan(stdout: Path, *flags) -> tuple[subprocess.Popen, queue.Queue]:
 
 
 def _wait_for_serving(lines: queue.Queue) -> tuple[str, str]:
-    """The Meshcat URL and the line saying how the wait ends, once both are printed; what came before them too."""
+    """The Meshcat URL and the line saying how the wait ends, once both are printed."""
     seen = []
     while not (seen and seen[-1].startswith("meshcat: serving")):
         line = lines.get(timeout=120)
