@@ -3,9 +3,10 @@
 A trial is a pure function of its TrialSpec (seeded), so where it runs does not change its row. Each worker
 process keeps one oracle per scene (building a Drake diagram per trial would dominate the cost) on one thread:
 the parallelism is across processes. With one worker, trials run in this process on all the oracle's threads,
-as a plain `plan` would. Only trials the store does not hold yet are sent; rows are stored as they
-come back, so a killed sweep resumes where it stopped. Local workers end with the sweep's process, however it
-dies (even by SIGKILL): a worker outliving it would wait forever for trials on a queue no one feeds.
+as a plain `plan` would. Only trials the store has no reusable row for are sent (`ResultStore.pending`); rows
+are stored as they come back, so a killed sweep resumes where it stopped. Local workers end with the sweep's
+process, however it dies (even by SIGKILL): a worker outliving it would wait forever for trials on a queue no one
+feeds.
 """
 
 import ctypes
