@@ -111,10 +111,10 @@ def run(args) -> int:
         dt=args.dt,
         full_roadmap=args.full_roadmap,
     )
-    view.check_arguments(args)
     out = check_output(args.out) if args.out else None
     if args.html:
         check_output(args.html)
+    view.check_arguments(args)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     result = plan(oracle, settings, start=args.start, goal=args.goal)
     # Files first, the answer last: a failure writing one leaves no success printed.
