@@ -1,6 +1,7 @@
 """The results store survives a kill: a resumed sweep loses and duplicates nothing; a store of another schema is
 refused."""
 
+import json
 import os
 import signal
 import sqlite3
@@ -89,8 +90,9 @@ def test_a_command_sweep_returns_only_its_own_rows(tmp_path, monkeypatch):
     monkeypatch.setitem(EXPERIMENTS, "toy", "toy_trials:run")
     path = tmp_path / "new" / "r.sqlite"  # the folder is made
     other = [TrialSpec("toy", "bar-3link", "uniform", 1.0, seed, {"n": 5, "sleep": 0.0}) for seed in range(3)]
-    assert len(sweep(other, path)) == 3
-    rows = sweep(toy_specs(4), path)
+    assert len(sweep(other, path)[0]) == 3
+    rows, reuse = sweep(toy_specs(4), path)
+    assert (reuse.reused, reuse.trials) == (0, 4)
     assert sorted(r["seed"] for r in rows) == [0, 1, 2, 3] and all(r["params"]["n"] == 20 for r in rows)
     assert len(ResultStore(path).rows("toy")) == 7
 
@@ -123,3 +125,90 @@ def test_a_killed_sweep_resumes_without_loss_or_duplicates(tmp_path):
     store = ResultStore(db)
     seeds = [r["seed"] for r in store.rows("toy")]
     assert sorted(seeds) == list(range(40))
+
+
+def _rewrite_version(path, version, seeds):
+    """As if older code had written these seeds' rows."""
+    db = sqlite3.connect(path)
+    with db:
+        db.executemany("UPDATE trials SET code_version = ? WHERE seed = ?", [(version, s) for s in seeds])
+    db.close()
+
+
+def test_a_sweep_says_what_it_reuses_and_from_which_code_version(tmp_path, monkeypatch):
+    monkeypatch.setitem(EXPERIMENTS, "toy", "toy_trials:run")
+    store = ResultStore(tmp_path / "r.sqlite")
+    assert store.reuse(toy_specs(5)).reused == 0
+    run_sweep(toy_specs(3), store, workers=1)
+    reuse = store.reuse(toy_specs(5))
+    assert (reuse.reused, reuse.trials, reuse.versions) == (3, 5, (store.version,))
+    assert reuse.message() == f"reused 3 of 5 trials from {store.path.resolve()} (code version {store.version})"
+    assert reuse.warning() is None
+
+
+def test_rows_of_other_code_are_reused_with_a_warning_and_fresh_runs_them_again(tmp_path, monkeypatch):
+    monkeypatch.setitem(EXPERIMENTS, "toy", "toy_trials:run")
+    path = tmp_path / "r.sqlite"
+    store = ResultStore(path)
+    run_sweep(toy_specs(4), store, workers=1)
+    _rewrite_version(path, "0ld0ld0ld0ld", [0, 1])
+
+    reuse = store.reuse(toy_specs(4))
+    assert reuse.reused == 4 and reuse.versions == tuple(sorted(["0ld0ld0ld0ld", store.version]))
+    assert "0ld0ld0ld0ld" in reuse.message() and "0ld0ld0ld0ld" in reuse.warning()
+    assert run_sweep(toy_specs(4), store, workers=1) == 0  # without --fresh: reused as they are
+
+    fresh = store.reuse(toy_specs(4), fresh=True)
+    assert (fresh.reused, fresh.versions, fresh.warning()) == (2, (store.version,), None)
+    assert run_sweep(toy_specs(4), store, workers=1, fresh=True) == 2  # only the other version's trials run again
+    rows = store.rows("toy")
+    assert sorted(r["seed"] for r in rows) == [0, 1, 2, 3]  # replaced, not duplicated
+    assert {r["code_version"] for r in rows} == {store.version}
+    assert run_sweep(toy_specs(4), store, workers=1, fresh=True) == 0  # a fresh run started again resumes
+
+
+def test_the_code_version_tells_uncommitted_changes_apart(tmp_path, monkeypatch):
+    from app.bench import store as store_module
+
+    def git(*args):
+        return subprocess.run(
+            ["git", "-c", "user.name=t", "-c", "user.email=t@t", *args],
+            cwd=tmp_path,
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
+
+    git("init", "-q")
+    (tmp_path / "a.py").write_text("x = 1\n")
+    git("add", "a.py")
+    git("commit", "-qm", "one")
+    monkeypatch.setattr(store_module, "ROOT", tmp_path)
+    commit = git("rev-parse", "--short=12", "HEAD")
+    assert store_module.code_version() == commit
+    (tmp_path / "a.py").write_text("x = 2\n")
+    first = store_module.code_version()
+    (tmp_path / "a.py").write_text("x = 3\n")
+    second = store_module.code_version()
+    assert first.startswith(commit + "+dirty.") and second.startswith(commit + "+dirty.") and first != second
+
+
+def test_bench_plan_says_what_it_reused_and_fresh_runs_other_versions_again(tmp_path, cli):
+    path = tmp_path / "plan.sqlite"
+    command = ["bench", "plan", "--scenes", "bar-3link", "--samplers", "uniform", "--seeds", "2", "--narrow", "5"]
+    command += ["--uniform", "20", "--smooth", "0", "--store", path, "--json"]
+    first = cli(*command)
+    assert first.returncode == 0, first.stderr
+    assert json.loads(first.stdout)["reused"]["reused"] == 0 and "reused" not in first.stderr
+
+    _rewrite_version(path, "0ld0ld0ld0ld", [0])
+    again = cli(*command)
+    reused = json.loads(again.stdout)["reused"]
+    assert reused["reused"] == 2 and "0ld0ld0ld0ld" in reused["versions"] and reused["warning"]
+    assert f"reused 2 of 2 trials from {path.resolve()} (code version " in again.stderr
+    assert "warning: " in again.stderr and "--fresh" in again.stderr
+
+    fresh = cli(*command, "--fresh")
+    reused = json.loads(fresh.stdout)["reused"]
+    assert (reused["reused"], reused["warning"]) == (1, None)
+    assert {r["code_version"] for r in ResultStore(path).rows("prm")} == {reused["current"]}

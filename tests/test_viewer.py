@@ -6,7 +6,15 @@ Meshcat is made, so tests that need one allow it with monkeypatch (in-process) o
 
 import json
 import os
+import queue
 import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+import urllib.request
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -221,14 +229,88 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["page.html"]
 
 
-def test_view_meshcat_does_not_wait_without_a_terminal(tmp_path, oracles, run_app):
-    """`--meshcat` with stdin not a terminal (CI): prints the localhost URL and exits instead of blocking."""
-    times, Q = straight_trajectory(oracles("bar"))
-    trajectory = write_trajectory(tmp_path / "t.json", times, Q)
-    env = dict(os.environ, DRAKE_ALLOW_NETWORK="meshcat")
-    result = run_app("view", "bar", "--trajectory", trajectory, "--meshcat", env=env, timeout=120)
-    assert result.returncode == 0, result.stderr
-    assert re.search(r"^meshcat: http://localhost:\d+$", result.stderr, re.M), result.stderr
+def _served_plan(stdout: Path, *flags) -> tuple[subprocess.Popen, queue.Queue]:
+    """`plan bar-3link --json --meshcat *flags` in a child process without a terminal (stdin /dev/null, as in Docker
+    without -t), its answer into the file `stdout` (a pipe would fill up unread); its stderr lines arrive on the queue
+    (None at its end)."""
+    with stdout.open("w") as answer:  # the child has its own copy of the file
+        child = subprocess.Popen(
+            [sys.executable, "-m", "app", "plan", "bar-3link", "--json", "--meshcat", *flags],
+            stdin=subprocess.DEVNULL,
+            stdout=answer,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=dict(os.environ, DRAKE_ALLOW_NETWORK="meshcat"),
+        )
+    lines = queue.Queue()
+
+    def forward():
+        with child.stderr:
+            for line in child.stderr:
+                lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=forward, daemon=True).start()
+    return child, lines
+
+
+def _wait_for_serving(lines: queue.Queue) -> tuple[str, str]:
+    """The Meshcat URL and the line saying how the wait ends, once both are printed."""
+    seen = []
+    while not (seen and seen[-1].startswith("meshcat: serving")):
+        line = lines.get(timeout=120)
+        assert line is not None, "".join(seen)
+        seen.append(line)
+    url = next(m[1] for line in seen if (m := re.match(r"^meshcat: (http://localhost:\d+)$", line)))
+    return url, seen[-1]
+
+
+def _one_json_answer(stdout: Path) -> dict:
+    (answer,) = stdout.read_text().splitlines()  # exactly one line on stdout: the command's JSON object
+    return json.loads(answer)
+
+
+def test_meshcat_wait_serves_for_its_seconds_without_a_terminal_then_exits_0(tmp_path):
+    child, lines = _served_plan(tmp_path / "answer.json", "--wait", "2")
+    try:
+        url, how = _wait_for_serving(lines)
+        assert "2 s" in how
+        with urllib.request.urlopen(url, timeout=10) as page:  # served while the command waits
+            assert page.status == 200 and b"<html" in page.read().lower()
+        assert child.wait(timeout=60) == 0
+        assert _one_json_answer(tmp_path / "answer.json")["success"] is True
+    finally:
+        child.kill()
+        child.wait()
+
+
+def test_meshcat_without_a_terminal_serves_until_ctrl_c_which_exits_0(tmp_path):
+    """No --wait and no terminal: the viewer stays up (it used to exit at once); Ctrl-C is the expected way to stop
+    it, so it ends with exit code 0 and the one JSON answer already printed, not PREEMPTED."""
+    child, lines = _served_plan(tmp_path / "answer.json")
+    try:
+        url, how = _wait_for_serving(lines)
+        assert "Ctrl-C" in how
+        time.sleep(3)
+        assert child.poll() is None
+        with urllib.request.urlopen(url, timeout=10) as page:
+            assert page.status == 200
+        child.send_signal(signal.SIGINT)
+        assert child.wait(timeout=60) == 0
+        assert _one_json_answer(tmp_path / "answer.json")["success"] is True
+        rest = []
+        while (line := lines.get(timeout=10)) is not None:
+            rest.append(line)
+        assert not rest, rest  # no traceback, no error line
+    finally:
+        child.kill()
+        child.wait()
+
+
+@pytest.mark.parametrize("flags", [["--wait", "2"], ["--meshcat", "--wait", "-1"], ["--meshcat", "--wait", "x"]])
+def test_bad_wait_is_exit_2_before_planning(cli, one_line_error, flags):
+    line = one_line_error(cli("plan", "bar-3link", *flags), 2)
+    assert "--wait" in line
 
 
 @pytest.mark.parametrize("command", [["plan", "bar", "--seed", "0"], ["run", "welding"]])

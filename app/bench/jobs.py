@@ -14,7 +14,7 @@ import numpy as np
 
 from app.bench.plan import MODES
 from app.bench.runner import sweep
-from app.bench.store import TrialSpec
+from app.bench.store import Reuse, TrialSpec
 from app.budget import Budget
 from app.errors import UserError
 from app.planner import default_step
@@ -98,10 +98,19 @@ def table(rows) -> list[dict]:
 
 
 def measure(
-    jobs: list[str], samplers: list[str], seeds: int, modes: list[str], narrow: int, uniform: int, budget: float, store
-) -> list[dict]:
-    """Every job x sampler x roadmap mode (`MODES`) for seeds 0..seeds-1, in this process (trials `store` lacks are
-    run), as `table` rows. budget: seconds per planned leg."""
+    jobs: list[str],
+    samplers: list[str],
+    seeds: int,
+    modes: list[str],
+    narrow: int,
+    uniform: int,
+    budget: float,
+    store,
+    fresh: bool = False,
+) -> tuple[list[dict], Reuse]:
+    """Every job x sampler x roadmap mode (`MODES`) for seeds 0..seeds-1, in this process (trials `store` has no
+    reusable row for are run; `runner.sweep`), as `table` rows; and what was reused. budget: seconds per planned
+    leg."""
     steps = {job: default_step(Scene(job)) for job in jobs}
     todo = [
         TrialSpec(
@@ -117,4 +126,5 @@ def measure(
         for mode in modes
         for seed in range(seeds)
     ]
-    return table(sweep(todo, store, workers=1, desc="bench jobs"))
+    rows, reuse = sweep(todo, store, workers=1, desc="bench jobs", fresh=fresh)
+    return table(rows), reuse

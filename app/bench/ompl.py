@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from app.bench.runner import sweep
-from app.bench.store import TrialSpec
+from app.bench.store import Reuse, TrialSpec
 from app.budget import Budget
 from app.errors import NoPath, UserError
 from app.path import FINE, path_length
@@ -252,9 +252,17 @@ def motion_checks(scene: str, methods: list[str], edges: int = 200) -> list[dict
 
 
 def measure(
-    scenes: list[str], methods: list[str], seeds: int, budget: float, step: float | None, store, workers: int = 1
-) -> dict:
-    """Every scene x method for seeds 0..seeds-1 on `budget` seconds each (trials `store` lacks are run).
+    scenes: list[str],
+    methods: list[str],
+    seeds: int,
+    budget: float,
+    step: float | None,
+    store,
+    workers: int = 1,
+    fresh: bool = False,
+) -> tuple[dict, Reuse]:
+    """Every scene x method for seeds 0..seeds-1 on `budget` seconds each (trials `store` has no reusable row for
+    are run; `runner.sweep`), and what was reused.
 
     Returns {"scenes": [{"scene", "methods": summarise rows in `methods` order, "comparison": compare(...),
     "motion_checks": motion_checks(...)}], "budget_seconds", "seeds"}. A missing OMPL or a bad method is one
@@ -265,7 +273,9 @@ def measure(
         from app.ompl_bridge import ompl_modules
 
         ompl_modules()
-    rows = sweep(specs(scenes, methods, seeds, budget, step), store, workers=workers, desc="bench ompl")
+    rows, reuse = sweep(
+        specs(scenes, methods, seeds, budget, step), store, workers=workers, desc="bench ompl", fresh=fresh
+    )
     table = summarise(rows)
     out = []
     for scene in scenes:
@@ -279,7 +289,7 @@ def measure(
                 "motion_checks": motion_checks(scene, methods),
             }
         )
-    return {"scenes": out, "budget_seconds": budget, "seeds": seeds}
+    return {"scenes": out, "budget_seconds": budget, "seeds": seeds}, reuse
 
 
 def figure(report: dict, path: str) -> None:

@@ -447,12 +447,13 @@ def _ur3_section(rows) -> list[str]:
     return lines + [""]
 
 
-def run_sweeps(config: Config, store: ResultStore, workers: int = 0, scheduler=None):
-    """Run every sweep of `config` into `store` (trials it holds already are skipped; a trial in two sweeps runs
-    once). Yields (sweep name, its trials, how many ran now) as each sweep ends. workers, scheduler: as
-    `runner.run_sweep`."""
+def run_sweeps(config: Config, store: ResultStore, workers: int = 0, scheduler=None, fresh: bool = False):
+    """Run every sweep of `config` into `store` (trials it holds a reusable row for are skipped, see
+    `ResultStore.pending`; a trial in two sweeps runs once). Yields (sweep name, what it reused (a Reuse), how many
+    ran now) as each sweep ends. workers, scheduler, fresh: as `runner.run_sweep`."""
     seen = set()
     for name, specs in sweeps(config):
         specs = [s for s in specs if not (s.key in seen or seen.add(s.key))]  # table1's bar = sampling's bar
-        ran = run_sweep(specs, store, workers=workers, scheduler=scheduler, desc=f"paper {name}")
-        yield name, len(specs), ran
+        reuse = store.reuse(specs, fresh=fresh)
+        ran = run_sweep(specs, store, workers=workers, scheduler=scheduler, desc=f"paper {name}", fresh=fresh)
+        yield name, reuse, ran

@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from app.bench.runner import sweep
-from app.bench.store import TrialSpec
+from app.bench.store import Reuse, TrialSpec
 from app.budget import Budget
 from app.errors import NoPath
 from app.planner import DEFAULT_BUDGET, PlanSettings, default_step, plan
@@ -143,12 +143,14 @@ def measure(
     modes=("query",),
     step: float | None = None,
     workers: int = 1,
-) -> list[dict]:
+    fresh: bool = False,
+) -> tuple[list[dict], Reuse]:
     """The plan trials (`trial_params`) of every scene x sampler x roadmap mode (`MODES`) for seeds 0..seeds-1 that
-    `store` lacks, then the summary of exactly these trials: one row per scene x sampler x mode, in that order."""
+    `store` has no reusable row for (`runner.sweep`), then the summary of exactly these trials: one row per scene x
+    sampler x mode, in that order; and what was reused."""
     todo = []
     for mode in modes:
         todo += specs(scenes, samplers, seeds, {**params, "full_roadmap": MODES[mode]}, step)
-    rows = sweep(todo, store, workers=workers, desc="bench plan")
+    rows, reuse = sweep(todo, store, workers=workers, desc="bench plan", fresh=fresh)
     order = {key: i for i, key in enumerate((sc, sa, mode) for sc in scenes for sa in samplers for mode in modes)}
-    return sorted(summarise(rows), key=lambda r: order.get((r["scene"], r["sampler"], r["roadmap"]), 1e9))
+    return sorted(summarise(rows), key=lambda r: order.get((r["scene"], r["sampler"], r["roadmap"]), 1e9)), reuse

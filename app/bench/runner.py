@@ -3,18 +3,25 @@
 A trial is a pure function of its TrialSpec (seeded), so where it runs does not change its row. Each worker
 process keeps one oracle per scene (building a Drake diagram per trial would dominate the cost) on one thread:
 the parallelism is across processes. With one worker, trials run in this process on all the oracle's threads,
-as a plain `plan` would. Only trials the store does not hold yet are sent; rows are stored as they
-come back, so a killed sweep resumes where it stopped.
+as a plain `plan` would. Only trials the store has no reusable row for are sent (`ResultStore.pending`); rows
+are stored as they come back, so a killed sweep resumes where it stopped. Local workers end with the sweep's
+process, however it dies (even by SIGKILL): a worker outliving it would wait forever for trials on a queue no one
+feeds.
 """
 
+import ctypes
 import importlib
 import multiprocessing
 import os
+import signal
+import sys
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from tqdm import tqdm
 
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import ResultStore, Reuse, TrialSpec
 from app.errors import UserError
 from app.oracle import CollisionOracle, default_threads
 from app.scene import Scene
@@ -46,6 +53,27 @@ def execute(spec: TrialSpec, threads: int = 1) -> tuple[TrialSpec, dict]:
     return spec, trial(_oracle(spec.scene, threads), spec)
 
 
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+def _exit_with_parent(parent: int) -> None:
+    """A local worker's initializer: end this process when `parent` (the sweep's process) dies. On Linux the kernel
+    kills it (prctl PR_SET_PDEATHSIG, at once, even in the middle of a Drake call); elsewhere a thread notices the
+    worker has been re-parented."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    else:
+        threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    if os.getppid() != parent:  # it died before the request above was in place
+        os._exit(1)
+
+
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os._exit(1)
+
+
 def connect(scheduler):
     """A Dask client for a scheduler address (a client is passed through); one clear line if it is unreachable."""
     try:
@@ -61,11 +89,17 @@ def connect(scheduler):
 
 
 def run_sweep(
-    specs: list[TrialSpec], store: ResultStore, workers: int = 0, scheduler=None, desc: str = "trials"
+    specs: list[TrialSpec],
+    store: ResultStore,
+    workers: int = 0,
+    scheduler=None,
+    desc: str = "trials",
+    fresh: bool = False,
 ) -> int:
-    """Run the specs the store lacks; returns how many ran. workers=0: all local cores. `scheduler`: a Dask
-    scheduler address or a client from `connect` (connect first to fail before anything is written)."""
-    pending = store.pending(specs)
+    """Run the specs the store has no reusable row for (`ResultStore.pending`: with `fresh`, rows of other code
+    versions are not reused); returns how many ran. workers=0: all local cores. `scheduler`: a Dask scheduler
+    address or a client from `connect` (connect first to fail before anything is written)."""
+    pending = store.pending(specs, fresh=fresh)
     if not pending:
         return 0
     if scheduler is not None:
@@ -80,11 +114,18 @@ def run_sweep(
     return len(pending)
 
 
-def sweep(specs: list[TrialSpec], store_path, workers: int = 1, desc: str = "trials") -> list[dict]:
-    """Run what `store_path` lacks of `specs` (a benchmark command's sweep) and return the rows of `specs`."""
+def sweep(
+    specs: list[TrialSpec], store_path, workers: int = 1, desc: str = "trials", fresh: bool = False
+) -> tuple[list[dict], Reuse]:
+    """A benchmark command's sweep: run what `store_path` has no reusable row for (`run_sweep`); the rows of `specs`
+    and what was reused of them."""
     store = ResultStore(store_path)
-    run_sweep(specs, store, workers=workers, desc=desc)
-    return store.rows_for(specs)
+    try:
+        reuse = store.reuse(specs, fresh=fresh)
+        run_sweep(specs, store, workers=workers, desc=desc, fresh=fresh)
+        return store.rows_for(specs), reuse
+    finally:
+        store.close()
 
 
 def _results(pending: list[TrialSpec], workers: int, client):
@@ -96,7 +137,9 @@ def _results(pending: list[TrialSpec], workers: int, client):
     else:
         # spawn, not fork: a forked child would inherit Drake's thread pools mid-state.
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        with ProcessPoolExecutor(
+            max_workers=workers, mp_context=context, initializer=_exit_with_parent, initargs=(os.getpid(),)
+        ) as pool:
             futures = [pool.submit(execute, spec) for spec in pending]
             try:
                 for future in as_completed(futures):

@@ -1,9 +1,17 @@
 """The results store: every trial is one row in an SQLite file, keyed by what defines it.
 
 A trial's key is a hash of its experiment, scene, method, step, seed and parameters, so a sweep that is killed and
-started again skips exactly the rows already written (INSERT OR IGNORE: never a duplicate) and runs the rest
-(never a lost trial). Each row is committed as it arrives; SQLite's journal keeps a killed write from leaving a
+started again skips exactly the rows already written and runs the rest (never a lost trial); there is one row per
+key (never a duplicate). Each row is committed as it arrives; SQLite's journal keeps a killed write from leaving a
 half row. Reports are built from the store, not from memory.
+
+Reuse and code versions. The key leaves out the code version, but every row records the version that wrote it
+(`code_version()`: the git commit, plus a hash of the uncommitted changes). A sweep reuses each stored row of its
+trials, whatever version wrote it, and `reuse()` says how many it reuses and from which versions, so a command can
+say so (and warn when they are not the current version). With fresh=True, rows written by another version are not
+reused: those trials run again and their new rows replace the old ones (the store keeps no history); rows of the
+current version are still reused, so a killed fresh sweep started again resumes instead of starting over. To
+measure the same code again, use another store (or delete this one).
 
 The file records its schema version (SQLite's user_version). A store of another version is refused rather than
 read: rows are never reinterpreted, so the code that reads them needs no branch for how older code wrote them.
@@ -74,19 +82,16 @@ def _plain(value):
 
 
 def code_version() -> str:
-    """The git commit (with '+dirty' for uncommitted changes), or the package version outside a checkout."""
+    """The git commit, with '+dirty.HASH' (a hash of the uncommitted changes to tracked files) when the tree differs
+    from it; the package version outside a checkout."""
     try:
         commit = subprocess.run(
             ["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10, check=True
         ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=10,
-        ).stdout.strip()
-        return commit + ("+dirty" if dirty else "")
+        changes = subprocess.run(
+            ["git", "diff", "HEAD", "--binary"], cwd=ROOT, capture_output=True, timeout=30, check=True
+        ).stdout
+        return commit + (f"+dirty.{hashlib.sha256(changes).hexdigest()[:8]}" if changes else "")
     except (OSError, subprocess.SubprocessError):
         from importlib.metadata import PackageNotFoundError, version
 
@@ -94,6 +99,39 @@ def code_version() -> str:
             return version("narrow-passage-planner")
         except PackageNotFoundError:
             return "unknown"
+
+
+@dataclass(frozen=True)
+class Reuse:
+    """What a sweep takes from its store instead of running: `reused` of its `trials`, written by `versions`
+    (sorted) while the code is at `current`."""
+
+    store: str
+    trials: int
+    reused: int
+    versions: tuple[str, ...]
+    current: str
+
+    @property
+    def other_versions(self) -> tuple[str, ...]:
+        return tuple(v for v in self.versions if v != self.current)
+
+    def message(self) -> str:
+        return (
+            f"reused {self.reused} of {self.trials} trials from {self.store} (code version {', '.join(self.versions)})"
+        )
+
+    def warning(self) -> str | None:
+        """Said when reused rows were written by other code than the current one."""
+        if not self.other_versions:
+            return None
+        return (
+            f"the reused trials of code version {', '.join(self.other_versions)} may not match this code "
+            f"({self.current}); --fresh runs them again"
+        )
+
+    def to_json(self) -> dict:
+        return {**asdict(self), "versions": list(self.versions), "warning": self.warning()}
 
 
 class ResultStore:
@@ -106,7 +144,7 @@ class ResultStore:
         except BaseException:
             self._db.close()
             raise
-        self._version = code_version()
+        self.version = code_version()  # the current code's, written into each row added
 
     def _check_schema(self) -> None:
         # One statement, so both facts come from one snapshot: another process may be creating the store (the
@@ -128,17 +166,39 @@ class ResultStore:
     def close(self) -> None:
         self._db.close()
 
-    def done_keys(self) -> set[str]:
-        return {row[0] for row in self._db.execute("SELECT key FROM trials")}
+    def _versions(self) -> dict[str, str]:
+        """key -> the code version of its row."""
+        return dict(self._db.execute("SELECT key, code_version FROM trials"))
 
-    def pending(self, specs: list[TrialSpec]) -> list[TrialSpec]:
-        done = self.done_keys()
-        return [s for s in specs if s.key not in done]
+    def _reusable(self, specs: list[TrialSpec], fresh: bool) -> dict[str, str]:
+        """key -> code version of the stored rows of `specs` a sweep reuses (module docstring)."""
+        wanted = {s.key for s in specs}
+        return {
+            key: version
+            for key, version in self._versions().items()
+            if key in wanted and (not fresh or version == self.version)
+        }
+
+    def pending(self, specs: list[TrialSpec], fresh: bool = False) -> list[TrialSpec]:
+        """The specs a sweep runs: those without a reusable row."""
+        reusable = self._reusable(specs, fresh)
+        return [s for s in specs if s.key not in reusable]
+
+    def reuse(self, specs: list[TrialSpec], fresh: bool = False) -> Reuse:
+        """What a sweep of `specs` would take from this store (before it runs)."""
+        reusable = self._reusable(specs, fresh)
+        return Reuse(
+            store=str(self.path.resolve()),
+            trials=len({s.key for s in specs}),
+            reused=len(reusable),
+            versions=tuple(sorted(set(reusable.values()))),
+            current=self.version,
+        )
 
     def add(self, spec: TrialSpec, metrics: dict) -> None:
         with self._db:  # one transaction per row: a kill loses at most the row being written
-            self._db.execute(
-                "INSERT OR IGNORE INTO trials VALUES (?,?,?,?,?,?,?,?,?,?)",
+            self._db.execute(  # a trial run again (fresh) replaces its old row
+                "INSERT OR REPLACE INTO trials VALUES (?,?,?,?,?,?,?,?,?,?)",
                 (
                     spec.key,
                     spec.experiment,
@@ -148,7 +208,7 @@ class ResultStore:
                     int(spec.seed),
                     json.dumps(spec.params, sort_keys=True, default=_plain),
                     json.dumps(metrics, default=_plain),
-                    self._version,
+                    self.version,
                     time.time(),
                 ),
             )

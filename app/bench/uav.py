@@ -9,7 +9,7 @@ roadmap, every edge checked, k = 10, no budget) in the same results store, so a 
 import numpy as np
 
 from app.bench.runner import sweep
-from app.bench.store import TrialSpec
+from app.bench.store import Reuse, TrialSpec
 
 PAPER = {
     "maze": {"narrow": 200, "uniform": 300, "steps": [0.5, 1.0]},
@@ -61,6 +61,8 @@ def table(rows) -> list[dict]:
     return out
 
 
-def measure(seeds: int, store, workers: int = 1) -> list[dict]:
-    """The paper's maze and tunnel cells for seeds 0..seeds-1 (trials `store` lacks are run), as `table` rows."""
-    return table(sweep(specs(seeds), store, workers=workers, desc="bench uav"))
+def measure(seeds: int, store, workers: int = 1, fresh: bool = False) -> tuple[list[dict], Reuse]:
+    """The paper's maze and tunnel cells for seeds 0..seeds-1 (trials `store` has no reusable row for are run;
+    `runner.sweep`), as `table` rows; and what was reused."""
+    rows, reuse = sweep(specs(seeds), store, workers=workers, desc="bench uav", fresh=fresh)
+    return table(rows), reuse

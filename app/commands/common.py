@@ -34,14 +34,23 @@ positive_int = _whole_number_at_least(1, "must be positive")
 non_negative_int = _whole_number_at_least(0, "must not be negative")
 
 
-def positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive finite number: {text}")
-    return value
+def _finite_number(accept, fault: str):
+    """An argparse type: a finite number for which accept(value) holds, else `fault` with the text."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not math.isfinite(value) or not accept(value):
+            raise argparse.ArgumentTypeError(f"{fault}: {text}")
+        return value
+
+    return parse
+
+
+positive_float = _finite_number(lambda v: v > 0, "must be a positive finite number")
+non_negative_float = _finite_number(lambda v: v >= 0, "must be a finite number, zero or more")
 
 
 def comma_list(text: str) -> list[str]:

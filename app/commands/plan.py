@@ -136,6 +136,7 @@ def run(args) -> int:
     out = check_output(args.out) if args.out else None
     if args.html:
         check_output(args.html)
+    view.check_arguments(args)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     start, goal = args.start, args.goal
     if args.start_pose is not None:

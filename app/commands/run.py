@@ -3,7 +3,7 @@
 from dataclasses import replace
 
 from app.commands.common import non_negative_int, parse_budget, positive_float, print_json, sampler_name
-from app.commands.view import add_arguments, publish_from_args, wait
+from app.commands.view import add_arguments, check_arguments, publish_from_args, wait
 from app.errors import UserError
 from app.io import check_output
 from app.oracle import CollisionOracle
@@ -45,6 +45,7 @@ def run(args) -> int:
         budget=args.budget,
         full_roadmap=args.full_roadmap,
     )
+    check_arguments(args)
     for target in (args.out, args.html):
         if target:
             check_output(target)

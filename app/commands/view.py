@@ -1,10 +1,19 @@
 """`view` shows a trajectory in Meshcat and/or exports it as a standalone HTML page.
 
-`add_arguments` and `publish_from_args` give any command (plan, run) the same --html / --meshcat / --frame flags.
+`add_arguments`, `check_arguments`, `publish_from_args` and `wait` give any command (plan, run) the same
+--html / --meshcat / --wait / --frame flags.
+
+How long --meshcat serves: `--wait SECONDS` if given (0: not at all); else, with a terminal, until Enter or Ctrl-C;
+else (Docker without -t, an IDE, a notebook, a pipe) until Ctrl-C or SIGTERM (`docker stop`). Ending the wait is the
+normal end of the command, exit code 0: its work is done and its answer (with --json, its one JSON object) is
+already printed. What the wait says goes to stderr.
 """
 
+import signal
 import sys
+import threading
 
+from app.commands.common import non_negative_float
 from app.custom_scene import load_scene
 from app.errors import UserError
 from app.trajectory import TrajectoryFile
@@ -17,10 +26,24 @@ def add_arguments(p) -> None:
     p.add_argument(
         "--meshcat",
         action="store_true",
-        help="serve it on localhost, print the URL, wait for Enter (not when stdin is not a terminal)",
+        help="serve it on localhost and print the URL; then wait for Enter or Ctrl-C on a terminal, else for "
+        "Ctrl-C or SIGTERM (see --wait)",
+    )
+    p.add_argument(
+        "--wait",
+        type=non_negative_float,
+        metavar="SECONDS",
+        default=None,
+        help="with --meshcat: serve this many seconds, then exit (0: do not wait)",
     )
     p.add_argument("--frame", help="robot frame whose positions draw samples and path (default: the passage frame)")
     p.add_argument("--collision", action="store_true", help="also load the collision geometry (hidden at first)")
+
+
+def check_arguments(args) -> None:
+    """The viewer flags' own faults, found before a command's (slow) work."""
+    if args.wait is not None and not args.meshcat:
+        raise UserError("--wait needs --meshcat (it says how long the Meshcat server stays up)")
 
 
 def publish_from_args(args, scene, data):
@@ -35,13 +58,27 @@ def publish_from_args(args, scene, data):
 
 
 def wait(args) -> None:
-    """With --meshcat and a terminal, keep the viewer up until Enter or Ctrl-C; otherwise (CI, pipes) return."""
-    if args.meshcat and sys.stdin is not None and sys.stdin.isatty():
-        print("press Enter (or Ctrl-C) to quit the viewer", file=sys.stderr, flush=True)
-        try:
+    """Keep the --meshcat viewer served as the module docstring says; return when the wait ends."""
+    if not args.meshcat or args.wait == 0:
+        return
+    terminal = args.wait is None and sys.stdin is not None and sys.stdin.isatty()
+    if args.wait is not None:
+        how = f"serving for {args.wait:g} s; Ctrl-C stops it sooner"
+    elif terminal:
+        how = "press Enter or Ctrl-C to stop serving"
+    else:
+        how = "serving until Ctrl-C (or SIGTERM)"
+    print(f"meshcat: {how}", file=sys.stderr, flush=True)
+    previous = signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM ends the wait as Ctrl-C does
+    try:
+        if terminal:
             sys.stdin.readline()
-        except KeyboardInterrupt:
-            pass
+        else:
+            threading.Event().wait(args.wait)  # None: until a signal interrupts it
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def register(subparsers) -> None:
@@ -57,6 +94,7 @@ def register(subparsers) -> None:
 def run_view(args) -> int:
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
+    check_arguments(args)
     scene = load_scene(args.scene)
     publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
     if args.html:

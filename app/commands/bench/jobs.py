@@ -2,6 +2,7 @@
 
 from app.bench.jobs import JOBS, measure
 from app.bench.plan import MODES
+from app.commands.bench import results
 from app.commands.common import names_from, non_negative_int, positive_float, positive_int, print_json, sampler_names
 
 
@@ -21,16 +22,19 @@ def register(kinds) -> None:
     p.add_argument("--narrow", type=non_negative_int, default=40, help="narrow-passage samples per planned leg")
     p.add_argument("--uniform", type=non_negative_int, default=40, help="uniform samples per planned leg")
     p.add_argument("--budget", type=positive_float, default=30.0, metavar="SECONDS", help="per planned leg")
-    p.add_argument("--store", default="out/bench-jobs.sqlite", help="results store (resumes a killed run)")
+    results.add_arguments(p, "out/bench-jobs.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     modes = list(MODES) if args.roadmap == "both" else [args.roadmap]
-    result = measure(args.jobs, args.samplers, args.seeds, modes, args.narrow, args.uniform, args.budget, args.store)
+    result, reuse = measure(
+        args.jobs, args.samplers, args.seeds, modes, args.narrow, args.uniform, args.budget, args.store, args.fresh
+    )
+    results.say_reused(reuse)
     if args.json:
-        print_json({"jobs": result, "seeds": args.seeds})
+        print_json({"jobs": result, "seeds": args.seeds, "reused": reuse.to_json()})
         return 0
     print(
         f"{args.seeds} seeds; per planned leg up to {args.narrow} narrow + {args.uniform} uniform samples, "

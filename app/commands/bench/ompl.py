@@ -4,6 +4,7 @@
 import argparse
 
 from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure, parse_method
+from app.commands.bench import results
 from app.commands.common import comma_list, positive_float, positive_int, print_json
 from app.errors import UserError
 from app.scene import scene_names
@@ -42,7 +43,7 @@ def register(kinds) -> None:
         default=1,
         help="parallel runs (1 keeps timings clean: each run gets a whole core and nothing competes)",
     )
-    p.add_argument("--store", default="out/bench-ompl.sqlite", help="results store (resumes a killed run)")
+    results.add_arguments(p, "out/bench-ompl.sqlite")
     p.add_argument(
         "--png",
         default=None,
@@ -58,11 +59,21 @@ def _num(value, spec: str) -> str:
 
 
 def run(args) -> int:
-    report = measure(args.scenes, args.methods, args.seeds, args.budget, args.step, args.store, workers=args.workers)
+    report, reuse = measure(
+        args.scenes,
+        args.methods,
+        args.seeds,
+        args.budget,
+        args.step,
+        args.store,
+        workers=args.workers,
+        fresh=args.fresh,
+    )
+    results.say_reused(reuse)
     if args.png:
         figure(report, args.png)
     if args.json:
-        print_json(report)
+        print_json({**report, "reused": reuse.to_json()})
         return 0
     print(
         f"{args.seeds} runs per scene and method, {args.budget:g} s budget each, one Drake oracle counting every "

@@ -7,6 +7,7 @@ from pathlib import Path
 from app.bench.paper import PARTS, QUICK_STEPS, SAMPLING_SCENES, STEPS, Config, build_report, run_sweeps
 from app.bench.runner import connect
 from app.bench.store import ResultStore
+from app.commands.bench import results
 from app.commands.common import comma_list, names_from, positive_float_list, positive_int, sampler_names
 from app.samplers import SAMPLERS
 
@@ -26,7 +27,13 @@ def register(kinds) -> None:
         default=None,
         help="run the trials on this Dask scheduler instead of local processes",
     )
-    p.add_argument("--out", default="out/paper", help="report folder, with results.sqlite (default out/paper)")
+    p.add_argument(
+        "--out",
+        default="out/paper",
+        help="report folder, with the results store results.sqlite (default out/paper, relative to the working "
+        "directory); trials already in the store are reused, not run (a killed run resumes)",
+    )
+    results.add_fresh_argument(p)
     p.add_argument("--report-only", action="store_true", help="rebuild report.md from the store; run nothing")
     p.add_argument(
         "--parts",
@@ -77,8 +84,9 @@ def run(args) -> int:
     ran, wall = 0, None
     if not args.report_only:
         start = time.perf_counter()
-        for name, trials, now in run_sweeps(config, store, workers=args.workers, scheduler=scheduler):
-            print(f"{name}: {trials} trials, {now} run now, {trials - now} already stored", flush=True)
+        for name, reuse, now in run_sweeps(config, store, workers=args.workers, scheduler=scheduler, fresh=args.fresh):
+            print(f"{name}: {reuse.trials} trials, {now} run now, {reuse.reused} reused", flush=True)
+            results.say_reused(reuse)
             ran += now
         wall = time.perf_counter() - start
     path = build_report(store, folder, config, wall_seconds=wall)

@@ -1,6 +1,7 @@
 """`bench plan`: PRM success rate and median time per sampler at one roadmap size (app.bench.plan)."""
 
 from app.bench.plan import COMPARED_SAMPLERS, MODES, SIZE, measure, trial_params
+from app.commands.bench import results
 from app.commands.common import comma_list, non_negative_int, positive_float, positive_int, print_json, sampler_names
 
 
@@ -47,7 +48,7 @@ def register(kinds) -> None:
         default=1,
         help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread each)",
     )
-    p.add_argument("--store", default="out/bench-plan.sqlite", help="results store (resumes a killed run)")
+    results.add_arguments(p, "out/bench-plan.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
@@ -55,11 +56,20 @@ def register(kinds) -> None:
 def run(args) -> int:
     params = trial_params(args.narrow, args.uniform, args.neighbours, args.smooth, budget=args.budget)
     modes = list(MODES) if args.roadmap == "both" else [args.roadmap]
-    table = measure(
-        args.scenes, args.samplers, args.seeds, params, args.store, modes=modes, step=args.step, workers=args.workers
+    table, reuse = measure(
+        args.scenes,
+        args.samplers,
+        args.seeds,
+        params,
+        args.store,
+        modes=modes,
+        step=args.step,
+        workers=args.workers,
+        fresh=args.fresh,
     )
+    results.say_reused(reuse)
     if args.json:
-        print_json({"plan": table, "seeds": args.seeds, "params": params})
+        print_json({"plan": table, "seeds": args.seeds, "params": params, "reused": reuse.to_json()})
         return 0
     budget = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
     print(

@@ -1,6 +1,7 @@
 """`bench uav`: the paper's maze and tunnel PRM tables, LFBS vs RBBS (app.bench.uav)."""
 
 from app.bench.uav import PAPER_SECONDS, measure
+from app.commands.bench import results
 from app.commands.common import positive_int, print_json
 
 
@@ -8,15 +9,16 @@ def register(kinds) -> None:
     p = kinds.add_parser("uav", help="the paper's maze/tunnel PRM tables: LFBS vs RBBS, t_eps, T_PRM, success")
     p.add_argument("--seeds", type=positive_int, default=30)
     p.add_argument("--workers", type=positive_int, default=1, help="parallel processes (1 keeps timings clean)")
-    p.add_argument("--store", default="out/bench-uav.sqlite")
+    results.add_arguments(p, "out/bench-uav.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    result = measure(args.seeds, args.store, workers=args.workers)
+    result, reuse = measure(args.seeds, args.store, workers=args.workers, fresh=args.fresh)
+    results.say_reused(reuse)
     if args.json:
-        print_json({"uav": result, "seeds": args.seeds})
+        print_json({"uav": result, "seeds": args.seeds, "reused": reuse.to_json()})
         return 0
     print(
         f"{args.seeds} seeds per cell; whole roadmap, every edge checked, k 10 (maze 200 + 300, tunnel 100 + 200 "
