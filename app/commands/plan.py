@@ -123,7 +123,7 @@ def run(args) -> int:
     if args.json:
         print_json(result.to_json())
     else:
-        print(summary(result))
+        print("\n".join([summary(result), *("  " + line for line in custom.describe(oracle.scene))]))
     view.wait(args)
     return 0
 
