@@ -35,11 +35,12 @@ from app.scene import PACKAGES, Scene, robot_diagram_builder
 
 ROBOT_SUFFIXES = {".urdf", ".sdf"}
 # Default mesh tolerance of environment meshes, as a fraction of the edge-check step. The tolerance is how far the
-# convex pieces may reach beyond the surface. Edges are checked every `resolution`, so the planner already misses
-# overlaps up to about half a step deep: pieces a quarter step proud narrow a gap by at most half a step, which it
-# cannot resolve anyway. A tolerance tied to the mesh's own size instead (0.2 % of its diagonal) asked a torus for
-# 1,500 face plates where 15 CoACD pieces are as good at the planner's scale. Robot meshes keep app.meshes' default.
-ENV_TOLERANCE_PER_STEP = 0.25
+# convex pieces may reach beyond the surface. Edges are checked every `resolution`: between two checks the robot
+# moves up to a step, so the planner already misses overlaps about half a step deep; pieces half a step proud are
+# of that order, finer than it resolves (a gap narrows by at most one step). Tied to the mesh's own size instead
+# (0.2 % of its diagonal), a 3,072-triangle torus rejected CoACD's 15 pieces and fell back to ~1,500 face plates;
+# a quarter step still rejected them (665 plates), half a step lets them pass. Robot meshes keep app.meshes' default.
+ENV_TOLERANCE_PER_STEP = 0.5
 CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
 
 
@@ -59,7 +60,7 @@ class CustomSpec:
     collisions: str = "environment"
     resolution: float = 0.0  # edge-check step in the weighted metric; 0: default_resolution (the robot's size)
     mesh_method: str = "auto"  # auto | convex | coacd | faces
-    mesh_tolerance: float = 0.0  # 0: a quarter of the edge-check step (environment), 0.2 % of its size (robot mesh)
+    mesh_tolerance: float = 0.0  # 0: half the edge-check step (environment), 0.2 % of its size (robot mesh)
 
 
 class CustomScene(Scene):

@@ -8,7 +8,7 @@ pytest.importorskip("trimesh")
 
 import trimesh  # noqa: E402
 
-from app.custom_scene import CustomSpec, build_scene, load_scene  # noqa: E402
+from app.custom_scene import ENV_TOLERANCE_PER_STEP, CustomSpec, build_scene, load_scene  # noqa: E402
 from app.errors import InvalidEndpoint, UserError  # noqa: E402
 from mesh_shapes import open_u, u_channel  # noqa: E402
 
@@ -85,7 +85,7 @@ def test_environment_pieces_are_anchored_to_the_world(channel_oracle):
 
 def test_default_mesh_tolerance_follows_the_edge_check_step_on_a_torus(files, tmp_path):
     """The mesh-relative default (0.2 % of its size) rejects CoACD's pieces on a torus and falls back to face plates;
-    a quarter of the edge-check step lets its few pieces pass."""
+    half the edge-check step lets its few pieces pass."""
     trimesh.creation.torus(1.0, 0.3, major_sections=24, minor_sections=12).export(tmp_path / "torus.obj")
     spec = CustomSpec(
         robot=str(files / "cube.obj"),
@@ -95,7 +95,9 @@ def test_default_mesh_tolerance_follows_the_edge_check_step_on_a_torus(files, tm
     )
     scene = build_scene(spec, cache_dir=tmp_path, progress=False)
     torus = scene.info["decompositions"][1]
-    assert torus["validation"]["ok"] and torus["validation"]["tolerance"] == pytest.approx(0.25 * scene.resolution)
+    assert torus["validation"]["ok"] and torus["validation"]["tolerance"] == pytest.approx(
+        ENV_TOLERANCE_PER_STEP * scene.resolution
+    )
     assert torus["method"] == "coacd" and torus["pieces"] <= 40
 
 

@@ -57,7 +57,7 @@ def add_arguments(parser) -> None:
         type=float,
         default=0.0,
         metavar="M",
-        help="how far a decomposition may reach beyond the mesh surface, in metres (default: a quarter of the "
+        help="how far a decomposition may reach beyond the mesh surface, in metres (default: half the "
         "edge-check step for environment meshes, 0.2%% of its size for a robot mesh)",
     )
     group.add_argument(
