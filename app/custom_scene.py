@@ -466,6 +466,7 @@ def build_scene(
     import time
 
     started = time.perf_counter()
+    cache_dir = Path(cache_dir).absolute() if cache_dir else None  # (see meshes.cache_root)
     inputs = _checked_inputs(spec, base or Path.cwd())
     mesh_options = {
         "method": spec.mesh_method,

@@ -59,11 +59,12 @@ METHODS = ("auto", "convex", "coacd", "faces")
 
 
 def cache_root() -> Path:
-    """$NPP_CACHE_DIR, else $XDG_CACHE_HOME/npp, else ~/.cache/npp."""
+    """$NPP_CACHE_DIR, else $XDG_CACHE_HOME/npp, else ~/.cache/npp; absolute (generated model files name the
+    cached meshes by file:// URIs, which must not depend on the working directory)."""
     if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV])
+        return Path(os.environ[CACHE_ENV]).absolute()
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "npp"
+    return (Path(base) / "npp").absolute()
 
 
 def _progress(**kwargs):

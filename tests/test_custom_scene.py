@@ -160,6 +160,13 @@ def test_env_pose_moves_the_mesh(files, cache):
     assert not oracle.is_free(np.array([1.25, 0, 11.5, 0, 0, 0]))
 
 
+def test_a_relative_cache_folder_works(files, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("NPP_CACHE_DIR", "cache")
+    scene = build_scene(_spec(files, env="open_channel.dae"), progress=False)
+    assert scene.dim == 6 and (tmp_path / "cache" / "meshes").is_dir()
+
+
 def test_custom_scene_file(files, cache):
     scene_file = files / "byo.yaml"
     scene_file.write_text(
