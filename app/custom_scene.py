@@ -37,6 +37,13 @@ from app.scene import PACKAGES, Scene, robot_diagram_builder
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
 ROBOT_SUFFIXES = {".urdf", ".sdf"}
+# Default mesh tolerance of environment meshes, as a fraction of the edge-check step. The tolerance is how far the
+# convex pieces may reach beyond the surface. Edges are checked every `resolution`: between two checks the robot
+# moves up to a step, so the planner already misses overlaps about half a step deep; pieces half a step proud are
+# of that order, finer than it resolves (a gap narrows by at most one step). Tied to the mesh's own size instead
+# (0.2 % of its diagonal), a 3,072-triangle torus rejected CoACD's 15 pieces and fell back to ~1,500 face plates;
+# a quarter step still rejected them (665 plates), half a step lets them pass. Robot meshes keep app.meshes' default.
+ENV_TOLERANCE_PER_STEP = 0.5
 CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
 
 
@@ -55,9 +62,9 @@ class CustomSpec:
     bounds: list[str] = field(default_factory=list)  # "lo..hi" per coordinate, or per x,y,z of a floating robot
     collisions: str = "all"  # "all": the robot against itself too; "environment": only against the obstacles
     srdf: str = ""  # MoveIt SRDF whose <disable_collisions> body pairs are not checked
-    resolution: float = 0.0  # edge-check step in the weighted metric; 0: a quarter of the robot's smallest extent
+    resolution: float = 0.0  # edge-check step in the weighted metric; 0: default_resolution (the robot's size)
     mesh_method: str = "auto"  # auto | convex | coacd | faces
-    mesh_tolerance: float = 0.0  # 0: 0.2 % of each mesh's bounding-box diagonal
+    mesh_tolerance: float = 0.0  # 0: half the edge-check step (environment), 0.2 % of its size (robot mesh)
 
 
 class CustomScene(Scene):
@@ -205,7 +212,9 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
         raise UserError(f"robot joints of type {', '.join(bad)} are not supported (revolute and prismatic only)")
     # Size: from the robot's collision geometry (oriented boxes) at the default configuration. `reach` is the
     # largest distance of any of it from the robot's first body's origin (an angle's lever arm); `thin` the median
-    # over geometries of their smallest width (how far a step may move the robot without skipping a thin wall).
+    # over bodies of the smallest width of all of a body's geometry together (how far a step may move the robot
+    # without skipping a thin wall). Per body, not per geometry: a body made of thin pieces (a mesh split into face
+    # plates) is as thick as the whole, and the edge-check step must not follow the plates' thickness.
     inspector = builder.scene_graph().model_inspector()
     context = plant.CreateDefaultContext()
     bodies = [plant.get_body(b) for inst in instances for b in plant.GetBodyIndices(plant.GetModelInstanceByName(inst))]
@@ -214,14 +223,17 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
     for body in bodies:
         X_WB = body.EvalPoseInWorld(context)
+        body_corners = []
         for geometry in plant.GetCollisionGeometriesForBody(body):
             obb = inspector.GetObbInGeometryFrame(geometry)
             if obb is None:
                 continue
             X_WO = X_WB @ inspector.GetPoseInFrame(geometry) @ obb.pose()
             local = signs * obb.half_width()
-            corners.append((X_WO.rotation().matrix() @ local.T).T + X_WO.translation())
-            widths.append(2 * float(np.min(obb.half_width())))
+            body_corners.append((X_WO.rotation().matrix() @ local.T).T + X_WO.translation())
+        if body_corners:
+            corners += body_corners
+            widths.append(_smallest_width(np.vstack(body_corners)))
     if not corners:
         raise UserError("the robot has no collision geometry")
     reach = float(np.max(np.linalg.norm(np.vstack(corners) - root, axis=1)))
@@ -235,6 +247,14 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
         "reach": reach,
         "thin": thin,
     }
+
+
+def _smallest_width(points: np.ndarray) -> float:
+    """The smallest extent of a point set along its principal axes (a box fitted to it)."""
+    centred = points - points.mean(axis=0)
+    axes = np.linalg.svd(centred, full_matrices=False)[2]
+    extents = np.ptp(centred @ axes.T, axis=0)
+    return float(extents.min()) if len(extents) == 3 else 0.0
 
 
 # ---- model files with meshes Drake cannot read ------------------------------------------------------------------
@@ -382,27 +402,30 @@ def _mesh_elements_urdf(decomposition: meshes.Decomposition) -> str:
     return "\n".join(lines) + "\n"
 
 
-def env_sdf(name: str, decomposition: meshes.Decomposition, pose: list[float]) -> str:
-    """A static SDF model: the pieces as convex collision shapes, the original mesh as the visual, placed at pose."""
+def env_urdf(name: str, decomposition: meshes.Decomposition, pose: list[float]) -> str:
+    """The pieces as convex collision shapes and the original mesh as the visual, all on the URDF link named `world`
+    (which Drake takes as the world body itself), placed at pose. On the world body SceneGraph registers them as
+    *anchored* geometry: its broad phase keeps them in a tree built once, whereas geometry on a body (even one welded
+    to the world, as in a static SDF model) is dynamic: re-posed and re-sorted on every query, which made a check
+    among ~1,500 pieces cost ~100x more."""
     x, y, z, r, p, w = pose
-    rpy = " ".join(f"{math.radians(a):.17g}" for a in (r, p, w))
+    origin = f'<origin xyz="{x!r} {y!r} {z!r}" rpy="' + " ".join(f"{math.radians(a)!r}" for a in (r, p, w)) + '"/>'
     lines = [
         '<?xml version="1.0"?>',
-        '<sdf version="1.9" xmlns:drake="http://drake.mit.edu">',
-        f'  <model name="{name}">',
-        "    <static>true</static>",
-        '    <link name="body">',
-        f"      <pose>{x:.17g} {y:.17g} {z:.17g} {rpy}</pose>",
+        f'<robot name="{name}" xmlns:drake="http://drake.mit.edu">',
+        '  <link name="world">',
     ]
+    # Geometry names are unique per frame, and every environment shares the world's: so they carry the model's name.
     for i, piece in enumerate(decomposition.pieces):
         lines.append(
-            f'      <collision name="piece{i}"><geometry><mesh><uri>file://{piece}</uri>'
-            f"<drake:declare_convex/></mesh></geometry></collision>"
+            f'    <collision name="{name}_piece{i}">{origin}<geometry><mesh filename="{piece}"><drake:declare_convex/>'
+            f"</mesh></geometry></collision>"
         )
     lines.append(
-        f'      <visual name="mesh"><geometry><mesh><uri>file://{decomposition.visual}</uri></mesh></geometry></visual>'
+        f'    <visual name="{name}_mesh">{origin}<geometry><mesh filename="{decomposition.visual}"/></geometry>'
+        "</visual>"
     )
-    lines += ["    </link>", "  </model>", "</sdf>", ""]
+    lines += ["  </link>", "</robot>", ""]
     return "\n".join(lines)
 
 
@@ -448,6 +471,7 @@ def build_scene(
     import time
 
     started = time.perf_counter()
+    cache_dir = Path(cache_dir).absolute() if cache_dir else None  # (see meshes.cache_root)
     inputs = _checked_inputs(spec, base or Path.cwd())
     mesh_options = {
         "method": spec.mesh_method,
@@ -458,10 +482,16 @@ def build_scene(
     models = _Models()
     robot_instances = _add_robot(models, inputs, mesh_options, cache_dir)
     robot_directives = list(models.directives)
-    env_boxes = _add_environment(models, inputs, mesh_options, cache_dir)
-    scene_dir = _write_scene_dir(models, robot_directives, inputs.packages, cache_dir or meshes.cache_root())
-    coords = probe_robot(scene_dir / "robot.dmd.yaml", inputs.packages, robot_instances)
-    problem = _problem(spec, inputs, coords, robot_instances, env_boxes)
+    # The robot alone first (a scene directory of its own): its size sets the edge-check step, and the step sets
+    # how closely the environment's pieces must follow its surfaces.
+    root = cache_dir or meshes.cache_root()
+    robot_dir = _write_scene_dir(models, robot_directives, inputs.packages, root)
+    coords = probe_robot(robot_dir / "robot.dmd.yaml", inputs.packages, robot_instances)
+    resolution = spec.resolution or default_resolution(coords)
+    env_options = {**mesh_options, "tolerance": spec.mesh_tolerance or ENV_TOLERANCE_PER_STEP * resolution}
+    env_boxes = _add_environment(models, inputs, env_options, cache_dir)
+    scene_dir = _write_scene_dir(models, robot_directives, inputs.packages, root)
+    problem = _problem(spec, inputs, coords, robot_instances, env_boxes, resolution)
     text = json.dumps(problem, indent=1) + "\n"  # JSON is YAML
     problem_path = scene_dir / f"problem-{hashlib.sha256(text.encode()).hexdigest()[:16]}.yaml"
     _write(problem_path, text)
@@ -609,8 +639,8 @@ def _add_environment(
         if kind == "mesh":
             decomposition = meshes.decompose(path, **mesh_options)
             models.decompositions.append(_describe(path, decomposition))
-            models.files[f"{name}.sdf"] = env_sdf(name, decomposition, pose)
-            models.directives += ["- add_model:", f"    name: {name}", f"    file: file://@DIR@/{name}.sdf"]
+            models.files[f"{name}.urdf"] = env_urdf(name, decomposition, pose)
+            models.directives += ["- add_model:", f"    name: {name}", f"    file: file://@DIR@/{name}.urdf"]
             boxes.append(_world_box(np.array(decomposition.extent()), pose))
             continue
         model_file = convert_model_meshes(path, inputs.packages, cache_dir, mesh_options, models.decompositions)
@@ -650,8 +680,9 @@ def _problem(
     coords: dict,
     robot_instances: list[str],
     env_boxes: list[tuple[np.ndarray, np.ndarray]],
+    resolution: float,
 ) -> dict:
-    """The problem file's keys: start, goal, limits, weights and resolution from the probed robot."""
+    """The problem file's keys: start, goal, limits and weights from the probed robot, and the edge-check step."""
     nq = len(coords["names"])
     angular = np.array([k == "revolute" for k in coords["kinds"]])
     home = np.zeros(nq)
@@ -663,7 +694,6 @@ def _problem(
     # Weights: an angle's weight is the lever arm it swings (the robot's radius or reach), metres weigh 1.
     lever = max(coords["reach"], 1e-6)
     weights = np.where(angular, lever, 1.0)
-    resolution = spec.resolution or max(0.25 * coords["thin"], 1e-3 * lever)
     env_names = ", ".join(p.name for p in inputs.env_paths) or "-"
     return {
         "description": spec.description or f"{inputs.robot_path.name} among {env_names}",
@@ -683,6 +713,12 @@ def _problem(
             np.isfinite(coords["velocity"]) & (coords["velocity"] > 0), coords["velocity"], 1.0
         ).tolist(),
     }
+
+
+def default_resolution(coords: dict) -> float:
+    """The edge-check step: a quarter of the robot's thickness (median over its bodies of their smallest width), so a
+    step cannot carry it across a wall as thick as itself; at least 1/1000 of its reach."""
+    return max(0.25 * coords["thin"], 1e-3 * max(coords["reach"], 1e-6))
 
 
 def _limits(
@@ -734,8 +770,9 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
         import sys
 
         print(
-            f"warning: {path.name} became {len(d.pieces)} convex pieces; Drake's set-up time grows with the square "
-            f"of that (about 5 s at 1000, 20 s at 2000): consider a larger mesh tolerance",
+            f"warning: {path.name} became {len(d.pieces)} convex pieces (tolerance "
+            f"{d.validation.get('tolerance', 0):.3g} m); Drake's set-up time grows with the square of that (about "
+            f"5 s at 1000, 20 s at 2000): a larger --mesh-tolerance helps only if it lets CoACD's pieces pass",
             file=sys.stderr,
         )
     return {

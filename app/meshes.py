@@ -10,9 +10,11 @@ edge) and a method is chosen per part (`choose_method`):
   fails or its pieces fail validation.
 - "faces": open or thin parts (typical COLLADA scene exports): exact pieces. Adjacent faces are grown into one
   piece while they fit in a slab of width `tolerance / 2` along the seed face's normal and their projection onto
-  that plane is convex (2-D hull area = sum of projected face areas, all faces facing the same way), so every point
-  of the piece lies within tolerance/2 (+ thickness/2) of the original surface. Coplanar adjacent triangles are the
-  exact special case. Each piece is that flat convex polygon extruded by `thickness` = tolerance/5 (a prism).
+  that plane is nearly convex (all faces facing the same way; the 2-D hull's area exceeds the projected faces' by at
+  most a rim of mean width slab/2 along its perimeter: a curved surface projects to a slightly non-convex outline,
+  and an exact test stopped most patches at two triangles), so every point of the piece lies within about
+  tolerance/2 (+ thickness/2) of the original surface. Coplanar adjacent triangles are the exact special case.
+  Each piece is that flat convex polygon extruded by `thickness` = tolerance/5 (a prism).
 
 Every decomposition is validated against the original surface (`validate`); parts whose pieces hold free points
 move on to their next method. The result is cached on disk (`cache_root()`), keyed by the mesh file's content hash,
@@ -22,6 +24,10 @@ and renamed into place, so concurrent runs see a whole entry or none.
 
 Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (measured: 250 pieces
 0.4 s, 500 1.8 s, 1000 4.9 s, 2000 22 s), so merging faces into few pieces matters as much as the decomposition.
+(Check cost need not grow so: app.custom_scene anchors environment pieces to the world, see `env_urdf`.)
+
+The tolerance is the caller's choice; `default_tolerance` (0.2 % of the mesh's size) knows nothing of the robot, so
+app.custom_scene derives environment tolerances from the edge-check step instead.
 """
 
 from __future__ import annotations
@@ -44,7 +50,7 @@ from app.io import write_atomically
 # trimesh and coacd (optional, slow to import) are imported inside the functions that use them.
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
-DECOMPOSER_VERSION = "1"
+DECOMPOSER_VERSION = "2"
 CACHE_ENV = "NPP_CACHE_DIR"
 DRAKE_MESH_SUFFIXES = {".obj", ".vtk", ".gltf"}
 CONVERTIBLE_SUFFIXES = {".stl", ".dae", ".ply", ".off", ".glb"}
@@ -53,11 +59,12 @@ METHODS = ("auto", "convex", "coacd", "faces")
 
 
 def cache_root() -> Path:
-    """$NPP_CACHE_DIR, else $XDG_CACHE_HOME/npp, else ~/.cache/npp."""
+    """$NPP_CACHE_DIR, else $XDG_CACHE_HOME/npp, else ~/.cache/npp; absolute (generated model files name the
+    cached meshes by file:// URIs, which must not depend on the working directory)."""
     if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV])
+        return Path(os.environ[CACHE_ENV]).absolute()
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "npp"
+    return (Path(base) / "npp").absolute()
 
 
 def _progress(**kwargs):
@@ -257,7 +264,8 @@ def face_pieces(mesh, slab: float, thickness: float, progress: bool = True, with
                 continue  # folded over: its projection would overlap its neighbours'
             new_hull = _hull_2d(np.vstack([hull, t2]))
             new_sum = area_sum + projected
-            if _area_2d(new_hull) > new_sum * (1 + 1e-7) + eps_area * new_sum:
+            rim = 0.5 * slab * float(np.linalg.norm(new_hull - np.roll(new_hull, 1, axis=0), axis=1).sum())
+            if _area_2d(new_hull) > new_sum * (1 + 1e-7) + eps_area * new_sum + rim:  # (validation checks it)
                 continue  # the hull would add area that is not surface
             hull, area_sum, heights = new_hull, new_sum, h_all
             group.add(int(g))

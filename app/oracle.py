@@ -84,9 +84,13 @@ class CollisionOracle:
         self._diag_root = self.model.CreateDefaultContext()
         self._diag = self.plant.GetMyContextFromRoot(self._diag_root)
         if not scene.self_collisions:
-            for i, a in enumerate(robot_bodies):
-                for b in robot_bodies[i + 1 :]:
-                    self.checker.SetCollisionFilteredBetween(a, b, True)
+            # One matrix update, not one per body pair: each update re-filters every thread's context, which costs
+            # seconds among a thousand environment pieces.
+            matrix = self.checker.GetFilteredCollisionMatrix().copy()
+            index = [int(body.index()) for body in robot_bodies]
+            pairs = np.ix_(index, index)
+            matrix[pairs] = np.where(np.eye(len(index), dtype=bool), matrix[pairs], 1)  # (the diagonal stays -1)
+            self.checker.SetCollisionFilterMatrix(matrix)
         # Policy context: the scene's collision pairs, used for every counted answer.
         self._root = self.policy_context()
         self._ctx = self.plant.GetMyContextFromRoot(self._root)
@@ -263,20 +267,23 @@ class CollisionOracle:
         return touched
 
     def colliding_bodies(self, q: np.ndarray) -> list[tuple[str, str]]:
-        """The body pairs (scoped names, sorted) in collision at q under the scene's policy; for error messages."""
+        """The body pairs (scoped names, sorted) in collision at q under the scene's policy; for error messages.
+        Geometry anchored to the world (a custom scene's environment pieces) is named itself, not "world"."""
         self.plant.SetPositions(self._ctx, np.asarray(q, float))
         query = self._query_port.Eval(self._ctx)
         try:
             pairs = [(p.id_A, p.id_B) for p in query.ComputePointPairPenetration()]
         except RuntimeError:  # a shape pair without penetration support: fall back to signed distances
             pairs = [(p.id_A, p.id_B) for p in query.ComputeSignedDistancePairwiseClosestPoints(0.0) if p.distance < 0]
-        names = set()
-        for a, b in pairs:
-            bodies = sorted(
-                self.plant.GetBodyFromFrameId(self._inspector.GetFrameId(g)).scoped_name().to_string() for g in (a, b)
-            )
-            names.add((bodies[0], bodies[1]))
-        return sorted(names)
+        world = self._inspector.world_frame_id()
+
+        def name(g):
+            frame = self._inspector.GetFrameId(g)
+            if frame == world:
+                return self._inspector.GetName(g)
+            return self.plant.GetBodyFromFrameId(frame).scoped_name().to_string()
+
+        return sorted({tuple(sorted((name(a), name(b)))) for a, b in pairs})
 
     def frame_positions(self, Q: np.ndarray) -> np.ndarray:
         """World position of the passage frame's origin (no passage declared: the robot's last body's) for each

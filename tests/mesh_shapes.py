@@ -84,3 +84,39 @@ def open_u(length: float = 4.0) -> trimesh.Trimesh:
     mesh = u_channel(length)
     keep = np.abs(mesh.face_normals[:, 0]) < 0.5
     return trimesh.Trimesh(mesh.vertices, mesh.faces[keep], process=True)
+
+
+def holed_shell(
+    outer: float = 1.2, inner: float = 1.0, hole_angle: float = np.radians(24), rings: int = 16, sectors: int = 48
+) -> trimesh.Trimesh:
+    """A closed, thick spherical shell (a trap) with a round opening about +z: its inner cavity reaches the outside
+    only through the hole (radius `inner * sin(hole_angle)` at the inner wall). 2 * (2 rings - 1 + 1) * sectors
+    triangles: 3,072 with the defaults."""
+    theta = np.linspace(hole_angle, np.pi, rings + 1)[:-1]  # polar angles of the rings; the pole closes each sphere
+    phi = np.linspace(0, 2 * np.pi, sectors, endpoint=False)
+
+    def sphere(radius):
+        ring = np.stack([np.outer(np.sin(theta), np.cos(phi)), np.outer(np.sin(theta), np.sin(phi))], -1)
+        points = np.c_[radius * ring.reshape(-1, 2), radius * np.repeat(np.cos(theta), sectors)]
+        return np.vstack([points, [0, 0, -radius]])
+
+    verts = np.vstack([sphere(outer), sphere(inner)])
+    per = rings * sectors + 1  # vertices per sphere
+    faces = []
+    for base, flip in ((0, False), (per, True)):
+        for r in range(rings - 1):
+            for s in range(sectors):
+                a, b = base + r * sectors + s, base + r * sectors + (s + 1) % sectors
+                c, d = a + sectors, b + sectors
+                faces += [(a, c, b), (b, c, d)] if not flip else [(a, b, c), (b, d, c)]
+        pole, last = base + per - 1, base + (rings - 1) * sectors
+        for s in range(sectors):
+            a, b = last + s, last + (s + 1) % sectors
+            faces.append((a, pole, b) if not flip else (a, b, pole))
+    for s in range(sectors):  # the rim joining the two spheres round the hole
+        a, b = s, (s + 1) % sectors
+        faces += [(a, b, per + a), (b, per + b, per + a)]
+    mesh = trimesh.Trimesh(verts, np.array(faces), process=True)
+    mesh.fix_normals()
+    assert mesh.is_watertight and mesh.volume > 0
+    return mesh

@@ -8,7 +8,7 @@ pytest.importorskip("trimesh")
 
 import trimesh  # noqa: E402
 
-from app.custom_scene import CustomSpec, build_scene, load_scene  # noqa: E402
+from app.custom_scene import ENV_TOLERANCE_PER_STEP, CustomSpec, build_scene, load_scene  # noqa: E402
 from app.errors import InvalidEndpoint, UserError  # noqa: E402
 from mesh_shapes import open_u, u_channel  # noqa: E402
 
@@ -68,6 +68,54 @@ def test_the_decomposition_not_the_hull_is_used(channel_oracle):
     assert not o.edge_free(np.array(START), np.array(GOAL))
 
 
+def test_environment_pieces_are_anchored_to_the_world(channel_oracle):
+    """On the world body SceneGraph keeps them in its static broad-phase tree; on a welded body they would be moved
+    and re-sorted on every query."""
+    from pydrake.geometry import Role
+
+    inspector = channel_oracle.model.scene_graph().model_inspector()
+    robot = channel_oracle._robot_geometries
+    env = [g for g in inspector.GetAllGeometryIds(Role.kProximity) if g not in robot]
+    assert len(env) == 3 and robot  # the channel's CoACD pieces
+    assert all(inspector.GetFrameId(g) == inspector.world_frame_id() for g in env)
+    assert all(inspector.GetFrameId(g) != inspector.world_frame_id() for g in robot)
+    # Collisions with them are named by piece (the world body would say nothing).
+    assert channel_oracle.colliding_bodies(np.array([0.0, 1.25, 1.5, 0, 0, 0]))[0][0].startswith("env0_piece")
+
+
+def test_default_mesh_tolerance_follows_the_edge_check_step_on_a_torus(files, tmp_path):
+    """The mesh-relative default (0.2 % of its size) rejects CoACD's pieces on a torus and falls back to face plates;
+    half the edge-check step lets its few pieces pass."""
+    trimesh.creation.torus(1.0, 0.3, major_sections=24, minor_sections=12).export(tmp_path / "torus.obj")
+    spec = CustomSpec(
+        robot=str(files / "cube.obj"),
+        env=[str(tmp_path / "torus.obj")],
+        start=[0, 0, 1, 0, 0, 0],
+        goal=[0, 0, -1, 0, 0, 0],
+    )
+    scene = build_scene(spec, cache_dir=tmp_path, progress=False)
+    torus = scene.info["decompositions"][1]
+    assert torus["validation"]["ok"] and torus["validation"]["tolerance"] == pytest.approx(
+        ENV_TOLERANCE_PER_STEP * scene.resolution
+    )
+    assert torus["method"] == "coacd" and torus["pieces"] <= 40
+
+
+def test_default_step_follows_the_robot_not_its_face_plates(files, cache):
+    """An open U as the robot becomes thin face plates; the step is a quarter of the U's smallest width (2, its
+    height), not of a plate's thickness."""
+    spec = CustomSpec(
+        robot=str(files / "open_channel.dae"),
+        env=[],
+        start=[0, 0, 0, 0, 0, 0],
+        goal=[1, 0, 0, 0, 0, 0],
+        bounds=["-5..5", "-5..5", "-5..5"],
+    )
+    scene = build_scene(spec, cache_dir=cache, progress=False)
+    assert scene.info["decompositions"][0]["method"] == "faces"
+    assert scene.resolution == pytest.approx(0.25 * 2.0, rel=0.02)
+
+
 def test_plan_goes_through_the_channel(channel_oracle):
     from app.planner import PlanSettings, plan
 
@@ -110,6 +158,13 @@ def test_env_pose_moves_the_mesh(files, cache):
     oracle = CollisionOracle(build_scene(spec, cache_dir=cache, progress=False))
     assert oracle.edge_free(oracle.scene.start, oracle.scene.goal)
     assert not oracle.is_free(np.array([1.25, 0, 11.5, 0, 0, 0]))
+
+
+def test_a_relative_cache_folder_works(files, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("NPP_CACHE_DIR", "cache")
+    scene = build_scene(_spec(files, env="open_channel.dae"), progress=False)
+    assert scene.dim == 6 and (tmp_path / "cache" / "meshes").is_dir()
 
 
 def test_custom_scene_file(files, cache):

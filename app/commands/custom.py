@@ -5,7 +5,7 @@ import argparse
 
 from app import meshes
 from app.commands.common import float_list
-from app.custom_scene import CustomSpec, build_scene, load_scene
+from app.custom_scene import CustomScene, CustomSpec, build_scene, load_scene
 from app.errors import UserError
 from app.scene import Scene
 
@@ -59,14 +59,15 @@ def add_arguments(parser) -> None:
         type=float,
         default=0.0,
         metavar="M",
-        help="how far a decomposition may reach beyond the mesh surface (default 0.2%% of its size)",
+        help="how far a decomposition may reach beyond the mesh surface, in metres (default: half the "
+        "edge-check step for environment meshes, 0.2%% of its size for a robot mesh)",
     )
     group.add_argument(
         "--resolution",
         type=float,
         default=0.0,
         metavar="STEP",
-        help="edge-check step (default: a quarter of the robot's smallest extent)",
+        help="edge-check step (default: a quarter of the robot's thickness, the median over its bodies)",
     )
     group.add_argument(
         "--self-collision",
@@ -115,3 +116,22 @@ def scene_from_args(args, scene: str | None = None) -> Scene:
     if not scene:
         raise UserError("a SCENE (name or file) or --robot is required")
     return load_scene(scene)
+
+
+def describe(scene: Scene) -> list[str]:
+    """For a custom scene, one line per mesh decomposition (method, pieces, tolerance, time, cached or not) and one
+    for the edge-check step and Drake's load; nothing for another scene."""
+    if not isinstance(scene, CustomScene):
+        return []
+    lines = []
+    for d in scene.info["decompositions"]:
+        how = f"from the cache in {d['seconds']:.2f} s" if d["from_cache"] else f"built in {d['seconds']:.1f} s"
+        lines.append(
+            f"mesh {d['mesh']}: {d['pieces']} convex piece(s) by {d['method']}, "
+            f"tolerance {d['validation']['tolerance']:.3g} m, {how}"
+        )
+    lines.append(
+        f"scene {scene.name}: edge-check step {scene.resolution:.3g}, "
+        f"Drake load {scene.info['drake_load_seconds']:.1f} s"
+    )
+    return lines

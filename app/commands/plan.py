@@ -151,8 +151,8 @@ def run(args) -> int:
     if args.json:
         print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
     else:
-        print(summary(result))
-        print(f"  collisions {collisions(oracle.scene)}")
+        lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
+        print("\n".join([summary(result), *("  " + line for line in lines)]))
     view.wait(args)
     return 0
 

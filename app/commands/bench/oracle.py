@@ -6,7 +6,12 @@ from app.commands.common import comma_list, positive_int, print_json
 
 def register(kinds) -> None:
     o = kinds.add_parser("oracle", help="oracle checks/s vs raw HasCollisions on 1 and 2 threads")
-    o.add_argument("--scenes", type=comma_list, default="bar,joint3d", help="comma-separated scene names")
+    o.add_argument(
+        "--scenes",
+        type=comma_list,
+        default="bar,joint3d",
+        help="comma-separated scene names, problem files or custom scene files (robot/env keys)",
+    )
     o.add_argument("-n", type=positive_int, default=20000, help="configurations per measurement")
     o.add_argument("--repeats", type=positive_int, default=5, help="runs per measurement (the median counts)")
     o.add_argument("--seed", type=int, default=0)
@@ -19,10 +24,14 @@ def run(args) -> int:
     if args.json:
         print_json({"oracle": rows})
         return 0
-    print(f"{'scene':<10} {'raw k/s':>9} {'1 thread k/s':>13} {'ratio':>6} {'2 threads k/s':>14} {'ratio':>6}")
+    print(
+        f"{'scene':<10} {'raw k/s':>9} {'1 thread k/s':>13} {'ratio':>6} {'2 threads k/s':>14} {'ratio':>6} "
+        f"{'us/check (1)':>13} {'load s (first/cached)':>22}"
+    )
     for r in rows:
         print(
             f"{r['scene']:<10} {r['raw_per_s'] / 1e3:>9.1f} {r['oracle_1_per_s'] / 1e3:>13.1f} "
-            f"{r['ratio_1']:>6.2f} {r['oracle_2_per_s'] / 1e3:>14.1f} {r['ratio_2']:>6.2f}"
+            f"{r['ratio_1']:>6.2f} {r['oracle_2_per_s'] / 1e3:>14.1f} {r['ratio_2']:>6.2f} "
+            f"{r['us_per_check_1']:>13.1f} {r['load_first_s']:>11.2f}/{r['load_cached_s']:.2f}"
         )
     return 0
