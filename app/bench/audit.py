@@ -227,7 +227,10 @@ def summarise(rows: list[dict], scenes: list[str]) -> list[dict]:
                 "colliding_states": sum(m["colliding_states"] for m in solved),
                 "max_penetration": max((m["max_penetration"] for m in solved), default=0.0),
                 "limit_violations": sum(m["limit_violations"] for m in solved),
-                "worst_limit_ratio": max((m.get("worst_limit_ratio", 0.0) for m in solved), default=0.0),
+                # None if no row has it (rows stored before the audit measured it).
+                "worst_limit_ratio": max(
+                    (m["worst_limit_ratio"] for m in solved if "worst_limit_ratio" in m), default=None
+                ),
                 "inexact_endpoints": sum(not m["endpoints_exact"] for m in solved),
                 "states_checked": sum(m["states"] for m in solved),
                 "median_seconds": float(np.median([m["seconds"] for m in solved])) if solved else None,

@@ -35,10 +35,11 @@ def run(args) -> int:
     )
     for r in table:
         seconds = "-" if r["median_seconds"] is None else f"{r['median_seconds']:.2f}"
+        worst = "-" if r["worst_limit_ratio"] is None else f"{r['worst_limit_ratio']:.6f}"
         print(
             f"{r['scene']:<10} {r['problems']:>8} {r['solved']:>7} {r['certified']:>9} "
             f"{r['colliding_trajectories']:>9} {r['colliding_states']:>12} {r['max_penetration']:>9.2g} "
-            f"{r['limit_violations']:>11} {r['worst_limit_ratio']:>9.6f} {r['inexact_endpoints']:>8} "
+            f"{r['limit_violations']:>11} {worst:>9} {r['inexact_endpoints']:>8} "
             f"{r['states_checked']:>10} {seconds:>8}"
         )
     return 0
