@@ -7,11 +7,17 @@ from the joint to g's body (a prismatic joint on the way adds its largest travel
 radius about its body origin, taken from the shape. So along any motion a point of g travels at most
 B_g = sum_j rates[g, j] * (travel of q_j).
 
-Certificate. Signed distance changes no faster than the shapes move, so if at the ends a, b of a piece of motion
-d_PQ(a) + d_PQ(b) > B_P + B_Q for every pair the scene counts (B = 0 for the environment), P and Q never touch in
-between: d(t) >= d(a) - travel(a..t) and d(t) >= d(b) - travel(t..b), and the two travels add up to at most
-B_P + B_Q. A piece that fails is bisected; one that still fails once its motion is shorter than the floor (in
-the space's weighted metric) is reported as colliding.
+Relative motion. Two robot geometries' distance is the same measured in the frame of the last body their chains
+to the world share, where only the joints below it move them: for such a pair the bound B_PQ sums the two rates
+over the coordinates of the joints the chains do not share (the cart and the shoulder never bring the wrist nearer
+the upper arm). For a robot-environment pair, B_PQ = B_P.
+
+Certificate. Signed distance changes no faster than that, so if at the ends a, b of a piece of motion
+d_PQ(a) + d_PQ(b) > B_PQ for every pair the scene counts, P and Q never touch in between:
+d(t) >= d(a) - B_PQ(a..t) and d(t) >= d(b) - B_PQ(t..b), and the two add up to at most B_PQ. A piece that fails
+is bisected; one that still fails once its motion is shorter than the floor (in the space's weighted metric) is
+reported as colliding. Each interval is bisected depth first, but several pieces of every interval are taken at a
+time and their ends bounded in one batch (see Certifier).
 
 Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
 mesh by GJK, whose answers can be too large -- unsafe here: up to 0.34 mm for the maze's hull near a pillar's corner,
@@ -23,7 +29,7 @@ any direction bounds the distance from below). On the maze's corner it matched t
 Every distance is lowered by a rounding allowance (1e-9 of the resolution).
 
 max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
-at that end. Each end is queried with D just above half the largest B_P + B_Q of the pieces it bounds: a pair
+at that end. Each end is queried with D just above half the largest B_PQ of the pieces it bounds: a pair
 unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
 count as unreported when their own bound is at least D). Distances are cached per configuration, so ends shared by
 adjacent pieces, and by rounds of a caller that retries, are asked once.
@@ -55,7 +61,13 @@ _KEY = 1 << 31
 
 class MotionBound:
     """Per robot geometry, per coordinate: the largest distance any point of the geometry moves per unit of that
-    coordinate, at any configuration within the space's bounds."""
+    coordinate, at any configuration within the space's bounds; and per pair of geometries, the same for how fast
+    their distance can change.
+
+    Two robot geometries' distance is the same seen from the last body their chains to the world share, in whose
+    frame only the joints below that body move either of them: so a robot-robot pair's rates are the two
+    geometries' rates on the coordinates of the joints the two chains do not share, and 0 on the shared ones
+    (the cart and the shoulder do not bring the wrist nearer the upper arm)."""
 
     def __init__(self, oracle):
         plant = oracle.plant
@@ -64,7 +76,7 @@ class MotionBound:
         for index in plant.GetJointIndices():
             joint = plant.get_joint(index)
             inboard[joint.child_body().index()] = joint
-        self.rows, rates = {}, []
+        self.rows, rates, moved_by = {}, [], []
         for instance in oracle.scene.robot_instances:
             for body_index in plant.GetBodyIndices(instance):
                 chain = _chain(inboard, body_index)
@@ -72,9 +84,15 @@ class MotionBound:
                     self.rows[geometry] = len(rates)
                     pose = inspector.GetPoseInFrame(geometry)
                     rates.append(_rates(chain, _radius(*_describe(inspector, geometry), pose), oracle.space))
+                    moved_by.append(_coordinates(chain, oracle.space.dim))
         # The last row (zeros) stands for every environment geometry: it does not move.
         self.rates = np.vstack(rates + [np.zeros(oracle.space.dim)])
-        self.self_pairs = oracle.scene.self_collisions
+        # pair_rates[P, Q]: how fast the distance of P and Q can change per unit of each coordinate.
+        moved_by = np.vstack(moved_by + [np.zeros(oracle.space.dim, bool)])
+        shared = moved_by[:, None, :] & moved_by[None, :, :]
+        self.pair_rates = (self.rates[:, None, :] + self.rates[None, :, :]) * ~shared
+        if not oracle.scene.self_collisions:  # robot-robot pairs do not count
+            self.pair_rates[:-1, :-1] = 0.0
 
     def row(self, geometry_id) -> int:
         return self.rows.get(geometry_id, -1)
@@ -83,11 +101,15 @@ class MotionBound:
         """Bound on how far any point of each geometry moves when coordinate j travels variation[j] (>= 0)."""
         return self.rates @ variation
 
-    def max_distance(self, travel: np.ndarray) -> float:
-        """The max_distance at which every unreported pair passes: half the largest B_P + B_Q of a counted pair."""
-        top = np.sort(travel)[-2:]
-        largest = top.sum() if self.self_pairs else top[-1]
-        return 0.5 * largest * _MARGIN + 1e-12
+    def pair_travel(self, variation: np.ndarray) -> np.ndarray:
+        """Bounds on how much each pair's distance changes, (..., rows, rows), for variations (..., dim)."""
+        return np.einsum("pqj,...j->...pq", self.pair_rates, variation)
+
+    @staticmethod
+    def max_distance(pair_travel: np.ndarray) -> np.ndarray:
+        """The max_distance at which every unreported pair passes: half the largest pair bound (the environment-
+        environment entry counts nothing, and is 0)."""
+        return 0.5 * pair_travel.max(axis=(-2, -1)) * _MARGIN + 1e-12
 
 
 def _chain(inboard: dict, body_index) -> list:
@@ -122,6 +144,14 @@ def _rates(chain: list, radius: float, space) -> np.ndarray:
             )
         reach += slide + np.linalg.norm(joint.frame_on_parent().GetFixedPoseInBodyFrame().translation())
     return rates
+
+
+def _coordinates(chain: list, dim: int) -> np.ndarray:
+    """Which coordinates the joints of a chain own."""
+    mask = np.zeros(dim, bool)
+    for joint in chain:
+        mask[joint.position_start() : joint.position_start() + joint.num_positions()] = True
+    return mask
 
 
 def _describe(inspector, geometry) -> tuple[str, object]:
@@ -198,23 +228,28 @@ class _Gaps:
                 self.special[i] = (kind, data)
         self.is_special = np.isin(np.arange(count), list(self.special))
 
-    def near(self, R: np.ndarray, p: np.ndarray, nhat: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
-        """(pairs, bounds): the pairs whose lower bound is below `limit`, and the bounds, given the shapes' poses
-        (R (G, 3, 3), p (G, 3)) and Drake's direction from b to a where it reported a pair (else NaN)."""
-        a, b = self.pairs.T
+    def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(configurations, pairs, bounds): the rows (configuration k, pair) whose lower bound is below limit[k],
+        and their bounds, given the shapes' poses -- rotation(k, g) (n, 3, 3) and centre(k, g) (n, 3) of geometries
+        g in configurations k (index arrays) -- and Drake's direction from b to a where it reported the pair in
+        that configuration (nhat (configurations, pairs, 3), else NaN). All configurations are done at once."""
+        k = np.repeat(np.arange(len(limit)), len(self.pairs))
+        pair = np.tile(np.arange(len(self.pairs)), len(limit))
+        a, b = self.pairs[pair].T
+        pa, pb = centre(k, a), centre(k, b)
         # Cheap bounds first, to skip most pairs: bounding spheres; then from each centre to the other shape.
-        near = np.flatnonzero(np.linalg.norm(p[a] - p[b], axis=1) - self.radius[a] - self.radius[b] < limit)
-        A, B = self._posed(a[near], R, p), self._posed(b[near], R, p)
+        near = np.flatnonzero(np.linalg.norm(pa - pb, axis=1) - self.radius[a] - self.radius[b] < limit[k])
+        k, pair, a, b = k[near], pair[near], a[near], b[near]
+        A, B = self._posed(a, rotation(k, a), pa[near]), self._posed(b, rotation(k, b), pb[near])
         rough = np.maximum(self._distance_to(B, A.p) - A.radius, self._distance_to(A, B.p) - B.radius)
-        keep = rough < limit
-        near = near[keep]
-        if not len(near):
-            return near, np.zeros(0)
-        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[near])
-        return near[bounds < limit], bounds[bounds < limit]
+        keep = rough < limit[k]
+        k, pair = k[keep], pair[keep]
+        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[k, pair])
+        below = bounds < limit[k]
+        return k[below], pair[below], bounds[below]
 
     def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
-        return _Posed(R[g], p[g], self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
+        return _Posed(R, p, self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
 
     def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray) -> np.ndarray:
         """The largest gap between the shapes along three directions: Drake's where it has one, and the normals of
@@ -237,9 +272,10 @@ class _Gaps:
         """max over each posed shape of n . (x - its centre), for world directions n (unit rows)."""
         u = np.einsum("mji,mj->mi", S.R, n)
         out = (S.core * np.abs(u)).sum(1) + S.disc * np.hypot(u[:, 0], u[:, 1]) + S.ball
-        for m in np.flatnonzero(self.is_special[S.g]):
-            kind, data = self.special[S.g[m]]
-            out[m] = np.linalg.norm(data * u[m]) if kind == "ellipsoid" else (data @ u[m]).max()
+        for i, (kind, data) in self.special.items():
+            m = S.g == i
+            if m.any():
+                out[m] = np.linalg.norm(data * u[m], axis=1) if kind == "ellipsoid" else (u[m] @ data.T).max(1)
         return out
 
     def _project(self, S: _Posed, x: np.ndarray) -> np.ndarray:
@@ -291,7 +327,18 @@ def motion_bound(oracle) -> MotionBound:
 
 
 class Certifier:
-    """Certifies pieces of motion for one oracle, keeping the distances it has asked for across calls."""
+    """Certifies pieces of motion for one oracle, keeping the distances it has asked for across calls.
+
+    Each interval is bisected depth first, leftmost piece first (a failing interval stops at its first failure),
+    but WIDTH pieces of every interval are taken at a time and their ends bounded together: Drake is asked per
+    configuration, but the gaps (numpy) run once over all those configurations and pairs, where one configuration
+    at a time spent most of its time in numpy's call overhead."""
+
+    # Pieces taken from each interval's stack at a time: more batches more, but may do more work past a failure.
+    WIDTH = 16
+
+    # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
+    BATCH_ROWS = 1 << 17
 
     def __init__(self, oracle, floor: float | None = None):
         from pydrake.geometry import Role
@@ -308,10 +355,15 @@ class Certifier:
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
         self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
         self._gaps = _Gaps(oracle, geometries, self._rows >= 0, self._exact)
-        # Shape poses for the gaps: the environment's never change, the robot's are updated per configuration.
-        self._robot = [(i, g) for i, g in enumerate(geometries) if self._rows[i] >= 0]
-        self._R, self._p = np.tile(np.eye(3), (len(geometries), 1, 1)), np.zeros((len(geometries), 3))
-        self._poses(oracle.query_object(oracle.scene.start), enumerate(geometries))
+        # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in
+        # robot slots (slot -1: environment).
+        self._robot = [g for i, g in enumerate(geometries) if self._rows[i] >= 0]
+        self._slot = np.full(len(geometries), -1)
+        self._slot[self._rows >= 0] = np.arange(len(self._robot))
+        query = oracle.query_object(oracle.scene.start)
+        poses = [query.GetPoseInWorld(g) for g in geometries]
+        self._R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
+        self._p = np.array([X.translation() for X in poses]).reshape(-1, 3)
 
     def certify(self, position, variation, intervals) -> tuple[bool, dict]:
         """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
@@ -321,20 +373,34 @@ class Certifier:
         stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds.
         """
         clock, queries = time.perf_counter(), self.oracle.distance_queries
-        intervals = [(float(a), float(b)) for a, b in intervals]
-        hint = {}  # shared ends are asked once, at the larger max_distance of the intervals they bound
-        for a, b in intervals:
-            need = self._need(variation(a, b))
-            hint[a], hint[b] = max(hint.get(a, 0.0), need), max(hint.get(b, 0.0), need)
+        # Per interval, its pieces still to prove, the leftmost on top: a collision near the start shows up early.
+        stacks = {i: [(float(a), float(b))] for i, (a, b) in enumerate(intervals)}
         failed, pieces = [], 0
-        for i, (a, b) in enumerate(intervals):
-            count = self._interval(position, variation, a, b, hint)
-            if count is None:
-                failed.append(i)
-            else:
-                pieces += count
+        while stacks:
+            todo = [(i, stack.pop()) for i, stack in stacks.items() for _ in range(min(self.WIDTH, len(stack)))]
+            variations = np.array([variation(a, b) for _, (a, b) in todo]).reshape(len(todo), -1)
+            travel = self.bound.pair_travel(variations)
+            # Each end is asked at the largest max_distance of the pieces it bounds (shared ends once).
+            need = {}
+            for (_, (a, b)), d in zip(todo, self.bound.max_distance(travel).tolist()):
+                need[a], need[b] = max(need.get(a, 0.0), d), max(need.get(b, 0.0), d)
+            ends = dict(zip(need, self._distances([position(s) for s in need], list(need.values()))))
+            lengths = np.linalg.norm(variations * self.oracle.space.weights, axis=1)
+            # Rightmost first, so that the halves pushed back leave the leftmost piece on top.
+            for (i, (a, b)), pair_travel, length in reversed(list(zip(todo, travel, lengths))):
+                if i not in stacks:
+                    continue
+                if ends[a] is not None and ends[b] is not None and _clear(ends[a], ends[b], pair_travel):
+                    pieces += 1
+                elif ends[a] is None or ends[b] is None or length <= self.floor:
+                    failed.append(i)
+                    del stacks[i]
+                else:
+                    m = 0.5 * (a + b)
+                    stacks[i] += [(m, b), (a, m)]
+            stacks = {i: stack for i, stack in stacks.items() if stack}
         stats = {
-            "failed": failed,
+            "failed": sorted(failed),
             "pieces": pieces,
             "distance_queries": self.oracle.distance_queries - queries,
             "seconds": time.perf_counter() - clock,
@@ -344,7 +410,7 @@ class Certifier:
     def distances(self, q: np.ndarray, max_distance: float) -> dict | None:
         """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
         pairs closer than max_distance (those left out are at least that far apart); None if q collides."""
-        end = self._distances(q, max_distance)
+        end = self._distances([q], [max_distance])[0]
         if end is None:
             return None
         geometries = list(self._indices)
@@ -353,82 +419,86 @@ class Certifier:
             for k, d in zip(end.keys.tolist(), end.distance.tolist())
         }
 
-    def _need(self, variation: np.ndarray) -> float:
-        return self.bound.max_distance(self.bound.travel(variation))
+    def _distances(self, Q: list, limits: list) -> list:
+        """For each configuration, the pairs within its limit (an _End), from the cache when it was asked at a
+        limit at least as large; None if it collides or lies outside the bounds."""
+        keys = [np.asarray(q, float).tobytes() for q in Q]
+        todo = []
+        for key, q, limit in zip(keys, Q, limits):
+            cached = self._cache.get(key, False)
+            if cached is False or (cached is not None and cached.limit < limit):
+                todo.append((key, np.asarray(q, float), limit))
+        per_batch = max(1, self.BATCH_ROWS // max(1, len(self._gaps.pairs)))
+        for first in range(0, len(todo), per_batch):
+            self._ends(todo[first : first + per_batch])
+        return [self._cache[key] for key in keys]
 
-    def _interval(self, position, variation, s0: float, s1: float, hint: dict) -> int | None:
-        """How many pieces certify [s0, s1] (bisecting as needed), or None if some piece cannot be certified."""
-        stack, pieces = [(s0, s1)], 0
-        while stack:
-            a, b = stack.pop()
-            var = variation(a, b)
-            travel = self.bound.travel(var)
-            need = self.bound.max_distance(travel)
-            ends = [self._distances(position(s), max(need, hint.get(s, 0.0))) for s in (a, b)]
-            if ends[0] is None or ends[1] is None:
-                return None
-            if _clear(ends[0], ends[1], travel):
-                pieces += 1
+    def _ends(self, todo: list) -> None:
+        """Into the cache: the certificate's distances at each (key, q, limit) of `todo` -- Drake's for the pairs it
+        computes exactly, our lower bound for the others (a pair left out is at least `limit` apart); None where q
+        is out of bounds or Drake finds a pair touching."""
+        drake, rotations, centres = [], [], []
+        for key, q, limit in todo:
+            self._cache[key] = None
+            if not self.oracle.space.within_bounds(q)[0]:
                 continue
-            if np.linalg.norm(var * self.oracle.space.weights) <= self.floor:
-                return None
-            m = 0.5 * (a + b)
-            hint[m] = max(self._need(variation(a, m)), self._need(variation(m, b)))
-            stack += [(m, b), (a, m)]  # the left half first: a collision near the start shows up early
-        return pieces
+            pairs = self.oracle.signed_distances(q, limit)
+            distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
+            if np.any(distance <= 0):
+                continue
+            query = self.oracle.query_object(q)
+            poses = [query.GetPoseInWorld(g) for g in self._robot]
+            # Copied now: Drake's poses are views into the query's cache, which the next configuration overwrites.
+            rotations.append(np.array([X.rotation().matrix() for X in poses]))
+            centres.append(np.array([X.translation() for X in poses]))
+            drake.append((key, limit, pairs, distance))
+        if not drake:
+            return
+        # One table of poses, the environment's then each configuration's robot geometries.
+        rotations = np.concatenate([self._R, np.reshape(rotations, (-1, 3, 3))])
+        centres = np.concatenate([self._p, np.reshape(centres, (-1, 3))])
+        slot, count, robots = self._slot, len(self._slot), len(self._robot)
 
-    def _distances(self, q: np.ndarray, max_distance: float):
-        """The pairs within max_distance at q (an _End), from the cache when it was asked at a max_distance at
-        least as large; None if q collides or lies outside the bounds."""
-        q = np.asarray(q, float)
-        key = q.tobytes()
-        if key in self._cache:
-            cached = self._cache[key]
-            if cached is None or cached.limit >= max_distance:
-                return cached
-        end = None
-        if self.oracle.space.within_bounds(q)[0]:
-            pairs = self.oracle.signed_distances(q, max_distance)
-            end = self._end(q, pairs, max_distance)
-        self._cache[key] = end
-        return end
+        def row(k, g):
+            return np.where(slot[g] >= 0, count + k * robots + slot[g], g)
 
-    def _end(self, q: np.ndarray, pairs: list, limit: float):
-        """The certificate's distances at q: Drake's for the pairs it computes exactly, our lower bound for the
-        others; a pair left out is at least `limit` apart. None if Drake finds a pair touching."""
-        distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
-        if np.any(distance <= 0):
-            return None
-        ix = self._indices
-        index = np.array([(ix[p.id_A], ix[p.id_B]) for p in pairs], np.int64).reshape(-1, 2)
-        swapped = index[:, 0] > index[:, 1]
-        index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
-        keys = index[:, 0] * _KEY + index[:, 1]
-        exact = self._exact[index[:, 0], index[:, 1]]
-        directions = np.array([p.nhat_BA_W for p in pairs], float).reshape(-1, 3)
-        nhat = self._directions(keys[~exact], swapped[~exact], directions[~exact])
-        self._poses(self.oracle.query_object(q), self._robot)
-        near, bounds = self._gaps.near(self._R, self._p, nhat, limit)
-        keys = np.concatenate([keys[exact], self._gaps.keys[near]])
-        distance = np.concatenate([distance[exact], bounds]) - self._rounding
-        order = np.argsort(keys)
-        index = np.concatenate([index[exact], self._gaps.pairs[near]])[order]
-        rows = self._rows[index]
-        return _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
+        def rotation(k, g):
+            return rotations[row(k, g)]
+
+        def centre(k, g):
+            return centres[row(k, g)]
+
+        exact_parts, nhat = [], np.full((len(drake), len(self._gaps.keys), 3), np.nan)
+        for k, (_, _, pairs, distance) in enumerate(drake):
+            ix = self._indices
+            index = np.array([(ix[p.id_A], ix[p.id_B]) for p in pairs], np.int64).reshape(-1, 2)
+            swapped = index[:, 0] > index[:, 1]
+            index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
+            keys = index[:, 0] * _KEY + index[:, 1]
+            exact = self._exact[index[:, 0], index[:, 1]]
+            directions = np.array([p.nhat_BA_W for p in pairs], float).reshape(-1, 3)
+            nhat[k] = self._directions(keys[~exact], swapped[~exact], directions[~exact])
+            exact_parts.append((index[exact], keys[exact], distance[exact]))
+        limits = np.array([limit for _, limit, _, _ in drake])
+        near_k, near_pair, bounds = self._gaps.near(rotation, centre, nhat, limits)
+        for k, (key, limit, _, _) in enumerate(drake):
+            mine = near_k == k
+            index = np.concatenate([exact_parts[k][0], self._gaps.pairs[near_pair[mine]]])
+            keys = np.concatenate([exact_parts[k][1], self._gaps.keys[near_pair[mine]]])
+            distance = np.concatenate([exact_parts[k][2], bounds[mine]]) - self._rounding
+            order = np.argsort(keys)
+            rows = self._rows[index[order]]
+            self._cache[key] = _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
 
     def _directions(self, keys: np.ndarray, swapped: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported, as one row per pair of the
         gaps, turned to point from the pair's second geometry to its first in our order; NaN where not reported."""
-        if not np.isin(keys, self._gaps.keys).all():
+        at = np.searchsorted(self._gaps.keys, keys)  # the gaps' keys are sorted (pairs in lexicographic order)
+        if np.any(at >= len(self._gaps.keys)) or np.any(self._gaps.keys[at.clip(max=len(self._gaps.keys) - 1)] != keys):
             raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
         nhat = np.full((len(self._gaps.keys), 3), np.nan)
-        nhat[np.searchsorted(self._gaps.keys, keys)] = np.where(swapped[:, None], -1.0, 1.0) * directions
+        nhat[at] = np.where(swapped[:, None], -1.0, 1.0) * directions
         return nhat
-
-    def _poses(self, query, geometries) -> None:
-        for i, g in geometries:
-            X = query.GetPoseInWorld(g)
-            self._R[i], self._p[i] = X.rotation().matrix(), X.translation()
 
 
 class _End(NamedTuple):
@@ -441,20 +511,20 @@ class _End(NamedTuple):
     row_b: np.ndarray
 
 
-def _clear(a: _End, b: _End, travel: np.ndarray) -> bool:
+def _clear(a: _End, b: _End, pair_travel: np.ndarray) -> bool:
     """The certificate for one piece: every pair reported at either end is farther apart, summed over the two
-    ends, than both its shapes can move (a pair an end does not report is at least that end's limit apart)."""
-    return _pass(a, b, travel) and _pass(b, a, travel)
+    ends, than its distance can change (a pair an end does not report is at least that end's limit apart)."""
+    return _pass(a, b, pair_travel) and _pass(b, a, pair_travel)
 
 
-def _pass(a: _End, b: _End, travel: np.ndarray) -> bool:
+def _pass(a: _End, b: _End, pair_travel: np.ndarray) -> bool:
     """The certificate for the pairs `a` reports, with their distance at `b`, or b's limit where b has none."""
     other = np.full(len(a.keys), b.limit)
     if len(b.keys):
         at = np.searchsorted(b.keys, a.keys).clip(max=len(b.keys) - 1)
         found = b.keys[at] == a.keys
         other[found] = b.distance[at[found]]
-    return bool(np.all(a.distance + other > travel[a.row_a] + travel[a.row_b]))
+    return bool(np.all(a.distance + other > pair_travel[a.row_a, a.row_b]))
 
 
 def certify_curve(oracle, position, variation, knots, floor: float | None = None) -> tuple[bool, dict]:

@@ -419,8 +419,9 @@ class Query:
                         proved, certificate = raw_proved, raw_certificate
             return nodes, path, {**stats, "certificate": {**certificate, "proved": proved}}
 
-    def time(self, path: np.ndarray) -> Trajectory:
-        """Toppra along the path with its corners blended where the blends can be proved free (app.timing)."""
+    def time(self, path: np.ndarray, proved: bool = False) -> Trajectory:
+        """Toppra along the path with its corners blended where the blends can be proved free (app.timing); proved:
+        the path's edges are certified already (by this query's certifier), so only the blends need to be."""
         scene = self.oracle.scene
         try:
             return self._timed(
@@ -433,6 +434,7 @@ class Query:
                 self.settings.dt,
                 self.oracle.space.names,
                 certifier=self._certifier,
+                edges_proved=proved,
             )
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
             raise NoPath(
@@ -516,7 +518,7 @@ class Query:
         raw = roadmap.Q[nodes]
         stats["raw_length"] = path_length(self.oracle, raw)
         stats["length_after"] = path_length(self.oracle, path)
-        trajectory = self.time(path)
+        trajectory = self.time(path, stats["certificate"]["proved"])
         self.seconds["total"] = self.elapsed()[0]
         return PlanResult(
             success=True,

@@ -99,14 +99,17 @@ class _Curve:
         return np.maximum(d0, d1) * (s1 - s0) * _SLACK
 
 
-def _certified_radii(certifier: Certifier, W, tangent, arc, radii, tighten: int) -> tuple[np.ndarray, bool, dict]:
+def _certified_radii(
+    certifier: Certifier, W, tangent, arc, radii, tighten: int, edges_proved: bool
+) -> tuple[np.ndarray, bool, dict]:
     """Blend radii tightened until every blend is certified (a corner that never is becomes a stop), whether the
-    whole curve then is (False: a straight piece of the polyline itself failed), and the certification cost."""
+    whole curve then is (False: a straight piece of the polyline itself failed), and the certification cost.
+    edges_proved: the polyline's edges are certified already, so are the straight pieces (each part of one edge)."""
     radii, halvings, done = radii.copy(), np.zeros(len(W), int), set()
     cost = {"distance_queries": 0, "seconds": 0.0, "rounds": 0}
     while True:
         curve = _Curve(_legs(W, tangent, arc, radii))
-        todo = [p for leg in curve.legs for p in leg.pieces if p not in done]
+        todo = [p for leg in curve.legs for p in leg.pieces if p not in done and not (edges_proved and p[2] is None)]
         _, stats = certifier.certify(curve.position, curve.variation, [(p[0], p[1]) for p in todo])
         cost["distance_queries"] += stats["distance_queries"]
         cost["seconds"] += stats["seconds"]
@@ -290,6 +293,7 @@ def parameterize_smooth(
     tighten: int = TIGHTEN,
     stats: dict | None = None,
     certifier: Certifier | None = None,
+    edges_proved: bool = False,
 ) -> Trajectory:
     """Blended corners, certified (see the module doc), timed with Toppra.
 
@@ -298,6 +302,8 @@ def parameterize_smooth(
     floor: the certificate's bisection floor (default: app.certify's); tighten: halvings of a failing blend before
     its corner becomes a stop. stats, if given, receives: stops (corners the robot stops at), distance_queries and
     seconds (certification), rounds (of blend tightening). certifier: one to reuse (its distances are cached).
+    edges_proved: every straight edge of the waypoints' polyline is certified already (the planner's certificate):
+    then only the blends are.
     """
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, oracle.space.weights)
     radii = np.zeros(len(W))
@@ -305,7 +311,7 @@ def parameterize_smooth(
     if len(W) > 1:
         radii = _first_radii(np.diff(arc))
         certifier = certifier or Certifier(oracle, floor)
-        radii, certified, cost = _certified_radii(certifier, W, tangent, arc, radii, tighten)
+        radii, certified, cost = _certified_radii(certifier, W, tangent, arc, radii, tighten, edges_proved)
     if stats is not None:
         stats.update(cost, stops=int(np.sum(radii[1:-1] == 0)))
     legs = _legs(W, tangent, arc, radii) if len(W) > 1 else []

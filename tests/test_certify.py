@@ -195,3 +195,70 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(tmp_pa
     assert query.ComputeSignedDistancePairClosestPoints(wrist, torch).distance > sampled + 0.02
     ours = Certifier(oracle).distances(q, 0.1)[frozenset((wrist, torch))]
     assert sampled - 1e-3 < ours <= sampled
+
+
+def test_a_robot_pairs_distance_changes_no_more_than_its_relative_motion_bound(oracles):
+    """For two links of the window's UR3, every distance between a point of one and a point of the other changes
+    by at most the pair's bound, which leaves out the joints both links ride on (so the pair's distance, their
+    smallest, does too); and for links on one chain that bound is well below the sum of the two links' travels."""
+    oracle = oracles("window")
+    plant, bound = oracle.plant, motion_bound(oracle)
+    inspector = oracle.model.scene_graph().model_inspector()
+    context = plant.CreateDefaultContext()
+    rng = np.random.default_rng(4)
+    geometries = [(g, _shape_points(inspector, g, rng)) for g in bound.rows]
+
+    def world_points(q):
+        plant.SetPositions(context, q)
+        return [
+            plant.EvalBodyPoseInWorld(context, plant.GetBodyFromFrameId(inspector.GetFrameId(g)))
+            .multiply(inspector.GetPoseInFrame(g))
+            .multiply(points)
+            for g, points in geometries
+        ]
+
+    rows = [bound.row(g) for g, _ in geometries]
+    tighter = 0
+    for scale in (1e-2, 1e-1, 1.0):
+        for q in oracle.space.uniform(rng, 5):
+            qb = np.clip(q + rng.normal(size=oracle.space.dim) * scale, oracle.space.lower, oracle.space.upper)
+            variation = np.abs(qb - q)
+            pair, single = bound.pair_travel(variation), bound.travel(variation)
+            at_a, at_b = world_points(q), world_points(qb)
+            for i in range(len(geometries)):
+                for j in range(i + 1, len(geometries)):
+                    before = np.linalg.norm(at_a[i][:, :, None] - at_a[j][:, None], axis=0)
+                    after = np.linalg.norm(at_b[i][:, :, None] - at_b[j][:, None], axis=0)
+                    allowed = pair[rows[i], rows[j]]
+                    assert np.abs(after - before).max() <= allowed * (1 + 1e-9) + 1e-12
+                    tighter += allowed < 0.5 * (single[rows[i]] + single[rows[j]])
+    assert tighter > 0
+
+
+def test_each_interval_is_judged_on_its_own(oracles):
+    """A path whose middle edge grazes an obstacle: that edge alone fails, the free edges around it are proved."""
+    oracle = oracles("maze")
+    graze = _corner_pass(oracle, -3e-5)
+    before, after = graze[0] - [0.2, 0.2, 0, 0], graze[1] + [0.2, 0.2, 0, 0]
+    ok, stats = certify_path(oracle, np.array([before, *graze, after]))
+    assert not ok and stats["failed"] == [1]
+    assert (
+        certify_path(oracle, np.array([before, graze[0]]))[0] and certify_path(oracle, np.array([graze[1], after]))[0]
+    )
+
+
+@pytest.mark.parametrize("name", ["maze", "window"])
+def test_distances_bounded_together_equal_those_bounded_one_at_a_time(oracles, name):
+    """The certifier bounds many configurations' distances in one batch: each comes out as if asked alone."""
+    oracle = oracles(name)
+    Q = oracle.space.uniform(np.random.default_rng(11), 12)
+    limit = 20 * oracle.space.resolution
+    together = Certifier(oracle)._distances(list(Q), [limit] * len(Q))
+    assert sum(end is not None and len(end.keys) > 0 for end in together) >= 3
+    for q, end in zip(Q, together):
+        alone = Certifier(oracle)._distances([q], [limit])[0]
+        assert (end is None) == (alone is None)
+        if end is not None:
+            assert np.array_equal(end.keys, alone.keys) and np.allclose(
+                end.distance, alone.distance, rtol=0, atol=1e-12
+            )

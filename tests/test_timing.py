@@ -157,3 +157,20 @@ def test_one_waypoint_is_a_motionless_trajectory(oracles):
     q = oracle.scene.start
     smooth, _, _ = _times(oracle, np.array([q, q]))
     assert smooth.duration == 0 and np.array_equal(smooth.positions, [q])
+
+
+def test_edges_already_proved_are_not_certified_again(oracles):
+    """Told that the polyline's edges are proved (as the planner's certificate does), the timing certifies only the
+    blends: the same motion, certified, for fewer distance queries."""
+    from app.certify import certify_path
+
+    oracle = oracles("maze")
+    W, scene = ZIGZAGS["maze"], oracle.scene
+    assert certify_path(oracle, W)[0]
+    every, blends = {}, {}
+    whole = parameterize_smooth(oracle, W, scene.velocity_limits, scene.acceleration_limits, stats=every)
+    only = parameterize_smooth(
+        oracle, W, scene.velocity_limits, scene.acceleration_limits, stats=blends, edges_proved=True
+    )
+    assert whole.certified and only.certified and only.duration == pytest.approx(whole.duration)
+    assert 0 < blends["distance_queries"] < every["distance_queries"]

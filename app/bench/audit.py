@@ -1,0 +1,248 @@
+"""`bench audit`: random problems in every shipped scene, planned with the default planner under a short budget,
+and every returned trajectory re-checked by a checker that shares nothing with the planner's.
+
+The re-check (`Recheck`) builds its own Drake diagram from the scene file and asks SceneGraph directly: a state
+collides if `HasCollisions` (FCL's boolean test, not the signed distances the certificate starts from) says so;
+the deepest signed distance of a colliding state is its penetration. The states are the trajectory's samples,
+planned every SAMPLE_PERIOD seconds, and between consecutive samples points of the quintic Hermite curve through
+their positions, velocities and accelerations, no more than 1/64 of the scene's resolution apart (weighted metric).
+That curve is the executed motion itself wherever the path and Toppra's s(t) are polynomial across the interval,
+i.e. almost everywhere; across a break, where the acceleration jumps by J, it is off by about 1e-2 J h^2, a few
+micrometres or microradians at h = SAMPLE_PERIOD. No shape is padded.
+Start and goal must be met exactly, at rest, and velocities and accelerations stay within the scene's limits.
+
+Problems are trials of experiment "audit" in the results store (a killed run resumes); problem i of a scene draws
+its start and goal, free and within bounds, from numpy's generator seeded with (seed, scene's index, i).
+"""
+
+import math
+import time
+
+import numpy as np
+
+from app.bench.runner import sweep
+from app.bench.store import Reuse, TrialSpec
+from app.budget import Budget
+from app.errors import NoPath
+from app.planner import PlanSettings, default_step, plan
+from app.scene import Scene, scene_names
+
+# The re-check looks at states this fraction of the scene's resolution apart.
+DIVISOR = 64
+# Trajectory sample period of the audited plans (s): fine enough that the quintic between samples is the motion
+# (see the module doc), coarse enough that sampling a trajectory costs less than re-checking it.
+SAMPLE_PERIOD = 0.004
+# A sample over a velocity or acceleration limit by more than this fraction of it is a violation.
+LIMIT_SLACK = 1e-6
+# Start and goal must be met to this much (weighted metric).
+ENDPOINT_TOLERANCE = 1e-9
+# Tries at drawing a free start or goal before a problem is given up as undrawable.
+DRAWS = 1000
+
+
+class Recheck:
+    """Collision answers for a scene from a diagram of its own (not the planner's oracle), under the scene's policy:
+    robot against environment, and robot against robot where the scene counts self-collisions."""
+
+    def __init__(self, scene_name: str):
+        from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+
+        self.scene = Scene(scene_name)
+        self.plant = self.scene.plant
+        self.root = self.scene.diagram.CreateDefaultContext()
+        self.context = self.plant.GetMyContextFromRoot(self.root)
+        robot = [
+            g
+            for instance in self.scene.robot_instances
+            for body in self.plant.GetBodyIndices(instance)
+            for g in self.plant.GetCollisionGeometriesForBody(self.plant.get_body(body))
+        ]
+        self.robot = set(robot)
+        if not self.scene.self_collisions:
+            scene_graph = self.scene.diagram.scene_graph()
+            scene_graph.collision_filter_manager(scene_graph.GetMyMutableContextFromRoot(self.root)).Apply(
+                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(robot))
+            )
+        self.port = self.plant.get_geometry_query_input_port()
+
+    def check(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(colliding, depth) per configuration of Q: FCL's boolean answer, and for a colliding state the deepest
+        penetration among the counted pairs' signed distances (0 if they all come out >= 0)."""
+        Q = np.atleast_2d(np.asarray(Q, float))
+        colliding, depth = np.zeros(len(Q), bool), np.zeros(len(Q))
+        for i, q in enumerate(Q):
+            self.plant.SetPositions(self.context, q)
+            query = self.port.Eval(self.context)
+            if query.HasCollisions():
+                colliding[i] = True
+                pairs = query.ComputeSignedDistancePairwiseClosestPoints(0.0)
+                depth[i] = max((-p.distance for p in pairs if p.id_A in self.robot or p.id_B in self.robot), default=0)
+        return colliding, depth
+
+
+def states(trajectory, weights: np.ndarray, spacing: float) -> np.ndarray:
+    """The trajectory's samples and, between each two, points of the quintic Hermite curve through their positions,
+    velocities and accelerations, no two consecutive ones more than `spacing` apart in the weighted metric."""
+    t, P, V, A = trajectory.times, trajectory.positions, trajectory.velocities, trajectory.accelerations
+    if len(t) < 2:
+        return P.copy()
+    h = np.diff(t)[:, None]
+    # The quintic's speed is within a small factor of its end speeds and its chord; doubling is checked below.
+    reach = np.maximum.reduce(
+        [np.linalg.norm(np.diff(P, axis=0) * weights, axis=1)]
+        + [np.linalg.norm(X * weights, axis=1) * h[:, 0] for X in (V[:-1], V[1:])]
+    )
+    counts = np.maximum(1, np.ceil(2 * reach / spacing)).astype(int)
+    while True:
+        out = [P[:1]]
+        for i, n in enumerate(counts):
+            tau = np.arange(1, n + 1)[:, None] / n
+            out.append(_quintic(P[i], V[i], A[i], P[i + 1], V[i + 1], A[i + 1], h[i, 0], tau))
+        pieces = out[1:]
+        gaps = [
+            np.linalg.norm(np.diff(np.vstack([P[i : i + 1], piece]), axis=0) * weights, axis=1).max()
+            for i, piece in enumerate(pieces)
+        ]
+        wide = np.array(gaps) > spacing
+        if not wide.any():
+            return np.vstack(out)
+        counts[wide] *= 2
+
+
+def _quintic(p0, v0, a0, p1, v1, a1, h: float, tau: np.ndarray) -> np.ndarray:
+    """Quintic Hermite interpolation on [0, h] at fractions tau (n, 1) of it."""
+    t2, t3 = tau**2, tau**3
+    t4, t5 = t3 * tau, t3 * t2
+    h0 = 1 - 10 * t3 + 15 * t4 - 6 * t5
+    h1 = tau - 6 * t3 + 8 * t4 - 3 * t5
+    h2 = 0.5 * (t2 - 3 * t3 + 3 * t4 - t5)
+    h3 = 0.5 * (t3 - 2 * t4 + t5)
+    h4 = -4 * t3 + 7 * t4 - 3 * t5
+    h5 = 10 * t3 - 15 * t4 + 6 * t5
+    return h0 * p0 + h1 * h * v0 + h2 * h * h * a0 + h3 * h * h * a1 + h4 * h * v1 + h5 * p1
+
+
+def audit_trajectory(recheck: Recheck, space, trajectory, start: np.ndarray, goal: np.ndarray, scene) -> dict:
+    """The re-check of one trajectory: colliding states, deepest penetration, states checked, limit violations
+    (samples over a velocity or acceleration limit by more than LIMIT_SLACK of it), the worst such fraction, and
+    whether it starts at `start` and ends at `goal` at rest."""
+    Q = states(trajectory, space.weights, space.resolution / DIVISOR)
+    colliding, depth = recheck.check(Q)
+    # Each sample's largest velocity or acceleration as a fraction of its limit.
+    ratio = np.maximum(
+        (np.abs(trajectory.velocities) / np.asarray(scene.velocity_limits, float)).max(axis=1),
+        (np.abs(trajectory.accelerations) / np.asarray(scene.acceleration_limits, float)).max(axis=1),
+    )
+
+    def off(q, target) -> float:
+        d = np.asarray(q, float) - target
+        d[space.continuous] = (d[space.continuous] + np.pi) % (2 * np.pi) - np.pi
+        return float(np.linalg.norm(d * space.weights))
+
+    ends = max(off(trajectory.positions[0], start), off(trajectory.positions[-1], goal))
+    at_rest = not (np.any(trajectory.velocities[0]) or np.any(trajectory.velocities[-1]))
+    return {
+        "states": len(Q),
+        "colliding_states": int(colliding.sum()),
+        "max_penetration": float(depth.max(initial=0.0)),
+        "limit_violations": int(np.sum(ratio > 1 + LIMIT_SLACK)),
+        "worst_limit_ratio": float(ratio.max(initial=0.0)),
+        "endpoints_exact": bool(ends <= ENDPOINT_TOLERANCE and at_rest),
+    }
+
+
+_rechecks: dict = {}
+
+
+def _recheck(scene: str) -> Recheck:
+    if scene not in _rechecks:
+        _rechecks[scene] = Recheck(scene)
+    return _rechecks[scene]
+
+
+def problem(oracle, seed: int, index: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Problem `index` of the oracle's scene: a free start and goal within bounds, or None if DRAWS tries found
+    none (a scene almost all collision)."""
+    scene_index = scene_names().index(oracle.scene.name)
+    rng = np.random.default_rng([seed, scene_index, index])
+    found = []
+    for _ in range(math.ceil(DRAWS / 16)):
+        Q = oracle.space.uniform(rng, 16)
+        found.extend(Q[oracle.are_free(Q)])
+        if len(found) >= 2:
+            return found[0], found[1]
+    return None
+
+
+def run_trial_spec(oracle, spec: TrialSpec) -> dict:
+    """One audit problem (experiment "audit", seed = problem index; params: base seed and budget in seconds)."""
+    p = spec.params
+    endpoints = problem(oracle, int(p["seed"]), spec.seed)
+    if endpoints is None:
+        return {"drawn": False, "solved": False}
+    start, goal = endpoints
+    settings = PlanSettings(seed=spec.seed, budget=Budget(seconds=float(p["budget"])), dt=SAMPLE_PERIOD, step=spec.step)
+    clock = time.perf_counter()
+    try:
+        result = plan(oracle, settings, start=start, goal=goal)
+    except NoPath:
+        return {"drawn": True, "solved": False, "seconds": time.perf_counter() - clock}
+    seconds = time.perf_counter() - clock
+    trajectory = result.trajectory
+    check = audit_trajectory(_recheck(spec.scene), oracle.space, trajectory, start, goal, oracle.scene)
+    return {
+        "drawn": True,
+        "solved": True,
+        "certified": bool(trajectory.certified),
+        "seconds": seconds,
+        "duration": trajectory.duration,
+        **check,
+    }
+
+
+def specs(scenes: list[str], problems: int, seed: int, budget: float) -> list[TrialSpec]:
+    """`problems` in all, shared out over the scenes as evenly as can be, taking the scenes in turn (so a run cut
+    short has audited every scene alike)."""
+    steps = {scene: default_step(Scene(scene)) for scene in scenes}
+    params = {"seed": seed, "budget": budget}
+    order = [(i, scene) for i in range(math.ceil(problems / len(scenes))) for scene in scenes][:problems]
+    return [TrialSpec("audit", scene, "default", steps[scene], i, params) for i, scene in order]
+
+
+def summarise(rows: list[dict], scenes: list[str]) -> list[dict]:
+    """One row per scene (in `scenes` order) and a total row: problems, solved, certified, colliding trajectories,
+    colliding states, deepest penetration, limit violations, inexact endpoints, states checked."""
+    table = []
+    for scene in [*scenes, "total"]:
+        metrics = [r["metrics"] for r in rows if scene in ("total", r["scene"])]
+        solved = [m for m in metrics if m["solved"]]
+        table.append(
+            {
+                "scene": scene,
+                "problems": len(metrics),
+                "undrawable": sum(not m["drawn"] for m in metrics),
+                "solved": len(solved),
+                "certified": sum(m["certified"] for m in solved),
+                "colliding_trajectories": sum(m["colliding_states"] > 0 for m in solved),
+                "colliding_states": sum(m["colliding_states"] for m in solved),
+                "max_penetration": max((m["max_penetration"] for m in solved), default=0.0),
+                "limit_violations": sum(m["limit_violations"] for m in solved),
+                # None if no row has it (rows stored before the audit measured it).
+                "worst_limit_ratio": max(
+                    (m["worst_limit_ratio"] for m in solved if "worst_limit_ratio" in m), default=None
+                ),
+                "inexact_endpoints": sum(not m["endpoints_exact"] for m in solved),
+                "states_checked": sum(m["states"] for m in solved),
+                "median_seconds": float(np.median([m["seconds"] for m in solved])) if solved else None,
+            }
+        )
+    return table
+
+
+def measure(
+    scenes: list[str], problems: int, seed: int, budget: float, store, workers: int = 1, fresh: bool = False
+) -> tuple[list[dict], Reuse]:
+    """Run the audit problems `store` has no reusable row for and summarise all of them (see `summarise`); and what
+    was reused."""
+    rows, reuse = sweep(specs(scenes, problems, seed, budget), store, workers=workers, desc="bench audit", fresh=fresh)
+    return summarise(rows, scenes), reuse

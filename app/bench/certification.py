@@ -1,0 +1,109 @@
+"""`bench certify`: what continuous certification and smooth timing cost, and what the smooth timing gains.
+
+Per scene and seed, one default query (`plan SCENE --seed S`): its phase timings say how long certifying the path
+(phase "certify") and timing it smoothly with certified blends (phase "timing") took; the same path is then also
+timed rest to rest at every waypoint (`app.timing.parameterize`, what a planner without certification would do),
+and that time stands in for both phases in the plan time "without". So the two plan times compare the same query,
+in one run. Per UR3 job and seed (`run window --seed S`): the joined trajectory's duration against each leg's path
+timed rest to rest at every waypoint.
+
+Trials are experiments "certify" (scenes) and "certify-job" in the results store, so a killed run resumes.
+"""
+
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from app.bench.runner import sweep
+from app.bench.store import Reuse, TrialSpec
+from app.errors import NoPath, UserError
+from app.planner import PlanSettings, default_step, plan
+from app.runs import JOB_SETTINGS, run_job
+from app.scene import Scene
+from app.timing import parameterize
+
+
+def _rest_to_rest(oracle, path: np.ndarray) -> tuple[float, float]:
+    """(duration, seconds to compute) of `path` timed rest to rest at every waypoint."""
+    scene, clock = oracle.scene, time.perf_counter()
+    trajectory = parameterize(oracle.plant, oracle.space.unwrap(path), scene.velocity_limits, scene.acceleration_limits)
+    return trajectory.duration, time.perf_counter() - clock
+
+
+def run_trial_spec(oracle, spec: TrialSpec) -> dict:
+    """One default query on a scene: plan seconds with certification and smooth timing, and without (the phases
+    replaced by rest-to-rest timing), and the smooth and rest-to-rest durations."""
+    oracle.reset()
+    try:
+        r = plan(oracle, PlanSettings(seed=spec.seed, step=spec.step))
+    except NoPath:
+        return {"success": False}
+    duration, seconds = _rest_to_rest(oracle, r.path)
+    s = r.seconds
+    return {
+        "success": True,
+        "seconds": s["total"],
+        "seconds_certify": s["certify"],
+        "seconds_timing": s["timing"],
+        "seconds_without": s["total"] - s["certify"] - s["timing"] + seconds,
+        "certified": bool(r.trajectory.certified),
+        "distance_queries": r.distance_queries,
+        "duration": r.trajectory.duration,
+        "duration_rest_to_rest": duration,
+    }
+
+
+def run_job_trial_spec(oracle, spec: TrialSpec) -> dict:
+    """One scripted UR3 job: its duration, and its legs' paths timed rest to rest at every waypoint."""
+    oracle.reset()
+    try:
+        r = run_job(oracle, spec.scene, replace(JOB_SETTINGS, seed=spec.seed))
+    except UserError:
+        return {"success": False}
+    return {
+        "success": True,
+        "seconds": r.seconds["total"],
+        "duration": r.trajectory.duration,
+        "duration_rest_to_rest": sum(_rest_to_rest(oracle, leg.path)[0] for leg in r.legs),
+    }
+
+
+def _median(metrics: list[dict], key: str) -> float | None:
+    values = [m[key] for m in metrics if m["success"]]
+    return float(np.median(values)) if values else None
+
+
+def summarise(rows: list[dict], cells: list[tuple[str, str]]) -> list[dict]:
+    """Per (experiment, scene or job) of `cells`, in that order: runs, successes, median plan seconds with and
+    without certification and smooth timing and the overhead (with / without - 1, of the medians), and the median
+    duration ratio (smooth / rest to rest, per run)."""
+    out = []
+    for experiment, name in cells:
+        metrics = [r["metrics"] for r in rows if (r["experiment"], r["scene"]) == (experiment, name)]
+        ok = [m for m in metrics if m["success"]]
+        row = {
+            "name": name if experiment == "certify" else f"{name} job",
+            "runs": len(metrics),
+            "successes": len(ok),
+            "median_seconds": _median(metrics, "seconds"),
+        }
+        if ok and "seconds_without" in ok[0]:
+            row["median_seconds_without"] = _median(metrics, "seconds_without")
+            row["median_seconds_certify"] = _median(metrics, "seconds_certify")
+            row["median_seconds_timing"] = _median(metrics, "seconds_timing")
+            row["overhead"] = row["median_seconds"] / row["median_seconds_without"] - 1
+            row["certified"] = sum(m["certified"] for m in ok)
+        ratios = [m["duration"] / m["duration_rest_to_rest"] for m in ok if m["duration_rest_to_rest"] > 0]
+        row["median_duration_ratio"] = float(np.median(ratios)) if ratios else None
+        out.append(row)
+    return out
+
+
+def measure(scenes: list[str], jobs: list[str], seeds: int, store, fresh: bool = False) -> tuple[list[dict], Reuse]:
+    """Seeds 0..seeds-1 of every scene's default query and every job, in this process (timings undisturbed)."""
+    todo = [TrialSpec("certify", s, "default", default_step(Scene(s)), seed) for s in scenes for seed in range(seeds)]
+    todo += [TrialSpec("certify-job", j, JOB_SETTINGS.sampler, 0.0, seed) for j in jobs for seed in range(seeds)]
+    cells = [("certify", s) for s in scenes] + [("certify-job", j) for j in jobs]
+    rows, reuse = sweep(todo, store, workers=1, desc="bench certify", fresh=fresh)
+    return summarise(rows, cells), reuse
