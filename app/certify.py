@@ -214,6 +214,7 @@ class _Gaps:
         self.core, self.disc, self.ball = np.zeros((count, 3)), np.zeros(count), np.zeros(count)
         self.radius = np.zeros(count)  # about the shape's own origin
         self.special = {}  # geometry index -> ("ellipsoid", semi-axes) or ("vertices", (n, 3))
+        self.normals = {}  # geometry index of a mesh -> its hull's outward face normals (f, 3), in its frame
         for i in np.unique(self.pairs):
             kind, data = _describe(inspector, geometries[i])
             self.radius[i] = _radius(kind, data, RigidTransform())
@@ -226,6 +227,10 @@ class _Gaps:
                 (self.disc if kind == "cylinder" else self.ball)[i] = data[0]
             else:
                 self.special[i] = (kind, data)
+                if kind == "vertices":
+                    hull = inspector.GetShape(geometries[i]).GetConvexHull()
+                    normals = np.array([hull.face_normal(f) for f in range(hull.num_faces())]).reshape(-1, 3)
+                    self.normals[i] = np.unique(normals.round(12), axis=0)
         self.is_special = np.isin(np.arange(count), list(self.special))
 
     def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -266,7 +271,25 @@ class _Gaps:
             np.einsum("ij,ij->i", n[:, k], A.p - B.p) - self._support(A, -n[:, k]) - self._support(B, n[:, k])
             for k in range(n.shape[1])
         ]
-        return np.nanmax(np.column_stack(gaps + [np.full(len(A.p), -np.inf)]), 1)
+        return np.nanmax(np.column_stack(gaps + [self._face_gaps(A, B)]), 1)
+
+    def _face_gaps(self, A: _Posed, B: _Posed) -> np.ndarray:
+        """The largest gap along the face normals of the pairs' meshes (-inf for a pair without one). A mesh's
+        frame origin, where _project leaves its points, can lie far from the mesh (an environment piece is posed
+        in the world frame), so the projections' directions can miss by far: a face normal of one of two separated
+        convex shapes nearly always separates them well (exactly, when the nearest feature is that face)."""
+        best = np.full(len(A.p), -np.inf)
+        for S, sign in ((A, -1.0), (B, 1.0)):  # directions from B to A: against A's outward normals, along B's
+            for i, normals in self.normals.items():
+                m = np.flatnonzero(S.g == i)
+                if not len(m):
+                    continue
+                n = sign * np.einsum("mij,fj->mfi", S.R[m], normals).reshape(-1, 3)
+                rows = np.repeat(m, len(normals))
+                Ar, Br = _rows(A, rows), _rows(B, rows)
+                gap = np.einsum("ij,ij->i", n, Ar.p - Br.p) - self._support(Ar, -n) - self._support(Br, n)
+                best[m] = np.maximum(best[m], gap.reshape(len(m), len(normals)).max(1))
+        return best
 
     def _support(self, S: _Posed, n: np.ndarray) -> np.ndarray:
         """max over each posed shape of n . (x - its centre), for world directions n (unit rows)."""

@@ -148,6 +148,20 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.roadmap_path, 0.5))
 
 
+def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
+    from app.oracle import CollisionOracle
+    from app.scene import Scene
+
+    # At a 4 m resolution even the fine re-check (1 m) can step over the maze's 0.9 m walls: roadmap edges pass it
+    # and then fail the certificate. They must leave the roadmap (not come back as an uncertified path).
+    oracle = CollisionOracle(Scene("maze"))
+    oracle.space = dataclasses.replace(oracle.space, resolution=4.0)
+    result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
+    assert result.smoothing["certificate"]["unproved_edges_dropped"] > 0
+    assert result.trajectory.certified
+    assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.05))
+
+
 def test_shortcuts_keep_every_edge_checked_at_their_resolution():
     """A shortcut leaves pieces of the edges it cuts; a piece's points are not the points its edge was checked at.
     Here a thin wall sits between the fine points of the path's first edge, so an unchecked piece can hit it."""
