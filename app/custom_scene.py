@@ -724,8 +724,11 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
 
 def _vector(values, nq: int, what: str, names: list[str]) -> np.ndarray:
     vector = np.asarray(values, float)
-    if vector.shape != (nq,) or not np.all(np.isfinite(vector)):
-        raise UserError(f"{what} needs {nq} finite numbers ({', '.join(names)}), got {len(values)}")
+    if vector.shape != (nq,):
+        raise UserError(f"{what} needs {nq} numbers ({', '.join(names)}), got {len(values)}")
+    if not np.all(np.isfinite(vector)):
+        bad = int(np.flatnonzero(~np.isfinite(vector))[0])
+        raise UserError(f"{what} needs finite numbers, {names[bad]} is {vector[bad]}")
     return vector
 
 

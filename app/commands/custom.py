@@ -2,7 +2,7 @@
 an app.custom_scene.CustomSpec, from which app.custom_scene.build_scene makes the scene."""
 
 from app import meshes
-from app.commands.common import float_list
+from app.commands.common import float_list, non_negative_float
 from app.custom_scene import CustomSpec, build_scene, load_scene
 from app.errors import UserError
 from app.scene import Scene
@@ -37,14 +37,12 @@ def add_arguments(parser) -> None:
         type=float_list,
         action="append",
         default=[],
-        help="place the environment: metres and roll,pitch,yaw in degrees (once, or once per --env; "
-        "--env-pose=-1,... for a leading minus sign)",
+        help="place the environment: metres and roll,pitch,yaw in degrees (once, or once per --env)",
     )
     group.add_argument(
         "--bounds",
         metavar="LO..HI,...",
-        help="lo..hi per coordinate, or for a floating robot per x,y,z only (write --bounds=-1..1,... "
-        "when it starts with a minus sign)",
+        help="lo..hi per coordinate, or for a floating robot per x,y,z only",
     )
     group.add_argument(
         "--mesh-method",
@@ -54,14 +52,14 @@ def add_arguments(parser) -> None:
     )
     group.add_argument(
         "--mesh-tolerance",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         metavar="M",
         help="how far a decomposition may reach beyond the mesh surface (default 0.2%% of its size)",
     )
     group.add_argument(
         "--resolution",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         metavar="STEP",
         help="edge-check step (default: a quarter of the robot's smallest extent)",

@@ -2,15 +2,18 @@
 
 from app.commands import custom, view
 from app.commands.common import (
+    check_outputs,
     float_list,
-    non_negative_int,
+    neighbours,
     parse_budget,
     positive_float,
-    positive_int,
     print_json,
+    sample_count,
     sampler_name,
+    seed,
+    shortcut_rounds,
 )
-from app.io import check_output
+from app.io import all_or_nothing
 from app.oracle import CollisionOracle
 from app.planner import PlanSettings, plan
 from app.viewer import ViewData
@@ -31,14 +34,14 @@ def register(subparsers) -> None:
     )
     p.add_argument(
         "--narrow",
-        type=non_negative_int,
+        type=sample_count,
         default=DEFAULTS.narrow,
         help=f"narrow-passage samples: per round narrow/16 at first, doubling up to narrow/4; with "
         f"--full-roadmap all of them (default {DEFAULTS.narrow})",
     )
     p.add_argument(
         "--uniform",
-        type=non_negative_int,
+        type=sample_count,
         default=DEFAULTS.uniform,
         help=f"uniform free samples: uniform/4 per round; with --full-roadmap all of them (default {DEFAULTS.uniform})",
     )
@@ -49,7 +52,7 @@ def register(subparsers) -> None:
         help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
         "of the scene's extent)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=DEFAULTS.seed)
+    p.add_argument("--seed", type=seed, default=DEFAULTS.seed)
     p.add_argument(
         "--budget",
         type=parse_budget,
@@ -67,13 +70,13 @@ def register(subparsers) -> None:
     p.add_argument(
         "-k",
         "--neighbours",
-        type=positive_int,
+        type=neighbours,
         default=DEFAULTS.k,
         help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d dimensions)",
     )
     p.add_argument(
         "--smooth",
-        type=non_negative_int,
+        type=shortcut_rounds,
         default=DEFAULTS.smooth_rounds,
         help=f"random shortcut rounds after the greedy pass (default {DEFAULTS.smooth_rounds})",
     )
@@ -111,15 +114,14 @@ def run(args) -> int:
         dt=args.dt,
         full_roadmap=args.full_roadmap,
     )
-    out = check_output(args.out) if args.out else None
-    if args.html:
-        check_output(args.html)
+    check_outputs(args.out, args.html)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     result = plan(oracle, settings, start=args.start, goal=args.goal)
-    # Files first, the answer last: a failure writing one leaves no success printed.
-    view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
-    if out is not None:
-        result.trajectory_file().write(out)
+    # Files first (all or none), the answer last: a failure writing one leaves no success printed.
+    with all_or_nothing():
+        view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+        if args.out:
+            result.trajectory_file().write(args.out)
     if args.json:
         print_json(result.to_json())
     else:

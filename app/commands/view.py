@@ -5,6 +5,7 @@
 
 import sys
 
+from app.commands.common import check_outputs, print_json
 from app.custom_scene import load_scene
 from app.errors import UserError
 from app.trajectory import TrajectoryFile
@@ -50,6 +51,7 @@ def register(subparsers) -> None:
     p.add_argument(
         "--trajectory", required=True, metavar="FILE.json", help="a trajectory file written by plan --out or run --out"
     )
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     add_arguments(p)
     p.set_defaults(func=run_view)
 
@@ -57,9 +59,12 @@ def register(subparsers) -> None:
 def run_view(args) -> int:
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
+    check_outputs(args.html)
     scene = load_scene(args.scene)
-    publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
-    if args.html:
+    viewer = publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
+    if args.json:
+        print_json({"scene": scene.name, "html": args.html, "meshcat": viewer.url() if args.meshcat else None})
+    elif args.html:
         print(args.html)
     wait(args)
     return 0
