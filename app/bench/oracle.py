@@ -31,7 +31,7 @@ def bench_oracle(scene_names: list[str], n: int, repeats: int, seed: int) -> lis
     rows = []
     for name in scene_names:
         one, two = CollisionOracle(Scene(name), threads=1), CollisionOracle(Scene(name), threads=2)
-        Q = one.uniform(np.random.default_rng(seed), n)
+        Q = one.space.uniform(np.random.default_rng(seed), n)
         times = {"raw": [], "one": [], "two": []}
         for _ in tqdm(range(repeats), desc=f"bench oracle {name}", leave=False):
             t_raw, raw = _timed(_raw_loop, one, Q)

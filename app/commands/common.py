@@ -167,6 +167,17 @@ def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
 
 
 def print_json(obj: dict) -> None:
-    """A command's answer as one line of JSON on stdout; every answer says whether it is a success."""
-    json.dump({"success": True, **obj}, sys.stdout, indent=None, separators=(",", ":"))
+    """A command's answer as one line of JSON on stdout; every answer says whether it is a success. JSON has no
+    NaN or infinity (Python's json would print them anyway): they become null, e.g. a median over no successes."""
+    json.dump(_finite({"success": True, **obj}), sys.stdout, indent=None, separators=(",", ":"), allow_nan=False)
     sys.stdout.write("\n")
+
+
+def _finite(value):
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(item) for item in value]
+    return value

@@ -2,7 +2,6 @@
 
 from app.commands import custom, view
 from app.commands.common import (
-    check_outputs,
     float_list,
     neighbours,
     parse_budget,
@@ -114,7 +113,7 @@ def run(args) -> int:
         dt=args.dt,
         full_roadmap=args.full_roadmap,
     )
-    check_outputs(args.out, args.html)
+    view.check_from_args(args, args.out)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     result = plan(oracle, settings, start=args.start, goal=args.goal)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.

@@ -3,7 +3,6 @@
 from dataclasses import replace
 
 from app.commands.common import (
-    check_outputs,
     parse_budget,
     positive_float,
     print_json,
@@ -11,7 +10,7 @@ from app.commands.common import (
     sampler_name,
     seed,
 )
-from app.commands.view import add_arguments, publish_from_args, wait
+from app.commands.view import add_arguments, check_from_args, publish_from_args, wait
 from app.errors import UserError
 from app.io import all_or_nothing
 from app.oracle import CollisionOracle
@@ -53,7 +52,7 @@ def run(args) -> int:
         budget=args.budget,
         full_roadmap=args.full_roadmap,
     )
-    check_outputs(args.out, args.html)
+    check_from_args(args, args.out)
     oracle = CollisionOracle(Scene(args.job))
     result = run_job(oracle, args.job, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.

@@ -9,7 +9,7 @@ from app.commands.common import check_outputs, print_json
 from app.custom_scene import load_scene
 from app.errors import UserError
 from app.trajectory import TrajectoryFile
-from app.viewer import ViewData, publish
+from app.viewer import ViewData, check_meshcat_allowed, publish
 
 
 def add_arguments(p) -> None:
@@ -22,6 +22,14 @@ def add_arguments(p) -> None:
     )
     p.add_argument("--frame", help="robot frame whose positions draw samples and path (default: the passage frame)")
     p.add_argument("--collision", action="store_true", help="also load the collision geometry (hidden at first)")
+
+
+def check_from_args(args, *outputs: str | None) -> None:
+    """Before any work: the command's output files (`outputs` and --html) can be written, and Meshcat, which
+    --html and --meshcat need, is allowed."""
+    check_outputs(*outputs, args.html)
+    if args.html or args.meshcat:
+        check_meshcat_allowed()
 
 
 def publish_from_args(args, scene, data):
@@ -59,7 +67,7 @@ def register(subparsers) -> None:
 def run_view(args) -> int:
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
-    check_outputs(args.html)
+    check_from_args(args)
     scene = load_scene(args.scene)
     viewer = publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
     if args.json:
