@@ -424,3 +424,10 @@ def test_an_upright_flat_piece_is_drawn_as_a_line_from_above():
     assert len(ax.lines) == 1 and not ax.patches
     assert np.allclose(sorted(map(tuple, np.array(ax.lines[0].get_xydata()))), [(0, 0), (2, 2)])
     plt.close(fig)
+
+
+def test_a_cache_folder_with_uri_characters_in_its_name_works(files, tmp_path):
+    """The generated model directives (YAML) and models (XML) name cached files by path: '&', ' #' (a YAML
+    comment), '%' and spaces in the cache's path must reach Drake as they are."""
+    scene = build_scene(_spec(files, mesh_method="faces"), cache_dir=tmp_path / "a&b #c%20d", progress=False)
+    assert scene.dim == 6
