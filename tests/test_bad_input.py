@@ -39,6 +39,7 @@ ROWS = [
     (["bench", "plan", "--store", "{dir}"], 2, "it is a folder"),
     (["bench", "plan", "--store", "{file}/x.sqlite"], 2, "is a file, not a folder"),
     (["bench", "uav", "--store", "/proc/u.sqlite"], 2, "/proc is a system folder"),
+    (["bench", "uav", "--store", "{file}"], 2, "as a results store: it is not a SQLite file"),
     (["bench", "jobs", "--store", "{dir}"], 2, "it is a folder"),
     (["bench", "ompl", "--png", "{dir}"], 2, "it is a folder"),
     (["bench", "ompl", "--png", "{out}/o.png", "--store", "{out}/o.png"], 2, "are the same file"),
