@@ -107,7 +107,7 @@ ROWS = [
     (["plan", "bar", "--mesh-method", "magic"], 2, "argument --mesh-method: invalid choice"),
     (["run", "painting"], 2, "unknown job 'painting'"),
     (["view", "bar", "--trajectory", "{file}"], 2, "nothing to do"),
-    (["view", "bar", "--trajectory", "{out}/none.json", "--html", "{out}/x.html"], 2, "Meshcat is disabled"),
+    (["view", "bar", "--trajectory", "{out}/none.json", "--html", "{out}/x.html"], 2, "trajectory file not found"),
     (["sample", "bar"], 2, "the following arguments are required: --sampler"),
     (["show", "bar"], 2, "the following arguments are required: --png"),
     (["scenes", "extra"], 2, "unrecognized arguments: extra"),

@@ -67,9 +67,11 @@ def register(subparsers) -> None:
 def run_view(args) -> int:
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
-    check_from_args(args)
+    check_outputs(args.html)
     scene = load_scene(args.scene)
-    viewer = publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
+    data = ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim))
+    check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
+    viewer = publish_from_args(args, scene, data)
     if args.json:
         print_json({"scene": scene.name, "html": args.html, "meshcat": viewer.url() if args.meshcat else None})
     elif args.html:
