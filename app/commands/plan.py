@@ -145,7 +145,7 @@ def run(args) -> int:
     result = plan(oracle, settings, start=start, goal=goal)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     with all_or_nothing():
-        view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+        viewer = view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
         if args.out:
             result.trajectory_file().write(args.out)
     if args.json:
@@ -153,7 +153,7 @@ def run(args) -> int:
     else:
         lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
         print("\n".join([summary(result), *("  " + line for line in lines)]))
-    view.wait(args)
+    view.wait(args, viewer)
     return 0
 
 

@@ -57,7 +57,7 @@ def run(args) -> int:
     result = run_job(oracle, args.job, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     with all_or_nothing():
-        publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+        viewer = publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
         if args.out:
             result.trajectory_file().write(args.out)
     if args.json:
@@ -75,5 +75,5 @@ def run(args) -> int:
             f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
             f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)"
         )
-    wait(args)
+    wait(args, viewer)
     return 0

@@ -61,8 +61,9 @@ def publish_from_args(args, scene, data):
     return viewer
 
 
-def wait(args) -> None:
-    """Keep the --meshcat viewer served as the module docstring says; return when the wait ends."""
+def wait(args, viewer) -> None:
+    """Keep the --meshcat `viewer` served as the module docstring says; return when the wait ends. (The viewer is
+    passed so that it stays referenced while it serves: a Meshcat no longer referenced stops its server.)"""
     if not args.meshcat or args.wait == 0:
         return
     terminal = args.wait is None and sys.stdin is not None and sys.stdin.isatty()
@@ -108,5 +109,5 @@ def run_view(args) -> int:
         print_json({"scene": scene.name, "html": args.html, "meshcat": viewer.url() if args.meshcat else None})
     elif args.html:
         print(args.html)
-    wait(args)
+    wait(args, viewer)
     return 0
