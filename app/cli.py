@@ -6,6 +6,7 @@ as one line on stderr and exits with its code from EXIT_CODES.
 """
 
 import argparse
+import re
 import sys
 
 from app import commands
@@ -36,6 +37,31 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# A value that starts with a minus sign and a digit: a negative number or list ("-1.57,0,0", "-1..1,-2..2").
+_NEGATIVE_VALUE = re.compile(r"^-\.?\d")
+
+
+def join_negative_values(argv: list[str]) -> list[str]:
+    """argv with each negative value glued to the flag before it ("--start", "-1.57,0" -> "--start=-1.57,0"):
+    argparse takes a lone negative number as a value but reads "-1.57,0" as an unknown flag ("expected one
+    argument"). No flag of ours starts with a digit, so such a token is always a value."""
+    joined: list[str] = []
+    for i, token in enumerate(argv):
+        if token == "--":
+            return joined + argv[i:]
+        previous = joined[-1] if joined else ""
+        if (
+            _NEGATIVE_VALUE.match(token)
+            and previous.startswith("-")
+            and "=" not in previous
+            and not _NEGATIVE_VALUE.match(previous)
+        ):
+            joined[-1] = f"{previous}={token}"
+        else:
+            joined.append(token)
+    return joined
+
+
 def exit_code(exc: BaseException) -> int:
     """The exit code of a failure: that of the nearest class of `exc` in EXIT_CODES."""
     return next(EXIT_CODES[cls] for cls in type(exc).__mro__ if cls in EXIT_CODES)
@@ -46,18 +72,22 @@ def main(argv=None) -> int:
     stdout: {"success": false, "error": {"code", "message"}, "exit_code"}."""
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser().parse_args(join_negative_values(argv))
         return int(args.func(args) or 0)
     except (UserError, KeyboardInterrupt) as exc:
         message = str(exc) if isinstance(exc, UserError) else "interrupted"
         code = exit_code(exc)
         print(f"error: {message}", file=sys.stderr)
         if "--json" in argv:
-            print_json(
-                {
-                    "success": False,
-                    "error": {"code": getattr(exc, "code", "PREEMPTED"), "message": message},
-                    "exit_code": code,
-                }
-            )
+            _print_failure(getattr(exc, "code", "PREEMPTED"), message, code)
         return code
+    except Exception as exc:
+        # A bug, not bad input: the traceback stays (it is what a report needs), and a --json reader still gets its
+        # one answer, with MoveIt's generic FAILURE and Python's exit code for an uncaught exception.
+        if "--json" in argv:
+            _print_failure("FAILURE", f"internal error: {type(exc).__name__}: {exc}", status=1)
+        raise
+
+
+def _print_failure(code: str, message: str, status: int) -> None:
+    print_json({"success": False, "error": {"code": code, "message": message}, "exit_code": status})

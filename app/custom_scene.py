@@ -26,6 +26,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -394,11 +395,11 @@ def carrier_urdf(name: str, body_xml: str = "") -> str:
 
 def _mesh_elements_urdf(decomposition: meshes.Decomposition) -> str:
     lines = [
-        f'    <collision name="piece{i}"><geometry><mesh filename="{p}"><drake:declare_convex/></mesh>'
+        f'    <collision name="piece{i}"><geometry><mesh filename={quoteattr(str(p))}><drake:declare_convex/></mesh>'
         f"</geometry></collision>"
         for i, p in enumerate(decomposition.pieces)
     ]
-    lines.append(f'    <visual><geometry><mesh filename="{decomposition.visual}"/></geometry></visual>')
+    lines.append(f"    <visual><geometry><mesh filename={quoteattr(str(decomposition.visual))}/></geometry></visual>")
     return "\n".join(lines) + "\n"
 
 
@@ -418,19 +419,20 @@ def env_urdf(name: str, decomposition: meshes.Decomposition, pose: list[float]) 
     # Geometry names are unique per frame, and every environment shares the world's: so they carry the model's name.
     for i, piece in enumerate(decomposition.pieces):
         lines.append(
-            f'    <collision name="{name}_piece{i}">{origin}<geometry><mesh filename="{piece}"><drake:declare_convex/>'
-            f"</mesh></geometry></collision>"
+            f'    <collision name="{name}_piece{i}">{origin}<geometry><mesh filename={quoteattr(str(piece))}>'
+            f"<drake:declare_convex/></mesh></geometry></collision>"
         )
     lines.append(
-        f'    <visual name="{name}_mesh">{origin}<geometry><mesh filename="{decomposition.visual}"/></geometry>'
-        "</visual>"
+        f'    <visual name="{name}_mesh">{origin}<geometry><mesh filename={quoteattr(str(decomposition.visual))}/>'
+        "</geometry></visual>"
     )
     lines += ["  </link>", "</robot>", ""]
     return "\n".join(lines)
 
 
-def _quoted_uri(path: Path) -> str:
-    return json.dumps(f"file://{path}")  # a JSON string is a YAML double-quoted scalar
+def _quoted_uri(path: Path | str) -> str:
+    # A JSON string is a YAML double-quoted scalar: '#', ': ' and quotes in a path stay part of it.
+    return json.dumps(f"file://{path}")
 
 
 def _pose_yaml(pose: list[float]) -> str:
@@ -586,7 +588,7 @@ def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: 
         models.directives += [
             "- add_model:",
             "    name: robot",
-            "    file: file://@DIR@/robot.urdf",
+            f"    file: {_quoted_uri('@DIR@/robot.urdf')}",
             "- add_weld:",
             "    parent: world",
             "    child: robot::origin",
@@ -614,7 +616,7 @@ def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: 
     models.directives += [
         "- add_model:",
         "    name: carrier",
-        "    file: file://@DIR@/carrier.urdf",
+        f"    file: {_quoted_uri('@DIR@/carrier.urdf')}",
         "- add_weld:",
         "    parent: world",
         "    child: carrier::origin",
@@ -640,7 +642,7 @@ def _add_environment(
             decomposition = meshes.decompose(path, **mesh_options)
             models.decompositions.append(_describe(path, decomposition))
             models.files[f"{name}.urdf"] = env_urdf(name, decomposition, pose)
-            models.directives += ["- add_model:", f"    name: {name}", f"    file: file://@DIR@/{name}.urdf"]
+            models.directives += ["- add_model:", f"    name: {name}", f"    file: {_quoted_uri(f'@DIR@/{name}.urdf')}"]
             boxes.append(_world_box(np.array(decomposition.extent()), pose))
             continue
         model_file = convert_model_meshes(path, inputs.packages, cache_dir, mesh_options, models.decompositions)
@@ -669,8 +671,10 @@ def _write_scene_dir(models: _Models, robot_directives: list[str], packages: dic
     scene_dir = root / "scenes" / hashlib.sha256(key_text.encode()).hexdigest()[:24]
     for name, text in models.files.items():
         _write(scene_dir / name, text)
-    _write(scene_dir / "robot.dmd.yaml", "\n".join(robot_directives).replace("@DIR@", str(scene_dir)) + "\n")
-    _write(scene_dir / "scene.dmd.yaml", "\n".join(models.directives).replace("@DIR@", str(scene_dir)) + "\n")
+    # @DIR@ only stands inside quoted URIs (_quoted_uri), so it is replaced by the folder escaped as in one.
+    folder = json.dumps(str(scene_dir))[1:-1]
+    _write(scene_dir / "robot.dmd.yaml", "\n".join(robot_directives).replace("@DIR@", folder) + "\n")
+    _write(scene_dir / "scene.dmd.yaml", "\n".join(models.directives).replace("@DIR@", folder) + "\n")
     return scene_dir
 
 
@@ -789,8 +793,11 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
 
 def _vector(values, nq: int, what: str, names: list[str]) -> np.ndarray:
     vector = np.asarray(values, float)
-    if vector.shape != (nq,) or not np.all(np.isfinite(vector)):
-        raise UserError(f"{what} needs {nq} finite numbers ({', '.join(names)}), got {len(values)}")
+    if vector.shape != (nq,):
+        raise UserError(f"{what} needs {nq} numbers ({', '.join(names)}), got {len(values)}")
+    if not np.all(np.isfinite(vector)):
+        bad = int(np.flatnonzero(~np.isfinite(vector))[0])
+        raise UserError(f"{what} needs finite numbers, {names[bad]} is {vector[bad]}")
     return vector
 
 

@@ -1,31 +1,72 @@
 """The one way the project writes a file: checked before any work, written through a temporary file beside it and
-renamed into place, so a reader (or a failed run) never leaves half a file."""
+renamed into place, so a reader (or a failed run) never leaves half a file. Inside `all_or_nothing()` the renames
+wait for the end of the block, so a command's outputs appear together, or none of them when it fails."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextvars import ContextVar
 from pathlib import Path
 
 from app.errors import UserError
 
+# Kernel pseudo-filesystems: a write there is never a file a user gets back (and may change the running system).
+_SYSTEM_FOLDERS = (Path("/proc"), Path("/sys"), Path("/dev"))
 
-def check_output(path: str | os.PathLike) -> Path:
-    """An output file's path, refused early (before any work) if it cannot be written there."""
+# The (temporary file, target) renames of the innermost all_or_nothing() block; None outside one.
+_pending: ContextVar[list[tuple[str, Path]] | None] = ContextVar("pending_writes", default=None)
+
+
+def check_output(path: str | os.PathLike, *, make_folders: bool = False) -> Path:
+    """An output file's path, refused early (before any work) if it cannot be written there. With `make_folders`
+    its missing folders may be created (the nearest existing one must then be a writable folder)."""
     target = Path(path)
-    if not target.parent.is_dir():
-        raise UserError(f"cannot write {path}: folder {target.parent} does not exist")
+    absolute = Path(os.path.abspath(target))
+    for system in _SYSTEM_FOLDERS:
+        if absolute == system or system in absolute.parents:
+            raise UserError(f"cannot write {path}: {system} is a system folder, not a place for output files")
     if target.is_dir():
         raise UserError(f"cannot write {path}: it is a folder")
-    if not os.access(target.parent, os.W_OK) or (target.exists() and not os.access(target, os.W_OK)):
+    folder = target.parent
+    if make_folders:
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"cannot write {path}: {folder} is a file, not a folder")
+    if not folder.is_dir():
+        raise UserError(f"cannot write {path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (target.exists() and not os.access(target, os.W_OK)):
         raise UserError(f"cannot write {path}: permission denied")
     return target
 
 
+@contextlib.contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Files written by write_atomically inside the block appear together when it ends; if it raises, none do."""
+    pending: list[tuple[str, Path]] = []
+    token = _pending.set(pending)
+    try:
+        yield
+    except BaseException:
+        _discard(tmp for tmp, _ in pending)
+        raise
+    finally:
+        _pending.reset(token)
+    for done, (tmp, target) in enumerate(pending):
+        try:
+            os.replace(tmp, target)
+        except OSError as exc:
+            _discard(tmp for tmp, _ in pending[done:])
+            raise UserError(f"cannot write {target}: {exc.strerror or exc}") from None
+
+
 def write_atomically(path: str | os.PathLike, content: str | bytes | Callable[[Path], None]) -> Path:
     """Write `content` to `path`: text, bytes, or a function that writes a given temporary path (e.g. savefig).
-    The file appears whole or not at all, with ordinary permissions (mkstemp's are private)."""
+    The file appears whole or not at all, with ordinary permissions (mkstemp's are private); inside
+    all_or_nothing() it appears when the block ends."""
     target = check_output(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}", dir=target.parent)
@@ -39,16 +80,23 @@ def write_atomically(path: str | os.PathLike, content: str | bytes | Callable[[P
             with os.fdopen(fd, "wb") as f:
                 f.write(content.encode("utf-8") if isinstance(content, str) else content)
         os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, target)
+        pending = _pending.get()
+        if pending is None:
+            os.replace(tmp, target)
+        else:
+            pending.append((tmp, target))
     except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
+        _discard([tmp])
         if isinstance(exc, OSError):
             raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
         raise
     return target
+
+
+def _discard(paths) -> None:
+    for tmp in paths:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
 
 
 def _umask() -> int:

@@ -93,6 +93,8 @@ def load_mesh(path: str | Path):
         raise UserError("mesh support needs the 'meshes' extra: pip install -e '.[meshes]'") from None
     try:
         loaded = trimesh.load(str(path), force="mesh", process=True)
+    except ImportError:  # trimesh guesses the text encoding of bytes no format explains with an optional module
+        raise UserError(f"cannot read mesh {path.name}: not a valid {path.suffix} file") from None
     except Exception as exc:  # trimesh raises many types (ValueError, KeyError, collada errors, ...)
         raise UserError(
             f"cannot read mesh {path.name}: {' '.join(str(exc).split())[:200] or type(exc).__name__}"

@@ -291,9 +291,12 @@ class Scene:
                 raise UserError(f"bad scene file {self.path.name}: '{key}' is required")
             return np.asarray(default, float).copy()
         vector = np.asarray(values, float)
-        if vector.shape != (self.dim,) or not np.all(np.isfinite(vector)):
+        if vector.shape != (self.dim,):
+            raise UserError(f"bad scene file {self.path.name}: '{key}' needs {self.dim} numbers, got {len(values)}")
+        if not np.all(np.isfinite(vector)):
+            bad = int(np.flatnonzero(~np.isfinite(vector))[0])
             raise UserError(
-                f"bad scene file {self.path.name}: '{key}' needs {self.dim} finite numbers, got {len(values)}"
+                f"bad scene file {self.path.name}: '{key}' needs finite numbers, item {bad + 1} is {vector[bad]}"
             )
         return vector
 

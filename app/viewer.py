@@ -53,6 +53,21 @@ class ViewData:
         return cls(times=t.times, positions=t.positions, narrow=file.narrow, on_path=file.on_path, path=t.waypoints)
 
 
+def check_meshcat_allowed() -> None:
+    """Refuse at once (before a command's work) what Meshcat() would refuse: Drake allows it when
+    DRAKE_ALLOW_NETWORK is unset or empty, or lists "meshcat" among its colon-separated components."""
+    allowed = os.environ.get("DRAKE_ALLOW_NETWORK", "")
+    if allowed and "meshcat" not in allowed.split(":"):
+        raise UserError(_meshcat_disabled())
+
+
+def _meshcat_disabled() -> str:
+    return (
+        f"Meshcat is disabled by DRAKE_ALLOW_NETWORK={os.environ.get('DRAKE_ALLOW_NETWORK', '')!r}; add 'meshcat' "
+        "to it (e.g. DRAKE_ALLOW_NETWORK=meshcat) to view or export HTML"
+    )
+
+
 def start_meshcat(port: int | None = None):
     """A Meshcat server bound to localhost only."""
     from pydrake.geometry import Meshcat, MeshcatParams
@@ -67,11 +82,7 @@ def start_meshcat(port: int | None = None):
         return Meshcat(params)
     except RuntimeError as exc:
         if "DRAKE_ALLOW_NETWORK" in str(exc):
-            raise UserError(
-                "Meshcat is disabled by DRAKE_ALLOW_NETWORK="
-                f"{os.environ.get('DRAKE_ALLOW_NETWORK', '')!r}; add 'meshcat' to it "
-                "(e.g. DRAKE_ALLOW_NETWORK=meshcat) to view or export HTML"
-            ) from None
+            raise UserError(_meshcat_disabled()) from None
         raise UserError(f"cannot start Meshcat: {' '.join(str(exc).split())[:200]}") from None
 
 

@@ -304,7 +304,8 @@ def test_unknown_package_is_one_line(arm_package, tmp_path, urdf):
         (dict(robot="cube.txt"), "unsupported type"),
         (dict(bounds=["1..0"]), "bad bounds item"),
         (dict(bounds=["0..1", "0..1"]), "6 lo..hi items needed"),
-        (dict(start=[0, 0]), "start needs 6 finite numbers"),
+        (dict(start=[0, 0]), "start needs 6 numbers"),
+        (dict(goal=[0, 0, 0, float("nan"), 0, 0]), "goal needs finite numbers, yaw is nan"),
         (dict(env_pose=[1, 2]), "env pose needs 6"),
         (dict(package_path=["nodir"]), "NAME=DIR"),
         (dict(package_path=["p=/no/such/dir"]), "directory not found"),
@@ -496,3 +497,10 @@ def test_the_certificate_bounds_mesh_distances_closely(channel_oracle):
         limit = 0.8 * clearance
         assert min(certifier.distances(q, limit).values(), default=limit) >= 0.5 * clearance
         assert min(certifier.distances(q, 2.0).values()) <= clearance + 1e-3
+
+
+def test_a_cache_folder_with_uri_characters_in_its_name_works(files, tmp_path):
+    """The generated model directives (YAML) and models (XML) name cached files by path: '&', ' #' (a YAML
+    comment), '%' and spaces in the cache's path must reach Drake as they are."""
+    scene = build_scene(_spec(files, mesh_method="faces"), cache_dir=tmp_path / "a&b #c%20d", progress=False)
+    assert scene.dim == 6

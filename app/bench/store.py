@@ -134,10 +134,18 @@ class Reuse:
         return {**asdict(self), "versions": list(self.versions), "warning": self.warning()}
 
 
+def _is_sqlite(path: Path) -> bool:
+    with open(path, "rb") as f:
+        return f.read(16) == b"SQLite format 3\x00"
+
+
 class ResultStore:
     def __init__(self, path: Path):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        # SQLite takes a short file of any content for an empty database, and would overwrite it.
+        if self.path.is_file() and self.path.stat().st_size and not _is_sqlite(self.path):
+            raise UserError(f"cannot use {self.path} as a results store: it is not a SQLite file; name another")
         self._db = sqlite3.connect(self.path)
         try:
             self._check_schema()

@@ -7,50 +7,66 @@ A type raises argparse.ArgumentTypeError; the parser turns that into one line na
 import argparse
 import json
 import math
+import os
 import re
 import sys
 
 from app.budget import Budget
 from app.errors import UserError
+from app.io import check_output
 from app.samplers import check_name
 
 
-def _whole_number_at_least(least: int, fault: str):
-    """An argparse type: a whole number >= least, else `fault` (e.g. "must be positive") with the text."""
+def whole_number(least: int, most: int):
+    """An argparse type: a whole number from `least` to `most`; the message names both limits."""
 
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-        if value < least:
-            raise argparse.ArgumentTypeError(f"{fault}: {text}")
+        if not least <= value <= most:
+            raise argparse.ArgumentTypeError(f"must be from {least} to {most}, got {text}")
         return value
 
     return parse
 
 
-positive_int = _whole_number_at_least(1, "must be positive")
-non_negative_int = _whole_number_at_least(0, "must not be negative")
+# Limits far above any useful run (the paper's roadmaps have hundreds of samples), so that a typo such as 1e9
+# samples is refused at once instead of filling memory or running for days.
+seed = whole_number(0, 2**32 - 1)  # what every random generator here (numpy, OMPL) takes
+sample_count = whole_number(0, 100_000)  # samples of one kind in one roadmap
+samples_wanted = whole_number(1, 100_000)  # `sample -k`, samples per trial
+neighbours = whole_number(1, 1_000)  # k nearest neighbours
+shortcut_rounds = whole_number(0, 10_000)
+repetitions = whole_number(1, 10_000)  # seeds, trials, runs, repeats per measured cell
+MAX_PROCESSES = 256
+processes = whole_number(1, MAX_PROCESSES)  # workers, threads
+check_count = whole_number(1, 10**9)  # collision checks of a budget, configurations of a measurement
 
 
-def _finite_number(accept, fault: str):
-    """An argparse type: a finite number for which accept(value) holds, else `fault` with the text."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not math.isfinite(value) or not accept(value):
-            raise argparse.ArgumentTypeError(f"{fault}: {text}")
-        return value
-
-    return parse
+def _finite_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
 
 
-positive_float = _finite_number(lambda v: v > 0, "must be a positive finite number")
-non_negative_float = _finite_number(lambda v: v >= 0, "must be a finite number, zero or more")
+def positive_float(text: str) -> float:
+    value = _finite_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive finite number: {text}")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    value = _finite_float(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must not be negative: {text}")
+    return value
 
 
 def comma_list(text: str) -> list[str]:
@@ -137,7 +153,31 @@ def parse_budget(text: str) -> Budget:
     return Budget(seconds=seconds, checks=checks)
 
 
+def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
+    """Every output path a command was given, checked before any work starts: each writable (app.io.check_output;
+    the missing folders of those in `creating_folders` may still be created) and no two the same file. None stands
+    for a flag not given."""
+    paths = [(f, False) for f in files if f] + [(f, True) for f in creating_folders]
+    seen = {}
+    for path, make_folders in paths:
+        real = os.path.realpath(check_output(path, make_folders=make_folders))
+        if real in seen:
+            raise UserError(f"{seen[real]} and {path} are the same file; give each output its own path")
+        seen[real] = path
+
+
 def print_json(obj: dict) -> None:
-    """A command's answer as one line of JSON on stdout; every answer says whether it is a success."""
-    json.dump({"success": True, **obj}, sys.stdout, indent=None, separators=(",", ":"))
+    """A command's answer as one line of JSON on stdout; every answer says whether it is a success. JSON has no
+    NaN or infinity (Python's json would print them anyway): they become null, e.g. a median over no successes."""
+    json.dump(_finite({"success": True, **obj}), sys.stdout, indent=None, separators=(",", ":"), allow_nan=False)
     sys.stdout.write("\n")
+
+
+def _finite(value):
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(item) for item in value]
+    return value

@@ -4,7 +4,7 @@ an app.custom_scene.CustomSpec, from which app.custom_scene.build_scene makes th
 import argparse
 
 from app import meshes
-from app.commands.common import float_list
+from app.commands.common import float_list, non_negative_float
 from app.custom_scene import CustomScene, CustomSpec, build_scene, load_scene
 from app.errors import UserError
 from app.scene import Scene
@@ -39,14 +39,12 @@ def add_arguments(parser) -> None:
         type=float_list,
         action="append",
         default=[],
-        help="place the environment: metres and roll,pitch,yaw in degrees (once, or once per --env; "
-        "--env-pose=-1,... for a leading minus sign)",
+        help="place the environment: metres and roll,pitch,yaw in degrees (once, or once per --env)",
     )
     group.add_argument(
         "--bounds",
         metavar="LO..HI,...",
-        help="lo..hi per coordinate, or for a floating robot per x,y,z only (write --bounds=-1..1,... "
-        "when it starts with a minus sign)",
+        help="lo..hi per coordinate, or for a floating robot per x,y,z only",
     )
     group.add_argument(
         "--mesh-method",
@@ -56,7 +54,7 @@ def add_arguments(parser) -> None:
     )
     group.add_argument(
         "--mesh-tolerance",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         metavar="M",
         help="how far a decomposition may reach beyond the mesh surface, in metres (default: half the "
@@ -64,7 +62,7 @@ def add_arguments(parser) -> None:
     )
     group.add_argument(
         "--resolution",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         metavar="STEP",
         help="edge-check step (default: a quarter of the robot's thickness, the median over its bodies)",
@@ -82,12 +80,36 @@ def add_arguments(parser) -> None:
     )
 
 
+# The flags that describe a robot or environment of one's own: dest -> the flag as a user types it.
+ROBOT_ONLY = {
+    "package_path": "--package-path",
+    "floating": "--floating",
+    "env": "--env",
+    "env_pose": "--env-pose",
+    "bounds": "--bounds",
+    "mesh_method": "--mesh-method",
+    "mesh_tolerance": "--mesh-tolerance",
+    "resolution": "--resolution",
+    "self_collision": "--no-self-collision",
+    "srdf": "--srdf",
+}
+
+
+def _defaults() -> argparse.Namespace:
+    parser = argparse.ArgumentParser(add_help=False)
+    add_arguments(parser)
+    return parser.parse_args([])
+
+
 def spec_from_args(args) -> CustomSpec | None:
     """A CustomSpec from parsed flags, or None when no --robot was given. `args.start`/`args.goal` are lists."""
     if not args.robot:
-        for flag in ("env", "srdf"):
-            if getattr(args, flag):
-                raise UserError(f"--{flag} needs --robot (a scene file takes srdf: as a key)")
+        # A flag of a shipped scene's own (its resolution, its collisions) must not be silently ignored.
+        defaults = vars(_defaults())
+        given = [flag for dest, flag in ROBOT_ONLY.items() if getattr(args, dest) != defaults[dest]]
+        if given:
+            verb = "needs" if len(given) == 1 else "need"
+            raise UserError(f"{', '.join(given)} {verb} --robot (for a scene, its file sets them)")
         return None
     return CustomSpec(
         robot=args.robot,

@@ -5,16 +5,18 @@ import argparse
 from app.commands import custom, view
 from app.commands.common import (
     float_list,
-    non_negative_int,
+    neighbours,
     parse_budget,
     positive_float,
-    positive_int,
     print_json,
+    sample_count,
     sampler_name,
+    seed,
+    shortcut_rounds,
 )
 from app.errors import UserError
 from app.ik import pose_goal
-from app.io import check_output
+from app.io import all_or_nothing
 from app.oracle import CollisionOracle
 from app.planner import PlanSettings, plan
 from app.viewer import ViewData
@@ -35,14 +37,14 @@ def register(subparsers) -> None:
     )
     p.add_argument(
         "--narrow",
-        type=non_negative_int,
+        type=sample_count,
         default=DEFAULTS.narrow,
         help=f"narrow-passage samples: per round narrow/16 at first, doubling up to narrow/4; with "
         f"--full-roadmap all of them (default {DEFAULTS.narrow})",
     )
     p.add_argument(
         "--uniform",
-        type=non_negative_int,
+        type=sample_count,
         default=DEFAULTS.uniform,
         help=f"uniform free samples: uniform/4 per round; with --full-roadmap all of them (default {DEFAULTS.uniform})",
     )
@@ -53,7 +55,7 @@ def register(subparsers) -> None:
         help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
         "of the scene's extent)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=DEFAULTS.seed)
+    p.add_argument("--seed", type=seed, default=DEFAULTS.seed)
     p.add_argument(
         "--budget",
         type=parse_budget,
@@ -71,13 +73,13 @@ def register(subparsers) -> None:
     p.add_argument(
         "-k",
         "--neighbours",
-        type=positive_int,
+        type=neighbours,
         default=DEFAULTS.k,
         help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d dimensions)",
     )
     p.add_argument(
         "--smooth",
-        type=non_negative_int,
+        type=shortcut_rounds,
         default=DEFAULTS.smooth_rounds,
         help=f"random shortcut rounds after the greedy pass (default {DEFAULTS.smooth_rounds})",
     )
@@ -133,10 +135,7 @@ def run(args) -> int:
             raise UserError(f"give either --{end} or --{end}-pose, not both")
     if args.tool and args.start_pose is None and args.goal_pose is None:
         raise UserError("--tool needs --start-pose or --goal-pose")
-    out = check_output(args.out) if args.out else None
-    if args.html:
-        check_output(args.html)
-    view.check_arguments(args)
+    view.check_from_args(args, args.out)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     start, goal = args.start, args.goal
     if args.start_pose is not None:
@@ -144,16 +143,17 @@ def run(args) -> int:
     if args.goal_pose is not None:
         goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed)
     result = plan(oracle, settings, start=start, goal=goal)
-    # Files first, the answer last: a failure writing one leaves no success printed.
-    view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
-    if out is not None:
-        result.trajectory_file().write(out)
+    # Files first (all or none), the answer last: a failure writing one leaves no success printed.
+    with all_or_nothing():
+        viewer = view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+        if args.out:
+            result.trajectory_file().write(args.out)
     if args.json:
         print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
     else:
         lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
         print("\n".join([summary(result), *("  " + line for line in lines)]))
-    view.wait(args)
+    view.wait(args, viewer)
     return 0
 
 

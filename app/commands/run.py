@@ -2,10 +2,17 @@
 
 from dataclasses import replace
 
-from app.commands.common import non_negative_int, parse_budget, positive_float, print_json, sampler_name
-from app.commands.view import add_arguments, check_arguments, publish_from_args, wait
+from app.commands.common import (
+    parse_budget,
+    positive_float,
+    print_json,
+    sample_count,
+    sampler_name,
+    seed,
+)
+from app.commands.view import add_arguments, check_from_args, publish_from_args, wait
 from app.errors import UserError
-from app.io import check_output
+from app.io import all_or_nothing
 from app.oracle import CollisionOracle
 from app.runs import JOB_SETTINGS, ROUTES, run_job
 from app.scene import Scene
@@ -16,9 +23,9 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("run", help="scripted UR3 jobs: welding (seam point to point), window (reach, place)")
     p.add_argument("job", help="welding or window (the scene of the same name)")
     p.add_argument("--sampler", type=sampler_name, default=JOB_SETTINGS.sampler)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--narrow", type=non_negative_int, default=40, help="narrow-passage samples per planned leg")
-    p.add_argument("--uniform", type=non_negative_int, default=40, help="uniform samples per planned leg")
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--narrow", type=sample_count, default=40, help="narrow-passage samples per planned leg")
+    p.add_argument("--uniform", type=sample_count, default=40, help="uniform samples per planned leg")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument("--budget", type=parse_budget, default="30s", help="per planned leg, e.g. 30s or 500kchecks")
     p.add_argument(
@@ -45,16 +52,14 @@ def run(args) -> int:
         budget=args.budget,
         full_roadmap=args.full_roadmap,
     )
-    check_arguments(args)
-    for target in (args.out, args.html):
-        if target:
-            check_output(target)
+    check_from_args(args, args.out)
     oracle = CollisionOracle(Scene(args.job))
     result = run_job(oracle, args.job, settings)
-    # Files first, the answer last: a failure writing one leaves no success printed.
-    publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
-    if args.out:
-        result.trajectory_file().write(args.out)
+    # Files first (all or none), the answer last: a failure writing one leaves no success printed.
+    with all_or_nothing():
+        viewer = publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
+        if args.out:
+            result.trajectory_file().write(args.out)
     if args.json:
         print_json(result.to_json())
     else:
@@ -70,5 +75,5 @@ def run(args) -> int:
             f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
             f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)"
         )
-    wait(args)
+    wait(args, viewer)
     return 0

@@ -1,7 +1,15 @@
 """`sample SCENE --sampler NAME`: draw k narrow-passage samples, report them (JSON or a summary) and draw them."""
 
 from app.bench.sampling import run_trial
-from app.commands.common import non_negative_int, positive_float, positive_int, print_json, sampler_name
+from app.commands.common import (
+    check_outputs,
+    positive_float,
+    print_json,
+    processes,
+    sampler_name,
+    samples_wanted,
+    seed,
+)
 from app.custom_scene import load_scene
 from app.errors import SamplerBudgetExceeded
 from app.oracle import CollisionOracle
@@ -13,21 +21,22 @@ def register(subparsers) -> None:
     p.add_argument(
         "--sampler", type=sampler_name, required=True, help="uniform, gaussian, rbbs, rws, lfs, rwbs or lfbs"
     )
-    p.add_argument("-k", type=positive_int, default=30, help="number of samples (default 30)")
+    p.add_argument("-k", type=samples_wanted, default=30, help="number of samples (default 30)")
     p.add_argument(
         "--step",
         type=positive_float,
         default=10.0,
         help="step a / bridge length / Gaussian sigma, weighted workspace units (default 10)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=0)
-    p.add_argument("--threads", type=positive_int, default=None, help="oracle threads (default: up to 2)")
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--threads", type=processes, default=None, help="oracle threads (default: up to 2)")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--png", help="draw the samples over the scene to this PNG")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    check_outputs(args.png)
     oracle = CollisionOracle(load_scene(args.scene), threads=args.threads)
     result = run_trial(oracle, args.sampler, args.step, args.seed, k=args.k, keep_samples=True)
     if not result["ok"]:

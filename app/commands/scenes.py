@@ -1,6 +1,6 @@
 """`scenes` lists the shipped scenes; `show` draws one to a PNG."""
 
-from app.commands.common import print_json
+from app.commands.common import check_outputs, print_json
 from app.custom_scene import load_scene
 from app.oracle import CollisionOracle
 from app.scene import Scene, scene_names
@@ -14,6 +14,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("show", help="draw a scene (obstacles, passage region, robot at start and goal)")
     p.add_argument("scene", help="scene name, problem-file path or custom scene file")
     p.add_argument("--png", required=True, help="output PNG file")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.set_defaults(func=run_show)
 
 
@@ -31,7 +32,11 @@ def run_scenes(args) -> int:
 def run_show(args) -> int:
     from app.draw import draw_scene  # loads matplotlib: only when a picture is drawn
 
+    check_outputs(args.png)
     oracle = CollisionOracle(load_scene(args.scene))
     draw_scene(oracle, args.png)
-    print(args.png)
+    if args.json:
+        print_json({"scene": oracle.scene.name, "png": args.png})
+    else:
+        print(args.png)
     return 0

@@ -1,6 +1,6 @@
 """`view` shows a trajectory in Meshcat and/or exports it as a standalone HTML page.
 
-`add_arguments`, `check_arguments`, `publish_from_args` and `wait` give any command (plan, run) the same
+`add_arguments`, `check_from_args`, `publish_from_args` and `wait` give any command (plan, run) the same
 --html / --meshcat / --wait / --frame flags.
 
 How long --meshcat serves: `--wait SECONDS` if given (0: not at all); else, with a terminal, until Enter or Ctrl-C;
@@ -13,11 +13,11 @@ import signal
 import sys
 import threading
 
-from app.commands.common import non_negative_float
+from app.commands.common import check_outputs, non_negative_float, print_json
 from app.custom_scene import load_scene
 from app.errors import UserError
 from app.trajectory import TrajectoryFile
-from app.viewer import ViewData, publish
+from app.viewer import ViewData, check_meshcat_allowed, publish
 
 
 def add_arguments(p) -> None:
@@ -40,10 +40,14 @@ def add_arguments(p) -> None:
     p.add_argument("--collision", action="store_true", help="also load the collision geometry (hidden at first)")
 
 
-def check_arguments(args) -> None:
-    """The viewer flags' own faults, found before a command's (slow) work."""
+def check_from_args(args, *outputs: str | None) -> None:
+    """Before any work: the viewer flags agree, the command's output files (`outputs` and --html) can be written,
+    and Meshcat, which --html and --meshcat need, is allowed."""
     if args.wait is not None and not args.meshcat:
         raise UserError("--wait needs --meshcat (it says how long the Meshcat server stays up)")
+    check_outputs(*outputs, args.html)
+    if args.html or args.meshcat:
+        check_meshcat_allowed()
 
 
 def publish_from_args(args, scene, data):
@@ -57,8 +61,9 @@ def publish_from_args(args, scene, data):
     return viewer
 
 
-def wait(args) -> None:
-    """Keep the --meshcat viewer served as the module docstring says; return when the wait ends."""
+def wait(args, viewer) -> None:
+    """Keep the --meshcat `viewer` served as the module docstring says; return when the wait ends. (The viewer is
+    passed so that it stays referenced while it serves: a Meshcat no longer referenced stops its server.)"""
     if not args.meshcat or args.wait == 0:
         return
     terminal = args.wait is None and sys.stdin is not None and sys.stdin.isatty()
@@ -87,6 +92,7 @@ def register(subparsers) -> None:
     p.add_argument(
         "--trajectory", required=True, metavar="FILE.json", help="a trajectory file written by plan --out or run --out"
     )
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     add_arguments(p)
     p.set_defaults(func=run_view)
 
@@ -94,10 +100,14 @@ def register(subparsers) -> None:
 def run_view(args) -> int:
     if not args.html and not args.meshcat:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
-    check_arguments(args)
+    check_outputs(args.html)
     scene = load_scene(args.scene)
-    publish_from_args(args, scene, ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim)))
-    if args.html:
+    data = ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim))
+    check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
+    viewer = publish_from_args(args, scene, data)
+    if args.json:
+        print_json({"scene": scene.name, "html": args.html, "meshcat": viewer.url() if args.meshcat else None})
+    elif args.html:
         print(args.html)
-    wait(args)
+    wait(args, viewer)
     return 0

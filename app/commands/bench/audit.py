@@ -3,25 +3,26 @@ Drake checker at 1/64 of the scene's resolution, with its limits and endpoints (
 
 from app.bench.audit import DIVISOR, measure
 from app.commands.bench import results
-from app.commands.common import names_from, non_negative_int, positive_float, positive_int, print_json
+from app.commands.common import check_outputs, names_from, positive_float, print_json, processes, repetitions, seed
 from app.scene import scene_names
 
 
 def register(kinds) -> None:
     p = kinds.add_parser("audit", help="random problems per scene; trajectories re-checked by an independent checker")
-    p.add_argument("--problems", type=positive_int, default=200, help="problems in all, shared out over the scenes")
-    p.add_argument("--seed", type=non_negative_int, default=0, help="seeds the problems' starts and goals")
+    p.add_argument("--problems", type=repetitions, default=200, help="problems in all, shared out over the scenes")
+    p.add_argument("--seed", type=seed, default=0, help="seeds the problems' starts and goals")
     p.add_argument(
         "--scenes", type=names_from(scene_names(), "scene"), default=",".join(scene_names()), help="comma-separated"
     )
     p.add_argument("--budget", type=positive_float, default=5.0, metavar="SECONDS", help="planning budget per problem")
-    p.add_argument("--workers", type=positive_int, default=1, help="parallel processes (one thread each when > 1)")
+    p.add_argument("--workers", type=processes, default=1, help="parallel processes (one thread each when > 1)")
     results.add_arguments(p, "out/bench-audit.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    check_outputs(creating_folders=(args.store,))
     table, reuse = measure(
         args.scenes, args.problems, args.seed, args.budget, args.store, workers=args.workers, fresh=args.fresh
     )

@@ -4,7 +4,7 @@ durations, per scene and UR3 job (app.bench.certification)."""
 from app.bench.certification import measure
 from app.bench.jobs import JOBS
 from app.commands.bench import results
-from app.commands.common import names_from, positive_int, print_json
+from app.commands.common import check_outputs, names_from, print_json, repetitions
 from app.scene import scene_names
 
 
@@ -16,13 +16,14 @@ def register(kinds) -> None:
         "--scenes", type=names_from(scene_names(), "scene"), default=",".join(scene_names()), help="comma-separated"
     )
     p.add_argument("--jobs", type=names_from(JOBS, "job"), default="window", help="comma-separated UR3 jobs")
-    p.add_argument("--seeds", type=positive_int, default=5, help="seeds 0..N-1 per scene and job")
+    p.add_argument("--seeds", type=repetitions, default=5, help="seeds 0..N-1 per scene and job")
     results.add_arguments(p, "out/bench-certify.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    check_outputs(creating_folders=(args.store,))
     table, reuse = measure(args.scenes, args.jobs, args.seeds, args.store, args.fresh)
     results.say_reused(reuse)
     if args.json:

@@ -3,7 +3,15 @@
 from app.bench.jobs import JOBS, measure
 from app.bench.plan import MODES
 from app.commands.bench import results
-from app.commands.common import names_from, non_negative_int, positive_float, positive_int, print_json, sampler_names
+from app.commands.common import (
+    check_outputs,
+    names_from,
+    positive_float,
+    print_json,
+    repetitions,
+    sample_count,
+    sampler_names,
+)
 
 
 def register(kinds) -> None:
@@ -12,15 +20,15 @@ def register(kinds) -> None:
         "--jobs", type=names_from(JOBS, "job"), default=",".join(JOBS), help="comma-separated: welding, window"
     )
     p.add_argument("--samplers", type=sampler_names, default="lfbs", help="comma-separated sampler names")
-    p.add_argument("--seeds", type=positive_int, default=10, help="seeds 0..N-1 per job, sampler and mode")
+    p.add_argument("--seeds", type=repetitions, default=10, help="seeds 0..N-1 per job, sampler and mode")
     p.add_argument(
         "--roadmap",
         choices=[*MODES, "both"],
         default="both",
         help="query: the planner's default; full: the whole roadmap first; both: side by side",
     )
-    p.add_argument("--narrow", type=non_negative_int, default=40, help="narrow-passage samples per planned leg")
-    p.add_argument("--uniform", type=non_negative_int, default=40, help="uniform samples per planned leg")
+    p.add_argument("--narrow", type=sample_count, default=40, help="narrow-passage samples per planned leg")
+    p.add_argument("--uniform", type=sample_count, default=40, help="uniform samples per planned leg")
     p.add_argument("--budget", type=positive_float, default=30.0, metavar="SECONDS", help="per planned leg")
     results.add_arguments(p, "out/bench-jobs.sqlite")
     p.add_argument("--json", action="store_true")
@@ -28,6 +36,7 @@ def register(kinds) -> None:
 
 
 def run(args) -> int:
+    check_outputs(creating_folders=(args.store,))
     modes = list(MODES) if args.roadmap == "both" else [args.roadmap]
     result, reuse = measure(
         args.jobs, args.samplers, args.seeds, modes, args.narrow, args.uniform, args.budget, args.store, args.fresh

@@ -5,7 +5,7 @@ import argparse
 
 from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure, parse_method
 from app.commands.bench import results
-from app.commands.common import comma_list, positive_float, positive_int, print_json
+from app.commands.common import check_outputs, comma_list, positive_float, print_json, processes, repetitions
 from app.errors import UserError
 from app.scene import scene_names
 
@@ -34,12 +34,12 @@ def register(kinds) -> None:
         default=",".join(DEFAULT_METHODS),
         help=f"comma-separated; also ours:SAMPLER[:full] and {', '.join(MORE_METHODS)}",
     )
-    p.add_argument("--seeds", type=positive_int, default=20, help="runs 0..N-1 per scene and method")
+    p.add_argument("--seeds", type=repetitions, default=20, help="runs 0..N-1 per scene and method")
     p.add_argument("--budget", type=positive_float, default=10.0, help="seconds per run to the first solution")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument(
         "--workers",
-        type=positive_int,
+        type=processes,
         default=1,
         help="parallel runs (1 keeps timings clean: each run gets a whole core and nothing competes)",
     )
@@ -59,6 +59,7 @@ def _num(value, spec: str) -> str:
 
 
 def run(args) -> int:
+    check_outputs(args.png, creating_folders=(args.store,))
     report, reuse = measure(
         args.scenes,
         args.methods,

@@ -1,7 +1,7 @@
 """`bench oracle`: oracle checks/s against a raw HasCollisions loop (app.bench.oracle)."""
 
 from app.bench.oracle import bench_oracle
-from app.commands.common import comma_list, positive_int, print_json
+from app.commands.common import check_count, comma_list, print_json, repetitions, seed
 
 
 def register(kinds) -> None:
@@ -12,9 +12,9 @@ def register(kinds) -> None:
         default="bar,joint3d",
         help="comma-separated scene names, problem files or custom scene files (robot/env keys)",
     )
-    o.add_argument("-n", type=positive_int, default=20000, help="configurations per measurement")
-    o.add_argument("--repeats", type=positive_int, default=5, help="runs per measurement (the median counts)")
-    o.add_argument("--seed", type=int, default=0)
+    o.add_argument("-n", type=check_count, default=20000, help="configurations per measurement")
+    o.add_argument("--repeats", type=repetitions, default=5, help="runs per measurement (the median counts)")
+    o.add_argument("--seed", type=seed, default=0)
     o.add_argument("--json", action="store_true")
     o.set_defaults(func=run)
 

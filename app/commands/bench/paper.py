@@ -1,6 +1,7 @@
 """`bench paper`: the paper's Section IV in one command -- every sweep into one store, then DIR/report.md
 (app.bench.paper)."""
 
+import sys
 import time
 from pathlib import Path
 
@@ -8,19 +9,32 @@ from app.bench.paper import PARTS, QUICK_STEPS, SAMPLING_SCENES, STEPS, Config, 
 from app.bench.runner import connect
 from app.bench.store import ResultStore
 from app.commands.bench import results
-from app.commands.common import comma_list, names_from, positive_float_list, positive_int, sampler_names
+from app.commands.common import (
+    MAX_PROCESSES,
+    check_count,
+    check_outputs,
+    comma_list,
+    names_from,
+    positive_float_list,
+    print_json,
+    repetitions,
+    sampler_names,
+    whole_number,
+)
 from app.samplers import SAMPLERS
 
 
 def register(kinds) -> None:
     p = kinds.add_parser("paper", help="the paper's Section IV: all sweeps into one store, then DIR/report.md")
     p.add_argument(
-        "--trials", type=positive_int, default=None, help="trials (seeds) per sampling cell (default 300, --quick 3)"
+        "--trials", type=repetitions, default=None, help="trials (seeds) per sampling cell (default 300, --quick 3)"
     )
     p.add_argument(
         "--quick", action="store_true", help="a few minutes: 3 trials, steps 2 and 10, 2 PRM seeds, 1 UR3 run per job"
     )
-    p.add_argument("--workers", type=int, default=0, help="local processes (default: all cores)")
+    p.add_argument(
+        "--workers", type=whole_number(0, MAX_PROCESSES), default=0, help="local processes (default 0: all cores)"
+    )
     p.add_argument(
         "--scheduler",
         metavar="tcp://HOST:PORT",
@@ -50,12 +64,13 @@ def register(kinds) -> None:
     p.add_argument("--steps", type=positive_float_list, default=None, help="steps (default 2,5,10,15,20; --quick 2,10)")
     p.add_argument(
         "--max-checks",
-        type=positive_int,
+        type=check_count,
         default=200_000,
         help="collision-check budget per sampling trial; a trial that spends it is censored",
     )
-    p.add_argument("--prm-seeds", type=positive_int, default=None, help="seeds per PRM cell (default 30, --quick 2)")
-    p.add_argument("--ur3-runs", type=positive_int, default=None, help="runs per UR3 job (default 5, --quick 1)")
+    p.add_argument("--prm-seeds", type=repetitions, default=None, help="seeds per PRM cell (default 30, --quick 2)")
+    p.add_argument("--ur3-runs", type=repetitions, default=None, help="runs per UR3 job (default 5, --quick 1)")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout (progress goes to stderr)")
     p.set_defaults(func=run)
 
 
@@ -77,19 +92,27 @@ def config_from_args(args) -> Config:
 
 def run(args) -> int:
     config = config_from_args(args)
-    scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder = Path(args.out)
+    check_outputs(creating_folders=(folder / "results.sqlite", folder / "report.md"))
+    scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder.mkdir(parents=True, exist_ok=True)
     store = ResultStore(folder / "results.sqlite")
     ran, wall = 0, None
     if not args.report_only:
         start = time.perf_counter()
         for name, reuse, now in run_sweeps(config, store, workers=args.workers, scheduler=scheduler, fresh=args.fresh):
-            print(f"{name}: {reuse.trials} trials, {now} run now, {reuse.reused} reused", flush=True)
+            print(
+                f"{name}: {reuse.trials} trials, {now} run now, {reuse.reused} reused",
+                file=sys.stderr if args.json else sys.stdout,
+                flush=True,
+            )
             results.say_reused(reuse)
             ran += now
         wall = time.perf_counter() - start
     path = build_report(store, folder, config, wall_seconds=wall)
-    print(f"{ran} trials run; {store.count()} in {store.path}")
-    print(path)
+    if args.json:
+        print_json({"trials_run": ran, "trials_stored": store.count(), "store": str(store.path), "report": str(path)})
+    else:
+        print(f"{ran} trials run; {store.count()} in {store.path}")
+        print(path)
     return 0

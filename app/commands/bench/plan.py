@@ -2,7 +2,18 @@
 
 from app.bench.plan import COMPARED_SAMPLERS, MODES, SIZE, measure, trial_params
 from app.commands.bench import results
-from app.commands.common import comma_list, non_negative_int, positive_float, positive_int, print_json, sampler_names
+from app.commands.common import (
+    check_outputs,
+    comma_list,
+    neighbours,
+    positive_float,
+    print_json,
+    processes,
+    repetitions,
+    sample_count,
+    sampler_names,
+    shortcut_rounds,
+)
 
 
 def register(kinds) -> None:
@@ -11,22 +22,22 @@ def register(kinds) -> None:
     p.add_argument(
         "--samplers", type=sampler_names, default=",".join(COMPARED_SAMPLERS), help="comma-separated sampler names"
     )
-    p.add_argument("--seeds", type=positive_int, default=50, help="seeds 0..N-1 per scene and sampler")
+    p.add_argument("--seeds", type=repetitions, default=50, help="seeds 0..N-1 per scene and sampler")
     p.add_argument(
         "--narrow",
-        type=non_negative_int,
+        type=sample_count,
         default=SIZE["narrow"],
         help="narrow-passage samples per roadmap (uniform: that many more uniform samples)",
     )
-    p.add_argument("--uniform", type=non_negative_int, default=SIZE["uniform"], help="uniform samples per roadmap")
+    p.add_argument("--uniform", type=sample_count, default=SIZE["uniform"], help="uniform samples per roadmap")
     p.add_argument(
         "-k",
         "--neighbours",
-        type=positive_int,
+        type=neighbours,
         default=SIZE["k"],
         help="k nearest neighbours (default: k-PRM*'s, as `plan`)",
     )
-    p.add_argument("--smooth", type=non_negative_int, default=SIZE["smooth"], help="random shortcut rounds")
+    p.add_argument("--smooth", type=shortcut_rounds, default=SIZE["smooth"], help="random shortcut rounds")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument(
         "--budget",
@@ -44,7 +55,7 @@ def register(kinds) -> None:
     )
     p.add_argument(
         "--workers",
-        type=positive_int,
+        type=processes,
         default=1,
         help="parallel processes (1 keeps timings clean and checks on all threads; with more, one thread each)",
     )
@@ -54,6 +65,7 @@ def register(kinds) -> None:
 
 
 def run(args) -> int:
+    check_outputs(creating_folders=(args.store,))
     params = trial_params(args.narrow, args.uniform, args.neighbours, args.smooth, budget=args.budget)
     modes = list(MODES) if args.roadmap == "both" else [args.roadmap]
     table, reuse = measure(

@@ -1,7 +1,18 @@
 """`bench sampling`: t_eps, gamma_c and passage fraction of the samplers vs step (app.bench.sampling)."""
 
 from app.bench.sampling import STEPS, figure, measure, summarise
-from app.commands.common import comma_list, positive_float, positive_float_list, positive_int, print_json, sampler_names
+from app.commands.common import (
+    check_count,
+    check_outputs,
+    comma_list,
+    positive_float,
+    positive_float_list,
+    print_json,
+    processes,
+    repetitions,
+    sampler_names,
+    samples_wanted,
+)
 from app.samplers import SAMPLERS
 
 
@@ -12,8 +23,8 @@ def register(kinds) -> None:
     p.add_argument(
         "--steps", type=positive_float_list, default=STEPS, help="comma-separated steps a (default 2,5,10,15,20)"
     )
-    p.add_argument("--trials", type=positive_int, default=10, help="trials (seeds 0..N-1) per cell")
-    p.add_argument("-k", type=positive_int, default=30, help="samples per trial (the paper's K_c = 30)")
+    p.add_argument("--trials", type=repetitions, default=10, help="trials (seeds 0..N-1) per cell")
+    p.add_argument("-k", type=samples_wanted, default=30, help="samples per trial (the paper's K_c = 30)")
     p.add_argument(
         "--margin",
         type=positive_float,
@@ -22,17 +33,18 @@ def register(kinds) -> None:
     )
     p.add_argument(
         "--max-checks",
-        type=positive_int,
+        type=check_count,
         default=200_000,
         help="collision-check budget per trial; a trial that spends it is reported as censored",
     )
-    p.add_argument("--threads", type=positive_int, default=None, help="oracle threads (default: up to 2)")
+    p.add_argument("--threads", type=processes, default=None, help="oracle threads (default: up to 2)")
     p.add_argument("--png", help="figure: one panel per metric vs step, one line per sampler, a row per scene")
     p.add_argument("--json", action="store_true", help="rows and summary as one JSON object on stdout")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    check_outputs(args.png)
     rows = measure(
         args.scenes,
         args.samplers,

@@ -2,19 +2,20 @@
 
 from app.bench.uav import PAPER_SECONDS, measure
 from app.commands.bench import results
-from app.commands.common import positive_int, print_json
+from app.commands.common import check_outputs, print_json, processes, repetitions
 
 
 def register(kinds) -> None:
     p = kinds.add_parser("uav", help="the paper's maze/tunnel PRM tables: LFBS vs RBBS, t_eps, T_PRM, success")
-    p.add_argument("--seeds", type=positive_int, default=30)
-    p.add_argument("--workers", type=positive_int, default=1, help="parallel processes (1 keeps timings clean)")
+    p.add_argument("--seeds", type=repetitions, default=30)
+    p.add_argument("--workers", type=processes, default=1, help="parallel processes (1 keeps timings clean)")
     results.add_arguments(p, "out/bench-uav.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    check_outputs(creating_folders=(args.store,))
     result, reuse = measure(args.seeds, args.store, workers=args.workers, fresh=args.fresh)
     results.say_reused(reuse)
     if args.json:

@@ -1,0 +1,184 @@
+"""Every command's --json answer, success and failure, against the schemas the README points to (docs/schemas/):
+one JSON object on stdout, whatever happens."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+jsonschema = pytest.importorskip("jsonschema")
+
+SCHEMAS = Path(__file__).resolve().parent.parent / "docs" / "schemas"
+
+
+def schema(name: str) -> dict:
+    document = json.loads((SCHEMAS / f"{name}.json").read_text())
+    jsonschema.Draft202012Validator.check_schema(document)
+    return document
+
+
+def answer(stdout: str) -> dict:
+    """The one JSON object a --json command printed (and nothing else on stdout)."""
+    lines = stdout.strip().splitlines()
+    assert len(lines) == 1, stdout[:500]
+    return json.loads(lines[0])
+
+
+def check(result, name: str, exit_code: int = 0) -> dict:
+    assert result.returncode == exit_code, result.stderr[-2000:]
+    obj = answer(result.stdout)
+    jsonschema.validate(obj, schema(name if exit_code == 0 else "failure"))
+    return obj
+
+
+def test_the_readme_points_to_every_schema():
+    readme = (SCHEMAS.parent.parent / "README.md").read_text()
+    for path in SCHEMAS.glob("*.json"):
+        assert f"docs/schemas/{path.name}" in readme, path.name
+
+
+# Cheap arguments: each runs in a few seconds.
+CHEAP = [
+    ("scenes", ["scenes"]),
+    ("show", ["show", "bar", "--png", "{tmp}/bar.png"]),
+    ("sample", ["sample", "bar", "--sampler", "lfbs", "-k", "5"]),
+    ("bench-oracle", ["bench", "oracle", "--scenes", "bar", "-n", "100", "--repeats", "1"]),
+    (
+        "bench-sampling",
+        [
+            "bench",
+            "sampling",
+            "--scenes",
+            "bar",
+            "--samplers",
+            "uniform,rbbs",
+            "--steps",
+            "10",
+            "--trials",
+            "2",
+            "-k",
+            "3",
+        ],
+    ),
+    (
+        "bench-plan",
+        ["bench", "plan", "--scenes", "bar", "--samplers", "lfbs", "--seeds", "1", "--store", "{tmp}/plan.sqlite"],
+    ),
+    (
+        "bench-certify",
+        ["bench", "certify", "--scenes", "bar-3link", "--jobs", "welding", "--seeds", "1", "--store", "{tmp}/c.sqlite"],
+    ),
+    (
+        "bench-audit",
+        ["bench", "audit", "--scenes", "bar-3link", "--problems", "1", "--budget", "5", "--store", "{tmp}/a.sqlite"],
+    ),
+    (
+        "bench-paper",
+        [
+            "bench",
+            "paper",
+            "--report-only",
+            "--out",
+            "{tmp}/paper",
+            "--parts",
+            "sampling",
+            "--scenes",
+            "bar",
+            "--samplers",
+            "uniform",
+            "--steps",
+            "10",
+        ],
+    ),
+]
+# Minutes rather than seconds (IK, several planned legs, OMPL, the paper's UAV roadmaps).
+COSTLY = [
+    ("run", ["run", "window", "--narrow", "20", "--uniform", "20"]),
+    (
+        "bench-jobs",
+        ["bench", "jobs", "--jobs", "window", "--seeds", "1", "--roadmap", "query", "--store", "{tmp}/j.sqlite"],
+    ),
+    (
+        "bench-ompl",
+        [
+            "bench", "ompl", "--scenes", "bar", "--methods", "ours:default,ompl:RRTConnect", "--seeds", "1",
+            "--budget", "2", "--store", "{tmp}/o.sqlite",
+        ],
+    ),
+    ("bench-uav", ["bench", "uav", "--seeds", "1", "--store", "{tmp}/u.sqlite"]),
+]  # fmt: skip
+
+
+def _run(cli, tmp_path, name, argv):
+    if name == "bench-ompl":
+        pytest.importorskip("ompl")
+    return check(cli(*[a.format(tmp=tmp_path) for a in argv], "--json"), name)
+
+
+@pytest.mark.parametrize("name, argv", CHEAP, ids=[name for name, _ in CHEAP])
+def test_success_answers_follow_their_schema(cli, tmp_path, name, argv):
+    obj = _run(cli, tmp_path, name, argv)
+    assert obj["success"] is True
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, argv", COSTLY, ids=[name for name, _ in COSTLY])
+def test_costly_success_answers_follow_their_schema(cli, tmp_path, name, argv):
+    assert _run(cli, tmp_path, name, argv)["success"] is True
+
+
+def test_plan_and_view_answers_follow_their_schemas(cli, tmp_path, monkeypatch):
+    monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # the viewer's Meshcat needs it, even to export
+    trajectory, page = tmp_path / "bar.json", tmp_path / "bar.html"
+    planned = check(cli("plan", "bar", "--out", trajectory, "--json"), "plan")
+    assert planned["certified"] == planned["trajectory"]["certified"] and trajectory.is_file()
+    shown = check(cli("view", "bar", "--trajectory", trajectory, "--html", page, "--json"), "view")
+    assert shown["html"] == str(page) and page.is_file() and shown["meshcat"] is None
+
+
+# One failure per command (most refused before any work), and the planner's own failures.
+FAILURES = [
+    (["scenes", "--verbose"], 2, "INVALID_INPUT"),
+    (["show", "nowhere", "--png", "{tmp}/x.png"], 2, "INVALID_INPUT"),
+    (["sample", "bar", "--sampler", "lfbs", "-k", "0"], 2, "INVALID_INPUT"),
+    (["plan", "bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, "START_STATE_IN_COLLISION"),
+    (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "TIMED_OUT"),
+    (["run", "painting"], 2, "INVALID_INPUT"),
+    (["view", "bar", "--trajectory", "{tmp}/missing.json", "--html", "{tmp}/x.html"], 2, "INVALID_INPUT"),
+    (["bench", "oracle", "-n", "0"], 2, "INVALID_INPUT"),
+    (["bench", "sampling", "--png", "{tmp}"], 2, "INVALID_INPUT"),
+    (["bench", "plan", "--store", "{tmp}"], 2, "INVALID_INPUT"),
+    (["bench", "uav", "--workers", "0"], 2, "INVALID_INPUT"),
+    (["bench", "jobs", "--jobs", "painting"], 2, "INVALID_INPUT"),
+    (["bench", "ompl", "--seeds", "0"], 2, "INVALID_INPUT"),
+    (["bench", "paper", "--out", "/proc/paper"], 2, "INVALID_INPUT"),
+    (["bench", "certify", "--seeds", "0"], 2, "INVALID_INPUT"),
+    (["bench", "audit", "--store", "{tmp}"], 2, "INVALID_INPUT"),
+    (["bench"], 2, "INVALID_INPUT"),
+    (["no-such-command"], 2, "INVALID_INPUT"),
+]
+
+
+@pytest.mark.parametrize("argv, exit_code, code", FAILURES, ids=[" ".join(argv[:2]) for argv, _, _ in FAILURES])
+def test_failure_answers_follow_the_failure_schema(cli, tmp_path, argv, exit_code, code):
+    result = cli(*[a.format(tmp=tmp_path) for a in argv], "--json")
+    obj = check(result, "failure", exit_code)
+    assert obj["error"]["code"] == code and obj["exit_code"] == exit_code
+    assert result.stderr == f"error: {obj['error']['message']}\n"
+
+
+def test_an_internal_error_still_answers_one_object(capsys, monkeypatch):
+    """A bug is not bad input: its traceback stays, and a --json reader still gets its one answer."""
+    import app.commands.scenes
+    from app.cli import main
+
+    def broken(name):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(app.commands.scenes, "Scene", broken)
+    capsys.readouterr()
+    with pytest.raises(RuntimeError, match="boom"):
+        main(["scenes", "--json"])
+    obj = answer(capsys.readouterr().out)
+    jsonschema.validate(obj, schema("failure"))
+    assert obj["error"] == {"code": "FAILURE", "message": "internal error: RuntimeError: boom"}
