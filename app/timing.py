@@ -149,9 +149,9 @@ def _grid(leg: _Leg, per_blend: int, on_breaks: bool) -> np.ndarray:
 
 
 def _toppra(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
-    """Toppra from rest to rest along the leg: s(t). Drake's Toppra now and then finds no solution for numerical
-    reasons (seen on a symmetric zigzag with grid points on the breaks, at several grid sizes), so other grids are
-    tried then; Drake's error line for each failed try is kept quiet."""
+    """Toppra from rest to rest along the leg: s(t). Drake's Toppra now and then finds no solution, or one with NaNs,
+    for numerical reasons (seen on a symmetric zigzag with grid points on the breaks, at several grid sizes), so
+    other grids are tried then; Drake's error line for each failed try is kept quiet."""
     from pydrake.multibody.optimization import Toppra
 
     drake_log = logging.getLogger("drake")
@@ -163,7 +163,8 @@ def _toppra(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
             toppra.AddJointVelocityLimit(-v * (1 - LIMIT_MARGIN), v * (1 - LIMIT_MARGIN))
             toppra.AddJointAccelerationLimit(-a * (1 - LIMIT_MARGIN), a * (1 - LIMIT_MARGIN))
             s_of_t = toppra.SolvePathParameterization()
-            if s_of_t is not None:
+            # A "solution" can hold NaNs (seen on a tunnel path); evaluating the path at them aborts the process.
+            if s_of_t is not None and np.all(np.isfinite(s_of_t.vector_values(s_of_t.get_segment_times()))):
                 return s_of_t
     finally:
         drake_log.setLevel(level)

@@ -174,3 +174,26 @@ def test_edges_already_proved_are_not_certified_again(oracles):
     )
     assert whole.certified and only.certified and only.duration == pytest.approx(whole.duration)
     assert 0 < blends["distance_queries"] < every["distance_queries"]
+
+
+def test_a_toppra_solution_holding_nans_is_not_used(oracles, monkeypatch):
+    """Drake's Toppra has returned s(t) full of NaNs (a tunnel path in `bench audit`); evaluating the path there
+    aborts the whole process. Such a solution counts as none: the next grid is tried."""
+    import pydrake.multibody.optimization as optimization
+    from pydrake.trajectories import PiecewisePolynomial
+
+    calls = []
+
+    class FirstAnswerNan(optimization.Toppra):
+        def SolvePathParameterization(self):
+            calls.append(1)
+            if len(calls) == 1:
+                return PiecewisePolynomial.FirstOrderHold([0.0, 1.0], np.full((1, 2), np.nan))
+            return super().SolvePathParameterization()
+
+    monkeypatch.setattr(optimization, "Toppra", FirstAnswerNan)
+    oracle = oracles("maze")
+    W = ZIGZAGS["maze"]
+    smooth, _, _ = _times(oracle, W)
+    assert len(calls) > 1 and np.all(np.isfinite(smooth.positions))
+    _check_motion(oracle, smooth, W)
