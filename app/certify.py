@@ -232,6 +232,7 @@ class _Gaps:
                     normals = np.array([hull.face_normal(f) for f in range(hull.num_faces())]).reshape(-1, 3)
                     self.normals[i] = np.unique(normals.round(12), axis=0)
         self.is_special = np.isin(np.arange(count), list(self.special))
+        self.mesh_ids = np.array(list(self.normals), int)
 
     def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray) -> tuple[np.ndarray, ...]:
         """(configurations, pairs, bounds): the rows (configuration k, pair) whose lower bound is below limit[k],
@@ -280,10 +281,9 @@ class _Gaps:
         convex shapes nearly always separates them well (exactly, when the nearest feature is that face)."""
         best = np.full(len(A.p), -np.inf)
         for S, sign in ((A, -1.0), (B, 1.0)):  # directions from B to A: against A's outward normals, along B's
-            for i, normals in self.normals.items():
-                m = np.flatnonzero(S.g == i)
-                if not len(m):
-                    continue
+            # Only the meshes these rows hold: an environment can have a thousand pieces, a call a few rows.
+            for i in np.unique(S.g[np.isin(S.g, self.mesh_ids)]):
+                m, normals = np.flatnonzero(S.g == i), self.normals[i]
                 n = sign * np.einsum("mij,fj->mfi", S.R[m], normals).reshape(-1, 3)
                 rows = np.repeat(m, len(normals))
                 Ar, Br = _rows(A, rows), _rows(B, rows)
@@ -295,10 +295,9 @@ class _Gaps:
         """max over each posed shape of n . (x - its centre), for world directions n (unit rows)."""
         u = np.einsum("mji,mj->mi", S.R, n)
         out = (S.core * np.abs(u)).sum(1) + S.disc * np.hypot(u[:, 0], u[:, 1]) + S.ball
-        for i, (kind, data) in self.special.items():
-            m = S.g == i
-            if m.any():
-                out[m] = np.linalg.norm(data * u[m], axis=1) if kind == "ellipsoid" else (u[m] @ data.T).max(1)
+        for i in np.unique(S.g[self.is_special[S.g]]):
+            (kind, data), m = self.special[i], S.g == i
+            out[m] = np.linalg.norm(data * u[m], axis=1) if kind == "ellipsoid" else (u[m] @ data.T).max(1)
         return out
 
     def _project(self, S: _Posed, x: np.ndarray) -> np.ndarray:
