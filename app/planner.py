@@ -207,10 +207,10 @@ class Query:
     """One planning query in explicit phases, as OMPL splits its PRM (setup / grow / solve):
 
     setup (the constructor): endpoints checked, samplers made, start and goal put in the roadmap;
-    `straight()`: the easy route first -- the straight motion from start to goal, checked at the fine resolution;
+    `straight()`: the easy route first -- the straight motion from start to goal, checked at the resolution;
     `grow(narrow, uniform)`: one round of samples, added and connected to their k nearest neighbours;
     `search()`: the shortest roadmap path whose edges are free, or None while start and goal are apart;
-    `smooth(nodes)`: shortcuts of that path; `recheck(path)`: the result checked again at FINE x the resolution;
+    `smooth(nodes)`: shortcuts of that path; `certify(path)`: the result proved free between its checked points;
     `time(path)`: Toppra under the scene's limits; `solve()`: the loop that runs them and returns the result.
 
     How much narrow-passage effort a query spends is decided from what the roadmap shows. The straight motion is
@@ -265,7 +265,7 @@ class Query:
         self.start_node = int(self.roadmap.add(self.start, START, connect=False)[0])
         self.goal_node = int(self.roadmap.add(self.goal, GOAL, connect=False)[0])
         self.fine = FINE * self.roadmap.resolution
-        # Set once an optimistic path has failed the fine re-check: from then on roadmap paths must pass the fine
+        # Set once an optimistic path has failed the certificate: from then on roadmap paths must pass the fine
         # check and shortcuts are checked at the fine resolution.
         self.fine_only = False
         self.stopped: str | None = None  # why the budget ended the query's work: "time" or "checks"
@@ -288,8 +288,10 @@ class Query:
 
     # ---- the easy route -----------------------------------------------------------------------------------------
     def straight(self) -> bool:
-        """Whether the straight motion from start to goal is free at the fine resolution (one edge check)."""
-        return bool(self._timed("search", self.oracle.edges_free, self.start, self.goal, self.fine, ends_free=True)[0])
+        """Whether the straight motion from start to goal is free at the resolution (one edge check; the
+        certificate then proves it between the checked points)."""
+        resolution = self.roadmap.resolution
+        return bool(self._timed("search", self.oracle.edges_free, self.start, self.goal, resolution, ends_free=True)[0])
 
     # ---- grow -------------------------------------------------------------------------------------------------------
     def round_sizes(self) -> tuple[int, int] | None:
@@ -354,11 +356,7 @@ class Query:
         at most SMOOTHING_SHARE of the checks that finding it took: a path is worth shortening, not at any price."""
         outer, raw = self.oracle.stop, self.roadmap.Q[nodes]
         if outer is not None:
-            # The fine re-check after smoothing runs past the budget (a found path is proved, not dropped), so its
-            # cost -- at most that of the raw path's edges -- is kept back from what smoothing may spend.
-            recheck = int(self.oracle.space.segments(raw[:-1], raw[1:], self.fine).sum()) if len(raw) > 1 else 0
-            share = max(SMOOTHING_MIN, int(SMOOTHING_SHARE * self.elapsed()[1]))
-            self.oracle.stop = outer.within(share, reserve=recheck)
+            self.oracle.stop = outer.within(max(SMOOTHING_MIN, int(SMOOTHING_SHARE * self.elapsed()[1])))
         try:
             path, stats = self._timed(
                 "smoothing",
@@ -373,11 +371,6 @@ class Query:
             self.oracle.stop = outer
         stats["fine_only"] = self.fine_only
         return path, stats
-
-    def recheck(self, path: np.ndarray) -> bool:
-        """Whether every edge of `path` passes the fine check (an edge may graze an obstacle between the points
-        the planning resolution looked at)."""
-        return bool(self._timed("smoothing", verify, self.oracle, path, self.fine).all())
 
     def certify(self, path: np.ndarray) -> tuple[bool, dict]:
         """Whether every straight edge of `path` is free in the continuous sense (app.certify: signed distances at
@@ -395,25 +388,27 @@ class Query:
     def connect_and_smooth(self) -> tuple[list[int], np.ndarray, dict] | None:
         """(roadmap path, smoothed path, smoothing stats) once start and goal connect, else None.
 
-        Optimistic first (planning resolution, then the fine re-check); if the re-check fails the query turns
-        fine-only and tries again, so every returned edge has passed the fine check. The path is then certified
-        (continuous, app.certify); where the shortcuts went too close to something to prove, the roadmap path is
-        taken if it can be. A roadmap edge the certificate cannot prove is treated as colliding: it leaves the
-        roadmap and the search goes on (more rounds if need be). Returning such paths marked uncertified was tried:
-        3 of the 5 an audit of 2,000 problems met really collided (`bench audit`). The re-check and the certificate
-        run whole even when the budget ran out while smoothing."""
+        Optimistic first: shortcuts checked at the planning resolution, then the certificate (continuous,
+        app.certify), which is what proves the path -- a discrete re-check at a finer resolution would only repeat
+        part of its work (it cost as many checks as smoothing itself). If the certificate fails, a shortcut may graze
+        something between its checked points: the query turns fine-only (roadmap paths fine-checked, shortcuts
+        checked at the fine resolution) and tries again; if the shortened path still cannot be proved, the roadmap
+        path is taken if it can be. A roadmap edge the certificate cannot prove is treated as colliding: it leaves
+        the roadmap and the search goes on (more rounds if need be). Returning such paths marked uncertified was
+        tried: 3 of the 5 an audit of 2,000 problems met really collided (`bench audit`). The certificate runs whole
+        even when the budget ran out while smoothing."""
         while True:
             nodes = self.search()
             if nodes is None:
                 return None
             path, stats = self.smooth(nodes)
             with self._unlimited():
-                if not (self.fine_only or self.recheck(path)):
-                    self.fine_only = True
-                    continue
                 proved, certificate = self.certify(path)
                 raw = self.roadmap.Q[nodes]
-                if not proved and not (path.shape == raw.shape and np.array_equal(path, raw)):
+                if not (proved or self.fine_only or np.array_equal(path, raw)):
+                    self.fine_only = True
+                    continue
+                if not proved and not np.array_equal(path, raw):
                     path, stats = raw, {**stats, "smoothing_dropped": True}
                     proved, certificate = self.certify(raw)
             if proved:

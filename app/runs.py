@@ -106,7 +106,7 @@ def route(oracle, job: str) -> list[str]:
 
 
 def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResult:
-    """The job's route, leg by leg: a straight move where it is free at the fine resolution, else `plan` with
+    """The job's route, leg by leg: a straight move where it is free and proved, else `plan` with
     `settings` (leg i seeded settings.seed * 1000 + i)."""
     seed, sampler = settings.seed, settings.sampler
 
