@@ -67,6 +67,13 @@ class Roadmap:
         self.Q = np.empty((0, oracle.space.dim))
         self.kinds: list[str] = []
         self.graph = nx.Graph()
+        # The same edges as arrays, for the search: rows in insertion order, (a, b) with a < b -> row. Building the
+        # search's sparse matrix from networkx's edge views cost as much as the searches themselves.
+        self._rows: dict[tuple[int, int], int] = {}
+        self._ends = np.empty((0, 2), int)
+        self._lengths = np.empty(0)
+        self._alive = np.empty(0, bool)  # not known to collide
+        self._checked = np.empty(0, bool)  # decided free
         self.edges_tried = 0  # decided: checked in full, or found to collide
         self.edges_proposed = 0  # lazy candidates ever added
         self._tried: set[tuple[int, int]] = set()
@@ -167,10 +174,17 @@ class Roadmap:
         return self.oracle.edges_free(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True)
 
     def _add_edges(self, P: np.ndarray, checked: bool) -> None:
-        lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else []
+        """Add edges (node index pairs, smaller index first) of the given state, to the graph and the arrays."""
+        lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else np.empty(0)
         self.graph.add_edges_from(
             (int(a), int(b), {"weight": float(w), "checked": checked}) for (a, b), w in zip(P, lengths)
         )
+        first = len(self._ends)
+        self._rows.update(zip(map(tuple, P.tolist()), range(first, first + len(P))))
+        self._ends = np.vstack([self._ends, P])
+        self._lengths = np.concatenate([self._lengths, lengths])
+        self._alive = np.concatenate([self._alive, np.ones(len(P), bool)])
+        self._checked = np.concatenate([self._checked, np.full(len(P), checked)])
         if checked:
             for a, b in P:
                 self._components.union(int(a), int(b))
@@ -193,15 +207,13 @@ class Roadmap:
         one collides: those decided free are marked checked, those that collide are removed, and the search runs
         again.
         """
-        if a not in self.graph or b not in self.graph or not nx.has_path(self.graph, a, b):
+        if a not in self.graph or b not in self.graph:
             return None
-        edges = np.array([(u, v, w) for u, v, w in self.graph.edges(data="weight")], float).reshape(-1, 3)
-        checked = {(min(u, v), max(u, v)) for u, v, done in self.graph.edges(data="checked") if done}
-        U, V = edges[:, 0].astype(int), edges[:, 1].astype(int)
+        alive = np.flatnonzero(self._alive)
+        U, V, W = self._ends[alive, 0], self._ends[alive, 1], self._lengths[alive]
         # Both directions, with the positions of each edge's two entries kept for removals.
         matrix = csr_matrix(
-            (np.concatenate([edges[:, 2], edges[:, 2]]), (np.concatenate([U, V]), np.concatenate([V, U]))),
-            shape=(len(self), len(self)),
+            (np.concatenate([W, W]), (np.concatenate([U, V]), np.concatenate([V, U]))), shape=(len(self), len(self))
         )
         matrix.sort_indices()
         while True:
@@ -212,23 +224,22 @@ class Roadmap:
             while nodes[-1] != a:
                 nodes.append(int(pred[nodes[-1]]))
             nodes.reverse()
-            P = np.array(
-                [(u, v) for u, v in zip(nodes[:-1], nodes[1:]) if (min(u, v), max(u, v)) not in checked], int
-            ).reshape(-1, 2)
-            if not len(P):
+            rows = np.array([self._rows[min(u, v), max(u, v)] for u, v in zip(nodes[:-1], nodes[1:])], int)
+            rows = rows[~self._checked[rows]]
+            if not len(rows):
                 return nodes
+            P = self._ends[rows]
             free, decided = self.oracle.edges_status(
                 self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True, until_one_collides=True
             )
             self.edges_tried += int(decided.sum())
-            for (u, v), ok, known in zip(P, free, decided):
-                if not known:
-                    continue
+            for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
                 if ok:
                     self.graph[u][v]["checked"] = True
-                    checked.add((min(u, v), max(u, v)))
+                    self._checked[row] = True
                 else:
                     self.graph.remove_edge(u, v)
+                    self._alive[row] = False
                     _drop(matrix, u, v)
                     _drop(matrix, v, u)
 
@@ -236,6 +247,7 @@ class Roadmap:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
         if self.graph.has_edge(a, b):
             self.graph.remove_edge(a, b)
+            self._alive[self._rows[min(a, b), max(a, b)]] = False
             self._components = _UnionFind()
             self._components.grow(len(self.Q))
             for u, v, checked in self.graph.edges(data="checked"):
@@ -246,7 +258,7 @@ class Roadmap:
         """Sizes and counters. Lazy: `edges` and `components` are of the candidate graph (edges not known to
         collide), `edges_tried` counts edges checked in full."""
         counts = {kind: self.kinds.count(kind) for kind in (UNIFORM, NARROW)}
-        unchecked = sum(1 for *_, checked in self.graph.edges(data="checked") if not checked)
+        unchecked = int((self._alive & ~self._checked).sum())
         return {
             "nodes": len(self),
             "edges": self.graph.number_of_edges(),
