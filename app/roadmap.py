@@ -30,6 +30,9 @@ from scipy.spatial import cKDTree
 
 START, GOAL, UNIFORM, NARROW = "start", "goal", "uniform", "narrow"
 
+# Candidate paths a lazy search tries per pair of shortest-path trees (see Roadmap.shortest_path).
+CANDIDATES = 16
+
 
 def prm_star_k(n: int, dim: int) -> int:
     """k-PRM*'s neighbour count, ceil(e (1 + 1/d) ln n) (Karaman and Frazzoli, IJRR 2011): enough for the roadmap
@@ -200,12 +203,17 @@ class Roadmap:
         return [len(nx.node_connected_component(self.graph, n)) for n in nodes]
 
     def shortest_path(self, a: int, b: int) -> list[int] | None:
-        """Node indices of the shortest path by metric length whose every edge is checked free, or None.
+        """Node indices of a short path by metric length whose every edge is checked free, or None.
 
-        Dijkstra (scipy's, in C: a lazy query searches hundreds of times) over the graph's edges weighed by their
-        metric length. The unchecked (lazy) edges of the path found are checked together, coarse to fine, until
-        one collides: those decided free are marked checked, those that collide are removed, and the search runs
-        again.
+        Lazy PRM's search: the unchecked edges of a candidate path are checked together, coarse to fine, until one
+        collides; those decided free are marked checked, those that collide are removed. Candidates come from two
+        shortest-path trees (scipy's Dijkstra, in C), from a and from b: the path through a node m is a's tree path
+        to m and b's from m, of length dist_a[m] + dist_b[m]; the least such is the shortest path, the next ones are
+        the shortest detours. Up to CANDIDATES of them are tried, in that order, before the trees are grown again
+        (skipping those that lost an edge, and nodes of paths already tried): a narrow passage's roadmap disproves
+        hundreds of candidate paths per round, and one Dijkstra per disproved path cost more than their checks.
+        The first free candidate is the shortest free path in the trees' graph, or a near-shortest one after
+        removals (smoothing shortens it).
         """
         if a not in self.graph or b not in self.graph:
             return None
@@ -217,31 +225,51 @@ class Roadmap:
         )
         matrix.sort_indices()
         while True:
-            dist, pred = dijkstra(matrix, indices=a, return_predecessors=True)
-            if not np.isfinite(dist[b]):
+            dist, pred = dijkstra(matrix, indices=[a, b], return_predecessors=True)
+            if not np.isfinite(dist[0, b]):
                 return None
-            nodes = [b]
-            while nodes[-1] != a:
-                nodes.append(int(pred[nodes[-1]]))
-            nodes.reverse()
-            rows = np.array([self._rows[min(u, v), max(u, v)] for u, v in zip(nodes[:-1], nodes[1:])], int)
-            rows = rows[~self._checked[rows]]
-            if not len(rows):
-                return nodes
-            P = self._ends[rows]
-            free, decided = self.oracle.edges_status(
-                self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True, until_one_collides=True
-            )
-            self.edges_tried += int(decided.sum())
-            for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
-                if ok:
-                    self.graph[u][v]["checked"] = True
-                    self._checked[row] = True
-                else:
-                    self.graph.remove_edge(u, v)
-                    self._alive[row] = False
-                    _drop(matrix, u, v)
-                    _drop(matrix, v, u)
+            through = dist[0] + dist[1]
+            reachable = np.flatnonzero(np.isfinite(through))
+            trees = _Tree(pred[0]), _Tree(pred[1])
+            tried: set[int] = set()
+            candidates = 0
+            for m in reachable[np.argsort(through[reachable], kind="stable")].tolist():
+                if candidates == CANDIDATES:
+                    break
+                if m in tried or not (trees[0].alive(m) and trees[1].alive(m)):
+                    continue
+                nodes = trees[0].path(m)[::-1] + trees[1].path(m)[1:]
+                if len(set(nodes)) < len(nodes):  # the two tree paths cross: a detour with a loop
+                    continue
+                candidates += 1
+                tried.update(nodes)
+                rows = np.array([self._rows[min(u, v), max(u, v)] for u, v in zip(nodes[:-1], nodes[1:])], int)
+                if self._check_path(matrix, rows, trees):
+                    return nodes
+
+    def _check_path(self, matrix: csr_matrix, rows: np.ndarray, trees) -> bool:
+        """Check a candidate path's unchecked edges (rows) until one collides; whether all are free. A colliding
+        edge leaves the graph, the search's matrix and the trees."""
+        rows = rows[~self._checked[rows]]
+        if not len(rows):
+            return True
+        P = self._ends[rows]
+        free, decided = self.oracle.edges_status(
+            self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True, until_one_collides=True
+        )
+        self.edges_tried += int(decided.sum())
+        for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
+            if ok:
+                self.graph[u][v]["checked"] = True
+                self._checked[row] = True
+            else:
+                self.graph.remove_edge(u, v)
+                self._alive[row] = False
+                _drop(matrix, u, v)
+                _drop(matrix, v, u)
+                for tree in trees:
+                    tree.cut(int(u), int(v))
+        return bool(decided.all() and free.all())
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
@@ -272,6 +300,43 @@ class Roadmap:
             "lazy": self.lazy,
             "skip_connected": self.skip_connected and not self.lazy,
         }
+
+
+class _Tree:
+    """A shortest-path tree (scipy's predecessors) that knows which nodes' tree paths lost an edge."""
+
+    def __init__(self, pred: np.ndarray):
+        self.pred = pred
+        self._up = np.where(pred >= 0, pred, np.arange(len(pred)))  # the root (and nodes off the tree): themselves
+        self._cut = np.zeros(len(pred), bool)  # the edge from a node to its parent is gone
+        self._dead = self._cut.copy()  # a node's tree path has lost an edge
+
+    def alive(self, m: int) -> bool:
+        """Whether m's tree path to the root has lost no edge."""
+        return not self._dead[m]
+
+    def path(self, m: int) -> list[int]:
+        """Nodes from m up the tree to its root."""
+        nodes, pred = [m], self.pred
+        while pred[nodes[-1]] >= 0:
+            nodes.append(int(pred[nodes[-1]]))
+        return nodes
+
+    def cut(self, u: int, v: int) -> None:
+        """The edge (u, v) is gone: if it is a tree edge, every node below it has lost its tree path."""
+        child = v if self.pred[v] == u else u if self.pred[u] == v else None
+        if child is None:
+            return
+        self._cut[child] = True
+        # Pointer doubling: after k rounds a node has looked at the 2^k edges above it (a few rounds in all).
+        dead, up = self._cut.copy(), self._up
+        while True:
+            dead |= dead[up]
+            higher = up[up]
+            if np.array_equal(higher, up):
+                break
+            up = higher
+        self._dead = dead
 
 
 def _drop(matrix: csr_matrix, u: int, v: int) -> None:
