@@ -153,16 +153,14 @@ class Panel:
         return pressed
 
     def _summary(self) -> str:
+        """The last plan in a few words (Meshcat's controls are 245 pixels wide)."""
         if self.planning():
-            return "Result: planning ..."
+            return "Planning ..."
         if self.last is None:
-            return "Result: none yet"
+            return "No plan yet"
         if not self.last["success"]:
-            return f"Result: failed, {self.last['error']['code']}"
-        return (
-            f"Result: path found, {self.last['collision_checks']} checks, {self.last['seconds']:.2f} s "
-            f"({self.last['sampler']})"
-        )
+            return f"Failed: {self.last['error']['code']}"
+        return f"Found: {self.last['collision_checks']} checks, {self.last['seconds']:.2f} s, {self.last['sampler']}"
 
     # ---- the loop ----------------------------------------------------------------------------------------------------
     def serve(self, seconds: float | None = None) -> None:

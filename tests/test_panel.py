@@ -162,7 +162,10 @@ def test_panel_plans_in_chromium(panel, browser):
     assert last["drawn"]["path_points"] >= 2 and last["waypoints"] >= 2
     # The page's result line is the label the server gave it.
     wait_for(
-        lambda: browser.find_elements(By.XPATH, "//span[starts-with(text(), 'Result: path found')]"),
+        lambda: browser.find_elements(
+            By.XPATH,
+            f"//span[text()='Found: {last['collision_checks']} checks, {last['seconds']:.2f} s, {last['sampler']}']",
+        ),
         10,
         "the result on the page",
     )
@@ -273,7 +276,7 @@ def test_a_goal_in_collision_is_flagged_and_its_plan_fails_with_moveits_code(mak
     panel.press("Plan")
     state = settle(panel)
     assert state["last"]["success"] is False and state["last"]["error"]["code"] == "GOAL_IN_COLLISION"
-    assert panel.result is None and "Result: failed, GOAL_IN_COLLISION" in panel.meshcat.GetButtonNames()
+    assert panel.result is None and "Failed: GOAL_IN_COLLISION" in panel.meshcat.GetButtonNames()
 
 
 def test_html_export_holds_the_last_motion(make_panel, tmp_path):
