@@ -260,9 +260,13 @@ def test_buttons_cycle_the_sampler_and_toggle_what_is_shown(make_panel):
     state = panel.state()
     assert not state["samples_visible"] and state["roadmap_visible"]
     assert {"Samples: hidden", "Roadmap: shown"} <= set(panel.meshcat.GetButtonNames())
-    # The next plan uses the sampler shown.
+    panel.press("Play")  # nothing to play yet
+    panel.step()
+    assert not panel.state()["playing"]
+    # The next plan uses the sampler shown; its motion plays once it is drawn.
     panel.press("Plan")
-    assert settle(panel)["last"]["sampler"] == state["sampler"]
+    state = settle(panel)
+    assert state["last"]["sampler"] == state["sampler"] and state["playing"]
 
 
 def test_a_goal_in_collision_is_flagged_and_its_plan_fails_with_moveits_code(make_panel, tmp_path):
@@ -314,3 +318,14 @@ def test_an_arms_goal_pose_is_solved_by_ik_into_the_goal_sliders(make_panel):
     target = RigidTransform(RollPitchYaw(np.radians(pose[3:])), pose[:3])
     position_error, angle_error = pose_error(panel.preview, np.array(state["goal"]), target)
     assert position_error < 2e-3 and angle_error < 2e-2  # the solution to IK's tolerance, rounded by the sliders
+
+
+def test_the_panel_plans_what_plan_plans(make_panel, oracles):
+    from app.planner import PlanSettings, plan
+
+    panel = make_panel(SCENE)
+    panel.press("Plan")
+    state = settle(panel)
+    direct = plan(oracles(SCENE), PlanSettings(seed=0), start=state["start"], goal=state["goal"])
+    assert state["last"]["collision_checks"] == direct.collision_checks
+    np.testing.assert_array_equal(panel.result.path, direct.path)
