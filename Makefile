@@ -16,9 +16,9 @@ plan: $(STAMP)
 	mkdir -p out
 	$(PY) -m app run window --html out/window.html
 
-# The browser check needs Debian's chromium; CI machines start without it.
+# The browser checks need Debian's chromium, and chromedriver for the panel's (Selenium); CI machines start without them.
 chromium:
-	command -v chromium >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null)
+	command -v chromium >/dev/null && command -v chromedriver >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null)
 
 test: $(STAMP) chromium
 	$(VENV)/bin/lint-imports
@@ -29,10 +29,11 @@ test: $(STAMP) chromium
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
-# The exported Meshcat page drawn by headless Chromium (WebGL via SwiftShader); screenshots in out/browser-*.png.
+# The exported Meshcat page drawn by headless Chromium (WebGL via SwiftShader), and the planning panel driven in it;
+# screenshots in out/browser-*.png and out/panel-*.png.
 browser-test: $(STAMP) chromium
 	mkdir -p out
-	$(PY) -m pytest -q -m browser tests/test_browser.py
+	$(PY) -m pytest -q -m browser tests/test_browser.py tests/test_panel.py
 
 bench: $(STAMP)
 	$(PY) -m app bench oracle

@@ -34,6 +34,7 @@ RED = (0.9, 0.05, 0.05, 1.0)  # narrow-passage samples on the path
 ROBOT_COLOUR = (0.25, 0.55, 0.95, 1.0)  # for robot geometry without its own colour (ours have none)
 PATH_COLOUR = (0.55, 0.2, 0.75, 1.0)
 PASSAGE_COLOUR = (0.2, 0.8, 0.3, 0.25)
+ROADMAP_COLOUR = (0.45, 0.5, 0.55, 0.6)
 ILLUSTRATION_PATH = "/drake/illustration"  # where MeshcatVisualizer puts the illustration geometry
 
 
@@ -157,6 +158,7 @@ class Viewer:
         self._plant_context = self.plant.GetMyContextFromRoot(self._context)
         self.frame = self._find_frame(frame)
         self.frames_recorded = 0
+        self._copy_contexts, self._copy_colours = {}, {}  # show_robot_copy's, by name
 
         self.plant.SetPositions(self._plant_context, self.scene.start)
         self.diagram.ForcedPublish(self._context)  # sends the geometry and poses the robot at the start
@@ -290,6 +292,47 @@ class Viewer:
             size = np.maximum(hi - lo, 1e-6)
             self.meshcat.SetObject(f"/passage/box{i}", Box(*size), _rgba(PASSAGE_COLOUR))
             self.meshcat.SetTransform(f"/passage/box{i}", RigidTransform((lo + hi) / 2))
+
+    def show_roadmap(self, Q, edges, name: str = "roadmap", colour=ROADMAP_COLOUR) -> None:
+        """The roadmap's edges (pairs of row indices into Q) as straight segments between the frame's positions."""
+        edges = np.asarray(edges, int).reshape(-1, 2)
+        self.meshcat.Delete(f"/{name}")
+        if len(edges):
+            P = self.frame_positions(Q)
+            self.meshcat.SetLineSegments(
+                f"/{name}",
+                np.asfortranarray(P[edges[:, 0]].T),
+                np.asfortranarray(P[edges[:, 1]].T),
+                line_width=1.0,
+                rgba=_rgba(colour),
+            )
+
+    def show_robot_copy(self, name: str, q, colour) -> None:
+        """A copy of the robot's illustration geometry at configuration q, all in `colour`, under /{name} (the
+        animated robot stays where it is): e.g. a start or goal drawn beside it. The shapes are sent again only when
+        the colour changes; moving the copy only sends poses."""
+        from pydrake.geometry import Role
+
+        q = self._configurations(np.atleast_2d(q), "configuration")[0]
+        if name not in self._copy_contexts:
+            self._copy_contexts[name] = self.plant.CreateDefaultContext()
+        context = self._copy_contexts[name]
+        self.plant.SetPositions(context, q)
+        inspector = self.diagram.scene_graph().model_inspector()
+        redraw = self._copy_colours.get(name) != tuple(colour)
+        self._copy_colours[name] = tuple(colour)
+        for instance in self.scene.robot_instances:
+            for index in self.plant.GetBodyIndices(instance):
+                body = self.plant.get_body(index)
+                frame_id = self.plant.GetBodyFrameIdIfExists(index)
+                if frame_id is None:
+                    continue
+                X_WB = self.plant.EvalBodyPoseInWorld(context, body)
+                for i, gid in enumerate(inspector.GetGeometries(frame_id, Role.kIllustration)):
+                    path = f"/{name}/{body.name()}/{i}"
+                    if redraw:
+                        self.meshcat.SetObject(path, inspector.GetShape(gid), _rgba(colour))
+                    self.meshcat.SetTransform(path, X_WB @ inspector.GetPoseInFrame(gid))
 
     def set_configuration(self, q) -> None:
         """Pose the robot (live, not recorded)."""

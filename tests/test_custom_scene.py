@@ -1,6 +1,8 @@
 """Bring your own robot and environment (app.custom_scene): a mesh robot flies through a non-convex mesh channel
 whose convex hull would block it, URDF robots with package paths, custom scene files, and bad input."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ import trimesh  # noqa: E402
 from app.custom_scene import ENV_TOLERANCE_PER_STEP, CustomSpec, build_scene, load_scene  # noqa: E402
 from app.errors import InvalidEndpoint, UserError  # noqa: E402
 from mesh_shapes import open_u, u_channel  # noqa: E402
+from meshcat_page import commands  # noqa: E402
 
 # The channel (tests/mesh_shapes.py) runs along x in [-2, 2]; slot |y| < 1 above the floor z > 0.5, walls to z = 2.
 # A 0.6 cube kept to |y| <= 1.7 and z <= 2.2 can pass neither over the walls (needs z >= 2.3) nor round them
@@ -218,6 +221,14 @@ def test_every_scene_command_takes_a_custom_scene_file(files, tmp_path, monkeypa
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # the viewer needs Meshcat even to export a page
     assert main(["view", scene, "--trajectory", str(tmp_path / "traj.json"), "--html", str(tmp_path / "v.html")]) == 0
     assert "cube" in (tmp_path / "v.html").read_text()
+    # The planning panel: up and down at once; its start and goal robots are copies of the mesh robot.
+    assert (
+        main(["gui", scene, "--wait", "0", "--html", str(tmp_path / "g.html"), "--state", str(tmp_path / "g.json")])
+        == 0
+    )
+    drawn = {c["path"] for c in commands((tmp_path / "g.html").read_text()) if c["type"] == "set_object"}
+    assert any(path.startswith("/goal/") for path in drawn)
+    assert json.loads((tmp_path / "g.json").read_text())["goal_free"]
 
 
 def test_pictures_draw_mesh_pieces(channel_oracle):

@@ -136,6 +136,16 @@ def test_plan_and_view_answers_follow_their_schemas(cli, tmp_path, monkeypatch):
     assert shown["html"] == str(page) and page.is_file() and shown["meshcat"] is None
 
 
+def test_gui_answer_and_state_file_follow_their_schema(cli, tmp_path, monkeypatch):
+    monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")
+    state, page = tmp_path / "state.json", tmp_path / "panel.html"
+    answer = check(cli("gui", "bar-3link", "--wait", "0", "--state", state, "--html", page, "--json"), "gui")
+    assert answer["html"] == str(page) and page.is_file() and answer["last"] is None
+    kept = json.loads(state.read_text())
+    jsonschema.validate(kept, schema("gui"))
+    assert kept == {k: v for k, v in answer.items() if k not in ("success", "html")}
+
+
 # One failure per command (most refused before any work), and the planner's own failures.
 FAILURES = [
     (["scenes", "--verbose"], 2, "INVALID_INPUT"),
@@ -145,6 +155,8 @@ FAILURES = [
     (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "TIMED_OUT"),
     (["run", "painting"], 2, "INVALID_INPUT"),
     (["view", "bar", "--trajectory", "{tmp}/missing.json", "--html", "{tmp}/x.html"], 2, "INVALID_INPUT"),
+    (["gui", "nowhere"], 2, "INVALID_INPUT"),
+    (["gui", "bar", "--sampler", "nope"], 2, "INVALID_INPUT"),
     (["bench", "oracle", "-n", "0"], 2, "INVALID_INPUT"),
     (["bench", "sampling", "--png", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench", "plan", "--store", "{tmp}"], 2, "INVALID_INPUT"),

@@ -29,6 +29,36 @@ def register(subparsers) -> None:
     p.add_argument(
         "scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env instead)"
     )
+    add_settings_arguments(p)
+    p.add_argument("--start", type=float_list, default=None, help="comma-separated start configuration")
+    p.add_argument("--goal", type=float_list, default=None, help="comma-separated goal configuration")
+    for end in ("start", "goal"):
+        p.add_argument(
+            f"--{end}-pose",
+            metavar="X,Y,Z,R,P,Y",
+            type=pose,
+            help=f"{end} as a pose of the tool frame (metres; roll,pitch,yaw in degrees), solved by IK nearest "
+            + ("the scene's start" if end == "start" else "the start"),
+        )
+    p.add_argument(
+        "--tool",
+        metavar="FRAME",
+        help="the robot frame the poses place (default: the scene's tool frame, else the robot's last body)",
+    )
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="write the trajectory (times, positions, path, narrow samples) as JSON for `view "
+        "--trajectory`; only on success",
+    )
+    view.add_arguments(p)  # --html / --meshcat / --frame / --collision: show the planned trajectory
+    custom.add_arguments(p)  # --robot / --package-path / --env / --env-pose / --bounds ...
+    p.set_defaults(func=run)
+
+
+def add_settings_arguments(p) -> None:
+    """The PlanSettings flags (sampler, counts, step, seed, budget, k, smoothing, dt), for any command that plans."""
     p.add_argument(
         "--sampler",
         type=sampler_name,
@@ -89,36 +119,10 @@ def register(subparsers) -> None:
         default=DEFAULTS.dt,
         help=f"trajectory sample period in seconds (default {DEFAULTS.dt})",
     )
-    p.add_argument("--start", type=float_list, default=None, help="comma-separated start configuration")
-    p.add_argument("--goal", type=float_list, default=None, help="comma-separated goal configuration")
-    for end in ("start", "goal"):
-        p.add_argument(
-            f"--{end}-pose",
-            metavar="X,Y,Z,R,P,Y",
-            type=pose,
-            help=f"{end} as a pose of the tool frame (metres; roll,pitch,yaw in degrees), solved by IK nearest "
-            + ("the scene's start" if end == "start" else "the start"),
-        )
-    p.add_argument(
-        "--tool",
-        metavar="FRAME",
-        help="the robot frame the poses place (default: the scene's tool frame, else the robot's last body)",
-    )
-    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    p.add_argument(
-        "--out",
-        default=None,
-        help="write the trajectory (times, positions, path, narrow samples) as JSON for `view "
-        "--trajectory`; only on success",
-    )
-    view.add_arguments(p)  # --html / --meshcat / --frame / --collision: show the planned trajectory
-    custom.add_arguments(p)  # --robot / --package-path / --env / --env-pose / --bounds ...
-    p.set_defaults(func=run)
 
 
-def run(args) -> int:
-    # Everything that can be wrong with the input is found before the (slow) planning starts.
-    settings = PlanSettings(
+def settings_from_args(args) -> PlanSettings:
+    return PlanSettings(
         sampler=args.sampler,
         narrow=args.narrow,
         uniform=args.uniform,
@@ -130,6 +134,11 @@ def run(args) -> int:
         dt=args.dt,
         full_roadmap=args.full_roadmap,
     )
+
+
+def run(args) -> int:
+    # Everything that can be wrong with the input is found before the (slow) planning starts.
+    settings = settings_from_args(args)
     for end in ("start", "goal"):
         if getattr(args, end) is not None and getattr(args, f"{end}_pose") is not None:
             raise UserError(f"give either --{end} or --{end}-pose, not both")
