@@ -30,8 +30,9 @@ if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when plan
 PHASES = ("sampling", "roadmap", "search", "smoothing", "certify", "timing")
 # What a query may spend unless told otherwise: every query ends, and says so when this is why.
 DEFAULT_BUDGET = Budget(seconds=30.0)
-# Smoothing may spend this share of the checks that finding the path took (at least SMOOTHING_MIN).
-SMOOTHING_SHARE, SMOOTHING_MIN = 0.2, 200
+# Smoothing may spend this share of the checks that finding the path took (at least SMOOTHING_MIN), and all its passes
+# together (a path the certificate refused is shortened again, fine-only) SMOOTHING_CAP.
+SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
 # The shortest trajectory sample period: a 1 kHz controller; finer would only make files of gigabytes.
 MIN_DT = 1e-3
 # Narrow-passage samples per round once they are on: narrow/NARROW_RAMP at first, doubling every round up to
@@ -353,10 +354,14 @@ class Query:
 
     def smooth(self, nodes: list[int]) -> tuple[np.ndarray, dict]:
         """The roadmap path shortened (same seed, same shortcuts), at the fine resolution when fine-only, spending
-        at most SMOOTHING_SHARE of the checks that finding it took: a path is worth shortening, not at any price."""
+        at most SMOOTHING_SHARE of the checks that finding it took, SMOOTHING_CAP with the passes before: a path
+        is worth shortening, not at any price."""
         outer, raw = self.oracle.stop, self.roadmap.Q[nodes]
         if outer is not None:
-            self.oracle.stop = outer.within(max(SMOOTHING_MIN, int(SMOOTHING_SHARE * self.elapsed()[1])))
+            spent = self.checks["smoothing"]
+            finding = self.elapsed()[1] - spent
+            share = max(SMOOTHING_MIN, int(SMOOTHING_SHARE * finding))
+            self.oracle.stop = outer.within(max(0, min(share, int(SMOOTHING_CAP * finding) - spent)))
         try:
             path, stats = self._timed(
                 "smoothing",
