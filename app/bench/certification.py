@@ -35,7 +35,7 @@ def _rest_to_rest(oracle, path: np.ndarray) -> tuple[float, float]:
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One default query on a scene: plan seconds with certification and smooth timing, and without (the phases
-    replaced by rest-to-rest timing), and the smooth and rest-to-rest durations."""
+    replaced by a fine re-check and rest-to-rest timing), and the smooth and rest-to-rest durations."""
     oracle.reset()
     try:
         r = plan(oracle, PlanSettings(seed=spec.seed, step=spec.step))

@@ -31,7 +31,8 @@ def run(args) -> int:
         return 0
     print(
         f"{args.seeds} seeds of each scene's default query (plan SCENE --seed S) and each job; medians. 'without': "
-        "the same query with certification and smooth timing replaced by rest-to-rest timing of its path"
+        "the same query with certification and smooth timing replaced by what an uncertified planner does to its "
+        "path: a discrete re-check at 1/4 resolution and rest-to-rest timing"
     )
     print(
         f"{'scene/job':<10} {'success':>8} {'plan s':>7} {'without s':>9} {'overhead':>8} {'certify s':>9} "
