@@ -268,7 +268,8 @@ class Picture:
 
     def _solid(self, shape, pose, face, edge, label: str) -> None:
         self.solids.append(label)
-        self._legend.setdefault(label, Patch(facecolor=face, edgecolor=edge if edge else face, label=label))
+        shown = (*face[:3], max(face[3], 0.3))  # a faint colour (one of thirty overlaid robots) is lost in a legend
+        self._legend.setdefault(label, Patch(facecolor=shown, edgecolor=edge if edge else shown, label=label))
         if not self.three_d:
             _draw_flat(self.ax, shape, pose, facecolor=face, edgecolor=edge if edge else face)
             return
@@ -283,7 +284,9 @@ class Picture:
         that stays put, drawn twice in one place, would be a checkerboard of the two colours)."""
         face = to_rgba(colour, alpha)
         drawn = (
-            [] if unmoved_from is None else [p.GetAsMatrix4() for _, p in _geometries(self.oracle, unmoved_from, True)]
+            []
+            if unmoved_from is None
+            else [p.GetAsMatrix4() for _, p in _geometries(self.oracle, unmoved_from, robot=True)]
         )
         for i, (shape, pose) in enumerate(_geometries(self.oracle, q, robot=True)):
             if drawn and np.allclose(drawn[i], pose.GetAsMatrix4(), atol=1e-9):
