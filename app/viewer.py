@@ -245,7 +245,7 @@ class Viewer:
             self.meshcat.SetProperty("/Grid", "visible", False)
             self.meshcat.SetProperty("/Axes", "visible", False)
         r = self._radius
-        camera = Meshcat.PerspectiveCamera(fov=50.0, aspect=1.0, near=0.001 * r, far=20.0 * r)
+        camera = Meshcat.PerspectiveCamera(fov=50.0, aspect=1.0, near=0.01 * r, far=20.0 * r)
         self.meshcat.SetCamera(camera)
         target, position = self._camera_pose()
         self.meshcat.SetCameraPose(position, target)
