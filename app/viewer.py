@@ -17,7 +17,6 @@ pydrake is imported in the functions that use it, so importing this module (as t
 from __future__ import annotations
 
 import logging
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,21 +92,25 @@ def _rgba(colour):
     return Rgba(*colour)
 
 
-def _bounding_radius(shape) -> float:
-    """Radius of a sphere about the shape's origin that holds it (0 for shapes we do not know)."""
-    from pydrake.geometry import Box, Capsule, Cylinder, Ellipsoid, Sphere
+def _half_extent(shape, rotation: np.ndarray) -> np.ndarray:
+    """Half the size, along the world axes, of the box around a shape turned by `rotation` (3x3)."""
+    from pydrake.geometry import Box, Capsule, Convex, Cylinder, Ellipsoid, Mesh, Sphere
 
     if isinstance(shape, Box):
-        return 0.5 * math.sqrt(shape.width() ** 2 + shape.depth() ** 2 + shape.height() ** 2)
+        return np.abs(rotation) @ (np.array([shape.width(), shape.depth(), shape.height()]) / 2)
     if isinstance(shape, Sphere):
-        return shape.radius()
-    if isinstance(shape, Cylinder):
-        return math.hypot(shape.radius(), shape.length() / 2)
-    if isinstance(shape, Capsule):
-        return shape.radius() + shape.length() / 2
+        return np.full(3, shape.radius())
+    if isinstance(shape, (Cylinder, Capsule)):  # round about its z axis: a disc at each end (capsule: a sphere)
+        axis = np.abs(rotation[:, 2])
+        rim = np.sqrt(np.clip(1 - axis**2, 0, 1)) if isinstance(shape, Cylinder) else np.ones(3)
+        return axis * shape.length() / 2 + rim * shape.radius()
     if isinstance(shape, Ellipsoid):
-        return max(shape.a(), shape.b(), shape.c())
-    return 0.0
+        return np.sqrt(rotation**2 @ np.array([shape.a(), shape.b(), shape.c()]) ** 2)
+    if isinstance(shape, (Convex, Mesh)):
+        hull = shape.GetConvexHull()
+        points = np.array([hull.vertex(i) for i in range(hull.num_vertices())]) @ rotation.T
+        return np.abs(points).max(axis=0)
+    return np.zeros(3)
 
 
 class Viewer:
@@ -186,32 +189,44 @@ class Viewer:
         raise UserError(f"no frame named '{name}' in scene {self.scene.name}")
 
     def _extent(self) -> tuple[np.ndarray, float]:
-        """Centre and radius of a sphere holding the scene's illustration geometry at the start configuration."""
-        from pydrake.geometry import Role
-
-        query = self.plant.get_geometry_query_input_port().Eval(self._plant_context)
-        inspector = query.inspector()
-        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        for gid in inspector.GetAllGeometryIds(Role.kIllustration):
-            p = query.GetPoseInWorld(gid).translation()
-            r = _bounding_radius(inspector.GetShape(gid))
-            lo, hi = np.minimum(lo, p - r), np.maximum(hi, p + r)
+        """Centre and radius of a sphere holding the scene's illustration geometry and passage region at the start."""
+        lo, hi = self._bounds(robot=None)
         for box_lo, box_hi in self.scene.passage_boxes:
             lo, hi = np.minimum(lo, box_lo), np.maximum(hi, box_hi)
         if not np.all(np.isfinite(lo)):
             return np.zeros(3), 1.0
         return (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)) / 2, 1e-3)
 
+    def _bounds(self, robot: bool | None) -> tuple[np.ndarray, np.ndarray]:
+        """World box around the illustration geometry at the current configuration: the robot's (robot=True), the
+        environment's (False) or all of it (None). Infinite where there is none."""
+        from pydrake.geometry import Role
+
+        query = self.plant.get_geometry_query_input_port().Eval(self._plant_context)
+        inspector = query.inspector()
+        robot_frames = self._robot_frame_ids()
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for gid in inspector.GetAllGeometryIds(Role.kIllustration):
+            if robot is not None and (inspector.GetFrameId(gid) in robot_frames) != robot:
+                continue
+            pose = query.GetPoseInWorld(gid)
+            half = _half_extent(inspector.GetShape(gid), pose.rotation().matrix())
+            lo, hi = np.minimum(lo, pose.translation() - half), np.maximum(hi, pose.translation() + half)
+        return lo, hi
+
+    def _robot_frame_ids(self) -> set:
+        return {
+            self.plant.GetBodyFrameIdOrThrow(b)
+            for i in self.scene.robot_instances
+            for b in self.plant.GetBodyIndices(i)
+        }
+
     def _set_obstacle_opacity(self, opacity: float) -> None:
         """Fade the environment's illustration geometry (MeshcatVisualizer's paths: prefix/frame/geometry)."""
         from pydrake.geometry import Role
 
         inspector = self.diagram.scene_graph().model_inspector()
-        robot_frames = {
-            self.plant.GetBodyFrameIdOrThrow(b)
-            for i in self.scene.robot_instances
-            for b in self.plant.GetBodyIndices(i)
-        }
+        robot_frames = self._robot_frame_ids()
         for gid in inspector.GetAllGeometryIds(Role.kIllustration):
             frame = inspector.GetFrameId(gid)
             if frame in robot_frames:
@@ -234,10 +249,37 @@ class Viewer:
         r = self._radius
         camera = Meshcat.PerspectiveCamera(fov=50.0, aspect=1.0, near=0.01 * r, far=20.0 * r)
         self.meshcat.SetCamera(camera)
-        # A 2D scene is looked at from above (tilted a little to show depth), a 3D scene from an oblique corner.
-        direction = np.array([0.0, -0.35, 1.0]) if self.scene.problem.view == "2d" else np.array([-1.0, -1.3, 0.9])
-        direction /= np.linalg.norm(direction)
-        self.meshcat.SetCameraPose(self._centre + 1.8 * r * direction, self._centre)
+        target, position = self._camera_pose()
+        self.meshcat.SetCameraPose(position, target)
+
+    def _camera_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """(target, position) of the camera on load.
+
+        A robot at least a twentieth of the scene's size: the whole scene, a 2D scene from above (tilted a little to
+        show depth), a 3D scene from an oblique corner. A smaller one (a quadrotor in a 20 m maze would be a few
+        pixels): a view over its shoulder at the start, from behind and above as seen from the scene's centre,
+        ten robot radii away (the robot a fifth of the picture's height); the camera stays inside the box its body can
+        reach, so the walls around that box (a tunnel's) do not hide it.
+        """
+        lo, hi = self._bounds(robot=True)
+        robot_radius = float(np.linalg.norm(hi - lo)) / 2 if np.all(np.isfinite(lo)) else self._radius
+        if robot_radius >= 0.05 * self._radius:
+            direction = np.array([0.0, -0.35, 1.0]) if self.scene.problem.view == "2d" else np.array([-1.0, -1.3, 0.9])
+            return self._centre, self._centre + 1.8 * self._radius * direction / np.linalg.norm(direction)
+        robot = (lo + hi) / 2
+        behind = robot - self._centre
+        behind[2] = 0.0
+        behind = behind / np.linalg.norm(behind) if np.linalg.norm(behind) > 1e-9 else np.array([-1.0, 0.0, 0.0])
+        direction = behind + np.array([0.0, 0.0, 0.8])
+        position = robot + 10 * robot_radius * direction / np.linalg.norm(direction)
+        reach_lo, reach_hi = self._reachable_box()
+        return robot, np.clip(position, reach_lo, reach_hi)
+
+    def _reachable_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """World box between the tracked frame's positions with every coordinate at its lower and at its upper
+        bound: for a free flyer, the box its body can reach."""
+        P = self.frame_positions(np.array([self.scene.lower, self.scene.upper]))
+        return P.min(axis=0), P.max(axis=0)
 
     # ---- drawing ---------------------------------------------------------------------------------------------
     def _configurations(self, Q, what: str) -> np.ndarray:

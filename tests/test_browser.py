@@ -119,18 +119,26 @@ def robot_pixels(png: Path) -> int:
     return int(np.count_nonzero((b > 100) & (b - r > 70) & (b - g > 20)))
 
 
-@pytest.mark.parametrize("scene", ["bar", "joint3d"])
+# Per scene: how far from start towards goal the recorded motion goes, and whether the robot is drawn in the default
+# blue. A third of the way keeps an arm on the camera's side of the (see-through) wall in 3D scenes, so its colour is
+# not blended; the quadrotor, small in a large scene, is framed at its start and must still be in the picture when
+# Chromium takes it (its own colours are not the default blue, so only the change when it is hidden counts).
+SCENES = {"bar": (0.3, True), "joint3d": (0.3, True), "maze": (0.01, False), "tunnel": (0.01, False)}
+
+
+@pytest.mark.parametrize("scene", SCENES)
 def test_exported_page_draws_the_robot_in_chromium(scene, oracles, monkeypatch, tmp_path):
+    """The page frames the robot on load: it covers at least 0.15 % of the picture (the maze's camera, framing a sphere
+    around the whole scene, once showed its quadrotor as a few pixels)."""
     from PIL import Image
 
     from app.viewer import ILLUSTRATION_PATH, ViewData, show
 
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # Drake reads it per Meshcat; conftest says "none"
     oracle = oracles(scene)
-    # A third of the way from start to goal: in 3D scenes the robot stays on the camera's side of the (see-through)
-    # wall, so its colour is not blended, wherever the animation is when Chromium takes the screenshot.
+    fraction, default_colour = SCENES[scene]
     start, goal = oracle.scene.start, oracle.scene.goal
-    Q = oracle.space.interpolate(start, start + 0.3 * (goal - start), resolution=1.0)
+    Q = oracle.space.interpolate(start, start + fraction * (goal - start), resolution=1.0)
     times = np.linspace(0.0, 1.0, len(Q))
     viewer = show(
         oracle.scene, ViewData(times=times, positions=Q, narrow=Q[::4], on_path=np.arange(len(Q[::4])) % 2 == 0)
@@ -149,8 +157,9 @@ def test_exported_page_draws_the_robot_in_chromium(scene, oracles, monkeypatch, 
     hidden = np.asarray(Image.open(hidden_shot).convert("RGB"), int)
     assert image.shape[:2] == (WINDOW[1], WINDOW[0])
     assert image.std() > 5, f"{shot} is blank"
-    shown, not_shown = robot_pixels(shot), robot_pixels(hidden_shot)
-    assert shown >= 200, f"{shot}: only {shown} robot-coloured pixels; is WebGL drawing?"
-    assert not_shown <= 20, f"{hidden_shot}: {not_shown} robot-coloured pixels with the robot hidden"
+    if default_colour:
+        shown, not_shown = robot_pixels(shot), robot_pixels(hidden_shot)
+        assert shown >= 200, f"{shot}: only {shown} robot-coloured pixels; is WebGL drawing?"
+        assert not_shown <= 20, f"{hidden_shot}: {not_shown} robot-coloured pixels with the robot hidden"
     changed = np.count_nonzero(np.abs(image - hidden).sum(axis=-1) > 30)
-    assert changed >= 200, f"hiding the robot changed only {changed} pixels"
+    assert changed >= 0.0015 * image.shape[0] * image.shape[1], f"hiding the robot changed only {changed} pixels"

@@ -232,15 +232,16 @@ def test_every_scene_command_takes_a_custom_scene_file(files, tmp_path, monkeypa
 
 
 def test_pictures_draw_mesh_pieces(channel_oracle):
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    import matplotlib.pyplot as plt
 
-    from app.draw import draw_robot, scene_figure
+    from app.draw import Picture
 
-    _, ax = scene_figure(channel_oracle)
-    obstacles = [c for c in ax.collections if isinstance(c, Poly3DCollection)]
-    assert len(obstacles) >= 3  # the channel's convex pieces (its floor and two walls at least)
-    draw_robot(ax, channel_oracle, np.array(IN_SLOT))
-    assert len([c for c in ax.collections if isinstance(c, Poly3DCollection)]) == len(obstacles) + 1  # the cube
+    picture = Picture(channel_oracle)
+    assert picture.solids.count("obstacle") >= 3  # the channel's convex pieces (its floor and two walls at least)
+    faces = len(picture._faces.polygons)
+    picture.add_robot(np.array(IN_SLOT), "tab:blue", 0.9, "robot")
+    assert picture.solids.count("robot") == 1 and len(picture._faces.polygons) > faces  # the cube
+    plt.close(picture.fig)
 
 
 # ---- URDF robots and package paths ---------------------------------------------------------------------------------

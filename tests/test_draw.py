@@ -1,0 +1,121 @@
+"""The PNG pictures (app.draw): what is in front is drawn in front, and every colour is named in a legend."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from mpl_toolkits.mplot3d import proj3d  # noqa: E402
+
+from app.draw import _BOX_FACES, Faces3D, Picture, draw_samples, draw_scene  # noqa: E402
+
+
+def box_faces(lo, hi) -> list[np.ndarray]:
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    return [corners[f] for f in _BOX_FACES]
+
+
+def test_a_wall_hides_the_box_behind_it_though_another_part_of_the_box_is_nearer(tmp_path):
+    """Seen from +x, an opaque blue wall at x = 1 stands in front of a small red box at the origin; a second red
+    box, part of the same solid, stands beside the wall and nearer the camera. Matplotlib orders whole collections
+    by their nearest point: with one collection per solid the red one came out on top, the box showing through
+    the wall. The pixel where the box projects must be the wall's blue."""
+    fig = plt.figure(figsize=(4, 4))
+    ax = fig.add_subplot(projection="3d")
+    ax.view_init(elev=0, azim=0)
+    ax.set(xlim=(-2, 2), ylim=(-2, 2), zlim=(-2, 2))
+    faces = Faces3D(tile=0.5, elev=0, azim=0)
+    blue, red = (0.0, 0.0, 1.0, 1.0), (1.0, 0.0, 0.0, 1.0)
+    for polygon in box_faces((-0.2, -0.2, -0.2), (0.2, 0.2, 0.2)) + box_faces((1.5, 1.4, -0.1), (1.8, 1.7, 0.1)):
+        faces.face(polygon, red)
+    for polygon in box_faces((0.9, -1.0, -1.0), (1.0, 1.0, 1.0)):
+        faces.face(polygon, blue)
+    faces.draw(ax)
+    png = tmp_path / "depth.png"
+    fig.canvas.draw()
+    x, y, _ = proj3d.proj_transform(0.0, 0.0, 0.0, ax.get_proj())
+    column, row = ax.transData.transform((x, y))
+    fig.savefig(png, dpi=fig.dpi)
+    plt.close(fig)
+
+    from PIL import Image
+
+    image = np.asarray(Image.open(png).convert("RGB"), float) / 255
+    pixel = image[image.shape[0] - int(round(row)), int(round(column))]
+    assert pixel[2] > 0.5 and pixel[0] < 0.3, f"at the box's place the picture is {pixel}, not the wall's blue"
+
+
+def test_points_are_ordered_with_the_faces(tmp_path):
+    """A point behind an opaque face is hidden by it; one in front of it shows."""
+    fig = plt.figure(figsize=(4, 4))
+    ax = fig.add_subplot(projection="3d")
+    ax.view_init(elev=0, azim=0)
+    ax.set(xlim=(-2, 2), ylim=(-2, 2), zlim=(-2, 2))
+    faces = Faces3D(tile=2.0, elev=0, azim=0)
+    faces.squares(np.array([[-1.0, -0.8, 0.0], [1.0, 0.8, 0.0]]), (1.0, 0.0, 0.0, 1.0))
+    faces.face(np.array([[0.0, -1.5, -1.5], [0.0, 1.5, -1.5], [0.0, 1.5, 1.5], [0.0, -1.5, 1.5]]), (0, 0, 1.0, 1))
+    faces.draw(ax)
+    fig.canvas.draw()
+    pixels = []
+    for point in ([-1.0, -0.8, 0.0], [1.0, 0.8, 0.0]):
+        x, y, _ = proj3d.proj_transform(*point, ax.get_proj())
+        pixels.append(ax.transData.transform((x, y)))
+    png = tmp_path / "points.png"
+    fig.savefig(png, dpi=fig.dpi)
+    plt.close(fig)
+
+    from PIL import Image
+
+    image = np.asarray(Image.open(png).convert("RGB"), float) / 255
+    behind, in_front = (image[image.shape[0] - int(round(r)), int(round(c))] for c, r in pixels)
+    assert behind[2] > 0.5 and behind[0] < 0.3, behind
+    assert in_front[0] > 0.7 and in_front[2] < 0.3, in_front
+
+
+def legend_labels(png_maker, monkeypatch) -> list[str]:
+    """The legend entries of the picture `png_maker` draws (caught as it is saved)."""
+    seen = []
+    monkeypatch.setattr("app.draw.save", lambda fig, path: seen.append(fig) or plt.close(fig))
+    png_maker()
+    (fig,) = seen
+    legend = fig.axes[0].get_legend()
+    return [text.get_text() for text in legend.get_texts()]
+
+
+@pytest.mark.parametrize("scene", ["bar", "joint3d"])
+def test_scene_pictures_name_every_colour(scene, oracles, monkeypatch):
+    oracle = oracles(scene)
+    labels = legend_labels(lambda: draw_scene(oracle, "unused.png"), monkeypatch)
+    assert labels == ["obstacle", "passage region", "robot at start", "robot at goal"]
+
+
+@pytest.mark.parametrize(
+    "scene, points", [("bar", ["tracked frame"]), ("joint3d", ["sample (tracked frame)", "sample in passage"])]
+)
+def test_sample_pictures_name_every_colour(scene, points, oracles, monkeypatch):
+    """Uniform samples and, in 3D, one with the tracked frame in the passage (the start moved into it)."""
+    oracle = oracles(scene)
+    samples = oracle.space.uniform(np.random.default_rng(0), 6)
+    if oracle.scene.problem.view == "3d":
+        lo, hi = oracle.scene.passage_boxes[0]
+        through = oracle.scene.start.copy()
+        through[:3] += (lo + hi) / 2 - oracle.frame_positions(through)[0]  # joint3d: x, y, z come first
+        assert oracle.in_passage(through)[0]
+        samples = np.vstack([samples, through])
+    labels = legend_labels(lambda: draw_samples(oracle, samples, "unused.png"), monkeypatch)
+    assert labels[:3] == ["obstacle", "passage region", "robot at a sample"]
+    assert [label for label in labels[3:] if label != "robot at a sample in passage"] == points
+
+
+def test_a_robot_part_that_does_not_move_is_drawn_once(oracles):
+    """The window scene's cart stays put between start and goal: drawn twice in one place it was a checkerboard."""
+    oracle = oracles("window")
+    picture = Picture(oracle)
+    picture.add_robot(oracle.scene.start, "tab:blue", 0.9, "robot at start")
+    at_start = picture.solids.count("robot at start")
+    picture.add_robot(oracle.scene.goal, "tab:green", 0.9, "robot at goal", unmoved_from=oracle.scene.start)
+    at_goal = picture.solids.count("robot at goal")
+    assert 0 < at_goal < at_start
+    plt.close(picture.fig)
