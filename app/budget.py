@@ -32,7 +32,7 @@ class BudgetSpent(Exception):
 
     def __init__(self, reason: str):
         super().__init__(reason)
-        self.reason = reason  # "time" or "checks"
+        self.reason = reason  # "time", "checks" or "cancelled"
 
 
 class Stop:
@@ -40,10 +40,11 @@ class Stop:
 
     Like OMPL's PlannerTerminationCondition it travels down to where the work is: the oracle polls it before every
     collision batch (`allow`), so sampling, edge checks and smoothing all stop within one batch of the limit, and a
-    check limit is never overrun."""
+    check limit is never overrun. `cancel` (a threading.Event, or anything with `is_set()`) stops it from outside:
+    another thread that no longer wants the answer (a newer request, a shutdown)."""
 
-    def __init__(self, budget: Budget, oracle):
-        self.budget, self._oracle = budget, oracle
+    def __init__(self, budget: Budget, oracle, cancel=None):
+        self.budget, self._oracle, self._cancel = budget, oracle, cancel
         self._t0, self._c0 = time.perf_counter(), oracle.checks
 
     def seconds(self) -> float:
@@ -53,7 +54,9 @@ class Stop:
         return self._oracle.checks - self._c0
 
     def reason(self) -> str | None:
-        """'time' or 'checks' once the budget is spent, else None."""
+        """'cancelled', 'time' or 'checks' once the query must stop, else None."""
+        if self._cancel is not None and self._cancel.is_set():
+            return "cancelled"
         b = self.budget
         if b.seconds is not None and self.seconds() >= b.seconds:
             return "time"
@@ -71,9 +74,9 @@ class Stop:
             return n
         return min(n, self.budget.checks - self.checks())
 
-    def within(self, checks: int, reserve: int = 0) -> Stop:
-        """A stop for part of the work: what is left of this budget less `reserve` checks, and at most `checks`
-        more checks."""
-        left = None if self.budget.checks is None else max(0, self.budget.checks - self.checks() - reserve)
+    def within(self, checks: int) -> Stop:
+        """A stop for part of the work: what is left of this budget, and at most `checks` more checks."""
+        left = None if self.budget.checks is None else max(0, self.budget.checks - self.checks())
         seconds = None if self.budget.seconds is None else max(0.0, self.budget.seconds - self.seconds())
-        return Stop(Budget(seconds=seconds, checks=checks if left is None else min(left, checks)), self._oracle)
+        budget = Budget(seconds=seconds, checks=checks if left is None else min(left, checks))
+        return Stop(budget, self._oracle, self._cancel)

@@ -8,9 +8,9 @@ a second) reads the sliders and button clicks, redraws and plays the motion. Pla
 used by one thread only (its check counter and budget are per query), so the panel has two over the same scene: the
 worker's, for planning and IK, and the main thread's, which colours the start and goal robots red in collision.
 
-A Plan press takes the sliders' start and goal and the sampler shown at that moment. A query cannot be cut short
-from outside (its budget is its only stop), so a press while one runs waits for it; the running query's answer is
-then dropped and the latest press is planned: a new Plan always replaces the old result.
+A Plan press takes the sliders' start and goal and the sampler shown at that moment. A press while a query runs
+cancels it (`plan(..., cancel=)`: the query's stop condition polls the event before every collision batch) and the
+latest press is planned: a new Plan always replaces the old result.
 
 What the page shows of the last plan (success, collision checks, seconds) is the label of a button at the bottom of
 the controls: Meshcat has no text element. The same figures, the slider values as the server read them and what is
@@ -24,6 +24,7 @@ import concurrent.futures
 import dataclasses
 import gc
 import json
+import threading
 import time
 
 import numpy as np
@@ -78,7 +79,7 @@ class Panel:
         self.ik: dict | None = None  # the last "Goal from pose" press's goal, or its error
         self.plans = self.dropped = 0  # results shown; answers dropped because a newer press replaced them
         self._worker = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="panel-planner")
-        self._running = None  # (kind, future) on the worker
+        self._running = None  # (kind, future, cancel event or None) on the worker
         self._pending: dict = {}  # kind -> job, waiting for the worker (a newer press of a kind replaces the older)
         self._play_from: float | None = None  # clock time the motion started playing at
         self._written = None
@@ -198,7 +199,8 @@ class Panel:
         if label == PLAN:
             start, goal = self._q["start"].copy(), self._q["goal"].copy()
             settings = dataclasses.replace(self.settings, sampler=self.sampler)
-            self._request("plan", lambda: plan(self.oracle, settings, start=start, goal=goal))
+            cancel = threading.Event()
+            self._request("plan", lambda: plan(self.oracle, settings, start=start, goal=goal, cancel=cancel), cancel)
         elif label == PLAY:
             self._play_from = time.monotonic() if self.result is not None else None
         elif label.startswith(GOAL_FROM_POSE):
@@ -215,21 +217,25 @@ class Panel:
             self.roadmap_visible = not self.roadmap_visible
             self.meshcat.SetProperty("/roadmap", "visible", self.roadmap_visible)
 
-    def _request(self, kind: str, job) -> None:
+    def _request(self, kind: str, job, cancel: threading.Event | None = None) -> None:
+        """Queue a job for the worker; one of the same kind under way is cancelled if it can be (`cancel`)."""
         self._pending.pop(kind, None)
-        self._pending[kind] = job
+        self._pending[kind] = (job, cancel)
+        if self._running is not None and self._running[0] == kind and self._running[2] is not None:
+            self._running[2].set()
         self._submit()
 
     def _submit(self) -> None:
         if self._running is None and self._pending:
             kind = next(iter(self._pending))
-            self._running = (kind, self._worker.submit(self._pending.pop(kind)))
+            job, cancel = self._pending.pop(kind)
+            self._running = (kind, self._worker.submit(job), cancel)
 
     def _collect(self) -> None:
         """Take the worker's answer when it is ready: shown, unless a newer press of its kind is waiting."""
         if self._running is None or not self._running[1].done():
             return
-        (kind, future), self._running = self._running, None
+        (kind, future, _), self._running = self._running, None
         if kind in self._pending:
             self.dropped += 1
         else:
@@ -337,8 +343,10 @@ class Panel:
         self.viewer.write_html(path)
 
     def close(self) -> None:
-        """Stop serving: waiting jobs dropped (a query under way is let finish: it cannot be cut short) and the
-        Meshcat server closed now, on this thread (see _collect_meshcats)."""
+        """Stop serving: waiting jobs dropped, a query under way cancelled, and the Meshcat server closed now, on this
+        thread (see _collect_meshcats)."""
+        if self._running is not None and self._running[2] is not None:
+            self._running[2].set()
         self._worker.shutdown(wait=False, cancel_futures=True)
         self.viewer = self.meshcat = None
         _collect_meshcats()

@@ -196,12 +196,13 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
     return oracle.space.wrap(q)
 
 
-def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None) -> PlanResult:
+def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None, cancel=None) -> PlanResult:
     """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()).
 
     Returns a PlanResult; raises InvalidEndpoint for a bad start or goal, NoPath (with `.details`) when the
-    samples or the budget run out before start and goal connect, UserError for bad parameters."""
-    return Query(oracle, settings or PlanSettings(), start=start, goal=goal).solve()
+    samples or the budget run out before start and goal connect (code PREEMPTED when `cancel`, a threading.Event,
+    was set from another thread), UserError for bad parameters."""
+    return Query(oracle, settings or PlanSettings(), start=start, goal=goal, cancel=cancel).solve()
 
 
 class Query:
@@ -230,12 +231,12 @@ class Query:
     `full_roadmap` is the paper's protocol instead: one round of all `narrow` + `uniform` samples, every edge
     checked, then the query."""
 
-    def __init__(self, oracle, settings: PlanSettings, *, start=None, goal=None):
+    def __init__(self, oracle, settings: PlanSettings, *, start=None, goal=None, cancel=None):
         # The roadmap and samplers pull in scipy and networkx: imported when a query is made, not at CLI start-up.
         from app.roadmap import GOAL, START, Roadmap
         from app.samplers import make_sampler
 
-        self.oracle, self.settings = oracle, settings
+        self.oracle, self.settings, self._cancel = oracle, settings, cancel
         self.step = default_step(oracle.scene) if settings.step is None else float(settings.step)
         diagonal = float(np.linalg.norm((oracle.space.upper - oracle.space.lower) * oracle.space.weights))
         if self.step > diagonal:  # a walk of such steps leaves the bounds at every step and never ends
@@ -269,7 +270,7 @@ class Query:
         # Set once an optimistic path has failed the certificate: from then on roadmap paths must pass the fine
         # check and shortcuts are checked at the fine resolution.
         self.fine_only = False
-        self.stopped: str | None = None  # why the budget ended the query's work: "time" or "checks"
+        self.stopped: str | None = None  # why the query's work ended early: "time", "checks" or "cancelled"
         self._certifier = None  # made when the first path is to be proved (it sets up per-geometry bounds)
         self.unproved_edges = 0  # roadmap edges fine-checked free that the certificate could not prove
         self._queries0 = oracle.distance_queries
@@ -448,7 +449,7 @@ class Query:
     def solve(self) -> PlanResult:
         """The straight motion if it is free; else grow round by round until start and goal connect, then smooth,
         re-check and time the path. The budget bounds everything but the final re-check and timing."""
-        self.oracle.stop = Stop(self.settings.budget, self.oracle)
+        self.oracle.stop = Stop(self.settings.budget, self.oracle, self._cancel)
         try:
             if self.straight():
                 path = np.array([self.start, self.goal])
@@ -491,7 +492,8 @@ class Query:
     # ---- answers ----------------------------------------------------------------------------------------------------
     def _failure(self, message: str, **details) -> NoPath:
         seconds, spent = self.elapsed()
-        error = NoPath(message, "TIMED_OUT" if self.stopped else None)
+        code = {None: None, "cancelled": "PREEMPTED"}.get(self.stopped, "TIMED_OUT")
+        error = NoPath(message, code)
         error.details = {
             "roadmap": self.roadmap.stats(),
             "rounds": self.rounds,
@@ -506,7 +508,12 @@ class Query:
         stats, s = self.roadmap.stats(), self.settings
         sizes = self.roadmap.component_sizes(self.start_node, self.goal_node)
         seconds, spent = self.elapsed()
-        ending = f", budget {s.budget} spent ({self.stopped})" if self.stopped else "; the roadmap may not grow further"
+        if self.stopped == "cancelled":
+            ending = ", cancelled"
+        elif self.stopped:
+            ending = f", budget {s.budget} spent ({self.stopped})"
+        else:
+            ending = "; the roadmap may not grow further"
         if self.unproved_edges:
             ending += f"; {self.unproved_edges} edge(s) checked free but not provably free were dropped"
         return self._failure(

@@ -237,6 +237,20 @@ def test_a_check_budget_is_never_overrun(oracles):
     assert info.value.details["rounds"] > 1
 
 
+def test_a_query_cancelled_from_another_thread_stops_with_moveits_preempted(oracles):
+    """The stop condition polls the cancel event before every collision batch, as it polls the budget."""
+    import threading
+
+    oracle = oracles("joint3d")  # not solved in 30 s: only the cancel can end it early
+    cancel = threading.Event()
+    threading.Timer(0.5, cancel.set).start()
+    with pytest.raises(NoPath, match=r", cancelled$") as info:
+        plan(oracle, PlanSettings(seed=0, budget=Budget(seconds=30)), cancel=cancel)
+    assert info.value.code == "PREEMPTED" and info.value.details["stopped"] == "cancelled"
+    assert info.value.details["seconds"] < 10.0  # a generous bound on a loaded machine; the budget was 30 s
+    assert plan(oracle, PlanSettings(seed=0), start=[20, 25, 75, 0, 0, 0], goal=[30, 25, 75, 0, 0, 0]).success
+
+
 def test_a_time_budget_ends_sampling_within_a_round(oracles):
     """rbbs spends most of a round looking for bridges in the maze: the budget stops it inside the sampler."""
     oracle = oracles("maze")
