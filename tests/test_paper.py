@@ -82,6 +82,11 @@ def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
     assert not a["censored"] and a["sample_checksum"]
     starved = run_trial_spec(oracle, TrialSpec("sampling", "bar-3link", "rbbs", 2.0, 0, {"k": 30, "max_checks": 500}))
     assert starved["censored"] and starved["passage_fraction"] is None and starved["collision_checks"] >= 500
+    full = run_trial_spec(oracle, TrialSpec("sampling", "bar-3link", "lfbs", 10.0, 0, {"k": 30}))
+    half = {"k": 30, "max_checks": full["collision_checks"] // 2}
+    cut = run_trial_spec(oracle, TrialSpec("sampling", "bar-3link", "lfbs", 10.0, 0, half))
+    # a trial cut short keeps the samples it drew: they count toward its passage yield
+    assert cut["censored"] and 0 < cut["samples_drawn"] < 30 and cut["passage_fraction"] is not None
 
 
 @pytest.mark.slow

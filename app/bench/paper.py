@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from app.bench import jobs, sampling, uav
-from app.bench.claims import ALPHA, judge
+from app.bench.claims import RULES, judge, success_ci
 from app.bench.runner import run_sweep
 from app.bench.store import ResultStore, TrialSpec
 from app.io import write_atomically
@@ -295,9 +295,13 @@ def _claims_section(rows) -> list[str]:
     lines = [
         "## Claims",
         "",
-        f"Each claim is a set of comparisons; one holds when the medians point the claimed way and, for "
-        f"distributions, a one-sided Mann-Whitney U test agrees at the {ALPHA:g} level. All hold: reproduced; "
-        "none: not reproduced; some: partly; no rows: no data (`app/bench/claims.py`).",
+        "Each claim is a set of comparisons. All hold: reproduced; none: not reproduced; some: partly; no rows: "
+        "no data. The rules, fixed in `app/bench/claims.py`:",
+        "",
+        *[f"- {rule}" for rule in RULES],
+        "",
+        "A sampling trial that spent its check budget is censored, not dropped: its checks count as at least what "
+        "it spent, and its passage yield (passage samples per K_c requested) counts the samples it drew.",
         "",
         "| claim | verdict | statement |",
         "|---|---|---|",
@@ -320,7 +324,8 @@ def _sampling_section(srows: list[dict], summary: list[dict], folder: Path) -> l
         "",
         f"{len(srows)} trials of K_c samples each; {censored} of them spent their collision-check budget "
         "(censored): for those t_eps and gamma_c are lower bounds (marked ≥ where any trial in the cell was "
-        "censored) and they have no passage fraction. Cells: median [2.5 %, 97.5 % of trials].",
+        "censored) and the passage fraction is over the samples drawn within the budget. Cells: median "
+        "[95 % bootstrap confidence interval].",
         "",
     ]
     for scene in dict.fromkeys(s["scene"] for s in summary):
@@ -405,16 +410,17 @@ def _prm_section(rows, folder: Path) -> list[str]:
         "The whole roadmap, every edge checked, k = 10 (maze 200 narrow + 300 uniform, tunnel 100 + 200). "
         "t_eps = sampling time (successful runs), T_PRM = whole plan; medians; paper seconds in brackets.",
         "",
-        "| scene | step | sampler | runs | success | t_eps s | T_PRM s | checks |",
+        "| scene | step | sampler | runs | success [95 % CI] | t_eps s | T_PRM s | checks |",
         "|---|---:|---|---:|---:|---:|---:|---:|",
     ]
     for r in table:
         paper = uav.PAPER_SECONDS.get((r["scene"], r["step"]))
         pe, pt = ((paper[0], paper[1]) if r["sampler"] == "lfbs" else (paper[2], paper[3])) if paper else (None, None)
         eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "–"
+        lo, hi = success_ci(round(r["success_rate"] * r["runs"]), r["runs"])
         lines.append(
             f"| {r['scene']} | {r['step']:g} | {r['sampler']} | {r['runs']} | "
-            f"{r['success_rate']:.0%} | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
+            f"{r['success_rate']:.0%} [{lo:.0%}, {hi:.0%}] | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
             f"{r['median_checks']:.0f} |"
         )
     _figure_prm(table, folder / "prm.png")
