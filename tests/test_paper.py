@@ -1,6 +1,8 @@
 """`bench paper`: deterministic sweeps, a report with the claim verdicts and figures, and a resumed run that runs
 nothing new. The default-run test uses a tiny configuration (one scene, two samplers, one trial per cell)."""
 
+import sqlite3
+
 import pytest
 
 from app.bench import jobs, paper
@@ -67,8 +69,10 @@ def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
     assert ResultStore(out / "results.sqlite").count() == 4
 
     (out / "report.md").unlink()
-    assert main([*TINY, "--out", str(out), "--report-only"]) == 0
+    assert main([*TINY, "--out", str(out), "--report-only", "--ompl-db", str(tmp_path / "benchmark.db")]) == 0
     assert "## Claims" in (out / "report.md").read_text()
+    runs = sqlite3.connect(tmp_path / "benchmark.db").execute("SELECT COUNT(*) FROM runs").fetchone()[0]
+    assert runs == 4  # one OMPL run per stored trial
 
 
 def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):

@@ -5,6 +5,7 @@ import sys
 import time
 from pathlib import Path
 
+from app.bench import ompl_db
 from app.bench.paper import PARTS, QUICK_STEPS, SAMPLING_SCENES, STEPS, Config, build_report, run_sweeps
 from app.bench.runner import connect
 from app.bench.store import ResultStore
@@ -70,6 +71,13 @@ def register(kinds) -> None:
     )
     p.add_argument("--prm-seeds", type=repetitions, default=None, help="seeds per PRM cell (default 30, --quick 2)")
     p.add_argument("--ur3-runs", type=repetitions, default=None, help="runs per UR3 job (default 5, --quick 1)")
+    p.add_argument(
+        "--ompl-db",
+        metavar="FILE",
+        default=None,
+        help="also write every stored trial to FILE as an OMPL benchmark database (Planner Arena, "
+        "ompl_benchmark_statistics.py --plot)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout (progress goes to stderr)")
     p.set_defaults(func=run)
 
@@ -93,7 +101,7 @@ def config_from_args(args) -> Config:
 def run(args) -> int:
     config = config_from_args(args)
     folder = Path(args.out)
-    check_outputs(creating_folders=(folder / "results.sqlite", folder / "report.md"))
+    check_outputs(args.ompl_db, creating_folders=(folder / "results.sqlite", folder / "report.md"))
     scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder.mkdir(parents=True, exist_ok=True)
     store = ResultStore(folder / "results.sqlite")
@@ -110,9 +118,20 @@ def run(args) -> int:
             ran += now
         wall = time.perf_counter() - start
     path = build_report(store, folder, config, wall_seconds=wall)
+    database = str(ompl_db.write(store.rows(), args.ompl_db)) if args.ompl_db else None
     if args.json:
-        print_json({"trials_run": ran, "trials_stored": store.count(), "store": str(store.path), "report": str(path)})
+        print_json(
+            {
+                "trials_run": ran,
+                "trials_stored": store.count(),
+                "store": str(store.path),
+                "report": str(path),
+                "ompl_db": database,
+            }
+        )
     else:
         print(f"{ran} trials run; {store.count()} in {store.path}")
         print(path)
+        if database:
+            print(database)
     return 0
