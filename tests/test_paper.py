@@ -43,6 +43,39 @@ def test_sweeps_are_deterministic_and_share_the_bar_cells():
     assert EXPERIMENTS["ur3"] == "app.bench.jobs:run_trial_spec"
 
 
+def test_the_readings_sweep_reruns_only_the_samplers_each_reading_changes():
+    config = paper.Config(trials=2, steps=[2.0], scenes=["bar"], samplers=["lfbs", "rbbs", "rwbs"], parts=["sampling"])
+    assert [name for name, _ in paper.sweeps(config)] == ["sampling"]
+    config.readings = True
+    sweeps = dict(paper.sweeps(config))
+    assert {s.method for s in sweeps["reading alpha-density"]} == {"lfbs"}  # the Lévy walker of the three
+    assert {s.method for s in sweeps["reading bridge-move"]} == {"lfbs", "rwbs"}  # the bridge walkers
+    assert sweeps["reading angle-gaussian"][0].params["sampler_params"] == {"angle_law": "gaussian"}
+    keys = [s.key for specs in sweeps.values() for s in specs]
+    assert len(keys) == len(set(keys))  # every reading's trials are trials of their own
+
+
+def test_each_reading_is_judged_on_its_own_trials_and_the_default_ones_of_the_other_samplers(tmp_path):
+    store = ResultStore(tmp_path / "r.sqlite")
+    base = {"k": 30, "max_checks": 1000}
+    trial = {"k": 30, "ok": True, "censored": False, "seconds": 0.1, "collision_checks": 500}
+    for seed in range(4):
+        for method in ("lfbs", "rbbs"):
+            store.add(TrialSpec("sampling", "bar", method, 10.0, seed, base), {**trial, "passage_fraction": 0.2})
+        gaussian = {**base, "sampler_params": {"angle_law": "gaussian"}}
+        store.add(TrialSpec("sampling", "bar", "lfbs", 10.0, seed, gaussian), {**trial, "passage_fraction": 0.9})
+    rows = store.rows()
+    default, angle = paper.reading_rows(rows, "default"), paper.reading_rows(rows, "angle-gaussian")
+    assert len(default) == len(angle) == 8
+    assert {r["metrics"]["passage_fraction"] for r in angle if r["method"] == "lfbs"} == {0.9}
+    assert {r["method"] for r in angle if r["metrics"]["passage_fraction"] == 0.2} == {"rbbs"}
+    paper.build_report(store, tmp_path, pictures=False)
+    report = (tmp_path / "report.md").read_text()
+    table = report.split("## Sensitivity to the paper's readings")[1]
+    assert "| default | (default) |" in table and "| angle-gaussian | angle_law=gaussian |" in table
+    assert "alpha-density" not in table  # no trials of that reading in the store
+
+
 def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
     out = tmp_path / "paper"
     assert main([*TINY, "--out", str(out)]) == 0

@@ -167,7 +167,8 @@ def _fewer(a: Cell, b: Cell) -> tuple[bool, float]:
 
     if a.n_censored == a.n and b.n_censored == b.n:  # no trial finished: nothing to compare
         return False, float("nan")
-    p = float(logrank(data(a), data(b), alternative="greater").pvalue)  # "greater": a's finishing rate is higher
+    with np.errstate(invalid="ignore", divide="ignore"):  # no variance (e.g. all values alike): p is NaN, no claim
+        p = float(logrank(data(a), data(b), alternative="greater").pvalue)  # "greater": a finishes at a higher rate
     return bool(p < ALPHA and a.median() < b.median() and 2 * a.n_censored < a.n), p
 
 

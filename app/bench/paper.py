@@ -18,6 +18,7 @@ judged by `app.bench.claims.judge`, markdown tables, and PNG figures next to rep
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import time
@@ -53,6 +54,17 @@ PAPER_TABLE1 = {
     "bar": [10.923, 9.3731, 9.5287, 12.665, 17.128],
 }  # RBBS t_eps (s) at steps 2, 5, 10, 15, 20
 PAPER_UR3 = {"welding": 233.0, "window": 253.0}  # LFBS-PRM, average seconds
+# The readings of the paper's ambiguous points (app/samplers/walk.py) the claims are judged under: the default
+# reading (walk.DEFAULT_READING), then each other choice alone. Sampler params, as a Walker takes them.
+READINGS = {
+    "default": {},
+    "alpha-density": {"alpha_convention": "density"},
+    "angle-length": {"angle_law": "length"},
+    "angle-gaussian": {"angle_law": "gaussian"},
+    "bridge-move": {"bridge_fail": "move"},
+}
+# The samplers whose draws each choice changes: the Lévy walkers' steps, the bridge walkers' rule.
+READING_SAMPLERS = {"alpha_convention": ("lfs", "lfbs"), "angle_law": ("lfs", "lfbs"), "bridge_fail": ("rwbs", "lfbs")}
 
 
 @dataclass
@@ -67,13 +79,16 @@ class Config:
     ur3_runs: int = 5
     parts: list = field(default_factory=lambda: list(PARTS))
     quick: bool = False
+    readings: bool = False  # also the sampling sweep of the walkers each non-default reading changes
 
 
 # ----------------------------------------------------------------------------------------------------- the sweeps
 
 
-def sampling_specs(scenes, samplers, steps, trials, k=30, max_checks=200_000) -> list[TrialSpec]:
+def sampling_specs(scenes, samplers, steps, trials, k=30, max_checks=200_000, sampler_params=None) -> list[TrialSpec]:
     params = {"k": int(k), "max_checks": int(max_checks)}
+    if sampler_params:
+        params["sampler_params"] = dict(sampler_params)
     return [
         TrialSpec("sampling", scene, sampler, float(step), seed, dict(params))
         for scene in scenes
@@ -112,11 +127,37 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
                 sampling_specs(TABLE1_SCENES, TABLE1_METHODS, config.steps, config.trials, config.k, config.max_checks),
             )
         )
+    if "sampling" in config.parts and config.readings:
+        for name, params in READINGS.items():
+            changed = [s for s in config.samplers if s in reading_samplers(params)]
+            if changed:
+                specs = sampling_specs(
+                    config.scenes, changed, config.steps, config.trials, config.k, config.max_checks, params
+                )
+                out.append((f"reading {name}", specs))
     if "prm" in config.parts:
         out.append(("prm", uav.specs(config.prm_seeds)))  # the maze/tunnel cells of `bench uav`
     if "ur3" in config.parts:
         out.append(("ur3", ur3_specs(config.ur3_runs)))
     return out
+
+
+def reading_samplers(params: dict) -> set[str]:
+    """The samplers whose draws a reading's sampler params change."""
+    return {s for key in params for s in READING_SAMPLERS[key]}
+
+
+def reading_rows(rows, name: str) -> list[dict]:
+    """The rows the claims are judged on under reading `name`: the sampling trials of the samplers it changes run
+    with its params, every other row as in the default reading."""
+    params = READINGS[name]
+    changed = reading_samplers(params)
+
+    def belongs(r) -> bool:
+        own = r["params"].get("sampler_params", {})
+        return own == params if r["experiment"] == "sampling" and r["method"] in changed else own == {}
+
+    return [r for r in rows if belongs(r)]
 
 
 # --------------------------------------------------------------------------------------------------- the report
@@ -184,7 +225,7 @@ def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[
         for sampler in samplers:
             r = sampling.run_trial(oracle, sampler, step, 0, k=30, max_checks=max_checks, keep_samples=True)
             name = f"samples-{scene}-{sampler}.png"
-            note = "" if r["ok"] else f" — over the {max_checks}-check budget, no samples"
+            note = "" if r["ok"] else f" — over the {max_checks}-check budget with {len(r['samples'])} of 30 samples"
             draw_samples(
                 oracle, r["samples"], str(folder / name), title=f"{scene}: {sampler}, step {step:g}, seed 0{note}"
             )
@@ -232,13 +273,15 @@ def build_report(
 ) -> Path:
     """report.md and its figures from what the store holds (every row of every experiment in it)."""
     folder = Path(folder)
-    rows = store.rows()
+    stored = store.rows()
+    rows = reading_rows(stored, "default")
     srows = _sampling_rows(rows)
     summary = sampling.summarise(srows)
     order = {name: i for i, name in enumerate(SAMPLERS)}
     summary.sort(key=lambda s: (s["scene"], order.get(s["sampler"], 99), s["step"]))
-    lines = _overview_section(store, rows, folder, config, wall_seconds)
+    lines = _overview_section(store, stored, folder, config, wall_seconds)
     lines += _claims_section(rows)
+    lines += _readings_section(stored)
     lines += _sampling_section(srows, summary, folder)
     lines += _table1_section(summary)
     if pictures and config is not None:
@@ -312,6 +355,40 @@ def _claims_section(rows) -> list[str]:
     for v in verdicts:
         lines += [f"### {v.claim}: {v.verdict}", "", v.text, ""]
         lines += [f"- {e}" for e in v.evidence] or ["- (no rows for this claim)"]
+        lines.append("")
+    return lines
+
+
+def _readings_section(rows) -> list[str]:
+    """One verdict table, a row per reading of the paper's ambiguous points, and each reading's C1 and C3 evidence."""
+    stored = {json.dumps(r["params"].get("sampler_params", {}), sort_keys=True) for r in rows}
+    others = [name for name in READINGS if name != "default" and json.dumps(READINGS[name], sort_keys=True) in stored]
+    if not others:
+        return []
+    from app.samplers.walk import DEFAULT_READING
+
+    default = ", ".join(f"{key} = {value}" for key, value in DEFAULT_READING.items())
+    lines = [
+        "## Sensitivity to the paper's readings",
+        "",
+        f"The paper is ambiguous on three points (`app/samplers/README.md`, Readings). The default reading ({default}) "
+        "is the one above; each other row changes one choice for the samplers it affects (lfs/lfbs for the Lévy "
+        "law, rwbs/lfbs for the bridge rule) and judges the claims with the same rules. C4 uses the default "
+        "reading's PRM trials in every row.",
+        "",
+        "| reading | sampler params | C1 | C2 | C3 | C4 | C5 |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    verdicts = {name: judge(reading_rows(rows, name)) for name in ["default", *others]}
+    for name, vs in verdicts.items():
+        params = ", ".join(f"{k}={v}" for k, v in READINGS[name].items()) or "(default)"
+        lines.append(f"| {name} | {params} | " + " | ".join(v.verdict for v in vs) + " |")
+    lines.append("")
+    for name in others:
+        lines += [f"### Reading {name}", ""]
+        for v in verdicts[name]:
+            if v.claim in ("C1", "C3"):
+                lines += [f"- {v.claim}: {e}" for e in v.evidence] or [f"- {v.claim}: no rows"]
         lines.append("")
     return lines
 

@@ -86,7 +86,8 @@ def run_trial(
 def run_trial_spec(oracle, spec) -> dict:
     """One sampling trial from a results-store TrialSpec (experiment "sampling"; method = sampler name).
 
-    params: k (default 30), max_checks (default none), margin (default twice the scene's resolution). The row
+    params: k (default 30), max_checks (default none), margin (default twice the scene's resolution),
+    sampler_params (default none: keyword arguments of the sampler, e.g. a reading of the paper). The row
     holds `censored` (the trial spent its check budget: collision_checks and seconds are then lower bounds, and
     passage_fraction is over the samples_drawn < k it had, None if none) and `sample_checksum`, a hash of the
     samples that is the same wherever the trial ran.
@@ -106,6 +107,7 @@ def run_trial_spec(oracle, spec) -> dict:
         margin=margin,
         max_checks=p.get("max_checks"),
         keep_samples=True,
+        **p.get("sampler_params", {}),
     )
     samples = np.round(np.asarray(row.pop("samples"), float), 9)
     row.pop("bridges", None)

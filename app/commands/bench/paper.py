@@ -72,6 +72,12 @@ def register(kinds) -> None:
     p.add_argument("--prm-seeds", type=repetitions, default=None, help="seeds per PRM cell (default 30, --quick 2)")
     p.add_argument("--ur3-runs", type=repetitions, default=None, help="runs per UR3 job (default 5, --quick 1)")
     p.add_argument(
+        "--readings",
+        action="store_true",
+        help="also sample with each other reading of the paper's ambiguous points (the Lévy alpha, the angle law, "
+        "the bridge-fail rule) and judge the claims under each",
+    )
+    p.add_argument(
         "--ompl-db",
         metavar="FILE",
         default=None,
@@ -95,6 +101,7 @@ def config_from_args(args) -> Config:
         ur3_runs=args.ur3_runs or (1 if quick else 5),
         parts=args.parts,
         quick=bool(quick),
+        readings=args.readings,
     )
 
 
