@@ -1,6 +1,8 @@
 """`bench paper`: deterministic sweeps, a report with the claim verdicts and figures, and a resumed run that runs
 nothing new. The default-run test uses a tiny configuration (one scene, two samplers, one trial per cell)."""
 
+import json
+import shutil
 import sqlite3
 
 import pytest
@@ -101,6 +103,15 @@ def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
     assert "0 trials run" in capsys.readouterr().out
     assert ResultStore(out / "results.sqlite").count() == 4
 
+    committed = tmp_path / "committed"  # what the repository keeps: the trials as CSV, no store
+    committed.mkdir()
+    shutil.copy(out / "trials.csv.gz", committed)
+    assert main([*TINY, "--out", str(committed)]) == 0
+    said = capsys.readouterr().out
+    assert "4 trials added to the store" in said and "0 trials run" in said
+    assert ResultStore(committed / "results.sqlite").count() == 4
+    assert (committed / "trials.csv.gz").read_bytes() == (out / "trials.csv.gz").read_bytes()
+
     (out / "report.md").unlink()
     assert main([*TINY, "--out", str(out), "--report-only", "--ompl-db", str(tmp_path / "benchmark.db")]) == 0
     assert "## Claims" in (out / "report.md").read_text()
@@ -140,3 +151,19 @@ def test_quick_paper_run(tmp_path):
     assert main(["bench", "paper", "--quick", "--out", str(out)]) == 0
     report = (out / "report.md").read_text()
     assert "## Maze and tunnel" in report and "| maze |" in report and "| welding |" in report
+
+
+def test_exported_trials_read_back_as_the_same_rows(tmp_path):
+    store = ResultStore(tmp_path / "a.sqlite")
+    store.add(TrialSpec("sampling", "bar", "lfbs", 2.0, 0, {"k": 30}), {"passage_fraction": None, "checks": 7})
+    store.add(
+        TrialSpec("sampling", "bar", "lfbs", 2.0, 0, {"k": 30, "sampler_params": {"angle_law": "length"}}),
+        {"passage_fraction": 0.25, "censored": True},
+    )
+    store.add(TrialSpec("prm", "maze", "rbbs", 0.5, 3, {"narrow": 200}), {"success": 1.0, "seconds": 1.5})
+    path = paper.export_trials(store, tmp_path / "trials.csv.gz")
+    copy = ResultStore(tmp_path / "b.sqlite")
+    assert paper.import_trials(copy, path) == 3
+    assert sorted(map(json.dumps, copy.rows())) == sorted(map(json.dumps, store.rows()))
+    assert paper.import_trials(copy, path) == 0  # no trial twice
+    assert paper.export_trials(copy, tmp_path / "again.csv.gz").read_bytes() == path.read_bytes()

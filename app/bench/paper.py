@@ -18,6 +18,9 @@ judged by `app.bench.claims.judge`, markdown tables, and PNG figures next to rep
 
 from __future__ import annotations
 
+import csv
+import gzip
+import io
 import json
 import os
 import platform
@@ -140,6 +143,51 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
     if "ur3" in config.parts:
         out.append(("ur3", ur3_specs(config.ur3_runs)))
     return out
+
+
+# ------------------------------------------------------------------------------------------ the committed trials
+
+TRIALS_CSV = "trials.csv.gz"
+CSV_COLUMNS = ["experiment", "scene", "method", "step", "seed", "params", "metrics", "code_version"]
+
+
+def export_trials(store: ResultStore, path: Path) -> Path:
+    """Every trial of `store` as gzipped CSV (params and metrics as JSON), in a fixed order and with no timestamp
+    inside, so the same trials always give the same file."""
+    rows = sorted(
+        store.rows(),
+        key=lambda r: (r["experiment"], r["scene"], r["method"], r["step"], r["seed"], json.dumps(r["params"])),
+    )
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for r in rows:
+        writer.writerow(
+            [
+                *(r[c] for c in CSV_COLUMNS[:5]),
+                json.dumps(r["params"], sort_keys=True),
+                json.dumps(r["metrics"]),
+                r["code_version"],
+            ]
+        )
+    return write_atomically(path, gzip.compress(text.getvalue().encode(), mtime=0))
+
+
+def import_trials(store: ResultStore, path: Path) -> int:
+    """Add the trials of an `export_trials` file that `store` lacks (a run resumed from committed results runs only
+    the rest); returns how many were added."""
+    with gzip.open(path, "rt", newline="") as f:
+        rows = [
+            {
+                **r,
+                "step": float(r["step"]),
+                "seed": int(r["seed"]),
+                "params": json.loads(r["params"]),
+                "metrics": json.loads(r["metrics"]),
+            }
+            for r in csv.DictReader(f)
+        ]
+    return store.import_rows(rows)
 
 
 def reading_samplers(params: dict) -> set[str]:
@@ -298,7 +346,8 @@ def _overview_section(
     lines = ["# Levy-flight narrow-passage PRM: the paper's Section IV, reproduced", ""]
     lines += [
         f"Generated {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())} from `{store.path.name}` "
-        f"({len(rows)} trials). Rebuild with `python -m app bench paper --out {folder} --report-only`.",
+        f"({len(rows)} trials, every one in `{TRIALS_CSV}` beside this report). Rebuild with "
+        f"`python -m app bench paper --out {folder} --report-only`.",
         "",
     ]
     by_experiment = {}

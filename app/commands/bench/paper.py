@@ -6,7 +6,18 @@ import time
 from pathlib import Path
 
 from app.bench import ompl_db
-from app.bench.paper import PARTS, QUICK_STEPS, SAMPLING_SCENES, STEPS, Config, build_report, run_sweeps
+from app.bench.paper import (
+    PARTS,
+    QUICK_STEPS,
+    SAMPLING_SCENES,
+    STEPS,
+    TRIALS_CSV,
+    Config,
+    build_report,
+    export_trials,
+    import_trials,
+    run_sweeps,
+)
 from app.bench.runner import connect
 from app.bench.store import ResultStore
 from app.commands.bench import results
@@ -45,8 +56,9 @@ def register(kinds) -> None:
     p.add_argument(
         "--out",
         default="out/paper",
-        help="report folder, with the results store results.sqlite (default out/paper, relative to the working "
-        "directory); trials already in the store are reused, not run (a killed run resumes)",
+        help="report folder, with the results store results.sqlite and every trial as trials.csv.gz (default "
+        "out/paper, relative to the working directory); trials already in the store, or in trials.csv.gz, are "
+        "reused, not run (a killed run resumes; committed results are continued)",
     )
     results.add_fresh_argument(p)
     p.add_argument("--report-only", action="store_true", help="rebuild report.md from the store; run nothing")
@@ -108,10 +120,15 @@ def config_from_args(args) -> Config:
 def run(args) -> int:
     config = config_from_args(args)
     folder = Path(args.out)
-    check_outputs(args.ompl_db, creating_folders=(folder / "results.sqlite", folder / "report.md"))
+    check_outputs(args.ompl_db, creating_folders=(folder / "results.sqlite", folder / "report.md", folder / TRIALS_CSV))
     scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder.mkdir(parents=True, exist_ok=True)
     store = ResultStore(folder / "results.sqlite")
+    trials_csv = folder / TRIALS_CSV
+    if trials_csv.is_file():  # committed results: the store starts from them, so only missing trials run
+        seeded = import_trials(store, trials_csv)
+        if seeded:
+            print(f"{seeded} trials added to the store from {trials_csv}", file=sys.stderr if args.json else sys.stdout)
     ran, wall = 0, None
     if not args.report_only:
         start = time.perf_counter()
@@ -125,6 +142,7 @@ def run(args) -> int:
             ran += now
         wall = time.perf_counter() - start
     path = build_report(store, folder, config, wall_seconds=wall)
+    export_trials(store, trials_csv)
     database = str(ompl_db.write(store.rows(), args.ompl_db)) if args.ompl_db else None
     if args.json:
         print_json(
@@ -133,12 +151,14 @@ def run(args) -> int:
                 "trials_stored": store.count(),
                 "store": str(store.path),
                 "report": str(path),
+                "trials_csv": str(trials_csv),
                 "ompl_db": database,
             }
         )
     else:
         print(f"{ran} trials run; {store.count()} in {store.path}")
         print(path)
+        print(trials_csv)
         if database:
             print(database)
     return 0
