@@ -5,7 +5,8 @@ run started again with the same options skips every stored trial):
 
 1. sampling -- the seven samplers x bar, joint, joint3d, teeth3d x steps 2..20 x N trials, K_c = 30 samples each,
    with a per-trial collision-check budget (a trial that spends it is censored: its t_eps and gamma_c are lower
-   bounds and it has no passage fraction);
+   bounds and its passage fraction is over the samples it drew);
+   with `readings`, the same for the walkers each other reading of the paper (READINGS) changes;
 2. table1 -- RBBS and LFBS t_eps vs step on bar-3link, bar-5link and bar (the paper's Table 1; the bar cells are the
    same trials as sweep 1 and are not run twice);
 3. prm -- the maze/tunnel LFBS-vs-RBBS PRM tables (`bench uav` specs);
@@ -13,7 +14,8 @@ run started again with the same options skips every stored trial):
    `bench jobs`).
 
 The report is built from the store alone (`--report-only` rebuilds it without running anything): the claims C1-C5
-judged by `app.bench.claims.judge`, markdown tables, and PNG figures next to report.md.
+judged by `app.bench.claims.judge` (under each reading stored), markdown tables, and PNG figures next to report.md.
+Every trial is also kept as DIR/trials.csv.gz, and a store starts from that file: committed results are continued.
 """
 
 from __future__ import annotations

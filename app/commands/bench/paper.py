@@ -120,7 +120,8 @@ def config_from_args(args) -> Config:
 def run(args) -> int:
     config = config_from_args(args)
     folder = Path(args.out)
-    check_outputs(args.ompl_db, creating_folders=(folder / "results.sqlite", folder / "report.md", folder / TRIALS_CSV))
+    outputs = (folder / "results.sqlite", folder / "report.md", folder / TRIALS_CSV)
+    check_outputs(creating_folders=outputs + ((Path(args.ompl_db),) if args.ompl_db else ()))
     scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder.mkdir(parents=True, exist_ok=True)
     store = ResultStore(folder / "results.sqlite")
@@ -143,7 +144,10 @@ def run(args) -> int:
         wall = time.perf_counter() - start
     path = build_report(store, folder, config, wall_seconds=wall)
     export_trials(store, trials_csv)
-    database = str(ompl_db.write(store.rows(), args.ompl_db)) if args.ompl_db else None
+    database = None
+    if args.ompl_db:
+        Path(args.ompl_db).parent.mkdir(parents=True, exist_ok=True)
+        database = str(ompl_db.write(store.rows(), args.ompl_db))
     if args.json:
         print_json(
             {
