@@ -171,8 +171,8 @@ def figure(summary: list[dict], path: str) -> None:
                 ax.fill_between(
                     x, [s[key]["lo"] for s in cell], [s[key]["hi"] for s in cell], color=f"C{n}", alpha=0.12
                 )
-                censored = [(s["step"], s[key]["median"]) for s in cell if s["censored"]]
-                if censored:  # some trials spent the whole budget: the median is a lower bound
+                censored = [(s["step"], s[key]["median"]) for s in cell if s["censored"] and key != "passage_fraction"]
+                if censored:  # some trials spent the whole budget: the median of their costs is a lower bound
                     ax.scatter(*zip(*censored), marker="^", s=40, facecolors="none", edgecolors=f"C{n}")
             if key != "passage_fraction":
                 ax.set_yscale("log")
@@ -183,7 +183,7 @@ def figure(summary: list[dict], path: str) -> None:
         0.01,
         0.0,
         "bands: 95 % bootstrap confidence interval of the median; open triangles: some trials hit the check budget "
-        "(the median is a lower bound)",
+        "(the median is a lower bound); in passage: of the samples drawn (a trial that hit the budget: before it)",
         fontsize=7,
     )
     fig.tight_layout()
