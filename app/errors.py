@@ -33,6 +33,10 @@ class NoPath(UserError):
 
 
 class SamplerBudgetExceeded(UserError):
-    """A sampler spent its collision-check budget before it had k samples."""
+    """A sampler spent its collision-check budget before it had k samples; `samples` holds those it had."""
 
     code = "PLANNING_FAILED"
+
+    def __init__(self, message: str, samples=None):
+        super().__init__(message)
+        self.samples = samples

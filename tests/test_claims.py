@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from app.bench.claims import judge
+from app.bench.claims import judge, median_ci, passage_yield, success_ci
 from app.bench.store import ResultStore, TrialSpec
 
 
@@ -90,3 +90,70 @@ def test_prm_claim_counts_success_and_time(tmp_path):
     verdict = by_claim(store)["C4"]
     assert verdict.verdict == "partly reproduced"
     assert len(verdict.evidence) == 3
+
+
+def censored_cell(store, scene, method, step, finished, censored, budget, fast_checks, quality):
+    """`finished` trials with `fast_checks` checks and passage fraction `quality`; `censored` trials that spent
+    `budget` checks and drew no sample."""
+    for seed in range(finished):
+        store.add(
+            TrialSpec("sampling", scene, method, step, seed),
+            {"collision_checks": fast_checks + seed, "passage_fraction": quality, "censored": False, "k": 30},
+        )
+    for seed in range(finished, finished + censored):
+        store.add(
+            TrialSpec("sampling", scene, method, step, seed),
+            {
+                "collision_checks": budget + seed,
+                "passage_fraction": None,
+                "samples_drawn": 0,
+                "censored": True,
+                "k": 30,
+            },
+        )
+
+
+def test_a_sampler_that_mostly_spends_its_budget_cannot_win_by_its_few_survivors(tmp_path):
+    store = ResultStore(tmp_path / "c.sqlite")
+    for step in (2, 10):
+        # rbbs: 3 lucky trials, cheap and all in the passage; 17 ran out of budget with nothing
+        censored_cell(store, "bar", "rbbs", step, 3, 17, 5000, 100, 1.0)
+        censored_cell(store, "bar", "lfbs", step, 20, 0, 5000, 1000, 0.5)
+    verdicts = by_claim(store)
+    assert verdicts["C1"].verdict == "reproduced"  # lfbs delivers more passage samples per K_c
+    assert verdicts["C3"].verdict == "reproduced"  # lfbs finishes in fewer checks
+    assert "17 censored" in verdicts["C3"].evidence[0]
+    # The same data, roles swapped: the mostly-censored method is lfbs, and it wins nothing.
+    swapped = ResultStore(tmp_path / "d.sqlite")
+    for step in (2, 10):
+        censored_cell(swapped, "bar", "lfbs", step, 3, 17, 5000, 100, 1.0)
+        censored_cell(swapped, "bar", "rbbs", step, 20, 0, 5000, 1000, 0.5)
+    verdicts = by_claim(swapped)
+    assert verdicts["C1"].verdict == "not reproduced"
+    assert verdicts["C3"].verdict == "not reproduced"
+
+
+def test_partial_samples_of_a_censored_trial_count_toward_its_yield():
+    assert passage_yield({"passage_fraction": 0.5, "k": 30, "censored": False}) == 0.5
+    assert passage_yield({"passage_fraction": 0.5, "samples_drawn": 6, "k": 30, "censored": True}) == 0.1
+    assert passage_yield({"passage_fraction": None, "samples_drawn": 0, "k": 30, "censored": True}) == 0.0
+
+
+def test_median_interval_is_seeded_and_contains_the_median():
+    values = np.random.default_rng(3).lognormal(size=40)
+    median, lo, hi = median_ci(values)
+    assert median == np.median(values)
+    assert lo < median < hi
+    assert median_ci(values) == (median, lo, hi)
+    assert median_ci(values, seed=1) != (median, lo, hi)
+    assert median_ci([2.0, 2.0, 2.0]) == (2.0, 2.0, 2.0)
+    assert all(np.isnan(median_ci([])))
+
+
+def test_success_interval_is_the_exact_binomial_one():
+    from scipy.stats import binomtest
+
+    ci = binomtest(7, 10).proportion_ci(confidence_level=0.95, method="exact")
+    assert success_ci(7, 10) == (ci.low, ci.high)
+    lo, hi = success_ci(10, 10)
+    assert lo < 1.0 and hi == 1.0

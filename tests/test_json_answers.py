@@ -164,6 +164,7 @@ FAILURES = [
     (["bench", "jobs", "--jobs", "painting"], 2, "INVALID_INPUT"),
     (["bench", "ompl", "--seeds", "0"], 2, "INVALID_INPUT"),
     (["bench", "paper", "--out", "/proc/paper"], 2, "INVALID_INPUT"),
+    (["bench", "paper", "--out", "{tmp}/paper", "--ompl-db", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench", "certify", "--seeds", "0"], 2, "INVALID_INPUT"),
     (["bench", "audit", "--store", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench"], 2, "INVALID_INPUT"),

@@ -1,6 +1,10 @@
 """`bench paper`: deterministic sweeps, a report with the claim verdicts and figures, and a resumed run that runs
 nothing new. The default-run test uses a tiny configuration (one scene, two samplers, one trial per cell)."""
 
+import json
+import shutil
+import sqlite3
+
 import pytest
 
 from app.bench import jobs, paper
@@ -41,6 +45,39 @@ def test_sweeps_are_deterministic_and_share_the_bar_cells():
     assert EXPERIMENTS["ur3"] == "app.bench.jobs:run_trial_spec"
 
 
+def test_the_readings_sweep_reruns_only_the_samplers_each_reading_changes():
+    config = paper.Config(trials=2, steps=[2.0], scenes=["bar"], samplers=["lfbs", "rbbs", "rwbs"], parts=["sampling"])
+    assert [name for name, _ in paper.sweeps(config)] == ["sampling"]
+    config.readings = True
+    sweeps = dict(paper.sweeps(config))
+    assert {s.method for s in sweeps["reading alpha-density"]} == {"lfbs"}  # the Lévy walker of the three
+    assert {s.method for s in sweeps["reading bridge-move"]} == {"lfbs", "rwbs"}  # the bridge walkers
+    assert sweeps["reading angle-gaussian"][0].params["sampler_params"] == {"angle_law": "gaussian"}
+    keys = [s.key for specs in sweeps.values() for s in specs]
+    assert len(keys) == len(set(keys))  # every reading's trials are trials of their own
+
+
+def test_each_reading_is_judged_on_its_own_trials_and_the_default_ones_of_the_other_samplers(tmp_path):
+    store = ResultStore(tmp_path / "r.sqlite")
+    base = {"k": 30, "max_checks": 1000}
+    trial = {"k": 30, "ok": True, "censored": False, "seconds": 0.1, "collision_checks": 500}
+    for seed in range(4):
+        for method in ("lfbs", "rbbs"):
+            store.add(TrialSpec("sampling", "bar", method, 10.0, seed, base), {**trial, "passage_fraction": 0.2})
+        gaussian = {**base, "sampler_params": {"angle_law": "gaussian"}}
+        store.add(TrialSpec("sampling", "bar", "lfbs", 10.0, seed, gaussian), {**trial, "passage_fraction": 0.9})
+    rows = store.rows()
+    default, angle = paper.reading_rows(rows, "default"), paper.reading_rows(rows, "angle-gaussian")
+    assert len(default) == len(angle) == 8
+    assert {r["metrics"]["passage_fraction"] for r in angle if r["method"] == "lfbs"} == {0.9}
+    assert {r["method"] for r in angle if r["metrics"]["passage_fraction"] == 0.2} == {"rbbs"}
+    paper.build_report(store, tmp_path, pictures=False)
+    report = (tmp_path / "report.md").read_text()
+    table = report.split("## Sensitivity to the paper's readings")[1]
+    assert "| default | (default) |" in table and "| angle-gaussian | angle_law=gaussian |" in table
+    assert "alpha-density" not in table  # no trials of that reading in the store
+
+
 def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
     out = tmp_path / "paper"
     assert main([*TINY, "--out", str(out)]) == 0
@@ -66,9 +103,20 @@ def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
     assert "0 trials run" in capsys.readouterr().out
     assert ResultStore(out / "results.sqlite").count() == 4
 
+    committed = tmp_path / "committed"  # what the repository keeps: the trials as CSV, no store
+    committed.mkdir()
+    shutil.copy(out / "trials.csv.gz", committed)
+    assert main([*TINY, "--out", str(committed)]) == 0
+    said = capsys.readouterr().out
+    assert "4 trials added to the store" in said and "0 trials run" in said
+    assert ResultStore(committed / "results.sqlite").count() == 4
+    assert (committed / "trials.csv.gz").read_bytes() == (out / "trials.csv.gz").read_bytes()
+
     (out / "report.md").unlink()
-    assert main([*TINY, "--out", str(out), "--report-only"]) == 0
+    assert main([*TINY, "--out", str(out), "--report-only", "--ompl-db", str(tmp_path / "benchmark.db")]) == 0
     assert "## Claims" in (out / "report.md").read_text()
+    runs = sqlite3.connect(tmp_path / "benchmark.db").execute("SELECT COUNT(*) FROM runs").fetchone()[0]
+    assert runs == 4  # one OMPL run per stored trial
 
 
 def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
@@ -82,6 +130,11 @@ def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
     assert not a["censored"] and a["sample_checksum"]
     starved = run_trial_spec(oracle, TrialSpec("sampling", "bar-3link", "rbbs", 2.0, 0, {"k": 30, "max_checks": 500}))
     assert starved["censored"] and starved["passage_fraction"] is None and starved["collision_checks"] >= 500
+    full = run_trial_spec(oracle, TrialSpec("sampling", "bar-3link", "lfbs", 10.0, 0, {"k": 30}))
+    half = {"k": 30, "max_checks": full["collision_checks"] // 2}
+    cut = run_trial_spec(oracle, TrialSpec("sampling", "bar-3link", "lfbs", 10.0, 0, half))
+    # a trial cut short keeps the samples it drew: they count toward its passage yield
+    assert cut["censored"] and 0 < cut["samples_drawn"] < 30 and cut["passage_fraction"] is not None
 
 
 @pytest.mark.slow
@@ -98,3 +151,19 @@ def test_quick_paper_run(tmp_path):
     assert main(["bench", "paper", "--quick", "--out", str(out)]) == 0
     report = (out / "report.md").read_text()
     assert "## Maze and tunnel" in report and "| maze |" in report and "| welding |" in report
+
+
+def test_exported_trials_read_back_as_the_same_rows(tmp_path):
+    store = ResultStore(tmp_path / "a.sqlite")
+    store.add(TrialSpec("sampling", "bar", "lfbs", 2.0, 0, {"k": 30}), {"passage_fraction": None, "checks": 7})
+    store.add(
+        TrialSpec("sampling", "bar", "lfbs", 2.0, 0, {"k": 30, "sampler_params": {"angle_law": "length"}}),
+        {"passage_fraction": 0.25, "censored": True},
+    )
+    store.add(TrialSpec("prm", "maze", "rbbs", 0.5, 3, {"narrow": 200}), {"success": 1.0, "seconds": 1.5})
+    path = paper.export_trials(store, tmp_path / "trials.csv.gz")
+    copy = ResultStore(tmp_path / "b.sqlite")
+    assert paper.import_trials(copy, path) == 3
+    assert sorted(map(json.dumps, copy.rows())) == sorted(map(json.dumps, store.rows()))
+    assert paper.import_trials(copy, path) == 0  # no trial twice
+    assert paper.export_trials(copy, tmp_path / "again.csv.gz").read_bytes() == path.read_bytes()

@@ -233,3 +233,42 @@ def test_cli_json(tmp_path, cli):
     ):
         assert key in out
     assert len(out["samples"]) == 5 and out["collision_checks"] > 0 and png.stat().st_size > 0
+
+
+def test_the_density_reading_of_alpha_gives_tail_index_alpha_minus_one(oracles):
+    oracle = oracles("bar-3link")
+    for convention, expected in (("stability", 1.9), ("density", 0.9)):
+        walker = make_sampler("lfs", oracle, step=10.0, angle_law="length", alpha_convention=convention)
+        d = walker._draw(np.random.default_rng(0), 200_000)
+        lengths = np.linalg.norm(d * oracle.space.weights, axis=1)  # a (1 + |L|): every coordinate on one line
+        assert abs(hill_tail_index(lengths / 10.0 - 1.0) - expected) < 0.2
+
+
+def test_each_angle_law_moves_the_angles_its_own_way(oracles):
+    oracle = oracles("bar-3link")
+    angles = oracle.space.angular
+
+    def increments(law):
+        walker = make_sampler("lfs", oracle, step=10.0, angle_law=law)
+        return walker._draw(np.random.default_rng(1), 200_000)[:, angles]
+
+    paper, length, gaussian = increments("paper"), increments("length"), increments("gaussian")
+    # the paper's law maps a forward move into at most a full turn; the Lévy length alone has no such bound
+    assert paper[paper > 0].max() <= 2 * np.pi < length.max()
+    assert hill_tail_index(gaussian) > 4.0  # Gaussian tails
+
+
+def test_the_bridge_fail_rule_decides_whether_a_walk_leaves_the_obstacle(oracles):
+    oracle = oracles("bar-3link")
+    starts = {}
+    for rule in ("stay", "move"):
+        walker = make_sampler("rwbs", oracle, step=10.0, bridge_fail=rule)
+        walker.sample(60, np.random.default_rng(2))
+        starts[rule] = oracle.are_free(walker.bridges[:, 0])
+    assert not starts["stay"].any()  # the walk only ever stands on colliding configurations
+    assert starts["move"].any()  # moved on to a free q' that failed the bridge test
+
+
+def test_an_unknown_reading_is_bad_input(oracles):
+    with pytest.raises(UserError, match="angle_law"):
+        make_sampler("lfbs", oracles("bar-3link"), angle_law="sideways")

@@ -1,9 +1,16 @@
 """Judges the paper's claims from the results store: reproduced, partly, not reproduced, or no data — with numbers.
 
-Each claim is a set of comparisons (one per scene or per scene x step). A comparison holds when the medians point
-the claimed way and, where the claim is about distributions, a one-sided Mann-Whitney U test agrees at the 1 %
-level. The verdict counts them: all hold -> reproduced, none -> not reproduced, some -> partly. No tuning toward
-the paper: the thresholds are fixed here and printed in the report.
+Each claim is a set of comparisons (one per scene or per scene x step); the verdict counts them: all hold ->
+reproduced, none -> not reproduced, some -> partly. The rules (`RULES`) and their constants are fixed here and
+printed in the report: no tuning toward the paper.
+
+Censoring. A sampling trial that spends its collision-check budget is right-censored, never dropped (dropping them
+keeps only the lucky trials of a sampler that often runs out, and so favours it):
+- its collision checks are "at least what it spent": checks are compared with the log-rank test, which takes
+  right-censored values as such (scipy.stats.logrank), and a median that falls on a censored trial is a lower bound;
+- its quality counts the samples it drew before the budget ended: quality is the passage yield, the passage samples
+  a trial delivered per K_c requested (the passage fraction when the trial finished, less when it ran out).
+Intervals: medians get seeded percentile-bootstrap confidence intervals, success rates exact binomial ones.
 """
 
 from collections import defaultdict
@@ -11,10 +18,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-ALPHA = 0.01
+ALPHA = 0.01  # one-sided significance level of every test
+CONFIDENCE = 0.95  # of every interval
+N_RESAMPLES = 2000  # bootstrap resamples per interval
+BOOTSTRAP_SEED = 0  # the same store always gives the same intervals
 BRIDGE_WALKERS = ("lfbs", "rwbs")
 CHEAP = ("gaussian", "rws", "lfs")
 BRIDGES = ("rbbs", "rwbs", "lfbs")
+RULES = [
+    f"C1: per scene, a bridge walker's passage yield (trials pooled over steps) is stochastically greater than "
+    f"RBBS's: one-sided Mann-Whitney U, p < {ALPHA:g}, and its median is not smaller.",
+    "C2: per scene, the range of LFBS's per-step mean passage yields is smaller than RBBS's.",
+    f"C3: per step in bar, LFBS finishes in fewer collision checks than RBBS: one-sided log-rank test on the checks "
+    f"(censored trials right-censored at what they spent), p < {ALPHA:g}, LFBS's median below RBBS's and fewer "
+    "than half of LFBS's trials censored.",
+    "C4: per PRM cell, LFBS succeeds at least as often as RBBS (success rates) and its median plan time is lower.",
+    "C5: per scene, each cheap sampler's median checks are below every bridge sampler's (fewer than half of its "
+    "trials censored) and its mean passage yield is below every bridge sampler's.",
+    f"Intervals: {CONFIDENCE:.0%} percentile bootstrap of the median ({N_RESAMPLES} resamples, seed "
+    f"{BOOTSTRAP_SEED}); success rates: exact (Clopper-Pearson) binomial interval.",
+]
 
 
 @dataclass
@@ -25,30 +48,128 @@ class Verdict:
     evidence: list[str] = field(default_factory=list)
 
 
-def _values(rows, experiment, metric):
-    """{(scene, method, step): np.array of the metric over seeds}."""
-    cells = defaultdict(list)
+def median_ci(values, seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+    """(median, low, high): the median of the finite `values` and its percentile-bootstrap confidence interval."""
+    values = np.asarray(values, float)
+    values = values[np.isfinite(values)]
+    if len(values) == 0:
+        return (float("nan"),) * 3
+    median = float(np.median(values))
+    if np.all(values == values[0]):  # one value, or all alike: nothing to resample
+        return median, median, median
+    from scipy.stats import bootstrap  # about a second to import: only when statistics are asked for
+
+    ci = bootstrap(
+        (values,),
+        np.median,
+        confidence_level=CONFIDENCE,
+        n_resamples=N_RESAMPLES,
+        method="percentile",
+        rng=np.random.default_rng(seed),
+    ).confidence_interval
+    return median, float(ci.low), float(ci.high)
+
+
+def success_ci(successes: int, trials: int) -> tuple[float, float]:
+    """Exact binomial confidence interval of a success rate."""
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(successes), int(trials)).proportion_ci(confidence_level=CONFIDENCE, method="exact")
+    return float(ci.low), float(ci.high)
+
+
+def passage_yield(metrics: dict) -> float:
+    """Passage samples a sampling trial delivered per K_c requested (censored trials: those drawn in the budget)."""
+    k = metrics.get("k", 30)
+    drawn = metrics.get("samples_drawn", 0 if metrics.get("censored") else k)
+    fraction = metrics.get("passage_fraction")
+    return 0.0 if not drawn or fraction is None else float(fraction) * drawn / k
+
+
+@dataclass
+class Cell:
+    """One metric over trials, with which trials were censored and whether their values are then lower bounds (checks
+    and time are; a passage yield is what the trial delivered)."""
+
+    values: np.ndarray
+    censored: np.ndarray
+    bounds: bool = True
+
+    @property
+    def n(self) -> int:
+        return len(self.values)
+
+    @property
+    def n_censored(self) -> int:
+        return int(self.censored.sum())
+
+    def median(self) -> float:
+        return float(np.median(self.values))
+
+    def describe(self, digits: int = 3) -> str:
+        """'median [low, high] (n trials, c censored)', ≥ before the median when it falls on a censored trial."""
+        med, lo, hi = median_ci(self.values)
+        mark = "≥" if self.median_is_bound() else ""
+        interval = f"[{lo:.{digits}g}, {hi:.{digits}g}]"
+        return f"{mark}{med:.{digits}g} {interval} ({self.n} trials, {self.n_censored} censored)"
+
+    def median_is_bound(self) -> bool:
+        """The median is only a lower bound: some censored value is not above it."""
+        return bool(self.bounds and self.n_censored and np.any(self.values[self.censored] <= self.median()))
+
+
+def _cells(rows, experiment, metric) -> dict[tuple, Cell]:
+    """{(scene, method, step): Cell} of `metric` over seeds: a metrics key (a censored trial's value is a lower
+    bound), or a function of the metrics (`passage_yield`: a censored trial's value is what it delivered)."""
+    read = metric if callable(metric) else (lambda m: m.get(metric))
+    values, censored = defaultdict(list), defaultdict(list)
     for r in rows:
-        if r["experiment"] == experiment and r["metrics"].get(metric) is not None:
-            cells[(r["scene"], r["method"], r["step"])].append(float(r["metrics"][metric]))
-    return {k: np.array(v) for k, v in cells.items()}
+        if r["experiment"] != experiment:
+            continue
+        v = read(r["metrics"])
+        if v is not None:
+            key = (r["scene"], r["method"], r["step"])
+            values[key].append(float(v))
+            censored[key].append(bool(r["metrics"].get("censored", False)))
+    bounds = not callable(metric)
+    return {k: Cell(np.array(values[k]), np.array(censored[k], bool), bounds) for k in values}
 
 
-def _pooled(cells, scene, method):
-    parts = [v for (s, m, _), v in cells.items() if s == scene and m == method]
-    return np.concatenate(parts) if parts else np.array([])
+def _pooled(cells, scene, method) -> Cell:
+    parts = [c for (s, m, _), c in cells.items() if s == scene and m == method]
+    if not parts:
+        return Cell(np.array([]), np.array([], bool))
+    return Cell(np.concatenate([c.values for c in parts]), np.concatenate([c.censored for c in parts]), parts[0].bounds)
 
 
-def _greater(a, b) -> tuple[bool, float]:
-    """a is stochastically greater than b (one-sided Mann-Whitney) and its median is larger."""
-    if len(a) < 3 or len(b) < 3:
+def _greater(a: Cell, b: Cell) -> tuple[bool, float]:
+    """a is stochastically greater than b (one-sided Mann-Whitney) and its median is not smaller."""
+    if a.n < 3 or b.n < 3:
         return False, float("nan")
-    if np.all(a == a[0]) and np.all(b == b[0]):
-        return bool(a[0] > b[0]), 0.0 if a[0] > b[0] else 1.0
-    from scipy.stats import mannwhitneyu  # about a second to import: only when a claim is judged, not at CLI start
+    x, y = a.values, b.values
+    if np.all(x == x[0]) and np.all(y == y[0]):
+        return bool(x[0] > y[0]), 0.0 if x[0] > y[0] else 1.0
+    from scipy.stats import mannwhitneyu
 
-    p = float(mannwhitneyu(a, b, alternative="greater").pvalue)
-    return bool(p < ALPHA and np.median(a) >= np.median(b)), p
+    p = float(mannwhitneyu(x, y, alternative="greater").pvalue)
+    return bool(p < ALPHA and a.median() >= b.median()), p
+
+
+def _fewer(a: Cell, b: Cell) -> tuple[bool, float]:
+    """a finishes in less of the metric than b (one-sided log-rank test, censored values right-censored), with a
+    smaller median that is not a censored lower bound."""
+    if a.n < 3 or b.n < 3:
+        return False, float("nan")
+    from scipy.stats import CensoredData, logrank
+
+    def data(c: Cell):
+        return CensoredData(uncensored=c.values[~c.censored], right=c.values[c.censored])
+
+    if a.n_censored == a.n and b.n_censored == b.n:  # no trial finished: nothing to compare
+        return False, float("nan")
+    with np.errstate(invalid="ignore", divide="ignore"):  # no variance (e.g. all values alike): p is NaN, no claim
+        p = float(logrank(data(a), data(b), alternative="greater").pvalue)  # "greater": a finishes at a higher rate
+    return bool(p < ALPHA and a.median() < b.median() and 2 * a.n_censored < a.n), p
 
 
 def _verdict(outcomes: list[bool]) -> str:
@@ -63,20 +184,24 @@ def _scenes(cells, methods):
     return sorted({s for (s, m, _) in cells if m in methods})
 
 
+def _word(holds: bool) -> str:
+    return "holds" if holds else "fails"
+
+
 def claim_c1(rows) -> Verdict:
-    cells = _values(rows, "sampling", "passage_fraction")
+    cells = _cells(rows, "sampling", passage_yield)
     outcomes, evidence = [], []
     for scene in _scenes(cells, ("rbbs",)):
         rbbs = _pooled(cells, scene, "rbbs")
         for walker in BRIDGE_WALKERS:
             mine = _pooled(cells, scene, walker)
-            if len(mine) == 0 or len(rbbs) == 0:
+            if mine.n == 0:
                 continue
             holds, p = _greater(mine, rbbs)
             outcomes.append(holds)
             evidence.append(
-                f"{scene}: {walker} mean passage fraction {mine.mean():.3f} vs rbbs {rbbs.mean():.3f} "
-                f"(p={p:.2g}) -> {'holds' if holds else 'fails'}"
+                f"{scene}: passage yield {walker} {mine.describe()} vs rbbs {rbbs.describe()} (p={p:.2g}) -> "
+                f"{_word(holds)}"
             )
     return Verdict(
         "C1", "Bridge walkers (LFBS, RWBS) put more samples in the passage than RBBS.", _verdict(outcomes), evidence
@@ -84,23 +209,26 @@ def claim_c1(rows) -> Verdict:
 
 
 def claim_c2(rows) -> Verdict:
-    """LFBS's passage fraction varies less across steps a than RBBS's (range of per-step means)."""
-    cells = _values(rows, "sampling", "passage_fraction")
+    """LFBS's passage yield varies less across steps a than RBBS's (range of per-step means)."""
+    cells = _cells(rows, "sampling", passage_yield)
     outcomes, evidence = [], []
     for scene in _scenes(cells, ("rbbs", "lfbs")):
-        spread = {}
+        spread, text = {}, {}
         for method in ("lfbs", "rbbs"):
-            means = [v.mean() for (s, m, _), v in cells.items() if s == scene and m == method]
-            if len(means) >= 2:
-                spread[method] = (max(means) - min(means), min(means), max(means))
+            steps = sorted((st, c) for (s, m, st), c in cells.items() if s == scene and m == method)
+            if len(steps) >= 2:
+                means = [c.values.mean() for _, c in steps]
+                spread[method] = max(means) - min(means)
+                text[method] = ", ".join(
+                    f"a={st:g} {c.values.mean():.3f} ({c.n_censored}/{c.n} censored)" for st, c in steps
+                )
         if len(spread) < 2:
             continue
-        holds = spread["lfbs"][0] < spread["rbbs"][0]
+        holds = spread["lfbs"] < spread["rbbs"]
         outcomes.append(holds)
         evidence.append(
-            f"{scene}: across steps lfbs passage fraction {spread['lfbs'][1]:.3f}-{spread['lfbs'][2]:.3f} "
-            f"(range {spread['lfbs'][0]:.3f}), rbbs {spread['rbbs'][1]:.3f}-{spread['rbbs'][2]:.3f} "
-            f"(range {spread['rbbs'][0]:.3f}) -> {'holds' if holds else 'fails'}"
+            f"{scene}: mean passage yield per step, lfbs {text['lfbs']} (range {spread['lfbs']:.3f}); rbbs "
+            f"{text['rbbs']} (range {spread['rbbs']:.3f}) -> {_word(holds)}"
         )
     return Verdict(
         "C2", "LFBS sample quality is insensitive to the step a; RBBS's is not.", _verdict(outcomes), evidence
@@ -108,37 +236,42 @@ def claim_c2(rows) -> Verdict:
 
 
 def claim_c3(rows, scene="bar") -> Verdict:
-    cells = _values(rows, "sampling", "collision_checks")
+    cells = _cells(rows, "sampling", "collision_checks")
     outcomes, evidence = [], []
     for step in sorted({st for (s, m, st) in cells if s == scene and m == "lfbs"}):
         lfbs, rbbs = cells.get((scene, "lfbs", step)), cells.get((scene, "rbbs", step))
         if lfbs is None or rbbs is None:
             continue
-        holds, p = _greater(rbbs, lfbs)
+        holds, p = _fewer(lfbs, rbbs)
         outcomes.append(holds)
         evidence.append(
-            f"{scene} a={step:g}: median checks lfbs {np.median(lfbs):.0f} vs rbbs {np.median(rbbs):.0f} "
-            f"(p={p:.2g}) -> {'holds' if holds else 'fails'}"
+            f"{scene} a={step:g}: checks lfbs {lfbs.describe(4)} vs rbbs {rbbs.describe(4)} (log-rank p={p:.2g}) "
+            f"-> {_word(holds)}"
         )
     return Verdict("C3", f"LFBS needs fewer collision calls than RBBS in {scene}.", _verdict(outcomes), evidence)
 
 
+def _rate(cell: Cell) -> str:
+    ok = int(cell.values.sum())
+    lo, hi = success_ci(ok, cell.n)
+    return f"{ok}/{cell.n} [{lo:.0%}, {hi:.0%}]"
+
+
 def claim_c4(rows) -> Verdict:
-    success = _values(rows, "prm", "success")
-    seconds = _values(rows, "prm", "seconds")
+    success = _cells(rows, "prm", "success")
+    seconds = _cells(rows, "prm", "seconds")
     outcomes, evidence = [], []
     for scene, method, step in sorted(k for k in success if k[1] == "lfbs"):
         rbbs_ok, lfbs_ok = success.get((scene, "rbbs", step)), success[(scene, method, step)]
         if rbbs_ok is None:
             continue
         lfbs_t, rbbs_t = seconds.get((scene, "lfbs", step)), seconds.get((scene, "rbbs", step))
-        faster = lfbs_t is not None and rbbs_t is not None and np.median(lfbs_t) < np.median(rbbs_t)
-        holds = bool(lfbs_ok.mean() >= rbbs_ok.mean() and faster)
+        faster = lfbs_t is not None and rbbs_t is not None and lfbs_t.median() < rbbs_t.median()
+        holds = bool(lfbs_ok.values.mean() >= rbbs_ok.values.mean() and faster)
         outcomes.append(holds)
         evidence.append(
-            f"{scene} a={step:g}: success lfbs {lfbs_ok.mean():.0%} vs rbbs {rbbs_ok.mean():.0%}; "
-            f"median time lfbs {np.median(lfbs_t):.2f}s vs rbbs {np.median(rbbs_t):.2f}s "
-            f"-> {'holds' if holds else 'fails'}"
+            f"{scene} a={step:g}: success lfbs {_rate(lfbs_ok)} vs rbbs {_rate(rbbs_ok)}; time s lfbs "
+            f"{lfbs_t.describe()} vs rbbs {rbbs_t.describe()} -> {_word(holds)}"
         )
     return Verdict(
         "C4",
@@ -149,24 +282,25 @@ def claim_c4(rows) -> Verdict:
 
 
 def claim_c5(rows) -> Verdict:
-    checks = _values(rows, "sampling", "collision_checks")
-    quality = _values(rows, "sampling", "passage_fraction")
+    checks = _cells(rows, "sampling", "collision_checks")
+    quality = _cells(rows, "sampling", passage_yield)
     outcomes, evidence = [], []
     for scene in _scenes(checks, CHEAP):
-        bridges = [b for b in BRIDGES if len(_pooled(checks, scene, b))]
+        bridges = {b: (_pooled(checks, scene, b), _pooled(quality, scene, b)) for b in BRIDGES}
+        bridges = {b: cq for b, cq in bridges.items() if cq[0].n}
         for cheap in CHEAP:
             c, q = _pooled(checks, scene, cheap), _pooled(quality, scene, cheap)
-            if len(c) == 0 or not bridges:
+            if c.n == 0 or not bridges:
                 continue
-            cheaper = all(np.median(c) < np.median(_pooled(checks, scene, b)) for b in bridges)
-            poorer = all(q.mean() < _pooled(quality, scene, b).mean() for b in bridges)
+            cheaper = 2 * c.n_censored < c.n and all(c.median() < bc.median() for bc, _ in bridges.values())
+            poorer = all(q.values.mean() < bq.values.mean() for _, bq in bridges.values())
             outcomes.append(cheaper and poorer)
-            best = max(bridges, key=lambda b: _pooled(quality, scene, b).mean())
+            best = max(bridges, key=lambda b: bridges[b][1].values.mean())
+            least = min(bridges, key=lambda b: bridges[b][0].median())
             evidence.append(
-                f"{scene}: {cheap} median checks {np.median(c):.0f} (bridges ≥ "
-                f"{min(np.median(_pooled(checks, scene, b)) for b in bridges):.0f}), passage fraction "
-                f"{q.mean():.3f} (best bridge {best} {_pooled(quality, scene, best).mean():.3f}) -> "
-                f"{'holds' if cheaper and poorer else 'fails'}"
+                f"{scene}: {cheap} checks {c.describe(4)} (cheapest bridge {least} {bridges[least][0].describe(4)}), "
+                f"mean passage yield {q.values.mean():.3f} (best bridge {best} {bridges[best][1].values.mean():.3f}) "
+                f"-> {_word(cheaper and poorer)}"
             )
     return Verdict(
         "C5",

@@ -5,7 +5,8 @@ run started again with the same options skips every stored trial):
 
 1. sampling -- the seven samplers x bar, joint, joint3d, teeth3d x steps 2..20 x N trials, K_c = 30 samples each,
    with a per-trial collision-check budget (a trial that spends it is censored: its t_eps and gamma_c are lower
-   bounds and it has no passage fraction);
+   bounds and its passage fraction is over the samples it drew);
+   with `readings`, the same for the walkers each other reading of the paper (READINGS) changes;
 2. table1 -- RBBS and LFBS t_eps vs step on bar-3link, bar-5link and bar (the paper's Table 1; the bar cells are the
    same trials as sweep 1 and are not run twice);
 3. prm -- the maze/tunnel LFBS-vs-RBBS PRM tables (`bench uav` specs);
@@ -13,11 +14,16 @@ run started again with the same options skips every stored trial):
    `bench jobs`).
 
 The report is built from the store alone (`--report-only` rebuilds it without running anything): the claims C1-C5
-judged by `app.bench.claims.judge`, markdown tables, and PNG figures next to report.md.
+judged by `app.bench.claims.judge` (under each reading stored), markdown tables, and PNG figures next to report.md.
+Every trial is also kept as DIR/trials.csv.gz, and a store starts from that file: committed results are continued.
 """
 
 from __future__ import annotations
 
+import csv
+import gzip
+import io
+import json
 import os
 import platform
 import time
@@ -27,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from app.bench import jobs, sampling, uav
-from app.bench.claims import ALPHA, judge
+from app.bench.claims import RULES, judge, success_ci
 from app.bench.runner import run_sweep
 from app.bench.store import ResultStore, TrialSpec
 from app.io import write_atomically
@@ -53,6 +59,17 @@ PAPER_TABLE1 = {
     "bar": [10.923, 9.3731, 9.5287, 12.665, 17.128],
 }  # RBBS t_eps (s) at steps 2, 5, 10, 15, 20
 PAPER_UR3 = {"welding": 233.0, "window": 253.0}  # LFBS-PRM, average seconds
+# The readings of the paper's ambiguous points (app/samplers/walk.py) the claims are judged under: the default
+# reading (walk.DEFAULT_READING), then each other choice alone. Sampler params, as a Walker takes them.
+READINGS = {
+    "default": {},
+    "alpha-density": {"alpha_convention": "density"},
+    "angle-length": {"angle_law": "length"},
+    "angle-gaussian": {"angle_law": "gaussian"},
+    "bridge-move": {"bridge_fail": "move"},
+}
+# The samplers whose draws each choice changes: the Lévy walkers' steps, the bridge walkers' rule.
+READING_SAMPLERS = {"alpha_convention": ("lfs", "lfbs"), "angle_law": ("lfs", "lfbs"), "bridge_fail": ("rwbs", "lfbs")}
 
 
 @dataclass
@@ -67,13 +84,16 @@ class Config:
     ur3_runs: int = 5
     parts: list = field(default_factory=lambda: list(PARTS))
     quick: bool = False
+    readings: bool = False  # also the sampling sweep of the walkers each non-default reading changes
 
 
 # ----------------------------------------------------------------------------------------------------- the sweeps
 
 
-def sampling_specs(scenes, samplers, steps, trials, k=30, max_checks=200_000) -> list[TrialSpec]:
+def sampling_specs(scenes, samplers, steps, trials, k=30, max_checks=200_000, sampler_params=None) -> list[TrialSpec]:
     params = {"k": int(k), "max_checks": int(max_checks)}
+    if sampler_params:
+        params["sampler_params"] = dict(sampler_params)
     return [
         TrialSpec("sampling", scene, sampler, float(step), seed, dict(params))
         for scene in scenes
@@ -112,11 +132,82 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
                 sampling_specs(TABLE1_SCENES, TABLE1_METHODS, config.steps, config.trials, config.k, config.max_checks),
             )
         )
+    if "sampling" in config.parts and config.readings:
+        for name, params in READINGS.items():
+            changed = [s for s in config.samplers if s in reading_samplers(params)]
+            if changed:
+                specs = sampling_specs(
+                    config.scenes, changed, config.steps, config.trials, config.k, config.max_checks, params
+                )
+                out.append((f"reading {name}", specs))
     if "prm" in config.parts:
         out.append(("prm", uav.specs(config.prm_seeds)))  # the maze/tunnel cells of `bench uav`
     if "ur3" in config.parts:
         out.append(("ur3", ur3_specs(config.ur3_runs)))
     return out
+
+
+# ------------------------------------------------------------------------------------------ the committed trials
+
+TRIALS_CSV = "trials.csv.gz"
+CSV_COLUMNS = ["experiment", "scene", "method", "step", "seed", "params", "metrics", "code_version"]
+
+
+def export_trials(store: ResultStore, path: Path) -> Path:
+    """Every trial of `store` as gzipped CSV (params and metrics as JSON), in a fixed order and with no timestamp
+    inside, so the same trials always give the same file."""
+    rows = sorted(
+        store.rows(),
+        key=lambda r: (r["experiment"], r["scene"], r["method"], r["step"], r["seed"], json.dumps(r["params"])),
+    )
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for r in rows:
+        writer.writerow(
+            [
+                *(r[c] for c in CSV_COLUMNS[:5]),
+                json.dumps(r["params"], sort_keys=True),
+                json.dumps(r["metrics"]),
+                r["code_version"],
+            ]
+        )
+    return write_atomically(path, gzip.compress(text.getvalue().encode(), mtime=0))
+
+
+def import_trials(store: ResultStore, path: Path) -> int:
+    """Add the trials of an `export_trials` file that `store` lacks (a run resumed from committed results runs only
+    the rest); returns how many were added."""
+    with gzip.open(path, "rt", newline="") as f:
+        rows = [
+            {
+                **r,
+                "step": float(r["step"]),
+                "seed": int(r["seed"]),
+                "params": json.loads(r["params"]),
+                "metrics": json.loads(r["metrics"]),
+            }
+            for r in csv.DictReader(f)
+        ]
+    return store.import_rows(rows)
+
+
+def reading_samplers(params: dict) -> set[str]:
+    """The samplers whose draws a reading's sampler params change."""
+    return {s for key in params for s in READING_SAMPLERS[key]}
+
+
+def reading_rows(rows, name: str) -> list[dict]:
+    """The rows the claims are judged on under reading `name`: the sampling trials of the samplers it changes run
+    with its params, every other row as in the default reading."""
+    params = READINGS[name]
+    changed = reading_samplers(params)
+
+    def belongs(r) -> bool:
+        own = r["params"].get("sampler_params", {})
+        return own == params if r["experiment"] == "sampling" and r["method"] in changed else own == {}
+
+    return [r for r in rows if belongs(r)]
 
 
 # --------------------------------------------------------------------------------------------------- the report
@@ -184,7 +275,7 @@ def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[
         for sampler in samplers:
             r = sampling.run_trial(oracle, sampler, step, 0, k=30, max_checks=max_checks, keep_samples=True)
             name = f"samples-{scene}-{sampler}.png"
-            note = "" if r["ok"] else f" — over the {max_checks}-check budget, no samples"
+            note = "" if r["ok"] else f" — over the {max_checks}-check budget with {len(r['samples'])} of 30 samples"
             draw_samples(
                 oracle, r["samples"], str(folder / name), title=f"{scene}: {sampler}, step {step:g}, seed 0{note}"
             )
@@ -232,13 +323,15 @@ def build_report(
 ) -> Path:
     """report.md and its figures from what the store holds (every row of every experiment in it)."""
     folder = Path(folder)
-    rows = store.rows()
+    stored = store.rows()
+    rows = reading_rows(stored, "default")
     srows = _sampling_rows(rows)
     summary = sampling.summarise(srows)
     order = {name: i for i, name in enumerate(SAMPLERS)}
     summary.sort(key=lambda s: (s["scene"], order.get(s["sampler"], 99), s["step"]))
-    lines = _overview_section(store, rows, folder, config, wall_seconds)
+    lines = _overview_section(store, stored, folder, config, wall_seconds)
     lines += _claims_section(rows)
+    lines += _readings_section(stored)
     lines += _sampling_section(srows, summary, folder)
     lines += _table1_section(summary)
     if pictures and config is not None:
@@ -255,7 +348,8 @@ def _overview_section(
     lines = ["# Levy-flight narrow-passage PRM: the paper's Section IV, reproduced", ""]
     lines += [
         f"Generated {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())} from `{store.path.name}` "
-        f"({len(rows)} trials). Rebuild with `python -m app bench paper --out {folder} --report-only`.",
+        f"({len(rows)} trials, every one in `{TRIALS_CSV}` beside this report). Rebuild with "
+        f"`python -m app bench paper --out {folder} --report-only`.",
         "",
     ]
     by_experiment = {}
@@ -295,9 +389,13 @@ def _claims_section(rows) -> list[str]:
     lines = [
         "## Claims",
         "",
-        f"Each claim is a set of comparisons; one holds when the medians point the claimed way and, for "
-        f"distributions, a one-sided Mann-Whitney U test agrees at the {ALPHA:g} level. All hold: reproduced; "
-        "none: not reproduced; some: partly; no rows: no data (`app/bench/claims.py`).",
+        "Each claim is a set of comparisons. All hold: reproduced; none: not reproduced; some: partly; no rows: "
+        "no data. The rules, fixed in `app/bench/claims.py`:",
+        "",
+        *[f"- {rule}" for rule in RULES],
+        "",
+        "A sampling trial that spent its check budget is censored, not dropped: its checks count as at least what "
+        "it spent, and its passage yield (passage samples per K_c requested) counts the samples it drew.",
         "",
         "| claim | verdict | statement |",
         "|---|---|---|",
@@ -312,6 +410,40 @@ def _claims_section(rows) -> list[str]:
     return lines
 
 
+def _readings_section(rows) -> list[str]:
+    """One verdict table, a row per reading of the paper's ambiguous points, and each reading's C1 and C3 evidence."""
+    stored = {json.dumps(r["params"].get("sampler_params", {}), sort_keys=True) for r in rows}
+    others = [name for name in READINGS if name != "default" and json.dumps(READINGS[name], sort_keys=True) in stored]
+    if not others:
+        return []
+    from app.samplers.walk import DEFAULT_READING
+
+    default = ", ".join(f"{key} = {value}" for key, value in DEFAULT_READING.items())
+    lines = [
+        "## Sensitivity to the paper's readings",
+        "",
+        f"The paper is ambiguous on three points (`app/samplers/README.md`, Readings). The default reading ({default}) "
+        "is the one above; each other row changes one choice for the samplers it affects (lfs/lfbs for the Lévy "
+        "law, rwbs/lfbs for the bridge rule) and judges the claims with the same rules. C4 uses the default "
+        "reading's PRM trials in every row.",
+        "",
+        "| reading | sampler params | C1 | C2 | C3 | C4 | C5 |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    verdicts = {name: judge(reading_rows(rows, name)) for name in ["default", *others]}
+    for name, vs in verdicts.items():
+        params = ", ".join(f"{k}={v}" for k, v in READINGS[name].items()) or "(default)"
+        lines.append(f"| {name} | {params} | " + " | ".join(v.verdict for v in vs) + " |")
+    lines.append("")
+    for name in others:
+        lines += [f"### Reading {name}", ""]
+        for v in verdicts[name]:
+            if v.claim in ("C1", "C3"):
+                lines += [f"- {v.claim}: {e}" for e in v.evidence] or [f"- {v.claim}: no rows"]
+        lines.append("")
+    return lines
+
+
 def _sampling_section(srows: list[dict], summary: list[dict], folder: Path) -> list[str]:
     """Per scene, a table of the sampling metrics per sampler and step, and their figure (drawn into `folder`)."""
     censored = sum(bool(r["censored"]) for r in srows)
@@ -320,7 +452,8 @@ def _sampling_section(srows: list[dict], summary: list[dict], folder: Path) -> l
         "",
         f"{len(srows)} trials of K_c samples each; {censored} of them spent their collision-check budget "
         "(censored): for those t_eps and gamma_c are lower bounds (marked ≥ where any trial in the cell was "
-        "censored) and they have no passage fraction. Cells: median [2.5 %, 97.5 % of trials].",
+        "censored) and the passage fraction is over the samples drawn within the budget. Cells: median "
+        "[95 % bootstrap confidence interval].",
         "",
     ]
     for scene in dict.fromkeys(s["scene"] for s in summary):
@@ -405,16 +538,17 @@ def _prm_section(rows, folder: Path) -> list[str]:
         "The whole roadmap, every edge checked, k = 10 (maze 200 narrow + 300 uniform, tunnel 100 + 200). "
         "t_eps = sampling time (successful runs), T_PRM = whole plan; medians; paper seconds in brackets.",
         "",
-        "| scene | step | sampler | runs | success | t_eps s | T_PRM s | checks |",
+        "| scene | step | sampler | runs | success [95 % CI] | t_eps s | T_PRM s | checks |",
         "|---|---:|---|---:|---:|---:|---:|---:|",
     ]
     for r in table:
         paper = uav.PAPER_SECONDS.get((r["scene"], r["step"]))
         pe, pt = ((paper[0], paper[1]) if r["sampler"] == "lfbs" else (paper[2], paper[3])) if paper else (None, None)
         eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "–"
+        lo, hi = success_ci(round(r["success_rate"] * r["runs"]), r["runs"])
         lines.append(
             f"| {r['scene']} | {r['step']:g} | {r['sampler']} | {r['runs']} | "
-            f"{r['success_rate']:.0%} | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
+            f"{r['success_rate']:.0%} [{lo:.0%}, {hi:.0%}] | {eps} ({pe}) | {r['median_t_prm']:.2f} ({pt}) | "
             f"{r['median_checks']:.0f} |"
         )
     _figure_prm(table, folder / "prm.png")

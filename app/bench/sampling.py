@@ -13,6 +13,7 @@ import time
 import numpy as np
 from tqdm import tqdm
 
+from app.bench.claims import median_ci
 from app.errors import SamplerBudgetExceeded
 from app.oracle import CollisionOracle
 from app.samplers import make_sampler
@@ -46,7 +47,8 @@ def run_trial(
 ) -> dict:
     """One trial: k samples from `sampler_name` at `step` with seed `seed`, and what they cost and where they are.
 
-    A trial that exhausts its check budget returns ok=False with the checks it spent (a censored value).
+    A trial that exhausts its check budget returns ok=False with the checks it spent (a censored value) and the
+    samples it had drawn by then (`samples_drawn` of k; passage_fraction is over those).
     """
     if max_checks is not None:
         params["max_checks"] = max_checks
@@ -56,8 +58,8 @@ def run_trial(
     start = time.perf_counter()
     try:
         samples, ok = sampler.sample(k, rng), True
-    except SamplerBudgetExceeded:
-        samples, ok = np.empty((0, oracle.space.dim)), False
+    except SamplerBudgetExceeded as exc:
+        samples, ok = exc.samples, False
     seconds = time.perf_counter() - start
     row = {
         "scene": oracle.scene.name,
@@ -68,6 +70,7 @@ def run_trial(
         "ok": ok,
         "seconds": seconds,
         "collision_checks": int(oracle.checks - before),
+        "samples_drawn": len(samples),
         "passage_fraction": float(oracle.in_passage(samples).mean()) if len(samples) else float("nan"),
         "gave_up": int(sampler.stats.get("gave_up", 0)),
         "attempts": int(sampler.stats.get("attempts", 0)),
@@ -83,9 +86,11 @@ def run_trial(
 def run_trial_spec(oracle, spec) -> dict:
     """One sampling trial from a results-store TrialSpec (experiment "sampling"; method = sampler name).
 
-    params: k (default 30), max_checks (default none), margin (default twice the scene's resolution). The row
-    holds `censored` (the trial spent its check budget: collision_checks and seconds are then lower bounds and
-    passage_fraction is None) and `sample_checksum`, a hash of the samples that is the same wherever the trial ran.
+    params: k (default 30), max_checks (default none), margin (default twice the scene's resolution),
+    sampler_params (default none: keyword arguments of the sampler, e.g. a reading of the paper). The row
+    holds `censored` (the trial spent its check budget: collision_checks and seconds are then lower bounds, and
+    passage_fraction is over the samples_drawn < k it had, None if none) and `sample_checksum`, a hash of the
+    samples that is the same wherever the trial ran.
     """
     import hashlib
 
@@ -102,6 +107,7 @@ def run_trial_spec(oracle, spec) -> dict:
         margin=margin,
         max_checks=p.get("max_checks"),
         keep_samples=True,
+        **p.get("sampler_params", {}),
     )
     samples = np.round(np.asarray(row.pop("samples"), float), 9)
     row.pop("bridges", None)
@@ -113,7 +119,8 @@ def run_trial_spec(oracle, spec) -> dict:
 
 
 def summarise(rows: list[dict]) -> list[dict]:
-    """Median and 95 % interval (2.5 / 97.5 percentiles) of each metric per scene x sampler x step."""
+    """Median and its 95 % bootstrap confidence interval (`claims.median_ci`) of each metric per scene x sampler x
+    step. Censored trials count with their values (lower bounds for checks and time)."""
     cells: dict[tuple, list[dict]] = {}
     for r in rows:
         cells.setdefault((r["scene"], r["sampler"], r["step"]), []).append(r)
@@ -129,11 +136,8 @@ def summarise(rows: list[dict]) -> list[dict]:
         for key, _ in METRICS:
             values = np.array([r[key] for r in group], float)
             values = values[np.isfinite(values)]
-            if len(values):
-                lo, med, hi = np.percentile(values, [2.5, 50, 97.5])
-            else:
-                lo = med = hi = float("nan")
-            s[key] = {"median": float(med), "lo": float(lo), "hi": float(hi)}
+            med, lo, hi = median_ci(values)
+            s[key] = {"median": med, "lo": lo, "hi": hi}
         for key in ("near_environment", "near_self", "near_both", "near_neither"):
             values = [r[key] for r in group if key in r]
             if values:
@@ -167,8 +171,8 @@ def figure(summary: list[dict], path: str) -> None:
                 ax.fill_between(
                     x, [s[key]["lo"] for s in cell], [s[key]["hi"] for s in cell], color=f"C{n}", alpha=0.12
                 )
-                censored = [(s["step"], s[key]["median"]) for s in cell if s["censored"]]
-                if censored:  # some trials spent the whole budget: the median is a lower bound
+                censored = [(s["step"], s[key]["median"]) for s in cell if s["censored"] and key != "passage_fraction"]
+                if censored:  # some trials spent the whole budget: the median of their costs is a lower bound
                     ax.scatter(*zip(*censored), marker="^", s=40, facecolors="none", edgecolors=f"C{n}")
             if key != "passage_fraction":
                 ax.set_yscale("log")
@@ -178,8 +182,8 @@ def figure(summary: list[dict], path: str) -> None:
     fig.text(
         0.01,
         0.0,
-        "bands: 95 % interval over trials; open triangles: some trials hit the check budget "
-        "(the median is a lower bound)",
+        "bands: 95 % bootstrap confidence interval of the median; open triangles: some trials hit the check budget "
+        "(the median is a lower bound); in passage: of the samples drawn (a trial that hit the budget: before it)",
         fontsize=7,
     )
     fig.tight_layout()

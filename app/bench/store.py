@@ -221,6 +221,31 @@ class ResultStore:
                 ),
             )
 
+    def import_rows(self, rows: list[dict]) -> int:
+        """Add rows as `rows()` returns them (e.g. read back from an export), each keeping the code version that wrote
+        it; a trial the store already holds keeps its own row. Returns how many were added."""
+        before = self.count()
+        with self._db:
+            self._db.executemany(
+                "INSERT OR IGNORE INTO trials VALUES (?,?,?,?,?,?,?,?,?,?)",
+                [
+                    (
+                        TrialSpec(r["experiment"], r["scene"], r["method"], r["step"], r["seed"], r["params"]).key,
+                        r["experiment"],
+                        r["scene"],
+                        r["method"],
+                        float(r["step"]),
+                        int(r["seed"]),
+                        json.dumps(r["params"], sort_keys=True, default=_plain),
+                        json.dumps(r["metrics"], default=_plain),
+                        r["code_version"],
+                        time.time(),
+                    )
+                    for r in rows
+                ],
+            )
+        return self.count() - before
+
     def rows_for(self, specs: list[TrialSpec]) -> list[dict]:
         """The stored rows of exactly these trials (a store may hold other sweeps, or other parameters)."""
         wanted = {s.key for s in specs}

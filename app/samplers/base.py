@@ -69,7 +69,8 @@ class Sampler:
                 raise SamplerBudgetExceeded(
                     f"{self.name}: gave up after {spent} collision checks and {self.stats['rounds']} rounds "
                     f"with {have} of {k} samples (its limits per call: {self.max_checks} checks, "
-                    f"{self.max_rounds} rounds; another step may need fewer)"
+                    f"{self.max_rounds} rounds; another step may need fewer)",
+                    samples=np.concatenate(samples) if samples else np.empty((0, self.space.dim)),
                 )
             self.stats["rounds"] += 1
             oracle.poll()

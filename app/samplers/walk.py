@@ -9,7 +9,8 @@
 A walk starts at a uniform configuration that collides. Each step proposes q' from q; a colliding q' becomes the
 new q. A free q' ends the walk with q' as the sample; with the bridge switch on it must also pass the bridge test
 (extend(q, q') = q' + (q' - q) collides), and when it does not, the walk goes on from the same q (Algorithm 2 only
-replaces q when q' collides). A walk that has not ended after `max_steps` steps is abandoned (counted in gave_up).
+replaces q when q' collides; `bridge_fail="move"` is the other reading). A walk that has not ended after
+`max_steps` steps is abandoned (counted in gave_up).
 
 Many walkers advance in lockstep: one step of all of them is a few numpy operations and one `oracle.are_free`
 call (plus one for the bridge ends), which is what makes the samplers fast despite a walk being sequential.
@@ -19,11 +20,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.errors import UserError
 from app.samplers.base import Sampler
 from app.samplers.levy import mantegna
 
 # exp() of more than this is clipped: 2*pi*e^30 is still resolved to 0.002 rad, and the angle is random by then.
 _EXP_CLIP = 30.0
+
+# Where the paper can be read more than one way (README.md, "Readings"), the choices a Walker accepts:
+# alpha_convention: the paper's alpha (1.9 steps, 1.1 angles) is the Lévy law's stability index ("stability"), or
+#   the exponent of the density x^-alpha its text writes ("density": stability index alpha - 1);
+# angle_law: an angle moves by the paper's law theta' = 2 pi (1 - e^f) of its own Lévy move ("paper"), by the same
+#   Lévy step as the length, with no law of its own ("length"), or by a Gaussian step as in rws ("gaussian");
+# bridge_fail: when a free q' fails the bridge test the walk stays at q ("stay", Algorithm 2 as written replaces q
+#   only when q' collides) or moves on to q' ("move").
+READING_CHOICES = {
+    "alpha_convention": ("stability", "density"),
+    "angle_law": ("paper", "length", "gaussian"),
+    "bridge_fail": ("stay", "move"),
+}
+DEFAULT_READING = {"alpha_convention": "stability", "angle_law": "paper", "bridge_fail": "stay"}
 
 
 class Walker(Sampler):
@@ -37,6 +53,9 @@ class Walker(Sampler):
         bridge: bool = False,
         alpha: float = 1.9,
         alpha_angle: float = 1.1,
+        alpha_convention: str = DEFAULT_READING["alpha_convention"],
+        angle_law: str = DEFAULT_READING["angle_law"],
+        bridge_fail: str = DEFAULT_READING["bridge_fail"],
         max_steps: int = 500,
         walkers: int | None = None,
         name: str | None = None,
@@ -47,7 +66,17 @@ class Walker(Sampler):
             raise ValueError(f"step_law must be 'gaussian' or 'levy', not {step_law!r}")
         self.step_law, self.bridge = step_law, bool(bridge)
         self.has_bridges = self.bridge
-        self.alpha, self.alpha_angle = float(alpha), float(alpha_angle)
+        for key, value in (
+            ("alpha_convention", alpha_convention),
+            ("angle_law", angle_law),
+            ("bridge_fail", bridge_fail),
+        ):
+            if value not in READING_CHOICES[key]:
+                raise UserError(f"{key} must be one of {', '.join(READING_CHOICES[key])}, not {value!r}")
+        self.angle_law, self.bridge_fail = angle_law, bridge_fail
+        # Mantegna's draw takes the stability index; the density reading's x^-alpha has stability index alpha - 1.
+        shift = 1.0 if alpha_convention == "density" else 0.0
+        self.alpha, self.alpha_angle = float(alpha) - shift, float(alpha_angle) - shift
         self.max_steps = int(max_steps)
         self.walkers = walkers  # pool size; None: sized to what is still needed (see _pool_size)
         self.name = (
@@ -74,10 +103,12 @@ class Walker(Sampler):
         u = G[:, :dim] / np.sqrt(np.einsum("ij,ij->i", G[:, :dim], G[:, :dim]))[:, None]
         length = a * (1.0 + np.abs(mantegna(G[:, dim : dim + 1], G[:, dim + 1 : dim + 2], self.alpha)))
         d = u * length / oracle.space.weights
-        if m:
+        if m and self.angle_law == "paper":
             L = mantegna(G[:, dim + 2 : dim + 2 + m], G[:, dim + 2 + m :], self.alpha_angle)
             delta = u[:, ang] * a * (1.0 + np.abs(L)) / oracle.space.weights[ang]
             d[:, ang] = 2 * np.pi * (1.0 - np.exp(np.minimum(-delta / (2 * np.pi), _EXP_CLIP)))
+        elif m and self.angle_law == "gaussian":
+            d[:, ang] = self._offsets(rng, n, a, exact=False)[:, ang]
         return d
 
     # ---- the lockstep walk ---------------------------------------------------------------------------------
@@ -131,7 +162,8 @@ class Walker(Sampler):
             accept = np.zeros(len(Q), bool)
             accept[cand[hit]] = True
             ends = np.stack([Q[cand[hit]], R[hit]], axis=1)
-        moved = ok & ~free  # q' collides: q <- q'. A free q' that failed the bridge test leaves q where it was.
+        # q' collides: q <- q'. A free q' that failed the bridge test leaves q where it was, or is moved on to.
+        moved = ok & (~accept if self.bridge_fail == "move" else ~free)
         Q[moved] = P[moved]
         self._age += 1
         self.stats["steps"] = self.stats.get("steps", 0) + len(Q)

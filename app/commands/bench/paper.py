@@ -5,7 +5,19 @@ import sys
 import time
 from pathlib import Path
 
-from app.bench.paper import PARTS, QUICK_STEPS, SAMPLING_SCENES, STEPS, Config, build_report, run_sweeps
+from app.bench import ompl_db
+from app.bench.paper import (
+    PARTS,
+    QUICK_STEPS,
+    SAMPLING_SCENES,
+    STEPS,
+    TRIALS_CSV,
+    Config,
+    build_report,
+    export_trials,
+    import_trials,
+    run_sweeps,
+)
 from app.bench.runner import connect
 from app.bench.store import ResultStore
 from app.commands.bench import results
@@ -44,8 +56,9 @@ def register(kinds) -> None:
     p.add_argument(
         "--out",
         default="out/paper",
-        help="report folder, with the results store results.sqlite (default out/paper, relative to the working "
-        "directory); trials already in the store are reused, not run (a killed run resumes)",
+        help="report folder, with the results store results.sqlite and every trial as trials.csv.gz (default "
+        "out/paper, relative to the working directory); trials already in the store, or in trials.csv.gz, are "
+        "reused, not run (a killed run resumes; committed results are continued)",
     )
     results.add_fresh_argument(p)
     p.add_argument("--report-only", action="store_true", help="rebuild report.md from the store; run nothing")
@@ -70,6 +83,19 @@ def register(kinds) -> None:
     )
     p.add_argument("--prm-seeds", type=repetitions, default=None, help="seeds per PRM cell (default 30, --quick 2)")
     p.add_argument("--ur3-runs", type=repetitions, default=None, help="runs per UR3 job (default 5, --quick 1)")
+    p.add_argument(
+        "--readings",
+        action="store_true",
+        help="also sample with each other reading of the paper's ambiguous points (the Lévy alpha, the angle law, "
+        "the bridge-fail rule) and judge the claims under each",
+    )
+    p.add_argument(
+        "--ompl-db",
+        metavar="FILE",
+        default=None,
+        help="also write every stored trial to FILE as an OMPL benchmark database (Planner Arena, "
+        "ompl_benchmark_statistics.py --plot)",
+    )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout (progress goes to stderr)")
     p.set_defaults(func=run)
 
@@ -87,16 +113,23 @@ def config_from_args(args) -> Config:
         ur3_runs=args.ur3_runs or (1 if quick else 5),
         parts=args.parts,
         quick=bool(quick),
+        readings=args.readings,
     )
 
 
 def run(args) -> int:
     config = config_from_args(args)
     folder = Path(args.out)
-    check_outputs(creating_folders=(folder / "results.sqlite", folder / "report.md"))
+    outputs = (folder / "results.sqlite", folder / "report.md", folder / TRIALS_CSV)
+    check_outputs(creating_folders=outputs + ((Path(args.ompl_db),) if args.ompl_db else ()))
     scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder.mkdir(parents=True, exist_ok=True)
     store = ResultStore(folder / "results.sqlite")
+    trials_csv = folder / TRIALS_CSV
+    if trials_csv.is_file():  # committed results: the store starts from them, so only missing trials run
+        seeded = import_trials(store, trials_csv)
+        if seeded:
+            print(f"{seeded} trials added to the store from {trials_csv}", file=sys.stderr if args.json else sys.stdout)
     ran, wall = 0, None
     if not args.report_only:
         start = time.perf_counter()
@@ -110,9 +143,26 @@ def run(args) -> int:
             ran += now
         wall = time.perf_counter() - start
     path = build_report(store, folder, config, wall_seconds=wall)
+    export_trials(store, trials_csv)
+    database = None
+    if args.ompl_db:
+        Path(args.ompl_db).parent.mkdir(parents=True, exist_ok=True)
+        database = str(ompl_db.write(store.rows(), args.ompl_db))
     if args.json:
-        print_json({"trials_run": ran, "trials_stored": store.count(), "store": str(store.path), "report": str(path)})
+        print_json(
+            {
+                "trials_run": ran,
+                "trials_stored": store.count(),
+                "store": str(store.path),
+                "report": str(path),
+                "trials_csv": str(trials_csv),
+                "ompl_db": database,
+            }
+        )
     else:
         print(f"{ran} trials run; {store.count()} in {store.path}")
         print(path)
+        print(trials_csv)
+        if database:
+            print(database)
     return 0

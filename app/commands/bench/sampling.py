@@ -69,8 +69,8 @@ def run(args) -> int:
 
 def print_table(summary: list[dict]) -> None:
     print(
-        f"{'scene':<9} {'sampler':<8} {'step':>5} {'t_eps s (95% int.)':>26} {'gamma_c (95% int.)':>28} "
-        f"{'passage (95% int.)':>20} {'env':>5} {'self':>5} {'both':>5} {'none':>5}"
+        f"{'scene':<9} {'sampler':<8} {'step':>5} {'t_eps s (median, 95% CI)':>26} {'gamma_c (median, 95% CI)':>28} "
+        f"{'passage (95% CI)':>20} {'env':>5} {'self':>5} {'both':>5} {'none':>5}"
     )
     for s in summary:
         t, c, p = s["seconds"], s["collision_checks"], s["passage_fraction"]
