@@ -1,7 +1,9 @@
 """Scripted arm jobs: a route of named tool poses, each leg planned, all legs joined into one trajectory.
 
-- `welding`: home, then seam point to seam point along the weld.
-- `window`: home, through the window to the part, back out, place it on the table, home.
+- `welding`: home, the torch lined up in the slot into the chassis box section (the scene's first pose), then seam
+  point to seam point along the weld.
+- `window`: home, the torch through the enclosure's hatch, the forearm in after it to the part, back out, above the
+  side table, home.
 
 Goals are the scene's tool poses solved to collision-free configurations by inverse kinematics (as one chain, so
 consecutive seam points get neighbouring arm postures). Each leg is one query: the planner takes the straight

@@ -55,47 +55,70 @@ def tunnel_boxes():
     ]
 
 
-# ---- welding: a ladder chassis beside the cart (cart at y = -0.73, arm base at z = 0.5) -------------------------
+# ---- welding: a box section of a chassis beside the cart (cart at y = -0.73, front face at y = -0.505) ---------
+# The UR3's cross section where it must pass: forearm tube 0.064 m across, and the wrist, whose joints sit 0.11 m
+# (wrist 1 to the forearm's line) and 0.085 m (wrist 2 to wrist 3) off the forearm with 0.064 m cylinders, so a
+# block about 0.17 x 0.15 m; the torch is 0.04 m across (0.02 m at the nozzle) and 0.18 m from flange to wire tip.
+# The chassis stands on trestles at working height, with the cell's floor at z = 0.50 (the arm base height), so
+# the arm reaches down into it as a welder's torch does, not up from below.
+# A cell between two cross members, closed by the floor pan, a top deck and the far rail; the only way in is the
+# slot between the near rail below and the upper rail above it, then the gap between the cross members.
+CELL = ((-0.18, -0.38, 0.50), (0.18, 0.42, 0.85))  # inside: 0.36 m between cross members, 0.35 m pan to deck
+# 0.28 m tall: the forearm enters inclined, so its vertical extent in the slot is the wrist block (0.17 m) plus
+# the forearm's slope over the 0.08 m rail depth. Narrower was tried: at 0.16 m no seam pose has an IK solution;
+# at 0.20-0.26 m (cross members 0.30 m apart) neither OMPL's RRTConnect nor our planner got in within 10 s.
+SLOT = (0.52, 0.80)
+NEAR_RAILS = (-0.46, -0.38)  # y of the near rails: 0.08 m deep box-section rails, 4.5 cm off the cart's front
+
+
 def welding_boxes():
-    boxes = [
-        ("rail_near", (-1.3, -0.50, 0.30), (1.3, -0.42, 0.45)),
-        ("rail_far", (-1.3, 0.42, 0.30), (1.3, 0.50, 0.45)),
-        ("floor_pan", (-1.3, -0.42, 0.30), (1.3, 0.42, 0.32)),
-        ("stand_1", (-0.85, -0.55, 0.0), (-0.75, 0.55, 0.30)),
-        ("stand_2", (0.75, -0.55, 0.0), (0.85, 0.55, 0.30)),
+    (x0, y0, z0), (x1, y1, z1) = CELL
+    s0, s1 = SLOT
+    r0, r1 = NEAR_RAILS
+    t = 0.02  # sheet thickness of the pan, deck and cross-member webs
+    return [
+        ("rail_near_lower", (-1.3, r0, 0.45), (1.3, r1, s0)),
+        ("rail_near_upper", (-1.3, r0, s1), (1.3, r1, z1 + t)),
+        ("rail_far", (-1.3, y1, 0.45), (1.3, y1 + 0.08, z1 + t)),
+        ("floor_pan", (-1.3, y0, z0 - t), (1.3, y1, z0)),
+        ("top_deck", (-1.3, y0, z1), (1.3, y1, z1 + t)),
+        ("cross_member_1", (x0 - 0.04, y0, z0), (x0, y1, z1)),  # 0.04 m webs
+        ("cross_member_2", (x1, y0, z0), (x1 + 0.04, y1, z1)),
+        ("trestle_1", (-0.85, r0, 0.0), (-0.75, y1 + 0.08, 0.45)),
+        ("trestle_2", (0.75, r0, 0.0), (0.85, y1 + 0.08, 0.45)),
     ]
-    for i, x in enumerate((-1.0, -0.35, 0.35, 1.0)):
-        boxes.append((f"cross_member_{i + 1}", (x - 0.04, -0.42, 0.32), (x + 0.04, 0.42, 0.45)))
-    # a gusset bracket on the far rail and a bracket tube across the bay above the pan, for clutter
-    boxes.append(("gusset", (-0.31, 0.30, 0.32), (-0.21, 0.42, 0.45)))
-    boxes.append(("brace", (-0.31, -0.05, 0.52), (0.31, 0.05, 0.56)))
-    boxes.append(("brace_post_1", (-0.35, -0.03, 0.45), (-0.31, 0.03, 0.56)))
-    boxes.append(("brace_post_2", (0.31, -0.03, 0.45), (0.35, 0.03, 0.56)))
-    return boxes
 
 
-# ---- window: a wall in front of the cart (cart at the origin) with a 0.2 x 0.2 m opening into a cabinet ----------
-WINDOW_OPENING = ((0.40, -0.10, 0.58), (0.45, 0.10, 0.78))
+# ---- window: a machine enclosure in front of the cart (cart at the origin, its front face at x = 0.225) ---------
+# A service hatch in the enclosure's door, through which the torch and the forearm reach a part deep inside. The
+# UR3's cross section there (see welding) is the wrist block, about 0.17 x 0.15 m when the torch is level; the
+# forearm enters sloping down from the elbow, above the hatch's top edge. The hatch is 0.22 m wide and 0.26 m
+# tall: 5 cm wider than the wrist block, and as tall as the block plus the forearm's slope across the door (at
+# 0.20 x 0.24 m RRTConnect got in within 10 s in 1 of 4 seeds, our planner in none).
+HATCH = ((0.30, -0.14, 0.58), (0.33, 0.08, 0.84))  # a 3 cm door (steel sheet and frame), 7.5 cm off the cart
+# Inside: 0.49 m deep, 0.70 m wide, 0.50 m tall (a small machine tool's work area); the part sits on a fixture
+# 0.29-0.41 m behind the door, its top at z = 0.60, and the wire tip stops 5 cm above it.
+ENCLOSURE = ((0.33, -0.35, 0.50), (0.82, 0.35, 1.00))
+FIXTURE = ((0.62, -0.06, 0.50), (0.74, 0.06, 0.60))
 
 
 def window_boxes():
-    (x0, y0, z0), (x1, y1, z1) = WINDOW_OPENING
-    cabinet = ((x1, -0.16, 0.54), (0.78, 0.16, 0.82))  # outer corners; 0.02 m thick walls
-    (cx0, cy0, cz0), (cx1, cy1, cz1) = cabinet
-    t = 0.02
+    (x0, y0, z0), (x1, y1, z1) = HATCH
+    (ex0, ey0, ez0), (ex1, ey1, ez1) = ENCLOSURE
+    t = 0.02  # sheet-steel walls
     return [
-        ("wall_south", (x0, -0.6, 0.0), (x1, y0, 1.2)),
-        ("wall_north", (x0, y1, 0.0), (x1, 0.6, 1.2)),
-        ("wall_below", (x0, y0, 0.0), (x1, y1, z0)),
-        ("wall_above", (x0, y0, z1), (x1, y1, 1.2)),
-        ("cabinet_floor", (cx0, cy0, cz0), (cx1, cy1, cz0 + t)),
-        ("cabinet_top", (cx0, cy0, cz1 - t), (cx1, cy1, cz1)),
-        ("cabinet_south", (cx0, cy0, cz0), (cx1, cy0 + t, cz1)),
-        ("cabinet_north", (cx0, cy1 - t, cz0), (cx1, cy1, cz1)),
-        ("cabinet_back", (cx1 - t, cy0, cz0), (cx1, cy1, cz1)),
-        ("cabinet_stand", (cx0, cy0, 0.0), (cx1, cy1, cz0)),
-        ("object", (0.62, -0.03, 0.56), (0.68, 0.03, 0.70)),  # a 6 x 6 x 14 cm part
-        ("side_table", (-0.20, 0.25, 0.0), (0.30, 0.60, 0.40)),
+        ("door_south", (x0, ey0 - t, 0.0), (x1, y0, ez1 + t)),
+        ("door_north", (x0, y1, 0.0), (x1, ey1 + t, ez1 + t)),
+        ("door_below", (x0, y0, 0.0), (x1, y1, z0)),
+        ("door_above", (x0, y0, z1), (x1, y1, ez1 + t)),
+        ("enclosure_floor", (ex0, ey0, ez0 - t), (ex1, ey1, ez0)),
+        ("enclosure_top", (ex0, ey0, ez1), (ex1, ey1, ez1 + t)),
+        ("enclosure_south", (ex0, ey0 - t, 0.0), (ex1 + t, ey0, ez1 + t)),
+        ("enclosure_north", (ex0, ey1, 0.0), (ex1 + t, ey1 + t, ez1 + t)),
+        ("enclosure_back", (ex1, ey0, 0.0), (ex1 + t, ey1, ez1 + t)),
+        ("enclosure_base", (ex0, ey0, 0.0), (ex1, ey1, ez0 - t)),
+        ("fixture", *FIXTURE),
+        ("side_table", (-0.20, 0.25, 0.0), (0.30, 0.60, 0.40)),  # where the part is put down, beside the cart
     ]
 
 
@@ -118,9 +141,9 @@ FILES = {
                            maze_boxes),
     "tunnel_obstacles.sdf": ("tunnel_obstacles", "Tunnel 20 x 5 x 5 m along x, 0.9 x 0.8 m constriction at x = 10.",
                              tunnel_boxes),
-    "welding_obstacles.sdf": ("welding_obstacles", "Ladder chassis: rails, floor pan, cross members, brace.",
+    "welding_obstacles.sdf": ("welding_obstacles", "Chassis box section: a cell between cross members, entered through a slot between rails.",
                               welding_boxes),
-    "window_obstacles.sdf": ("window_obstacles", "Wall with a 0.2 x 0.2 m window into a cabinet; a side table.",
+    "window_obstacles.sdf": ("window_obstacles", "Machine enclosure with a 0.22 x 0.26 m service hatch in its door; a side table.",
                              window_boxes),
 }
 

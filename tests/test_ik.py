@@ -45,9 +45,10 @@ def test_every_pose_solves_to_a_free_configuration_within_tolerance(oracles, nam
 def test_weld_seam_solutions_form_a_chain(oracles):
     """Each seam pose is solved nearest the previous one, so consecutive configurations stay close."""
     oracle = oracles("welding")
-    solutions = list(ik.solve_poses(oracle, np.random.default_rng(1)).values())
+    solutions = [q for name, q in ik.solve_poses(oracle, np.random.default_rng(1)).items() if name.startswith("seam_")]
+    assert len(solutions) == 4
     steps = [oracle.space.distance(a, b) for a, b in zip(solutions, solutions[1:])]
-    assert max(steps) < 0.3  # weighted metric, metres of tool-tip travel; seam points are 0.075 m apart
+    assert max(steps) < 0.3  # weighted metric, metres of tool-tip travel; seam points are 0.02 m apart
 
 
 def test_the_problem_file_goals_reach_their_poses(oracles):
@@ -82,11 +83,11 @@ def test_a_pose_out_of_reach_is_an_invalid_endpoint(oracles):
 
 @pytest.mark.slow
 def test_a_pose_reachable_only_in_collision_is_an_invalid_endpoint(oracles):
-    """The TCP inside the object on the cabinet floor: kinematically fine, never free."""
+    """The TCP inside the fixture in the enclosure: kinematically fine, never free."""
     from pydrake.math import RigidTransform, RollPitchYaw
 
     oracle = oracles("window")
-    inside = RigidTransform(RollPitchYaw(0, math.pi / 2, 0), [0.65, 0.0, 0.64])
+    inside = RigidTransform(RollPitchYaw(0, math.pi / 2, 0), [0.68, 0.0, 0.56])
     with pytest.raises(InvalidEndpoint, match="cannot be reached collision-free"):
         ik.solve_pose(oracle, inside, np.random.default_rng(0), seeds=16)
 
@@ -110,11 +111,11 @@ def test_pose_goal_places_the_scene_tool_frame_by_default(oracles):
 
     oracle = oracles("window")
     assert ik.robot_frame(oracle).name() == "tcp"
-    q = ik.pose_goal(oracle, [0.6, 0.0, 0.66, 0, 90, 0])
-    assert_reaches(oracle, q, RigidTransform(RollPitchYaw(0, math.pi / 2, 0), [0.6, 0.0, 0.66]))
+    q = ik.pose_goal(oracle, [0.66, 0.0, 0.65, 0, 90, 0])
+    assert_reaches(oracle, q, RigidTransform(RollPitchYaw(0, math.pi / 2, 0), [0.66, 0.0, 0.65]))
     assert oracle.is_free(q)
     # The scene's goal solves this very pose ('reach'): given as the reference, it is what comes back.
-    near = ik.pose_goal(oracle, [0.6, 0.0, 0.66, 0, 90, 0], reference=oracle.scene.goal)
+    near = ik.pose_goal(oracle, [0.66, 0.0, 0.65, 0, 90, 0], reference=oracle.scene.goal)
     assert oracle.space.distance(near, oracle.scene.goal) < 0.01
     assert ik.robot_frame(oracle, "tool0").name() == "tool0"
     assert ik.robot_frame(oracles("bar")).body().name() == "link7"  # no tool frame: the chain's last body

@@ -452,7 +452,10 @@ def test_bench_jobs_times_query_and_full_roadmap_side_by_side(tmp_path, cli, one
     result = cli(*args)
     assert result.returncode == 0, result.stderr
     rows = [line.split() for line in result.stdout.splitlines() if line.startswith("welding  ")]
-    assert [row[2] for row in rows] == ["full", "query"] and all(row[3] == "1/1" for row in rows)
-    assert "welding lfbs: the query mode takes" in result.stdout
+    assert [row[2] for row in rows] == ["full", "query"] and rows[1][3] == "1/1"
+    # A full roadmap of the job's 80 samples rarely gets through the slot into the chassis: the ratio of the two
+    # modes' times is printed only when both have a time.
+    assert rows[0][3] in ("0/1", "1/1")
+    assert ("welding lfbs: the query mode takes" in result.stdout) == (rows[0][3] == "1/1")
     one_line_error(cli("bench", "jobs", "--jobs", "parking", "--store", tmp_path / "x.sqlite"), 2)
     assert not (tmp_path / "x.sqlite").exists()
