@@ -262,3 +262,14 @@ def test_distances_bounded_together_equal_those_bounded_one_at_a_time(oracles, n
             assert np.array_equal(end.keys, alone.keys) and np.allclose(
                 end.distance, alone.distance, rtol=0, atol=1e-12
             )
+
+
+def test_the_full_speed_bound_is_below_every_timing_of_the_same_path(oracles):
+    """bench certify's lower bound on a path's duration within the velocity limits: rest-to-rest timing of that
+    path obeys those limits, so it can never be faster than the bound."""
+    from app.bench.certification import run_trial_spec
+    from app.bench.store import TrialSpec
+
+    metrics = run_trial_spec(oracles("bar-3link"), TrialSpec("certify", "bar-3link", "default", 10.0, 0))
+    assert metrics["success"]
+    assert 0 < metrics["duration_full_speed"] <= metrics["duration_rest_to_rest"]
