@@ -70,8 +70,8 @@ class Roadmap:
         self.Q = np.empty((0, oracle.space.dim))
         self.kinds: list[str] = []
         self.graph = nx.Graph()
-        # The same edges as arrays, for the search: rows in insertion order, (a, b) with a < b -> row. Building the
-        # search's sparse matrix from networkx's edge views cost as much as the searches themselves.
+        # The same edges as arrays, for the search, which builds its sparse matrix from them (iterating networkx's
+        # edge views for it is Python, per edge): rows in insertion order, (a, b) with a < b -> row.
         self._rows: dict[tuple[int, int], int] = {}
         self._ends = np.empty((0, 2), int)
         self._lengths = np.empty(0)
