@@ -2,9 +2,10 @@
 
 A path is an (n, dim) array of waypoints; its edges are straight in the scene's metric (the short way round on
 continuous angles), exactly as `oracle.space.interpolate` walks them. Shortcuts are checked at one resolution (batched,
-coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the planning resolution, `verify`s the
-result at FINE x that resolution, and smooths again at the fine resolution in the rare case a shortcut fails there
-(checking every accepted shortcut at the fine resolution doubled the cost of smoothing on the maze).
+coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the planning resolution, certifies the
+result (app.certify), and smooths again at the fine resolution (FINE x that) in the case a shortcut cannot be proved
+(checking every accepted shortcut at the fine resolution doubled the cost of smoothing on the maze). `verify` is the
+discrete fine check, for paths no certificate vouches for (OMPL's, in `bench ompl`).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
     endpoints checked -> the straight motion -> uniform, then narrow-passage samples, in rounds until start and
     goal connect -> roadmap (k-nearest; lazy edge checks for a single query) -> shortest path -> shortcut
-    smoothing -> the result re-checked at 1/4 resolution -> Toppra per segment
+    smoothing -> the result certified free between its checked points -> Toppra along a blended curve
 
 `plan(oracle, PlanSettings(...))` runs one `Query` through those phases and returns a PlanResult.
 """
@@ -447,8 +447,8 @@ class Query:
             ) from None
 
     def solve(self) -> PlanResult:
-        """The straight motion if it is free; else grow round by round until start and goal connect, then smooth,
-        re-check and time the path. The budget bounds everything but the final re-check and timing."""
+        """The straight motion if it is free and proved; else grow round by round until start and goal connect, then
+        smooth, certify and time the path. The budget bounds everything but the certificate and timing."""
         self.oracle.stop = Stop(self.settings.budget, self.oracle, self._cancel)
         try:
             if self.straight():
