@@ -42,8 +42,8 @@ ROBOT_SUFFIXES = {".urdf", ".sdf"}
 # convex pieces may reach beyond the surface. Edges are checked every `resolution`: between two checks the robot
 # moves up to a step, so the planner already misses overlaps about half a step deep; pieces half a step proud are
 # of that order, finer than it resolves (a gap narrows by at most one step). Tied to the mesh's own size instead
-# (0.2 % of its diagonal), a 3,072-triangle torus rejected CoACD's 15 pieces and fell back to ~1,500 face plates;
-# a quarter step still rejected them (665 plates), half a step lets them pass. Robot meshes keep app.meshes' default.
+# (0.2 % of its diagonal), a 3,072-triangle torus rejected CoACD's 15 pieces and fell back to ~1,500 face plates.
+# Robot meshes keep app.meshes' default.
 ENV_TOLERANCE_PER_STEP = 0.5
 CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
 
@@ -776,7 +776,7 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
         print(
             f"warning: {path.name} became {len(d.pieces)} convex pieces (tolerance "
             f"{d.validation.get('tolerance', 0):.3g} m); Drake's set-up time grows with the square of that (about "
-            f"5 s at 1000, 20 s at 2000): a larger --mesh-tolerance helps only if it lets CoACD's pieces pass",
+            f"5 s at 1000, 20 s at 2000); a larger --mesh-tolerance gives fewer",
             file=sys.stderr,
         )
     return {

@@ -9,7 +9,7 @@ pytest.importorskip("trimesh")
 
 from app import meshes  # noqa: E402
 from app.errors import UserError  # noqa: E402
-from mesh_shapes import bent_sheet, open_u, u_boxes, u_channel  # noqa: E402
+from mesh_shapes import bent_sheet, holed_shell, open_u, u_boxes, u_channel  # noqa: E402
 
 
 def test_convex_hull_of_a_u_channel_fails_validation():
@@ -71,7 +71,7 @@ def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path):
     u_channel().export(path)
     first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
     assert first.facts["closed"] and not first.facts["convex"]
-    assert first.method in ("coacd", "faces") and first.validation["ok"] and not first.from_cache
+    assert first.method == "shell" and first.validation["ok"] and not first.from_cache
     started = time.perf_counter()
     again = meshes.decompose(path, cache_dir=tmp_path, progress=False)
     assert again.from_cache and time.perf_counter() - started < 0.5
@@ -135,6 +135,7 @@ def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message)
 
 def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch):
     """As measured on thin-walled scenes: CoACD's pieces put free space in collision -> validation rejects them."""
+    monkeypatch.setattr(meshes, "choose_method", lambda facts: ["coacd", "faces"])
 
     def hull_instead(parts, *args, **kwargs):
         return [[meshes.hull_piece(p.vertices)] for p in parts]
@@ -153,11 +154,45 @@ def test_a_crashing_coacd_falls_back_to_exact_faces(tmp_path, monkeypatch):
         raise meshes.MethodFailed("CoACD failed (exit code -11)")
 
     monkeypatch.setattr(meshes, "coacd_pieces", crash)
+    monkeypatch.setattr(meshes, "choose_method", lambda facts: ["coacd", "faces"])
     path = tmp_path / "u.stl"
     u_channel().export(path)
     d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
     assert d.method == "faces" and d.validation["ok"]
     assert "exit code -11" in " ".join(d.validation["notes"])
+
+
+def test_a_thick_shell_becomes_shell_pieces_far_fewer_than_face_plates(tmp_path):
+    """The trap (3,072 triangles, walls 0.2 thick): pieces reaching into the wall cover its outer side in large
+    caps; they keep the cavity and the opening free, checked on points the validation did not draw."""
+    path = tmp_path / "trap.obj"
+    holed_shell().export(path)
+    tol = 0.025
+    shell = meshes.decompose(path, tolerance=tol, cache_dir=tmp_path, progress=False)
+    plates = meshes.decompose(path, method="faces", tolerance=tol, cache_dir=tmp_path, progress=False)
+    assert shell.method == "shell" and shell.validation["ok"]
+    assert len(shell.pieces) < 0.5 * len(plates.pieces)
+    rng = np.random.default_rng(7)
+    points = rng.uniform(-1.5, 1.5, (40_000, 3))
+    radius = np.linalg.norm(points, axis=1)
+    free = (radius < 1.0 - tol) | (radius > 1.2 + tol)
+    depth, _ = meshes._inside_any(points[free], meshes.load_pieces(shell), margin=0.0)
+    assert free.sum() > 20_000 and not (depth > 1e-9).any()
+    wall = (radius > 1.0 + tol) & (radius < 1.2 - tol) & (points[:, 2] < 0)  # away from the opening
+    depth, _ = meshes._inside_any(points[wall], meshes.load_pieces(shell), margin=0.0)
+    assert wall.sum() > 1000 and (depth > 0).mean() > 0.5  # the pieces fill much of the wall, not just its skin
+
+
+def test_shell_pieces_that_fill_free_space_become_face_pieces(tmp_path):
+    """The hull of a U-shaped end face fills the U's slot between sparse probes: validation finds those pieces and
+    only they are replaced."""
+    path = tmp_path / "u.obj"
+    u_channel().export(path)
+    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    manifest = __import__("json").loads((d.directory / "manifest.json").read_text())
+    assert [t["ok"] for t in manifest["tried"]] == [False, True]
+    assert manifest["tried"][0]["violations"] > 0 and "became face pieces" in " ".join(d.validation["notes"])
+    assert d.method == "shell" and len(d.pieces) > manifest["tried"][0]["pieces"]
 
 
 def test_collada_units_are_applied(tmp_path):
