@@ -2,6 +2,7 @@
 whose convex hull would block it, URDF robots with package paths, custom scene files, and bad input."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -516,3 +517,20 @@ def test_a_cache_folder_with_uri_characters_in_its_name_works(files, tmp_path):
     comment), '%' and spaces in the cache's path must reach Drake as they are."""
     scene = build_scene(_spec(files, mesh_method="faces"), cache_dir=tmp_path / "a&b #c%20d", progress=False)
     assert scene.dim == 6
+
+
+def test_the_trap_example_loads_in_seconds_and_its_cube_escapes(tmp_path, monkeypatch, capsys):
+    """examples/trap: a 3,072-triangle closed, non-convex shell. Built from an empty cache it becomes shell pieces
+    (a third of the face plates it made before), and the cube leaves through the opening on a certified path."""
+    from app.cli import main
+
+    monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
+    scene = str(Path(__file__).parent.parent / "examples" / "trap" / "trap.yaml")
+    assert main(["plan", scene, "--budget", "60s", "--json"]) == 0
+    answer = json.loads(capsys.readouterr().out)
+    assert answer["success"] and answer["certified"]
+    path = np.array(answer["path"])
+    assert np.linalg.norm(path[:, :3], axis=1).max() > 1.3  # out of the shell: round it, not through the wall
+    built = load_scene(scene, cache_dir=tmp_path / "cache").info["decompositions"]
+    trap = next(d for d in built if d["mesh"] == "trap.obj")
+    assert trap["method"] == "shell" and trap["pieces"] < 400 and trap["from_cache"]
