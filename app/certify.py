@@ -250,17 +250,19 @@ class _Gaps:
         rough = np.maximum(self._distance_to(B, A.p) - A.radius, self._distance_to(A, B.p) - B.radius)
         keep = rough < limit[k]
         k, pair = k[keep], pair[keep]
-        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[k, pair])
+        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[k, pair], limit[k])
         below = bounds < limit[k]
         return k[below], pair[below], bounds[below]
 
     def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
         return _Posed(R, p, self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
 
-    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray) -> np.ndarray:
+    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray, limit: np.ndarray) -> np.ndarray:
         """The largest gap between the shapes along three directions: Drake's where it has one, and the normals of
-        each shape at the near points that alternating projections onto the two shapes find. Any direction's gap
-        bounds the distance from below; a normal of a shape makes that shape's side of the bound exact."""
+        each shape at the near points that alternating projections onto the two shapes find; then, only for the
+        rows still below `limit` (the others are cleared already), along the face normals of their meshes (costly:
+        faces x vertices per row). Any direction's gap bounds the distance from below; a normal of a shape makes
+        that shape's side of the bound exact."""
         on_a = A.p
         for _ in range(PROJECTIONS):
             on_b = self._project(B, on_a)
@@ -272,7 +274,11 @@ class _Gaps:
             np.einsum("ij,ij->i", n[:, k], A.p - B.p) - self._support(A, -n[:, k]) - self._support(B, n[:, k])
             for k in range(n.shape[1])
         ]
-        return np.nanmax(np.column_stack(gaps + [self._face_gaps(A, B)]), 1)
+        gaps = np.column_stack(gaps)
+        best = np.where(np.isnan(gaps), -np.inf, gaps).max(1)
+        low = np.flatnonzero(best < limit)
+        best[low] = np.maximum(best[low], self._face_gaps(_rows(A, low), _rows(B, low)))
+        return best
 
     def _face_gaps(self, A: _Posed, B: _Posed) -> np.ndarray:
         """The largest gap along the face normals of the pairs' meshes (-inf for a pair without one). A mesh's
