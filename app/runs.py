@@ -8,8 +8,9 @@
 Goals are the scene's tool poses solved to collision-free configurations by inverse kinematics (as one chain, so
 consecutive seam points get neighbouring arm postures). Each leg is one query: the planner takes the straight
 joint-space move where it is proved free (a seam step of a few centimetres needs no roadmap) and plans the others.
-Legs start and end at rest, so the joined trajectory stops at each pose (where a welder strikes or a gripper
-closes) and nowhere else.
+The robot stops at home and at each pose where the job needs it at rest (a weld point, a grasp) and nowhere else:
+legs joined at a pose marked `stop: false` in the scene (an approach: the torch lined up in a slot, in a hatch)
+are timed as one curve, blended and certified there as at any other corner (app.timing).
 """
 
 import time
@@ -20,7 +21,9 @@ import numpy as np
 from app.budget import Budget
 from app.errors import UserError
 from app.ik import solve_poses
+from app.path import dedupe
 from app.planner import PlanSettings, plan
+from app.timing import parameterize_smooth
 from app.trajectory import Trajectory, TrajectoryFile
 
 HOME = "home"
@@ -41,7 +44,7 @@ class Leg:
     narrow_on_path: int
     collision_checks: int
     seconds: float
-    duration: float
+    duration: float  # of this leg within the job's motion (from its start pose to its goal pose)
     path: np.ndarray
     trajectory: Trajectory
     narrow: np.ndarray  # the leg's narrow-passage samples (empty for a straight leg)
@@ -147,17 +150,45 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
             )
         )
 
+    stops = [k for k, name in enumerate(names) if name not in oracle.scene.pass_through]
+    motions = [_through(oracle, legs[a:b], settings.dt) for a, b in zip(stops[:-1], stops[1:])]
     planning = time.perf_counter() - clock - ik_seconds
     return RunResult(
         oracle.scene.name,
         sampler,
         seed,
         legs,
-        join([leg.trajectory for leg in legs], oracle),
+        join(motions, oracle),
         {"ik": ik_seconds, "planning": planning, "total": time.perf_counter() - clock},
         oracle.checks - checks0,
         configurations,
     )
+
+
+def _through(oracle, legs: list[Leg], dt: float) -> Trajectory:
+    """The motion from rest to rest along legs that pass through the poses joining them: one curve timed over all
+    their waypoints (a single leg keeps its own trajectory). Sets each leg's `duration` to its share of it."""
+    if len(legs) == 1:
+        return legs[0].trajectory
+    paths = [dedupe(leg.path) for leg in legs]
+    scene = oracle.scene
+    try:
+        trajectory = parameterize_smooth(
+            oracle,
+            oracle.space.unwrap(np.vstack([paths[0]] + [p[1:] for p in paths[1:]])),
+            scene.velocity_limits,
+            scene.acceleration_limits,
+            dt,
+            oracle.space.names,
+            edges_proved=all(leg.trajectory.certified for leg in legs),  # each leg's edges are certified already
+        )
+    except RuntimeError:  # Toppra found no timing of the joined curve: stop at the poses after all
+        return join([leg.trajectory for leg in legs], oracle)
+    ends = np.cumsum([len(p) - 1 for p in paths])  # each leg's goal among the joined waypoints
+    times = trajectory.waypoint_times[np.concatenate([[0], ends])]
+    for leg, duration in zip(legs, np.diff(times)):
+        leg.duration = float(duration)
+    return trajectory
 
 
 def join(trajectories: list[Trajectory], oracle) -> Trajectory:

@@ -42,11 +42,13 @@ class PassageSpec:
 @dataclass
 class ToolPose:
     """A named pose of the scene's tool frame in the world: position (m) and roll-pitch-yaw (degrees, Drake's
-    convention R = Rz(yaw) Ry(pitch) Rx(roll)). Goals of arm scenes are reached from these by inverse kinematics."""
+    convention R = Rz(yaw) Ry(pitch) Rx(roll)). Goals of arm scenes are reached from these by inverse kinematics.
+    `stop`: a job's robot comes to rest here (a weld point, a grasp); false: it passes through (an approach)."""
 
     name: str = ""
     xyz: list[float] = field(default_factory=list)
     rpy_deg: list[float] = field(default_factory=list)
+    stop: bool = True
 
 
 @dataclass
@@ -243,7 +245,8 @@ class Scene:
         self._read_poses(problem)
 
     def _read_poses(self, problem: ProblemFile) -> None:
-        """`tool_frame` (a Frame or None) and `poses` (name -> RigidTransform of the tool frame in the world)."""
+        """`tool_frame` (a Frame or None), `poses` (name -> RigidTransform of the tool frame in the world) and
+        `pass_through` (the names of the poses a job does not stop at)."""
         from pydrake.math import RigidTransform, RollPitchYaw
 
         bad = f"bad scene file {self.path.name}"
@@ -253,6 +256,7 @@ class Scene:
             raise UserError(f"{bad}: 'poses' need a 'tool_frame'")
         self.tool_frame = self.plant.GetFrameByName(problem.tool_frame) if problem.tool_frame else None
         self.poses = {}
+        self.pass_through = {pose.name for pose in problem.poses if not pose.stop}
         for pose in problem.poses:
             if not pose.name or pose.name in self.poses:
                 raise UserError(f"{bad}: every pose needs a unique name (got '{pose.name}')")

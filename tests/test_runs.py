@@ -1,6 +1,7 @@
 """The scripted UR3 jobs (`run welding|window`): IK goals, legs planned or straight, one joined trajectory."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -40,6 +41,22 @@ def test_joined_trajectory_is_continuous_and_within_the_limits(oracles, window_r
     V = np.diff(X, axis=0) / np.diff(t)[:, None]
     assert np.all(np.abs(V) <= scene.velocity_limits * (1 + 1e-3) + 1e-6)  # no jump where legs join
     assert np.allclose(X[0], window_run.configurations[HOME]) and np.allclose(X[-1], X[0], atol=1e-9)
+
+
+def test_the_robot_rests_at_the_jobs_poses_and_passes_through_the_hatch(oracles, window_run):
+    """The scene marks the hatch pose `stop: false`: the joined motion goes through it without slowing to rest
+    (blended and certified there), and rests at home, at the part and above the table."""
+    oracle = oracles("window")
+    run = run_job(oracle, "window", replace(JOB_SETTINGS, dt=0.001))  # sampled finely: speeds at the poses
+    traj = run.trajectory
+    assert traj.certified and oracle.scene.pass_through == {"window"}
+    ends = np.cumsum([leg.duration for leg in run.legs])
+    speed = np.abs(traj.velocities / oracle.scene.velocity_limits).max(axis=1)
+    for leg, t in zip(run.legs, ends):
+        at = speed[np.argmin(np.abs(traj.times - t))]  # within 0.5 ms: a stop's speed is then below 0.002
+        assert (at > 0.05) if leg.goal == "window" else (at < 0.005), (leg.goal, at)
+    alone = sum(leg.trajectory.duration for leg in run.legs)  # each leg timed on its own, rest to rest
+    assert traj.duration < alone - 0.3
 
 
 def test_same_seed_same_run(oracles, window_run):
