@@ -167,3 +167,21 @@ def test_exported_trials_read_back_as_the_same_rows(tmp_path):
     assert sorted(map(json.dumps, copy.rows())) == sorted(map(json.dumps, store.rows()))
     assert paper.import_trials(copy, path) == 0  # no trial twice
     assert paper.export_trials(copy, tmp_path / "again.csv.gz").read_bytes() == path.read_bytes()
+
+
+def test_a_cell_whose_first_trials_all_spend_the_budget_gets_no_more(tmp_path):
+    """rbbs at small steps: 30 of 30 censored says what more trials would (each costing the whole budget)."""
+    store = ResultStore(tmp_path / "r.sqlite")
+    base = {"k": 30, "max_checks": 1000}
+    spent = {"k": 30, "ok": False, "censored": True, "seconds": 4.0, "collision_checks": 1000, "passage_fraction": 0}
+    done = {**spent, "ok": True, "censored": False, "collision_checks": 900}
+    for seed in range(paper.CENSORED_CAP):
+        store.add(TrialSpec("sampling", "bar", "rbbs", 2.0, seed, base), spent)
+        store.add(TrialSpec("sampling", "bar", "rbbs", 5.0, seed, base), done if seed == 7 else spent)
+    specs = paper.sampling_specs(["bar"], ["rbbs"], [2.0, 5.0], 40, max_checks=1000)
+    kept = paper.capped(specs, store)
+    assert {(s.step, s.seed) for s in specs} - {(s.step, s.seed) for s in kept} == {
+        (2.0, seed) for seed in range(paper.CENSORED_CAP, 40)
+    }  # a step-5 trial finished: that cell runs on
+    paper.build_report(store, tmp_path, pictures=False)
+    assert "Capped: bar rbbs a=2." in (tmp_path / "report.md").read_text()
