@@ -388,9 +388,12 @@ def _overview_section(
     versions = sorted({r["code_version"] for r in rows})
     lines += ["## Machine, code, trials", ""]
     lines += [f"- Machine: {m}" for m in machine()]
+    spent = sum(float(r["metrics"].get("seconds") or 0.0) for r in rows)
     lines += [
         f"- Code version(s) of the stored trials: {', '.join(f'`{v}`' for v in versions) or '–'}",
         "- Trials per experiment: " + (", ".join(f"{k} {v}" for k, v in sorted(by_experiment.items())) or "none"),
+        f"- Time in trials: {spent / 3600:.1f} h (every stored trial's own seconds, summed over the sessions and "
+        "workers that ran them)",
     ]
     if config is not None:
         lines += [
