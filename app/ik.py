@@ -7,12 +7,12 @@ small weighted quadratic cost towards the reference configuration. Translations 
 not (SNOPT converges about three times as often without those bounds), and a solution's angles are shifted by whole
 turns into the scene's bounds afterwards, which leaves the kinematics unchanged. SNOPT runs from several seeds: the
 reference first, then configurations drawn uniformly from the bounds with the caller's rng. A solution counts only if
-forward kinematics confirms the pose and the oracle says it is free; the first `keep` such solutions are compared and
-the one nearest the reference (in the scene's weighted metric) wins. Six, not three: with three, 4 of 20 seeds of the
-welding job took a backward-reaching arm posture for the slot (none with six), from which 2 of them found no path.
-If every solution found collides, a second round
-adds Drake's minimum-distance constraint (every counted collision pair at least `clearance` apart), seeded with those
-colliding solutions, so the solver itself pushes them clear. Nothing free: `InvalidEndpoint` naming the pose.
+forward kinematics confirms the pose and the oracle says it is free; the first `keep` (6) such solutions are compared
+and the one nearest the reference (in the scene's weighted metric) wins. Comparing only 3, 4 of 20 seeds of the
+welding job took a backward-reaching arm posture for the slot (with 6: none of 40), and 2 of them then found no path.
+If every solution found collides, a second round adds Drake's minimum-distance constraint (every counted collision
+pair at least `clearance` apart), seeded with those colliding solutions, so the solver itself pushes them clear.
+Nothing free: `InvalidEndpoint` naming the pose.
 
 Measured on the UR3 scenes: one pose takes 30-70 ms (about 5 ms per SNOPT solve); an unreachable pose fails in about
 0.2 s; a pose reachable only in collision costs a few seconds (the minimum-distance round).

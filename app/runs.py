@@ -150,7 +150,8 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
             )
         )
 
-    stops = [k for k, name in enumerate(names) if name not in oracle.scene.pass_through]
+    last = len(names) - 1
+    stops = [k for k, name in enumerate(names) if k in (0, last) or name not in oracle.scene.pass_through]
     motions = [_through(oracle, legs[a:b], settings.dt) for a, b in zip(stops[:-1], stops[1:])]
     planning = time.perf_counter() - clock - ik_seconds
     return RunResult(
