@@ -250,8 +250,11 @@ def _grow_patches(mesh, begin, extend, finish, desc: str, progress: bool) -> tup
     assigned = np.zeros(len(faces), bool)
     pieces, groups = [], []
     bar = _progress(total=len(faces), desc=desc, unit="face", disable=not progress)
-    for seed in np.argsort(-np.asarray(mesh.area_faces, float), kind="stable"):
-        if assigned[seed]:
+    areas = np.asarray(mesh.area_faces, float)
+    # A face with no area (collinear corners) has no plane: it seeds nothing (its neighbours cover its edges).
+    flat = areas <= 1e-12 * float(np.linalg.norm(mesh.extents)) ** 2
+    for seed in np.argsort(-areas, kind="stable"):
+        if assigned[seed] or flat[seed]:
             continue
         n = normals[seed]
         state = begin(int(seed))
@@ -281,63 +284,52 @@ def _grow_patches(mesh, begin, extend, finish, desc: str, progress: bool) -> tup
     return pieces, groups
 
 
-def _outline_start(vertices, face, area):
-    """A patch's projection onto its seed face's plane: (normal, u, v, origin, 2-D hull, sum of projected areas)."""
-    n = np.cross(vertices[face[1]] - vertices[face[0]], vertices[face[2]] - vertices[face[0]])
-    n /= np.linalg.norm(n)
-    u, v = _plane_basis(n)
-    origin = vertices[face[0]]
-    tri = vertices[face] - origin
-    return (n, u, v, origin, _hull_2d(np.c_[tri @ u, tri @ v]), area)
-
-
-def _outline_add(outline, tri, slab):
-    """The outline with one more face (3 x 3 corners), or None where the faces would stop projecting onto a nearly
-    convex region: a fold (the face projects backwards) or a hull adding more than a rim of mean width slab / 2 of
-    area that is not surface (a notch, the slot of a U)."""
-    n, u, v, origin, hull, area_sum = outline
-    t2 = np.c_[(tri - origin) @ u, (tri - origin) @ v]
-    e1, e2 = t2[1] - t2[0], t2[2] - t2[0]
-    projected = 0.5 * float(e1[0] * e2[1] - e1[1] * e2[0])
-    if projected <= 0:
-        return None  # folded over: its projection would overlap its neighbours'
-    new_hull = _hull_2d(np.vstack([hull, t2]))
-    new_sum = area_sum + projected
-    rim = 0.5 * slab * float(np.linalg.norm(new_hull - np.roll(new_hull, 1, axis=0), axis=1).sum())
-    if _area_2d(new_hull) > new_sum * (1 + 1e-7) + 1e-9 * new_sum + rim:  # (validation checks it)
-        return None
-    return (n, u, v, origin, new_hull, new_sum)
-
-
 def face_pieces(mesh, slab: float, thickness: float, progress: bool = True, with_seeds: bool = False):
     """Exact pieces: adjacent faces grown greedily into flat convex patches (see the module docstring).
-    With `with_seeds`, also each piece's first face (to tell which part of the mesh it belongs to)."""
+    With `with_seeds`, also each piece's first face (to tell which part of the mesh it belongs to).
+    A patch's state: its seed face's plane (normal n, basis u v, origin), the 2-D hull of its faces projected on
+    it, the sum of their projected areas, and their corners' heights above it."""
     vertices = np.asarray(mesh.vertices, float)
     faces = np.asarray(mesh.faces)
+    normals = np.asarray(mesh.face_normals, float)
     areas = np.asarray(mesh.area_faces, float)
+    eps_area = 1e-9
 
     def begin(seed):
-        outline = _outline_start(vertices, faces[seed], areas[seed])
-        return outline, list((vertices[faces[seed]] - outline[3]) @ outline[0])
+        n = normals[seed]
+        u, v = _plane_basis(n)
+        origin = vertices[faces[seed][0]]
+        tri = vertices[faces[seed]] - origin
+        return n, u, v, origin, _hull_2d(np.c_[tri @ u, tri @ v]), areas[seed], list(tri @ n)
 
     def extend(state, g):
-        outline, heights = state
-        n, origin = outline[0], outline[3]
-        h_all = heights + list((vertices[faces[g]] - origin) @ n)
+        n, u, v, origin, hull, area_sum, heights = state
+        tri = vertices[faces[g]] - origin
+        h_all = heights + list(tri @ n)
         if max(h_all) - min(h_all) > slab:
             return None
-        outline = _outline_add(outline, vertices[faces[g]], slab)
-        return None if outline is None else (outline, h_all)
+        t2 = np.c_[tri @ u, tri @ v]
+        e1, e2 = t2[1] - t2[0], t2[2] - t2[0]
+        projected = 0.5 * float(e1[0] * e2[1] - e1[1] * e2[0])
+        if projected <= 0:
+            return None  # folded over: its projection would overlap its neighbours'
+        new_hull = _hull_2d(np.vstack([hull, t2]))
+        new_sum = area_sum + projected
+        rim = 0.5 * slab * float(np.linalg.norm(new_hull - np.roll(new_hull, 1, axis=0), axis=1).sum())
+        if _area_2d(new_hull) > new_sum * (1 + 1e-7) + eps_area * new_sum + rim:  # (validation checks it)
+            return None  # the hull would add area that is not surface
+        return n, u, v, origin, new_hull, new_sum, h_all
 
     def finish(state):
-        (n, u, v, origin, hull, _), heights = state
+        n, u, v, origin, hull, _, heights = state
         if len(hull) < 3:
             return None  # a sliver with no area
         return prism_piece(hull, origin, u, v, n, min(heights) - thickness / 2, max(heights) + thickness / 2)
 
     pieces, groups = _grow_patches(mesh, begin, extend, finish, "exact pieces", progress)
-    pieces, seeds = zip(*[(p, g[0]) for p, g in zip(pieces, groups) if p is not None]) or ((), ())
-    return (list(pieces), list(seeds)) if with_seeds else list(pieces)
+    kept = [k for k, piece in enumerate(pieces) if piece is not None]
+    pieces = [pieces[k] for k in kept]
+    return (pieces, [groups[k][0] for k in kept]) if with_seeds else pieces
 
 
 def shell_pieces(mesh, tolerance: float, progress: bool = True) -> tuple[list[Piece], list[list[int]]]:

@@ -7,6 +7,8 @@ import pytest
 
 pytest.importorskip("trimesh")
 
+import trimesh  # noqa: E402
+
 from app import meshes  # noqa: E402
 from app.errors import UserError  # noqa: E402
 from mesh_shapes import bent_sheet, holed_shell, open_u, u_boxes, u_channel  # noqa: E402
@@ -26,6 +28,22 @@ def test_a_dropped_piece_fails_validation():
     assert meshes.validate(mesh, pieces, tol).ok
     check = meshes.validate(mesh, pieces[1:], tol)
     assert not check.ok and check.uncovered > 0 and check.violations == 0
+
+
+def test_a_face_with_no_area_makes_no_piece():
+    """Collinear corners have no plane: no piece of NaNs (Drake could not read it), the sheet's pieces unchanged."""
+    mesh = bent_sheet()
+    tol = meshes.default_tolerance(mesh)
+    before = meshes.face_pieces(mesh, slab=tol / 2, thickness=tol / 5, progress=False)
+    a, b = mesh.faces[0][:2]
+    middle = len(mesh.vertices)
+    sliver = trimesh.Trimesh(
+        np.vstack([mesh.vertices, (mesh.vertices[a] + mesh.vertices[b]) / 2]),
+        np.vstack([mesh.faces, [[a, middle, b]]]),
+        process=False,
+    )
+    after = meshes.face_pieces(sliver, slab=tol / 2, thickness=tol / 5, progress=False)
+    assert len(after) == len(before) and all(np.isfinite(p.vertices).all() for p in after)
 
 
 def test_thick_face_pieces_fail_validation():
