@@ -217,11 +217,20 @@ def _timed_leg(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
     return PathParameterizedTrajectory(leg.path, s_of_t), s_of_t
 
 
+class _LegNotTimed(RuntimeError):
+    def __init__(self, leg: _Leg):
+        super().__init__("Toppra found no time parameterization for a path leg")
+        self.leg = leg
+
+
 def _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified) -> Trajectory:
     """Each leg timed from rest to rest, the legs one after another, sampled every dt (and at the end)."""
     timed, waypoint_times, t = [], np.zeros(len(W)), 0.0
     for leg in legs:
-        trajectory, s_of_t = _timed_leg(plant, leg, v, a)
+        try:
+            trajectory, s_of_t = _timed_leg(plant, leg, v, a)
+        except RuntimeError:
+            raise _LegNotTimed(leg) from None
         # When the motion passes each waypoint (a blended corner: the blend's middle, nearest the corner).
         inside = np.arange(leg.first, leg.last + 1)
         waypoint_times[inside] = t + _when(s_of_t, arc[inside] - leg.offset)
@@ -322,7 +331,29 @@ def parameterize_smooth(
         radii = _first_radii(np.diff(arc))
         certifier = certifier or Certifier(oracle, floor)
         radii, certified, cost = _certified_radii(certifier, W, tangent, arc, radii, tighten, edges_proved)
+    while True:
+        try:
+            trajectory = _time_legs(
+                oracle.plant,
+                W,
+                arc,
+                _legs(W, tangent, arc, radii) if len(W) > 1 else [],
+                v,
+                a,
+                dt,
+                joint_names,
+                certified,
+            )
+            break
+        except _LegNotTimed as failed:
+            # Toppra fails on a blend of extreme curvature (seen: a corner 2e-5 from the next one, left by a partial
+            # shortcut): the leg's tightest blend becomes a stop, which the certified polyline allows, and the
+            # leg is timed again; a leg with no blend left fails the query.
+            corners = np.arange(failed.leg.first + 1, failed.leg.last)
+            corners = corners[radii[corners] > 0]
+            if not len(corners):
+                raise
+            radii[corners[np.argmin(radii[corners])]] = 0.0
     if stats is not None:
         stats.update(cost, stops=int(np.sum(radii[1:-1] == 0)))
-    legs = _legs(W, tangent, arc, radii) if len(W) > 1 else []
-    return _time_legs(oracle.plant, W, arc, legs, v, a, dt, joint_names, certified)
+    return trajectory

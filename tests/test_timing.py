@@ -121,6 +121,17 @@ def test_a_planned_window_path(oracles):
         _check_free(oracle, W)
 
 
+def test_a_corner_toppra_cannot_time_becomes_a_stop(oracles):
+    """Drake's Toppra finds no solution where a blend is tiny (seen: a window path with a corner 2e-5 from the next,
+    left by a partial shortcut); such corners become stops instead of failing the query."""
+    oracle = oracles("window")
+    steps = [[0.3, 0, 0, 0, 0, 0], [0, 0, 0, 0, 1e-4, 0], [0, 0.2, 0, 0, 0, 0]]
+    W = np.cumsum(np.vstack([oracle.scene.start, steps]), axis=0)
+    smooth, _, stats = _times(oracle, W)
+    assert smooth.certified and stats["stops"] >= 1
+    _check_motion(oracle, smooth, W)
+
+
 def _round_the_pillar(clearance: float) -> np.ndarray:
     """The quadrotor along the bottom face of maze pillar_1, then up its right face, `clearance` from both: a
     wide blend of the corner between would cut into the pillar's corner."""
