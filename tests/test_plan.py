@@ -162,6 +162,22 @@ def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.05))
 
 
+def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(monkeypatch):
+    """Smoothing a candidate the certificate then refuses wastes it: after the first refusal, candidates are proved
+    first, so a query smooths at most twice (once optimistic, once careful) however many edges it drops."""
+    from app.oracle import CollisionOracle
+    from app.planner import Query
+    from app.scene import Scene
+
+    oracle = CollisionOracle(Scene("maze"))
+    oracle.space = dataclasses.replace(oracle.space, resolution=4.0)  # edges that pass the checks, then fail
+    smoothed, smooth = [], Query.smooth
+    monkeypatch.setattr(Query, "smooth", lambda self, nodes: smoothed.append(nodes) or smooth(self, nodes))
+    result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
+    assert result.smoothing["certificate"]["unproved_edges_dropped"] > 0 and result.trajectory.certified
+    assert 1 <= len(smoothed) <= 2 and smoothed[-1] == result.path_nodes
+
+
 def test_shortcuts_keep_every_edge_checked_at_their_resolution():
     """A shortcut leaves pieces of the edges it cuts; a piece's points are not the points its edge was checked at.
     Here a thin wall sits between the fine points of the path's first edge, so an unchecked piece can hit it."""
