@@ -66,7 +66,10 @@ def tunnel_boxes():
 CELL = ((-0.18, -0.38, 0.50), (0.18, 0.42, 0.85))  # inside: 0.36 m between cross members, 0.35 m pan to deck
 # 0.28 m tall: the forearm enters inclined, so its vertical extent in the slot is the wrist block (0.17 m) plus
 # the forearm's slope over the 0.08 m rail depth. Narrower was tried: at 0.16 m no seam pose has an IK solution;
-# at 0.20-0.26 m (cross members 0.30 m apart) neither OMPL's RRTConnect nor our planner got in within 10 s.
+# at 0.20-0.26 m (cross members 0.30 m apart) neither OMPL's RRTConnect nor our planner got in within 10 s (sampler
+# step 0.64). At step 0.2, `bench ompl`, 10 seeds of 10 s: a 0.26 m slot gave our planner 10/10, uniform samples
+# 6/10, RRTConnect 3/10, but the job then takes about 30 s: seam_0's collision-free IK posture differs from
+# seam_1's (wrist flipped), so a 2 cm seam step becomes a roadmap query; 0.25 m: ours 6/10; 0.24 m: ours 2/10.
 SLOT = (0.52, 0.80)
 NEAR_RAILS = (-0.46, -0.38)  # y of the near rails: 0.08 m deep box-section rails, 4.5 cm off the cart's front
 
@@ -94,7 +97,10 @@ def welding_boxes():
 # UR3's cross section there (see welding) is the wrist block, about 0.17 x 0.15 m when the torch is level; the
 # forearm enters sloping down from the elbow, above the hatch's top edge. The hatch is 0.22 m wide and 0.26 m
 # tall: 5 cm wider than the wrist block, and as tall as the block plus the forearm's slope across the door (at
-# 0.20 x 0.24 m RRTConnect got in within 10 s in 1 of 4 seeds, our planner in none).
+# 0.20 x 0.24 m RRTConnect got in within 10 s in 1 of 4 seeds, our planner in none, at sampler step 0.64). At step
+# 0.2, `bench ompl`, 10 seeds of 10 s from home to the part: 0.20 x 0.245 m gave our planner 9/10, uniform samples
+# 5/10, RRTConnect 3/10, but the job's legs inside the hatch then take 5-13 s; 0.20 x 0.24 m: ours 5/8, uniform
+# 1/8, RRTConnect 0/8. Most roadmap paths through such a hatch graze its frame between checked points.
 HATCH = ((0.30, -0.14, 0.58), (0.33, 0.08, 0.84))  # a 3 cm door (steel sheet and frame), 7.5 cm off the cart
 # Inside: 0.49 m deep, 0.70 m wide, 0.50 m tall (a small machine tool's work area); the part sits on a fixture
 # 0.29-0.41 m behind the door, its top at z = 0.60, and the wire tip stops 5 cm above it.
