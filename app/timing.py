@@ -332,23 +332,14 @@ def parameterize_smooth(
         certifier = certifier or Certifier(oracle, floor)
         radii, certified, cost = _certified_radii(certifier, W, tangent, arc, radii, tighten, edges_proved)
     while True:
+        legs = _legs(W, tangent, arc, radii) if len(W) > 1 else []
         try:
-            trajectory = _time_legs(
-                oracle.plant,
-                W,
-                arc,
-                _legs(W, tangent, arc, radii) if len(W) > 1 else [],
-                v,
-                a,
-                dt,
-                joint_names,
-                certified,
-            )
+            trajectory = _time_legs(oracle.plant, W, arc, legs, v, a, dt, joint_names, certified)
             break
         except _LegNotTimed as failed:
             # Toppra fails on a blend of extreme curvature (seen: a corner 2e-5 from the next one, left by a partial
-            # shortcut): the leg's tightest blend becomes a stop, which the certified polyline allows, and the
-            # leg is timed again; a leg with no blend left fails the query.
+            # shortcut): the failing leg's tightest blend becomes a stop, which the certified polyline allows, and
+            # the path is timed again (a rare case); a leg with no blend left fails the query.
             corners = np.arange(failed.leg.first + 1, failed.leg.last)
             corners = corners[radii[corners] > 0]
             if not len(corners):
