@@ -86,7 +86,13 @@ def robot_diagram_builder():
     try:
         return RobotDiagramBuilder(time_step=0.0)
     except RuntimeError as exc:
-        raise UserError(f"Drake cannot start its model parser: {' '.join(str(exc).split())}") from None
+        reason = " ".join(str(exc).split())
+        if "DRAKE_ALLOW_NETWORK" in reason:  # Drake registers drake_models in every parser, used or not
+            reason += (
+                " (unset DRAKE_ALLOW_NETWORK or add package_map to it: no file of that package is used, so nothing"
+                " is fetched)"
+            )
+        raise UserError(f"Drake cannot start its model parser: {reason}") from None
 
 
 def scene_names() -> list[str]:

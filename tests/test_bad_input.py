@@ -12,6 +12,7 @@ Placeholders: {file} is an existing file, {dir} an existing folder, {out} an emp
 """
 
 import json
+import os
 import re
 from pathlib import Path
 
@@ -199,3 +200,13 @@ def test_negative_values_follow_their_flag_as_typed():
     args = build_parser().parse_args(join_negative_values(argv))
     assert args.start == [-1.57, 0, 0] and args.bounds == "-1..1,-2..2" and args.env_pose == [[-1, 0, 0, 0, 0, -90]]
     assert join_negative_values(["--json", "--", "-1"]) == ["--json", "--", "-1"]
+
+
+def test_drake_refusing_to_start_offline_is_one_line_that_says_what_to_change(run_app, tmp_path):
+    """Drake 1.51 wants its drake_models package in the download cache before it parses anything; with networking
+    off and an empty cache it refuses to start."""
+    env = {**os.environ, "DRAKE_ALLOW_NETWORK": "none", "XDG_CACHE_HOME": str(tmp_path)}
+    result = run_app("plan", "bar-3link", env=env)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    [line] = result.stderr.splitlines()
+    assert "Drake cannot start its model parser" in line and "add package_map to it" in line
