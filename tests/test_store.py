@@ -181,10 +181,15 @@ def test_the_code_version_tells_uncommitted_changes_apart(tmp_path, monkeypatch)
 
     git("init", "-q")
     (tmp_path / "a.py").write_text("x = 1\n")
-    git("add", "a.py")
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "report.md").write_text("60 trials\n")
+    git("add", ".")
     git("commit", "-qm", "one")
     monkeypatch.setattr(store_module, "ROOT", tmp_path)
     commit = git("rev-parse", "--short=12", "HEAD")
+    assert store_module.code_version() == commit
+    # What the benches write is not code: a resumed `bench paper` rewrites the committed report.
+    (tmp_path / "results" / "report.md").write_text("120 trials\n")
     assert store_module.code_version() == commit
     (tmp_path / "a.py").write_text("x = 2\n")
     first = store_module.code_version()

@@ -83,13 +83,18 @@ def _plain(value):
 
 def code_version() -> str:
     """The git commit, with '+dirty.HASH' (a hash of the uncommitted changes to tracked files) when the tree differs
-    from it; the package version outside a checkout."""
+    from it; the package version outside a checkout. Changes under results/ do not count: they are what the benches
+    write (a resumed `bench paper` rewrites the committed report and trials), not code."""
     try:
         commit = subprocess.run(
             ["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10, check=True
         ).stdout.strip()
         changes = subprocess.run(
-            ["git", "diff", "HEAD", "--binary"], cwd=ROOT, capture_output=True, timeout=30, check=True
+            ["git", "diff", "HEAD", "--binary", "--", ".", ":(exclude)results"],
+            cwd=ROOT,
+            capture_output=True,
+            timeout=30,
+            check=True,
         ).stdout
         return commit + (f"+dirty.{hashlib.sha256(changes).hexdigest()[:8]}" if changes else "")
     except (OSError, subprocess.SubprocessError):
