@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from app.bench.claims import judge, median_ci, passage_yield, success_ci
+from app.bench.claims import detectable_drop, judge, median_ci, passage_yield, success_ci
 from app.bench.store import ResultStore, TrialSpec
 
 
@@ -90,6 +90,33 @@ def test_prm_claim_counts_success_and_time(tmp_path):
     verdict = by_claim(store)["C4"]
     assert verdict.verdict == "partly reproduced"
     assert len(verdict.evidence) == 3
+
+
+def test_prm_success_is_judged_by_a_test_not_by_one_run(tmp_path):
+    store = ResultStore(tmp_path / "p.sqlite")
+    for step, lfbs_successes in ((0.5, 29), (1.0, 20)):
+        fill(
+            store, "prm", "maze", "lfbs", step, lambda r: {"success": 1.0, "seconds": 1 + r.random()}, n=lfbs_successes
+        )
+        for seed in range(lfbs_successes, 30):  # the same seeds, now failed
+            store.add(TrialSpec("prm", "maze", "lfbs", step, seed), {"success": 0.0, "seconds": 1.5})
+        fill(store, "prm", "maze", "rbbs", step, lambda r: {"success": 1.0, "seconds": 3 + r.random()}, n=30)
+    verdict = by_claim(store)["C4"]
+    # 29/30 against 30/30 is one run's luck; 20/30 against 30/30 is not
+    assert [e.split(":")[0] for e in verdict.evidence] == ["maze a=0.5", "maze a=1"]
+    assert verdict.evidence[0].endswith("holds") and verdict.evidence[1].endswith("fails")
+
+
+def test_detectable_drop_is_the_edge_of_what_the_success_test_flags(tmp_path):
+    edge = detectable_drop(30, 30)
+    assert 0 < edge < 29
+    for lfbs_successes, flagged in ((edge, True), (edge + 1, False)):
+        store = ResultStore(tmp_path / f"d{lfbs_successes}.sqlite")
+        for seed in range(30):
+            ok = float(seed < lfbs_successes)
+            store.add(TrialSpec("prm", "maze", "lfbs", 1.0, seed), {"success": ok, "seconds": 1.0 + seed / 100})
+            store.add(TrialSpec("prm", "maze", "rbbs", 1.0, seed), {"success": 1.0, "seconds": 5.0 + seed / 100})
+        assert by_claim(store)["C4"].evidence[0].endswith("fails" if flagged else "holds")
 
 
 def censored_cell(store, scene, method, step, finished, censored, budget, fast_checks, quality):

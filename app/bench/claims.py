@@ -32,7 +32,9 @@ RULES = [
     f"C3: per step in bar, LFBS finishes in fewer collision checks than RBBS: one-sided log-rank test on the checks "
     f"(censored trials right-censored at what they spent), p < {ALPHA:g}, LFBS's median below RBBS's and fewer "
     "than half of LFBS's trials censored.",
-    "C4: per PRM cell, LFBS succeeds at least as often as RBBS (success rates) and its median plan time is lower.",
+    f"C4: per PRM cell, LFBS does not succeed less often than RBBS (one-sided Fisher exact test on the success "
+    f"counts, p < {ALPHA:g} fails it) and plans faster (one-sided Mann-Whitney U on the plan times, p < {ALPHA:g}, "
+    "and a lower median).",
     "C5: per scene, each cheap sampler's median checks are below every bridge sampler's (fewer than half of its "
     "trials censored) and its mean passage yield is below every bridge sampler's.",
     f"Intervals: {CONFIDENCE:.0%} percentile bootstrap of the median ({N_RESAMPLES} resamples, seed "
@@ -257,21 +259,45 @@ def _rate(cell: Cell) -> str:
     return f"{ok}/{cell.n} [{lo:.0%}, {hi:.0%}]"
 
 
+def _less_often(a: Cell, b: Cell) -> float:
+    """p of a one-sided Fisher exact test that successes `a` (0/1 values) come less often than successes `b`."""
+    from scipy.stats import fisher_exact
+
+    ok_a, ok_b = int(a.values.sum()), int(b.values.sum())
+    return float(fisher_exact([[ok_a, a.n - ok_a], [ok_b, b.n - ok_b]], alternative="less").pvalue)
+
+
+def detectable_drop(runs: int, successes: int) -> int:
+    """The most successes out of `runs` that the C4 success test flags as fewer than `successes` out of `runs`:
+    what a cell of this many runs can tell apart."""
+    from scipy.stats import fisher_exact
+
+    flagged = [
+        k
+        for k in range(successes + 1)
+        if fisher_exact([[k, runs - k], [successes, runs - successes]], alternative="less").pvalue < ALPHA
+    ]
+    return max(flagged, default=-1)
+
+
 def claim_c4(rows) -> Verdict:
     success = _cells(rows, "prm", "success")
     seconds = _cells(rows, "prm", "seconds")
     outcomes, evidence = [], []
     for scene, method, step in sorted(k for k in success if k[1] == "lfbs"):
         rbbs_ok, lfbs_ok = success.get((scene, "rbbs", step)), success[(scene, method, step)]
-        if rbbs_ok is None:
-            continue
         lfbs_t, rbbs_t = seconds.get((scene, "lfbs", step)), seconds.get((scene, "rbbs", step))
-        faster = lfbs_t is not None and rbbs_t is not None and lfbs_t.median() < rbbs_t.median()
-        holds = bool(lfbs_ok.values.mean() >= rbbs_ok.values.mean() and faster)
+        if rbbs_ok is None or lfbs_t is None or rbbs_t is None:
+            continue
+        p_success = _less_often(lfbs_ok, rbbs_ok)
+        faster, p_time = _greater(rbbs_t, lfbs_t)
+        faster = faster and lfbs_t.median() < rbbs_t.median()
+        holds = bool(p_success >= ALPHA and faster)
         outcomes.append(holds)
         evidence.append(
-            f"{scene} a={step:g}: success lfbs {_rate(lfbs_ok)} vs rbbs {_rate(rbbs_ok)}; time s lfbs "
-            f"{lfbs_t.describe()} vs rbbs {rbbs_t.describe()} -> {_word(holds)}"
+            f"{scene} a={step:g}: success lfbs {_rate(lfbs_ok)} vs rbbs {_rate(rbbs_ok)} (Fisher p={p_success:.2g}); "
+            f"time s lfbs {lfbs_t.describe()} vs rbbs {rbbs_t.describe()} (Mann-Whitney p={p_time:.2g}) -> "
+            f"{_word(holds)}"
         )
     return Verdict(
         "C4",

@@ -11,6 +11,7 @@ from app.bench.paper import (
     QUICK_STEPS,
     SAMPLING_SCENES,
     STEPS,
+    TARGET_TRIALS,
     TRIALS_CSV,
     Config,
     build_report,
@@ -39,7 +40,10 @@ from app.samplers import SAMPLERS
 def register(kinds) -> None:
     p = kinds.add_parser("paper", help="the paper's Section IV: all sweeps into one store, then DIR/report.md")
     p.add_argument(
-        "--trials", type=repetitions, default=None, help="trials (seeds) per sampling cell (default 300, --quick 3)"
+        "--trials",
+        type=repetitions,
+        default=None,
+        help=f"trials (seeds) per sampling cell (default {TARGET_TRIALS}, --quick 3)",
     )
     p.add_argument(
         "--quick", action="store_true", help="a few minutes: 3 trials, steps 2 and 10, 2 PRM seeds, 1 UR3 run per job"
@@ -81,8 +85,15 @@ def register(kinds) -> None:
         default=200_000,
         help="collision-check budget per sampling trial; a trial that spends it is censored",
     )
-    p.add_argument("--prm-seeds", type=repetitions, default=None, help="seeds per PRM cell (default 30, --quick 2)")
-    p.add_argument("--ur3-runs", type=repetitions, default=None, help="runs per UR3 job (default 5, --quick 1)")
+    p.add_argument(
+        "--prm-seeds",
+        type=repetitions,
+        default=None,
+        help=f"seeds per PRM cell (default {Config.prm_seeds}, --quick 2)",
+    )
+    p.add_argument(
+        "--ur3-runs", type=repetitions, default=None, help=f"runs per UR3 job (default {Config.ur3_runs}, --quick 1)"
+    )
     p.add_argument(
         "--readings",
         action="store_true",
@@ -104,13 +115,13 @@ def config_from_args(args) -> Config:
     """The sweeps' options; --quick changes the defaults of the options not given."""
     quick = args.quick
     return Config(
-        trials=args.trials or (3 if quick else 300),
+        trials=args.trials or (3 if quick else TARGET_TRIALS),
         steps=list(args.steps or (QUICK_STEPS if quick else STEPS)),
         scenes=args.scenes or list(SAMPLING_SCENES),
         samplers=args.samplers,
         max_checks=args.max_checks,
-        prm_seeds=args.prm_seeds or (2 if quick else 30),
-        ur3_runs=args.ur3_runs or (1 if quick else 5),
+        prm_seeds=args.prm_seeds or (2 if quick else Config.prm_seeds),
+        ur3_runs=args.ur3_runs or (1 if quick else Config.ur3_runs),
         parts=args.parts,
         quick=bool(quick),
         readings=args.readings,
