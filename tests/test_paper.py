@@ -185,3 +185,28 @@ def test_a_cell_whose_first_trials_all_spend_the_budget_gets_no_more(tmp_path):
     }  # a step-5 trial finished: that cell runs on
     paper.build_report(store, tmp_path, pictures=False)
     assert "Capped: bar rbbs a=2." in (tmp_path / "report.md").read_text()
+
+
+@pytest.mark.parametrize("runs", [1, 30])
+def test_the_prm_section_says_what_its_runs_can_tell_apart(tmp_path, runs):
+    rows = [
+        {
+            "experiment": "prm",
+            "scene": "maze",
+            "method": method,
+            "step": 0.5,
+            "seed": seed,
+            "params": {},
+            "metrics": {"success": 1.0, "seconds": 2.0, "seconds_sampling": 1.0, "collision_checks": 1000},
+            "code_version": "x",
+        }
+        for method in ("lfbs", "rbbs")
+        for seed in range(runs)
+    ]
+    text = "\n".join(paper._prm_section(rows, tmp_path))
+    assert f"Runs per cell: {runs}, not {paper.TARGET_TRIALS}" in text
+    if runs == 30:
+        assert f"flags LFBS at {paper.detectable_drop(30, 30)}/30 or fewer against RBBS's 30/30" in text
+    else:  # one run against one cannot show anything
+        assert "flags no LFBS count (too few runs) against RBBS's 1/1" in text
+    assert (tmp_path / "prm.png").exists()
