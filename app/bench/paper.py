@@ -613,7 +613,7 @@ def _prm_section(rows, folder: Path) -> list[str]:
         f"{TARGET_TRIALS} runs per cell would take about {hours_at[TARGET_TRIALS]:.0f} h of one core here (the "
         f"cells' median plan times x {TARGET_TRIALS}; {hours_at[runs]:.1f} h at {runs}). What {runs} runs can tell "
         f"apart: the C4 success test (one-sided, p < {ALPHA:g}) flags {flagged(runs)} against RBBS's "
-        f"{runs}/{runs}, at {flagged(round(0.9 * runs))} against {round(0.9 * runs)}/{runs}; each cell's p values "
+        f"{runs}/{runs} and {flagged(round(0.9 * runs))} against {round(0.9 * runs)}/{runs}; each cell's p values "
         "are in C4's evidence above.",
         "",
     ]
