@@ -210,3 +210,29 @@ def test_the_prm_section_says_what_its_runs_can_tell_apart(tmp_path, runs):
     else:  # one run against one cannot show anything
         assert "flags no LFBS count (too few runs) against RBBS's 1/1" in text
     assert (tmp_path / "prm.png").exists()
+
+
+def test_the_ur3_section_gives_success_intervals_and_what_more_runs_would_cost():
+    rows = [
+        {
+            "experiment": "ur3",
+            "scene": "window",
+            "method": "lfbs",
+            "step": 0.2,
+            "seed": seed,
+            "params": {"full_roadmap": True},
+            "metrics": {
+                "success": float(seed < 3),
+                "seconds": 36.0,
+                "seconds_ik": 1.0,
+                "seconds_planning": 35.0,
+                "collision_checks": 1000,
+            },
+            "code_version": "x",
+        }
+        for seed in range(4)
+    ]
+    text = "\n".join(paper._ur3_section(rows))
+    assert "| window | lfbs | full | 4 | 3/4 [19%, 99%] |" in text  # Clopper-Pearson for 3 of 4
+    assert f"Runs per job and sampler: 4, not {paper.TARGET_TRIALS}" in text
+    assert "about 3 h of one core" in text  # 300 runs x 36 s, one cell
