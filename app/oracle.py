@@ -21,6 +21,7 @@ counts the configurations it looked at. Configurations outside the bounds are re
 from __future__ import annotations
 
 import functools
+import itertools
 import logging
 import os
 import time
@@ -62,6 +63,7 @@ class CollisionOracle:
         self.checks = 0
         self.stop: Stop | None = None  # set by a query for its duration: every counted answer polls it
         self.distance_queries = 0  # signed-distance queries (continuous certification), apart from `checks`
+        self.point_queries = 0  # workspace points asked for their distances to the environment (`environment_gaps`)
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
         self.checker = SceneGraphCollisionChecker(
@@ -121,6 +123,7 @@ class CollisionOracle:
     def reset(self) -> None:
         self.checks = 0
         self.distance_queries = 0
+        self.point_queries = 0
 
     # ---- collision answers (counted) -----------------------------------------------------------------------
     def _raw_free(self, q: np.ndarray) -> bool:
@@ -319,6 +322,74 @@ class CollisionOracle:
         self.distance_queries += 1
         self.plant.SetPositions(self._ctx, np.asarray(q, float))
         return self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+
+    # ---- the workspace (not collision checks) --------------------------------------------------------------------
+    @functools.cached_property
+    def _robot_shapes(self) -> list:
+        """(body, pose of the geometry in the body, geometry id) of each robot collision geometry, in a fixed order."""
+        return [
+            (self.plant.GetBodyFromFrameId(self._inspector.GetFrameId(g)), self._inspector.GetPoseInFrame(g), g)
+            for g in sorted(self._robot_geometries, key=lambda g: g.get_value())
+        ]
+
+    def robot_geometry_centres(self, Q: np.ndarray, pieces: np.ndarray | None = None) -> np.ndarray:
+        """World position of the centre of each robot collision geometry for each configuration, (n, G, 3); with
+        `pieces` (n indices into that order), of that one piece of each configuration, (n, 3)."""
+        Q = np.atleast_2d(np.asarray(Q, float))
+        shapes = self._robot_shapes
+        every = np.arange(len(shapes))
+        out = np.empty((len(Q), len(shapes), 3))
+        for i, q in enumerate(Q):
+            self.plant.SetPositions(self._ctx, q)
+            for j in every if pieces is None else (int(pieces[i]),):
+                body, X_BG, _ = shapes[j]
+                out[i, j] = self.plant.EvalBodyPoseInWorld(self._ctx, body).multiply(X_BG.translation())
+        return out if pieces is None else out[np.arange(len(Q)), np.asarray(pieces, int)]
+
+    def robot_geometry_radii(self) -> np.ndarray:
+        """Radius of the sphere about its centre that holds each robot collision geometry, (G,)."""
+        return np.array(
+            [np.linalg.norm(half_extent(self._inspector.GetShape(g), np.eye(3))) for _, _, g in self._robot_shapes]
+        )
+
+    def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
+        """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`: two
+        obstacles on roughly opposite sides of it (their distance gradients more than 120 degrees apart) whose
+        distances add up to less than `width`. One SceneGraph point query each, counted in `point_queries`."""
+        P = np.atleast_2d(np.asarray(P, float))
+        query = self._query_port.Eval(self._ctx)
+        gap = np.zeros(len(P), bool)
+        for i, p in enumerate(P):
+            near = [r for r in query.ComputeSignedDistanceToPoint(p, width) if r.id_G not in self._robot_geometries]
+            if not near or min(r.distance for r in near) <= 0:
+                continue
+            for a, b in itertools.combinations(near, 2):
+                if a.distance + b.distance < width and float(np.dot(a.grad_W, b.grad_W)) < -0.5:
+                    gap[i] = True
+                    break
+        self.point_queries += len(P)
+        return gap
+
+
+def half_extent(shape, rotation: np.ndarray) -> np.ndarray:
+    """Half the size, along the world axes, of the box around a shape turned by `rotation` (3x3)."""
+    from pydrake.geometry import Box, Capsule, Convex, Cylinder, Ellipsoid, Mesh, Sphere
+
+    if isinstance(shape, Box):
+        return np.abs(rotation) @ (np.array([shape.width(), shape.depth(), shape.height()]) / 2)
+    if isinstance(shape, Sphere):
+        return np.full(3, shape.radius())
+    if isinstance(shape, (Cylinder, Capsule)):  # round about its z axis: a disc at each end (capsule: a sphere)
+        axis = np.abs(rotation[:, 2])
+        rim = np.sqrt(np.clip(1 - axis**2, 0, 1)) if isinstance(shape, Cylinder) else np.ones(3)
+        return axis * shape.length() / 2 + rim * shape.radius()
+    if isinstance(shape, Ellipsoid):
+        return np.sqrt(rotation**2 @ np.array([shape.a(), shape.b(), shape.c()]) ** 2)
+    if isinstance(shape, (Convex, Mesh)):
+        hull = shape.GetConvexHull()
+        points = np.array([hull.vertex(i) for i in range(hull.num_vertices())]) @ rotation.T
+        return np.abs(points).max(axis=0)
+    return np.zeros(3)
 
 
 @functools.lru_cache(maxsize=4096)

@@ -28,7 +28,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
-START, GOAL, UNIFORM, NARROW = "start", "goal", "uniform", "narrow"
+START, GOAL, UNIFORM, NARROW, WORKSPACE = "start", "goal", "uniform", "narrow", "workspace"
 
 # Candidate paths a lazy search tries per pair of shortest-path trees (see Roadmap.shortest_path).
 CANDIDATES = 16
@@ -285,7 +285,7 @@ class Roadmap:
     def stats(self) -> dict:
         """Sizes and counters. Lazy: `edges` and `components` are of the candidate graph (edges not known to
         collide), `edges_tried` counts edges checked in full."""
-        counts = {kind: self.kinds.count(kind) for kind in (UNIFORM, NARROW)}
+        counts = {kind: self.kinds.count(kind) for kind in (UNIFORM, NARROW, WORKSPACE)}
         unchecked = int((self._alive & ~self._checked).sum())
         return {
             "nodes": len(self),
@@ -296,6 +296,7 @@ class Roadmap:
             "edges_proposed": self.edges_proposed,
             "uniform_nodes": counts[UNIFORM],
             "narrow_nodes": counts[NARROW],
+            "workspace_nodes": counts[WORKSPACE],
             "k": self.k_used,
             "lazy": self.lazy,
             "skip_connected": self.skip_connected and not self.lazy,

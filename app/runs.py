@@ -132,7 +132,8 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         path, trajectory = result.path, result.trajectory
         method = "straight" if result.smoothing.get("straight") else sampler
         samples, on_path = result.narrow_samples()
-        narrow_count, used = result.roadmap.get("narrow_nodes", len(samples)), result.narrow_on_path
+        narrow_count = result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"]
+        used = result.narrow_on_path + result.workspace_on_path
         legs.append(
             Leg(
                 a,

@@ -25,6 +25,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import check_output, write_atomically
+from app.oracle import half_extent
 from app.scene import Scene, robot_diagram_builder
 from app.trajectory import TrajectoryFile
 
@@ -90,27 +91,6 @@ def _rgba(colour):
     from pydrake.geometry import Rgba
 
     return Rgba(*colour)
-
-
-def _half_extent(shape, rotation: np.ndarray) -> np.ndarray:
-    """Half the size, along the world axes, of the box around a shape turned by `rotation` (3x3)."""
-    from pydrake.geometry import Box, Capsule, Convex, Cylinder, Ellipsoid, Mesh, Sphere
-
-    if isinstance(shape, Box):
-        return np.abs(rotation) @ (np.array([shape.width(), shape.depth(), shape.height()]) / 2)
-    if isinstance(shape, Sphere):
-        return np.full(3, shape.radius())
-    if isinstance(shape, (Cylinder, Capsule)):  # round about its z axis: a disc at each end (capsule: a sphere)
-        axis = np.abs(rotation[:, 2])
-        rim = np.sqrt(np.clip(1 - axis**2, 0, 1)) if isinstance(shape, Cylinder) else np.ones(3)
-        return axis * shape.length() / 2 + rim * shape.radius()
-    if isinstance(shape, Ellipsoid):
-        return np.sqrt(rotation**2 @ np.array([shape.a(), shape.b(), shape.c()]) ** 2)
-    if isinstance(shape, (Convex, Mesh)):
-        hull = shape.GetConvexHull()
-        points = np.array([hull.vertex(i) for i in range(hull.num_vertices())]) @ rotation.T
-        return np.abs(points).max(axis=0)
-    return np.zeros(3)
 
 
 class Viewer:
@@ -210,7 +190,7 @@ class Viewer:
             if robot is not None and (inspector.GetFrameId(gid) in robot_frames) != robot:
                 continue
             pose = query.GetPoseInWorld(gid)
-            half = _half_extent(inspector.GetShape(gid), pose.rotation().matrix())
+            half = half_extent(inspector.GetShape(gid), pose.rotation().matrix())
             lo, hi = np.minimum(lo, pose.translation() - half), np.maximum(hi, pose.translation() + half)
         return lo, hi
 

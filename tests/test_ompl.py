@@ -239,12 +239,13 @@ def test_states_convert_both_ways_with_angles_wrapped():
 
 
 def test_method_names():
-    assert parse_method("ours:default") == {"ours": True, "sampler": "lfbs", "full": False}
-    assert parse_method("ours:full") == {"ours": True, "sampler": "lfbs", "full": True}
-    assert parse_method("ours:rbbs:full") == {"ours": True, "sampler": "rbbs", "full": True}
+    assert parse_method("ours:default") == {"ours": True, "sampler": "lfbs", "full": False, "alone": False}
+    assert parse_method("ours:full") == {"ours": True, "sampler": "lfbs", "full": True, "alone": False}
+    assert parse_method("ours:rbbs:full") == {"ours": True, "sampler": "rbbs", "full": True, "alone": False}
+    assert parse_method("ours:lfbs:alone") == {"ours": True, "sampler": "lfbs", "full": False, "alone": True}
     assert parse_method("ompl:BITstar") == {"ours": False, "planner": "BITstar", "sampler": None}
     assert parse_method("ompl:PRM+ompl-bridge")["sampler"] == "ompl-bridge"
-    for bad in ("ompl:RRTstarish", "ompl:RRTConnect+lfbs", "ours:nope", "ompl-uniform", "ours"):
+    for bad in ("ompl:RRTstarish", "ompl:RRTConnect+lfbs", "ours:nope", "ompl-uniform", "ours", "ours:lfbs:full:alone"):
         with pytest.raises(UserError):
             parse_method(bad)
 

@@ -18,7 +18,7 @@ from independent import fine_points, raw_free
 # The bar crossing needs the narrow samples: with 500 uniform samples alone it succeeds in under 10 % of seeds
 # (`python -m app bench plan`), with lfbs 200 + uniform 300 in most. Seed 0 is one that succeeds.
 BAR = {"sampler": "lfbs", "narrow": 200, "uniform": 300, "seed": 0}
-# joint3d's own start and goal need the 10 x 10 hole and thousands of samples (see the slow test); here a plan on
+# joint3d's own start and goal need the 10 x 10 hole (see test_workspace.py and the slow test); here a plan on
 # the near side of the wall with large turns on all three continuous angles, one of them across the +-pi seam.
 JOINT3D = {"sampler": "lfbs", "narrow": 60, "uniform": 90, "seed": 1}
 JOINT3D_ENDS = {"start": [20, 25, 75, 0, 0, 0], "goal": [25, 70, 30, 3.0, -1.2, -3.0]}
@@ -109,7 +109,7 @@ def test_trajectory_respects_limits_and_joins_start_to_goal(oracles, planned, na
 
 def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
     result = planned("bar")
-    assert result.narrow_on_path >= 1
+    assert result.narrow_on_path + result.workspace_on_path >= 1
     assert result.smoothing["length_after"] <= result.smoothing["raw_length"] + 1e-9
     assert set(result.seconds) >= {"sampling", "roadmap", "search", "smoothing", "timing", "total"}
 
@@ -119,7 +119,10 @@ def test_a_query_stops_at_the_first_round_that_connects_and_checks_edges_lazily(
     assert result.roadmap["uniform_nodes"] == 75 * result.rounds
     assert result.narrow_from_round == 2 and result.rounds >= 2  # bar's gap is not found by 75 uniform samples
     ramp = [min(50, 13 * 2**k) for k in range(result.rounds - 1)]
-    assert result.roadmap["narrow_nodes"] == sum(ramp) and result.narrow_on_path >= 1
+    # half of each round's narrow-passage samples are placements in workspace gaps, the rest the sampler's
+    assert result.roadmap["workspace_nodes"] == sum(round(0.5 * n) for n in ramp)
+    assert result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"] == sum(ramp)
+    assert result.narrow_on_path + result.workspace_on_path >= 1
     assert result.rounds < 6 and result.roadmap["lazy"]
     assert result.roadmap["edges_unchecked"] > 0  # most candidate edges never lay on a candidate path
     assert result.roadmap["edges_tried"] < result.roadmap["edges_proposed"] / 2
@@ -257,11 +260,11 @@ def test_a_query_cancelled_from_another_thread_stops_with_moveits_preempted(orac
     """The stop condition polls the cancel event before every collision batch, as it polls the budget."""
     import threading
 
-    oracle = oracles("joint3d")  # not solved in 30 s: only the cancel can end it early
+    oracle = oracles("joint3d")  # the sampler alone does not solve it in 30 s: only the cancel can end it early
     cancel = threading.Event()
     threading.Timer(0.5, cancel.set).start()
     with pytest.raises(NoPath, match=r", cancelled$") as info:
-        plan(oracle, PlanSettings(seed=0, budget=Budget(seconds=30)), cancel=cancel)
+        plan(oracle, PlanSettings(seed=0, budget=Budget(seconds=30), workspace=0.0), cancel=cancel)
     assert info.value.code == "PREEMPTED" and info.value.details["stopped"] == "cancelled"
     assert info.value.details["seconds"] < 10.0  # a generous bound on a loaded machine; the budget was 30 s
     assert plan(oracle, PlanSettings(seed=0), start=[20, 25, 75, 0, 0, 0], goal=[30, 25, 75, 0, 0, 0]).success
@@ -293,10 +296,12 @@ def test_budget_adds_rounds_until_spent(oracles):
 
 
 @pytest.mark.slow
-def test_joint3d_through_the_hole_with_a_budget(oracles):
-    # Seed 0 connects after about 414k checks (1.5-2 min): a check budget, so the machine's load cannot fail it.
+def test_joint3d_through_the_hole_with_the_sampler_alone(oracles):
+    # Without workspace-gap placements seed 0 connects after about 414k checks (1.5-2 min): a check budget, so the
+    # machine's load cannot fail it.
     oracle = oracles("joint3d")
-    result = plan(oracle, PlanSettings(sampler="lfbs", narrow=200, uniform=300, seed=0, budget=Budget(checks=600_000)))
+    settings = PlanSettings(sampler="lfbs", seed=0, budget=Budget(checks=600_000), workspace=0.0)
+    result = plan(oracle, settings)
     points = fine_points(oracle, result.path, oracle.space.resolution / 8)
     assert all(raw_free(oracle, q) for q in points)
     assert oracle.in_passage(points).any()

@@ -46,18 +46,17 @@ PROTOCOL = "first-solution+smoothing"
 
 
 def parse_method(name: str) -> dict:
-    """A method's parts: {"ours": True, "sampler", "full"} or {"ours": False, "planner", "sampler" (or None)};
-    UserError naming the fault for anything else."""
+    """A method's parts: {"ours": True, "sampler", "full", "alone"} or {"ours": False, "planner", "sampler" (or
+    None)}; UserError naming the fault for anything else. ours:SAMPLER:alone is the query planner with no
+    workspace-gap placements (PlanSettings.workspace = 0): the sampler alone."""
     kind, _, rest = name.partition(":")
     if kind == "ours" and rest:
         parts = rest.split(":")
-        full = parts[-1] == "full"
-        if full:
-            parts = parts[:-1]
-        if len(parts) > 1:
-            raise UserError(f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER or ours:SAMPLER:full")
+        mode = parts.pop() if len(parts) > 1 or parts[0] in ("full", "alone") else None
+        if len(parts) > 1 or mode not in (None, "full", "alone"):
+            raise UserError(f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER[:full|:alone]")
         sampler = PlanSettings.sampler if not parts or parts[0] == "default" else check_name(parts[0])
-        return {"ours": True, "sampler": sampler, "full": full}
+        return {"ours": True, "sampler": sampler, "full": mode == "full", "alone": mode == "alone"}
     if kind == "ompl" and rest:
         planner, _, sampler = rest.partition("+")
         if planner not in OMPL_PLANNERS:
@@ -70,7 +69,7 @@ def parse_method(name: str) -> dict:
             check_name(sampler)
         return {"ours": False, "planner": planner, "sampler": sampler or None}
     raise UserError(
-        f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER[:full], ompl:PLANNER "
+        f"bad method '{name}': use ours:default, ours:full, ours:SAMPLER[:full|:alone], ompl:PLANNER "
         f"({', '.join(OMPL_PLANNERS)}) or ompl:PRM+SAMPLER"
     )
 
@@ -99,6 +98,7 @@ def _ours(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
                 seed=spec.seed,
                 budget=Budget(seconds=budget),
                 full_roadmap=method["full"],
+                workspace=0.0 if method["alone"] else PlanSettings.workspace,
             ),
         )
     except NoPath:

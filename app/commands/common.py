@@ -69,6 +69,14 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+def share(text: str) -> float:
+    """A fraction from 0 to 1."""
+    value = _finite_float(text)
+    if not 0 <= value <= 1:
+        raise argparse.ArgumentTypeError(f"must be a share from 0 to 1: {text}")
+    return value
+
+
 def comma_list(text: str) -> list[str]:
     """'a, b,c' -> ['a', 'b', 'c'] (blank items dropped): the one parser of comma-separated values."""
     items = [item.strip() for item in text.split(",") if item.strip()]

@@ -12,6 +12,7 @@ from app.commands.common import (
     sample_count,
     sampler_name,
     seed,
+    share,
     shortcut_rounds,
 )
 from app.errors import UserError
@@ -101,6 +102,13 @@ def add_settings_arguments(p) -> None:
         "stop as soon as start and goal connect",
     )
     p.add_argument(
+        "--workspace",
+        type=share,
+        default=DEFAULTS.workspace,
+        help="share of the narrow-passage samples placed with a piece of the robot in a narrow gap of the "
+        f"workspace (0: the sampler alone; default {DEFAULTS.workspace})",
+    )
+    p.add_argument(
         "-k",
         "--neighbours",
         type=neighbours,
@@ -133,6 +141,7 @@ def settings_from_args(args) -> PlanSettings:
         smooth_rounds=args.smooth,
         dt=args.dt,
         full_roadmap=args.full_roadmap,
+        workspace=args.workspace,
     )
 
 
@@ -195,14 +204,16 @@ def summary(r) -> str:
     )
     lines = [
         f"plan {r.scene}: path found with {r.sampler} (seed {r.seed}, step {r.step:g})",
-        f"  roadmap   {m['nodes']} nodes ({m['narrow_nodes']} {r.sampler}, {m['uniform_nodes']} uniform), "
-        f"{edges}, {r.rounds} round(s)",
-        f"  path      {len(r.roadmap_path)} roadmap nodes ({r.narrow_on_path} from {r.sampler}), length "
+        f"  roadmap   {m['nodes']} nodes ({m['narrow_nodes']} {r.sampler}, {m['workspace_nodes']} in workspace gaps, "
+        f"{m['uniform_nodes']} uniform), {edges}, {r.rounds} round(s)",
+        f"  path      {len(r.roadmap_path)} roadmap nodes ({r.narrow_on_path} from {r.sampler}, "
+        f"{r.workspace_on_path} from workspace gaps), length "
         f"{r.smoothing['raw_length']:.1f} -> {len(r.path)} waypoints, length {r.smoothing['length_after']:.1f} "
         f"after smoothing",
         f"  motion    {t.duration:.2f} s trajectory, {len(t.times)} samples, corners blended, "
         + ("certified free (continuous)" if t.certified else "NOT certified: fine-checked only"),
-        f"  cost      {r.collision_checks} collision checks + {r.distance_queries} distance queries, "
+        f"  cost      {r.collision_checks} collision checks + {r.distance_queries} distance queries "
+        f"+ {r.point_queries} point queries, "
         f"{s['total']:.2f} s (sampling {s['sampling']:.2f}, roadmap {s['roadmap']:.2f}, search {s['search']:.2f}, "
         f"smoothing {s['smoothing']:.2f}, certify {s['certify']:.2f}, timing {s['timing']:.2f})",
     ]

@@ -1,0 +1,79 @@
+"""Narrow gaps of the workspace and the placements the planner draws there (app.workspace)."""
+
+import numpy as np
+import pytest
+
+from app.budget import Budget
+from app.errors import NoPath
+from app.planner import PlanSettings, plan
+from app.workspace import SEARCH_LIMIT, WorkspaceGaps
+
+
+def test_a_gap_is_between_two_facing_obstacles_closer_than_the_width(oracles):
+    oracle = oracles("joint3d")  # a wall at x 45..55 with a 10 x 10 hole at y, z 45..55
+    points = {
+        "in the hole": ([50, 50, 50], True),
+        "in front of the hole": ([43, 50, 50], True),  # the hole's edges face each other across it
+        "far in front of the wall": ([30, 30, 30], False),
+        "just in front of the wall": ([44, 20, 50], False),  # one obstacle only
+        "inside the wall": ([50, 20, 50], False),
+    }
+    found = oracle.environment_gaps(np.array([p for p, _ in points.values()], float), width=20.0)
+    assert dict(zip(points, found.tolist())) == {name: gap for name, (_, gap) in points.items()}
+    # The same hole is no gap for a width below its 10
+    assert not oracle.environment_gaps(np.array([[50.0, 50, 50]]), width=9.0)[0]
+
+
+def test_a_free_body_is_shifted_into_a_gap_and_an_arm_is_not(oracles):
+    rng = np.random.default_rng(0)
+    body = WorkspaceGaps(oracles("joint3d"), rng)
+    assert body.axes.tolist() == [0, 1, 2] and np.allclose(body.directions, np.eye(3))
+    arm = WorkspaceGaps(oracles("window"), rng)
+    assert arm.axes.tolist() == []
+    # The cart is welded to the world: its pieces never move and are never placed.
+    centres = oracles("window").robot_geometry_centres(oracles("window").space.uniform(rng, 8))
+    still = np.ptp(centres, axis=0).max(axis=1) < 1e-12
+    assert still.any() and set(arm.moving) == set(np.flatnonzero(~still))
+
+
+@pytest.mark.parametrize("scene", ["joint3d", "window"])
+def test_every_placement_puts_a_moving_piece_at_a_gap_point(oracles, scene):
+    oracle = oracles(scene)
+    rng = np.random.default_rng(1)
+    gaps = WorkspaceGaps(oracle, rng)
+    while len(gaps.points) < 50:
+        gaps.search(rng)
+    Q = gaps.place(rng, 400)
+    assert len(Q) and oracle.space.within_bounds(Q).all()
+    centres = oracle.robot_geometry_centres(Q)[:, gaps.moving]  # (n, pieces, 3)
+    distance = np.linalg.norm(centres[:, :, None, :] - gaps.points[None, None], axis=-1).min(axis=(1, 2))
+    # exactly there when translations can shift it; within the tolerance for an arm
+    assert distance.max() <= (1e-9 if len(gaps.axes) else gaps.tolerance)
+
+
+def test_an_empty_workspace_has_no_gap_after_a_bounded_search(tmp_path):
+    from app.custom_scene import CustomSpec, build_scene
+    from app.oracle import CollisionOracle
+
+    spec = CustomSpec(robot="examples/trap/cube.obj", bounds=["-2..2", "-2..2", "-2..2"], start=[0] * 6)
+    oracle = CollisionOracle(build_scene(spec, cache_dir=tmp_path, progress=False))
+    rng = np.random.default_rng(0)
+    gaps = WorkspaceGaps(oracle, rng)
+    while not gaps.exhausted:
+        gaps.search(rng)
+    assert len(gaps.points) == 0 and gaps.searched == SEARCH_LIMIT and oracle.checks == 0
+
+
+def test_joint3d_needs_the_gap_placements_to_pass_the_hole_on_a_small_budget(oracles):
+    oracle = oracles("joint3d")
+    budget = Budget(checks=60_000)
+    result = plan(oracle, PlanSettings(seed=0, budget=budget))
+    assert result.workspace_on_path > 0 and result.trajectory.certified
+    assert oracle.in_passage(result.roadmap_path).any()
+    with pytest.raises(NoPath, match="budget 60000checks spent"):  # the sampler alone needs about 400k
+        plan(oracle, PlanSettings(seed=0, budget=budget, workspace=0.0))
+
+
+def test_the_papers_protocol_draws_no_placements(oracles):
+    result = plan(oracles("bar-3link"), PlanSettings(seed=0, narrow=40, uniform=40, full_roadmap=True))
+    assert result.roadmap["workspace_nodes"] == 0 and result.point_queries == 0
