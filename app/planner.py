@@ -283,7 +283,7 @@ class Query:
             "uniform": make_sampler("uniform", oracle, step=self.step),
         }
         self.sampler_stats = {"narrow": {}, "uniform": {}, "workspace": {}}
-        # Made when the first narrow round needs it; None after a search found no narrow gap in the workspace.
+        # Whether narrow rounds place samples in workspace gaps: not for a full roadmap, nor once none can be placed.
         self._workspace_on = settings.workspace > 0 and not settings.full_roadmap
         self.rounds = 0
         # Narrow-passage samples from the round after the first one that left start and goal apart.
@@ -346,6 +346,9 @@ class Query:
         try:  # resume: walkers still under way when a round ends go on in the next one
             return sampler.sample(count, self._rngs[kind], resume=True)
         except SamplerBudgetExceeded as exc:
+            if kind == "workspace":  # no piece of the robot reaches the gaps found: the sampler takes over
+                self._workspace_on = False
+                return np.empty((0, self.oracle.space.dim))
             raise self._failure(f"no path on {self.oracle.scene.name}: {exc}", sampler=str(exc)) from None
         finally:
             totals = self.sampler_stats[kind]
@@ -380,7 +383,7 @@ class Query:
         self.rounds += 1
         placed = self._timed("sampling", self._workspace_share, narrow)
         W = self._timed("sampling", self._draw, "workspace", placed)
-        N = self._timed("sampling", self._draw, "narrow", narrow - placed)
+        N = self._timed("sampling", self._draw, "narrow", narrow - len(W))
         U = self._timed("sampling", self._draw, "uniform", uniform)
         new = np.concatenate(
             [

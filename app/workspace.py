@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from app.errors import SamplerBudgetExceeded
 from app.samplers.base import Sampler
 
 # A gap is narrow when it is narrower than this many times the diameter of the robot's largest moving piece: a gap
@@ -31,6 +32,9 @@ GAP_WIDTH = 2.5
 # Gap points a query looks for; candidate points per search; candidates without a single gap: the scene has none;
 # candidates a query asks at most (the search goes on a batch per round while it has fewer than POINTS).
 POINTS, BATCH, SEARCH_LIMIT, SEARCH_MAX = 512, 2048, 32768, 131072
+# Rounds in a row whose placements all missed the gaps (found in the box the pieces reach, yet out of their reach):
+# the sampler gives up (SamplerBudgetExceeded) and the planner leaves the rounds to the walkers.
+IDLE_ROUNDS = 16
 
 
 class WorkspaceGaps:
@@ -124,6 +128,7 @@ class WorkspaceSampler(Sampler):
         super().__init__(oracle, **kw)
         self.gaps = gaps
         self._rate = 0.05  # running free fraction of placements
+        self._idle = 0  # rounds in a row without a placement
 
     def _round(self, rng, need):
         gaps = self.gaps
@@ -132,6 +137,9 @@ class WorkspaceSampler(Sampler):
         n = self._batch_size(need, self._rate)
         Q = gaps.place(rng, n)
         self.stats["attempts"] += n
+        self._idle = 0 if len(Q) else self._idle + 1
+        if self._idle >= IDLE_ROUNDS:
+            raise SamplerBudgetExceeded(f"workspace: {IDLE_ROUNDS} rounds of {n} placements, none at a gap")
         if not len(Q):
             return Q, None
         free = self.oracle.are_free(Q)

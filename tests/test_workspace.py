@@ -77,3 +77,16 @@ def test_joint3d_needs_the_gap_placements_to_pass_the_hole_on_a_small_budget(ora
 def test_the_papers_protocol_draws_no_placements(oracles):
     result = plan(oracles("bar-3link"), PlanSettings(seed=0, narrow=40, uniform=40, full_roadmap=True))
     assert result.roadmap["workspace_nodes"] == 0 and result.point_queries == 0
+
+
+def test_gaps_out_of_the_robots_reach_hand_the_rounds_back_to_the_sampler(oracles, monkeypatch):
+    from app.workspace import WorkspaceGaps as Gaps
+
+    def unreachable(self, rng, n=0):  # a gap no placement can bring a piece to (far outside the bounds)
+        self.points, self.searched = np.array([[1e4, 1e4, 0.0]]), self.searched + 1
+        return 1
+
+    monkeypatch.setattr(Gaps, "search", unreachable)
+    result = plan(oracles("bar"), PlanSettings(seed=0))
+    assert result.roadmap["workspace_nodes"] == 0 and result.roadmap["narrow_nodes"] > 0
+    assert result.trajectory.certified
