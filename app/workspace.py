@@ -9,7 +9,7 @@ IJRR 2005). On joint3d, 4 % of such placements are free and a fifth of those hav
 (most of the others are at its mouths); the Lévy bridge walkers put 0.2-0.7 % of their samples there, at some 70
 checks each.
 
-`WorkspaceGaps` finds points in gaps narrower than GAP_WIDTH times the robot's largest piece: two obstacles on
+`WorkspaceGaps` finds points in gaps narrower than GAP_WIDTH times the robot's median piece: two obstacles on
 opposite sides of the point, closer together than that (`CollisionOracle.environment_gaps`). Half of its candidate
 points are uniform in the box the robot's pieces reach, half scattered about gap points already found, so a gap once
 hit fills in. `WorkspaceSampler` then draws a uniform configuration, picks one of the robot's moving pieces and
@@ -26,8 +26,9 @@ from scipy.spatial import cKDTree
 from app.errors import SamplerBudgetExceeded
 from app.samplers.base import Sampler
 
-# A gap is narrow when it is narrower than this many times the diameter of the robot's largest moving piece: a gap
-# that piece passes only when turned the right way.
+# A gap is narrow when it is narrower than this many times the diameter of the robot's median moving piece: a gap
+# such a piece passes only when turned the right way. 1.5 missed bar's 8-wide gap (links 4 long, a 6.4 width), and
+# the largest piece instead of the median made the whole of the UR3's enclosures a gap (its upper arm is 0.34 m).
 GAP_WIDTH = 2.5
 # Gap points a query looks for; candidate points per search; candidates without a single gap: the scene has none;
 # candidates a query asks at most (the search goes on a batch per round while it has fewer than POINTS).
