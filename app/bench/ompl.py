@@ -314,10 +314,13 @@ def figure(report: dict, path: str) -> None:
     scenes = report["scenes"]
     methods = list(dict.fromkeys(r["method"] for s in scenes for r in s["methods"]))
     ompl_markers = iter(["o", "s", "^", "D", "v", "P", "X", "<", ">", "h", "p", "8"])
+    # Ours are stars, the default red and every other variant a colour of its own.
+    other_ours = iter(["tab:orange", "tab:purple", "tab:cyan", "tab:olive", "gold", "black"])
     style = {}
     for i, m in enumerate(methods):
         if m.startswith("ours:"):
-            style[m] = {"marker": "*", "color": "tab:red" if m == OURS else "tab:orange", "ms": 15, "zorder": 5}
+            colour = "tab:red" if m == OURS else next(other_ours, "tab:orange")
+            style[m] = {"marker": "*", "color": colour, "ms": 15, "zorder": 5}
         else:
             style[m] = {
                 "marker": next(ompl_markers, "o"),
