@@ -49,11 +49,13 @@ class WorkspaceGaps:
         scale = float(np.max(np.ptp(C.reshape(-1, 3), axis=0))) if C.size else 0.0
         # Pieces that move with the configuration (a cart or base welded to the world does not).
         self.moving = np.flatnonzero(np.ptp(C, axis=0).max(axis=1) > 1e-9 * max(scale, 1.0))
-        self.width = GAP_WIDTH * 2 * float(np.median(radii[self.moving])) if len(self.moving) else 0.0
+        # A robot with no moving collision geometry has nothing to place: no width, an empty box, `exhausted` at once.
+        moving = radii[self.moving] if len(self.moving) else np.zeros(1)
+        reach = C[:, self.moving].reshape(-1, 3) if len(self.moving) else np.zeros((1, 3))
+        self.width = GAP_WIDTH * 2 * float(np.median(moving))
         # How far a piece's centre may stay from its gap point when nothing can shift it there exactly.
         self.tolerance = self.width / 4
-        reach = C[:, self.moving].reshape(-1, 3)
-        margin = float(radii[self.moving].max()) if len(self.moving) else 0.0
+        margin = float(moving.max())
         self.lower, self.upper = reach.min(axis=0) - margin, reach.max(axis=0) + margin
         self.axes, self.directions = self._translations(Q[:4], C[:4])
         self.points = np.empty((0, 3))
