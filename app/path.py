@@ -2,10 +2,11 @@
 
 A path is an (n, dim) array of waypoints; its edges are straight in the scene's metric (the short way round on
 continuous angles), exactly as `oracle.space.interpolate` walks them. Shortcuts are checked at one resolution (batched,
-coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the planning resolution, certifies the
-result (app.certify), and smooths again at the fine resolution (FINE x that) in the case a shortcut cannot be proved
-(checking every accepted shortcut at the fine resolution doubled the cost of smoothing on the maze). `verify` is the
-discrete fine check, for paths no certificate vouches for (OMPL's, in `bench ompl`).
+coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the planning resolution and certifies the
+result (app.certify). A shortcut the certificate refuses is banned and smoothing replayed with a `Shortcuts` memo:
+every check it made before is remembered, so the replay pays only for what differs (checking every accepted shortcut
+at the fine resolution instead doubled the cost of smoothing on the maze). `verify` is the discrete fine check, for
+paths no certificate vouches for (OMPL's, in `bench ompl`).
 """
 
 from __future__ import annotations
@@ -43,6 +44,55 @@ def verify(oracle, P: np.ndarray, resolution: float | None = None) -> np.ndarray
     return oracle.edges_free(P[:-1], P[1:], resolution or FINE * oracle.space.resolution)
 
 
+class Shortcuts:
+    """What one smoothing knows about straight edges: the checks made (a replay from the same path and rng state asks
+    the oracle nothing until it departs from the run before) and the shortcuts banned because the certificate
+    refused an edge they carry (a banned shortcut is treated as blocked)."""
+
+    def __init__(self):
+        self.known: dict[bytes, bool] = {}
+        self.banned: set[bytes] = set()
+
+    @staticmethod
+    def _key(a: np.ndarray, b: np.ndarray) -> bytes:
+        return np.concatenate([a, b]).tobytes()
+
+    def free(self, oracle, a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
+        """Whether a -> b is free at `resolution`, asking the oracle only the first time (the ends lie on a checked
+        path, so they are not checked again)."""
+        key = self._key(a, b)
+        if key in self.banned:
+            return False
+        if key not in self.known:
+            self.known[key] = bool(oracle.edges_free(a, b, resolution, ends_free=True)[0])
+        return self.known[key]
+
+    def ban_carriers(self, space, P: np.ndarray, edges) -> int:
+        """Ban the free shortcuts that carry an edge P[i] -> P[i + 1] (i in `edges`): the edge lies on the shortcut's
+        segment. Returns how many were banned; an edge no shortcut carries lies on the path smoothing started from."""
+        carriers = {
+            key
+            for key, free in self.known.items()
+            if free
+            and key not in self.banned
+            and any(on_segment(space, *np.frombuffer(key).reshape(2, -1), P[i : i + 2]) for i in edges)
+        }
+        self.banned |= carriers
+        return len(carriers)
+
+
+def on_segment(space, a: np.ndarray, b: np.ndarray, Q: np.ndarray, tol: float = 1e-9) -> bool:
+    """Whether every configuration of Q lies on the straight edge a -> b (within tol x its length)."""
+    d = space.difference(a, b) * space.weights
+    dd = float(d @ d)
+    if dd == 0:
+        return False
+    v = space.difference(np.broadcast_to(a, np.shape(Q)), Q) * space.weights
+    t = v @ d / dd
+    off = v - t[:, None] * d
+    return bool(np.all((t > -tol) & (t < 1 + tol)) and np.all(np.einsum("ij,ij->i", off, off) < tol**2 * dd))
+
+
 def _point_at(oracle, P: np.ndarray, cum: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Configurations at arc lengths s along P, and the index of the segment each lies on."""
     seg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(P) - 2)
@@ -59,6 +109,7 @@ def shortcut(
     rounds: int = 50,
     candidates: int = 8,
     resolution: float | None = None,
+    memo: Shortcuts | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Shorten P with a greedy pass over its waypoints, `rounds` rounds of random shortcuts, a last greedy pass.
 
@@ -69,9 +120,13 @@ def shortcut(
     PathSimplifier does. Shortcuts are checked at `resolution` (default: the scene's), and so are the pieces of the
     edges they cut: if every edge of P passed a check at `resolution`, every edge of the result has. A budget that
     runs out (BudgetSpent from the oracle) ends smoothing with the path as it stands, which is always checked.
-    Deterministic for a given rng state.
+    Only the shortcut itself is checked: the pieces of the edges it cuts are parts of checked edges, and the planner
+    certifies the result in the continuous sense anyway (re-checking the pieces cost about a third of smoothing's
+    checks on joint and teeth3d). `memo` remembers checks and bans across replays (see Shortcuts). Deterministic for
+    a given rng state and memo.
     """
     resolution = resolution or oracle.space.resolution
+    memo = memo if memo is not None else Shortcuts()
     P = dedupe(P)
     stats = {
         "greedy_removed": 0,
@@ -83,21 +138,21 @@ def shortcut(
     }
     try:
         if len(P) > 2:
-            P = _greedy(oracle, P, resolution, stats)
+            P = _greedy(oracle, P, resolution, stats, memo)
         for _ in range(rounds):
             if len(P) < 3:
                 break
-            P = _random_shortcut(oracle, P, rng, candidates, resolution, stats)
+            P = _random_shortcut(oracle, P, rng, candidates, resolution, stats, memo)
         if len(P) > 2 and rounds:
             # Random shortcuts leave two new waypoints each; a last greedy pass removes those that became redundant.
-            P = _greedy(oracle, P, resolution, stats)
+            P = _greedy(oracle, P, resolution, stats, memo)
     except BudgetSpent:
         stats["stopped"] = True
     stats["length_after"] = path_length(oracle, P)
     return P, stats
 
 
-def _random_shortcut(oracle, P, rng, candidates: int, resolution: float, stats: dict) -> np.ndarray:
+def _random_shortcut(oracle, P, rng, candidates: int, resolution: float, stats: dict, memo: Shortcuts) -> np.ndarray:
     seg_len = segment_lengths(oracle, P)
     cum = np.concatenate([[0.0], np.cumsum(seg_len)])
     total = cum[-1]
@@ -110,17 +165,13 @@ def _random_shortcut(oracle, P, rng, candidates: int, resolution: float, stats: 
     useful = np.flatnonzero((ib > ia) & (gain > 1e-9 * total))
     for c in useful[np.argsort(-gain[useful], kind="stable")]:
         stats["candidates_checked"] += 1
-        # The shortcut also leaves a piece of each edge it cuts: points along a piece are not points the whole
-        # edge was checked at, so the pieces are checked too, and every edge of P stays checked at `resolution`.
-        if oracle.edges_free(
-            np.array([qa[c], P[ia[c]], qb[c]]), np.array([qb[c], qa[c], P[ib[c] + 1]]), resolution
-        ).all():
+        if memo.free(oracle, qa[c], qb[c], resolution):
             stats["random_accepted"] += 1
             return dedupe(np.vstack([P[: ia[c] + 1], qa[c], qb[c], P[ib[c] + 1 :]]))
     return P
 
 
-def _greedy(oracle, P: np.ndarray, resolution: float, stats: dict) -> np.ndarray:
+def _greedy(oracle, P: np.ndarray, resolution: float, stats: dict, memo: Shortcuts) -> np.ndarray:
     """From each kept waypoint, the farthest later waypoint it sees directly: tried farthest first, one at a time,
     so only the edge taken is checked in full (a blocked one costs a few coarse-to-fine checks)."""
     out, i, n = [P[0]], 0, len(P)
@@ -128,7 +179,7 @@ def _greedy(oracle, P: np.ndarray, resolution: float, stats: dict) -> np.ndarray
         nxt = i + 1  # the path's own edge, free already
         for j in range(n - 1, i + 1, -1):
             stats["candidates_checked"] += 1
-            if oracle.edges_free(P[i], P[j], resolution)[0]:
+            if memo.free(oracle, P[i], P[j], resolution):
                 nxt = j
                 break
         stats["greedy_removed"] += nxt - i - 1

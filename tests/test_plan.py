@@ -167,7 +167,7 @@ def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
 
 def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(monkeypatch):
     """Smoothing a candidate the certificate then refuses wastes it: after the first refusal, candidates are proved
-    first, so a query smooths at most twice (once optimistic, once careful) however many edges it drops."""
+    first, so a query smooths at most two roadmap paths (once optimistic, once careful) however many edges it drops."""
     from app.oracle import CollisionOracle
     from app.planner import Query
     from app.scene import Scene
@@ -175,20 +175,22 @@ def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(m
     oracle = CollisionOracle(Scene("maze"))
     oracle.space = dataclasses.replace(oracle.space, resolution=4.0)  # edges that pass the checks, then fail
     smoothed, smooth = [], Query.smooth
-    monkeypatch.setattr(Query, "smooth", lambda self, nodes: smoothed.append(nodes) or smooth(self, nodes))
+    monkeypatch.setattr(
+        Query, "smooth", lambda self, nodes, memo=None: smoothed.append(tuple(nodes)) or smooth(self, nodes, memo)
+    )
     result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
     assert result.smoothing["certificate"]["unproved_edges_dropped"] > 0 and result.trajectory.certified
-    assert 1 <= len(smoothed) <= 2 and smoothed[-1] == result.path_nodes
+    # Repairs smooth the same roadmap path again; what is limited is the roadmap paths smoothing is spent on.
+    assert 1 <= len(set(smoothed)) <= 2 and smoothed[-1] == tuple(result.path_nodes)
 
 
-def test_shortcuts_keep_every_edge_checked_at_their_resolution():
-    """A shortcut leaves pieces of the edges it cuts; a piece's points are not the points its edge was checked at.
-    Here a thin wall sits between the fine points of the path's first edge, so an unchecked piece can hit it."""
+def _wall_oracle():
+    """A 2-D oracle with a thin wall between the fine points of the test path's first edge, and a block that leaves
+    no direct line from the start to the end (the path code needs only the metric and are_free)."""
     from app.cspace import ConfigurationSpace
     from app.oracle import CollisionOracle
-    from app.path import shortcut, verify
 
-    oracle = CollisionOracle.__new__(CollisionOracle)  # the path code needs only the metric and are_free
+    oracle = CollisionOracle.__new__(CollisionOracle)
     oracle.space = ConfigurationSpace(
         lower=np.full(2, -20.0),
         upper=np.full(2, 20.0),
@@ -200,18 +202,94 @@ def test_shortcuts_keep_every_edge_checked_at_their_resolution():
     oracle.checks = 0
 
     def are_free(Q):
+        oracle.checks += len(np.atleast_2d(Q))
         x, y = np.atleast_2d(Q).T
         wall = (x >= 4.1) & (x <= 4.15) & (y >= -0.5) & (y <= 0.3)
-        block = (x >= 4.5) & (x <= 9.0) & (y >= 0.2) & (y <= 9.0)  # no direct line from the start to the end
+        block = (x >= 4.5) & (x <= 9.0) & (y >= 0.2) & (y <= 9.0)
         return ~(wall | block)
 
     oracle.are_free = are_free
-    P = np.array([[0.0, 0.0], [9.5, 0.0], [9.5, 10.0]])
-    assert verify(oracle, P, 0.25).all()
-    for seed in range(100):
-        smoothed, stats = shortcut(oracle, P, np.random.default_rng(seed), rounds=10, resolution=0.25)
-        assert verify(oracle, smoothed, 0.25).all(), seed
-    assert stats["length_after"] < stats["length_before"]
+    return oracle, np.array([[0.0, 0.0], [9.5, 0.0], [9.5, 10.0]])
+
+
+def test_every_edge_of_a_shortened_path_lies_on_the_path_or_on_a_shortcut_checked_free():
+    """What the certificate and the repair rely on: shortcuts are the only new motion (the pieces of the edges they
+    cut are not re-checked: they are parts of checked edges), and each was checked before it was taken."""
+    from app.path import Shortcuts, on_segment, shortcut
+
+    oracle, P = _wall_oracle()
+    shortened = 0
+    for seed in range(50):
+        memo = Shortcuts()
+        smoothed, stats = shortcut(oracle, P, np.random.default_rng(seed), rounds=10, resolution=0.25, memo=memo)
+        free = [np.frombuffer(k).reshape(2, -1) for k, ok in memo.known.items() if ok]
+        for u, v in zip(smoothed[:-1], smoothed[1:]):
+            carriers = [*zip(P[:-1], P[1:]), *free]
+            assert any(on_segment(oracle.space, a, b, np.array([u, v])) for a, b in carriers), seed
+        shortened += stats["length_after"] < stats["length_before"]
+    assert shortened >= 45
+
+
+def test_a_replay_repeats_the_shortcuts_for_free_and_a_banned_one_is_avoided():
+    from app.path import Shortcuts, on_segment, shortcut
+
+    oracle, P = _wall_oracle()
+    memo = Shortcuts()
+    first, _ = shortcut(oracle, P, np.random.default_rng(3), rounds=10, resolution=0.25, memo=memo)
+    checks = oracle.checks
+    again, _ = shortcut(oracle, P, np.random.default_rng(3), rounds=10, resolution=0.25, memo=memo)
+    assert np.array_equal(first, again) and oracle.checks == checks
+    shortcut_edges = [
+        i
+        for i in range(len(first) - 1)
+        if not any(on_segment(oracle.space, *e, first[i : i + 2]) for e in zip(P[:-1], P[1:]))
+    ]
+    assert shortcut_edges
+    assert memo.ban_carriers(oracle.space, first, shortcut_edges[:1]) == 1
+    repaired, _ = shortcut(oracle, P, np.random.default_rng(3), rounds=10, resolution=0.25, memo=memo)
+    banned = [np.frombuffer(k).reshape(2, -1) for k in memo.banned]
+    for u, v in zip(repaired[:-1], repaired[1:]):
+        assert not any(on_segment(oracle.space, a, b, np.array([u, v])) for a, b in banned)
+    assert memo.ban_carriers(oracle.space, P, [0, 1]) == 0  # the path's own edges have no shortcut carrying them
+
+
+def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkeypatch):
+    """The certificate is made to refuse the first smoothed path's longest shortcut: smoothing is replayed without
+    it, the result is proved and still shorter than the roadmap path, and smoothing stays within its cap."""
+    from app.oracle import CollisionOracle
+    from app.path import on_segment
+    from app.planner import SMOOTHING_CAP, Query
+    from app.scene import Scene
+
+    oracle = CollisionOracle(Scene("bar-3link"))
+    raw, refused, smooth, certify = [], [], Query.smooth, Query.certify
+
+    def recording(self, nodes, memo=None):
+        raw.append(self.roadmap.Q[nodes])
+        return smooth(self, nodes, memo)
+
+    def on_raw(path, i):
+        return any(on_segment(oracle.space, a, b, path[i : i + 2]) for a, b in zip(raw[-1][:-1], raw[-1][1:]))
+
+    def refusing(self, path, edges=None):
+        proved, stats = certify(self, path, edges)
+        new = [i for i in (range(len(path) - 1) if edges is None else edges) if not on_raw(path, i)]
+        if raw and not refused and new:
+            worst = max(new, key=lambda i: oracle.space.distance(path[i], path[i + 1]))
+            refused.append(path[worst : worst + 2].copy())
+            return False, {**stats, "failed": [worst]}
+        return proved, stats
+
+    monkeypatch.setattr(Query, "smooth", recording)
+    monkeypatch.setattr(Query, "certify", refusing)
+    result = plan(oracle, PlanSettings(seed=0))
+    assert refused and result.smoothing["repairs"] == 1 and not result.smoothing["fine_only"]
+    assert result.trajectory.certified
+    P = result.path
+    assert not any(on_segment(oracle.space, *refused[0], P[i : i + 2]) for i in range(len(P) - 1))
+    assert result.smoothing["length_after"] < result.smoothing["raw_length"]
+    finding = result.collision_checks - result.checks["smoothing"] - result.checks.get("timing", 0)
+    assert result.checks["smoothing"] <= SMOOTHING_CAP * finding + 1
 
 
 def test_same_seed_same_path(oracles, planned):
