@@ -33,6 +33,10 @@ from app.errors import InvalidEndpoint, UserError
 POSITION_TOLERANCE = 1e-3  # m
 ANGLE_TOLERANCE = math.radians(0.5)
 CLEARANCE = 0.005  # m, the second round's minimum distance
+# A tool line is solved every TOOL_STEP metres of tool travel or TOOL_TURN radians of its turn, whichever is finer;
+# consecutive solutions further apart than JUMP x the step in the scene metric are a jump (its lever arms are upper
+# bounds: a 2 cm step of the UR3 tool measures 0.06-0.08 there, a change of arm posture 1 or more).
+TOOL_STEP, TOOL_TURN, JUMP = 0.02, math.radians(10.0), 10.0
 
 
 def pose_error(oracle, q, pose, frame=None) -> tuple[float, float]:
@@ -166,6 +170,45 @@ def solve_pose(
             "NO_IK_SOLUTION",
         )
     return min(found, key=lambda c: float(oracle.space.distance(reference, c)))
+
+
+def tool_pose(oracle, q, frame=None):
+    """The pose (a RigidTransform) of `frame` (default: the scene's tool frame) in the world at configuration q."""
+    plant = oracle.plant
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, np.asarray(q, float))
+    return (frame or oracle.scene.tool_frame).CalcPoseInWorld(context)
+
+
+def tool_line(oracle, qa, qb, rng: np.random.Generator, *, frame=None, step: float = TOOL_STEP) -> np.ndarray | None:
+    """Configurations between qa and qb that carry the tool frame along the straight line (and the shortest turn)
+    from its pose at qa to its pose at qb, every `step` metres (or TOOL_TURN radians), each solved from the one before
+    so the arm keeps its posture: what a cell's linear move does (MoveIt's Cartesian path). None when a pose on the
+    way has no free solution near the last one, or the arm would have to jump (a branch change, more than
+    JUMP x the step in the scene's metric) to go on or to reach qb."""
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    Xa, Xb = tool_pose(oracle, qa, frame), tool_pose(oracle, qb, frame)
+    qa_rot, qb_rot = Xa.rotation().ToQuaternion(), Xb.rotation().ToQuaternion()
+    turn = Xa.rotation().inverse().multiply(Xb.rotation()).ToAngleAxis().angle()
+    distance = float(np.linalg.norm(Xb.translation() - Xa.translation()))
+    n = max(1, math.ceil(distance / step), math.ceil(turn / TOOL_TURN))
+    jump = JUMP * max(distance, turn * step / TOOL_TURN) / n
+    q, out = np.asarray(qa, float), []
+    for k in range(1, n):
+        t = k / n
+        X = RigidTransform(RotationMatrix(qa_rot.slerp(t, qb_rot)), (1 - t) * Xa.translation() + t * Xb.translation())
+        try:
+            nxt = solve_pose(oracle, X, rng, q, frame=frame, seeds=1, keep=1)
+        except InvalidEndpoint:
+            return None
+        if oracle.space.distance(q, nxt) > jump:
+            return None
+        out.append(nxt)
+        q = nxt
+    if oracle.space.distance(q, qb) > jump:
+        return None
+    return np.array(out).reshape(-1, oracle.space.dim)
 
 
 def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **options) -> dict[str, np.ndarray]:

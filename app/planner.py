@@ -35,8 +35,10 @@ DEFAULT_BUDGET = Budget(seconds=30.0)
 # together (a path the certificate refused is shortened again, fine-only) SMOOTHING_CAP.
 SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
 # How many times a smoothed path the certificate refused is smoothed again without the shortcuts that carried the
-# refused edges, before the query gives up on shortening it.
-SMOOTHING_REPAIRS = 3
+# refused edges, before the query goes careful. Each repair costs a certificate (1-2 s on the UR3 scenes, where a
+# refused edge is bisected deep); three made 5 of 20 welding queries miss a 10 s budget (`bench ompl`) and left
+# the path lengths on teeth3d and joint as one does.
+SMOOTHING_REPAIRS = 1
 # The shortest trajectory sample period: a 1 kHz controller; finer would only make files of gigabytes.
 MIN_DT = 1e-3
 # Narrow-passage samples per round once they are on: narrow/NARROW_RAMP at first, doubling every round up to
@@ -68,7 +70,8 @@ class PlanSettings:
     arguments of the sampler (e.g. alpha_angle); skip_connected: Kavraki's rule for a full roadmap;
     full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query); workspace: the
     share of a query's narrow-passage samples placed in narrow gaps of the workspace (app.workspace; 0: the sampler
-    alone; a full roadmap draws none)."""
+    alone; a full roadmap draws none); timing: time the path with Toppra (False: the result's trajectory is None, for
+    a caller that times several paths as one motion, as a job does through its pass-through poses)."""
 
     sampler: str = "lfbs"
     narrow: int = 200
@@ -83,6 +86,7 @@ class PlanSettings:
     skip_connected: bool = True
     full_roadmap: bool = False
     workspace: float = 0.5
+    timing: bool = True
 
     def __post_init__(self):
         from app.samplers import check_name
@@ -125,7 +129,7 @@ class PlanResult:
     goal: np.ndarray
     path: np.ndarray  # smoothed waypoints, wrapped (every edge fine-checked)
     roadmap_path: np.ndarray  # the roadmap's shortest path before smoothing
-    trajectory: Trajectory
+    trajectory: Trajectory | None  # None when PlanSettings.timing is off
     collision_checks: int
     checks: dict  # per phase
     seconds: dict  # per phase and total
@@ -172,7 +176,7 @@ class PlanResult:
             "roadmap_path": self.roadmap_path.tolist(),
             "path_length": self.smoothing.get("length_after"),
             "roadmap_path_length": self.smoothing.get("raw_length"),
-            "trajectory": self.trajectory.to_json(),
+            "trajectory": self.trajectory.to_json() if self.trajectory else None,
             "collision_checks": self.collision_checks,
             "checks": self.checks,
             "seconds": self.seconds,
@@ -186,7 +190,7 @@ class PlanResult:
             "distance_queries": self.distance_queries,
             "workspace_on_path": self.workspace_on_path,
             "point_queries": self.point_queries,
-            "certified": self.trajectory.certified,
+            "certified": self.trajectory.certified if self.trajectory else self.smoothing["certificate"]["proved"],
         }
 
 
@@ -210,20 +214,22 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
     return oracle.space.wrap(q)
 
 
-def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None, cancel=None) -> PlanResult:
-    """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()).
+def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None, via=None, cancel=None) -> PlanResult:
+    """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()); `via`: waypoints
+    of the easy route to try instead of the straight motion (an arm's tool line, app.ik.tool_line).
 
     Returns a PlanResult; raises InvalidEndpoint for a bad start or goal, NoPath (with `.details`) when the
     samples or the budget run out before start and goal connect (code PREEMPTED when `cancel`, a threading.Event,
     was set from another thread), UserError for bad parameters."""
-    return Query(oracle, settings or PlanSettings(), start=start, goal=goal, cancel=cancel).solve()
+    return Query(oracle, settings or PlanSettings(), start=start, goal=goal, via=via, cancel=cancel).solve()
 
 
 class Query:
     """One planning query in explicit phases, as OMPL splits its PRM (setup / grow / solve):
 
     setup (the constructor): endpoints checked, samplers made, start and goal put in the roadmap;
-    `straight()`: the easy route first -- the straight motion from start to goal, checked at the resolution;
+    `straight()`: the easy route first -- the straight motion from start to goal (or the polyline through the
+    caller's `via` points), checked at the resolution;
     `grow(narrow, uniform)`: one round of samples, added and connected to their k nearest neighbours;
     `search()`: the shortest roadmap path whose edges are free, or None while start and goal are apart;
     `smooth(nodes)`: shortcuts of that path; `certify(path)`: the result proved free between its checked points;
@@ -256,7 +262,7 @@ class Query:
     `full_roadmap` is the paper's protocol instead: one round of all `narrow` + `uniform` samples, every edge
     checked, then the query."""
 
-    def __init__(self, oracle, settings: PlanSettings, *, start=None, goal=None, cancel=None):
+    def __init__(self, oracle, settings: PlanSettings, *, start=None, goal=None, via=None, cancel=None):
         # The roadmap and samplers pull in scipy and networkx: imported when a query is made, not at CLI start-up.
         from app.roadmap import GOAL, START, Roadmap
         from app.samplers import make_sampler
@@ -273,6 +279,13 @@ class Query:
         self.start = check_endpoint(oracle, oracle.scene.start if start is None else start, "start")
         self.goal = check_endpoint(oracle, oracle.scene.goal if goal is None else goal, "goal")
         self.checks["endpoints"] = oracle.checks - self._checks0
+        # The easy route: the straight motion, or the polyline through `via`.
+        via = [] if via is None or len(via) == 0 else np.atleast_2d(np.asarray(via, float))
+        via = [oracle.space.check_configuration(q, "via point") for q in via]
+        outside = [fault for q in via for fault in oracle.space.out_of_bounds(q)]
+        if outside:
+            raise UserError(f"via point out of bounds: {outside[0]}")
+        self.route = np.vstack([self.start, *via, self.goal])
 
         seeds = np.random.SeedSequence(settings.seed).spawn(4)
         self._rngs = {
@@ -322,10 +335,12 @@ class Query:
 
     # ---- the easy route -----------------------------------------------------------------------------------------
     def straight(self) -> bool:
-        """Whether the straight motion from start to goal is free at the resolution (one edge check; the
-        certificate then proves it between the checked points)."""
-        resolution = self.roadmap.resolution
-        return bool(self._timed("search", self.oracle.edges_free, self.start, self.goal, resolution, ends_free=True)[0])
+        """Whether the easy route (the straight motion from start to goal, or the polyline through `via`) is free at
+        the resolution (one batched edge check; the certificate then proves it between the checked points). Via
+        points are checked too: only the endpoints are known free."""
+        R, resolution = self.route, self.roadmap.resolution
+        free = self._timed("search", self.oracle.edges_free, R[:-1], R[1:], resolution, ends_free=len(R) == 2)
+        return bool(free.all())
 
     # ---- grow -------------------------------------------------------------------------------------------------------
     def round_sizes(self) -> tuple[int, int] | None:
@@ -554,19 +569,21 @@ class Query:
             ) from None
 
     def solve(self) -> PlanResult:
-        """The straight motion if it is free and proved; else grow round by round until start and goal connect, then
-        smooth, certify and time the path. The budget bounds everything but the certificate and timing."""
+        """The easy route (straight, or through `via`) if it is free and proved; else grow round by round until start
+        and goal connect, then smooth, certify and time the path. The budget bounds everything but the certificate
+        and timing."""
         self.oracle.stop = Stop(self.settings.budget, self.oracle, self._cancel)
         try:
             if self.straight():
-                path = np.array([self.start, self.goal])
+                path = self.route
                 with self._unlimited():
                     proved, certificate = self.certify(path)
                 if proved:  # else the roadmap may find a route it can prove
                     return self._result(
                         [self.start_node, self.goal_node],
                         path,
-                        {"straight": True, "certificate": {**certificate, "proved": True}},
+                        {"straight": True, "via": len(path) - 2, "certificate": {**certificate, "proved": True}},
+                        raw=path,
                     )
             found = None
             sizes = self.round_sizes()
@@ -632,14 +649,15 @@ class Query:
             unproved_edges=self.unproved_edges,
         )
 
-    def _result(self, nodes: list[int], path: np.ndarray, stats: dict) -> PlanResult:
+    def _result(self, nodes: list[int], path: np.ndarray, stats: dict, raw: np.ndarray | None = None) -> PlanResult:
+        """raw: the path before smoothing (default: the roadmap's through `nodes`)."""
         from app.roadmap import NARROW, WORKSPACE
 
         roadmap, s = self.roadmap, self.settings
-        raw = roadmap.Q[nodes]
+        raw = roadmap.Q[nodes] if raw is None else raw
         stats["raw_length"] = path_length(self.oracle, raw)
         stats["length_after"] = path_length(self.oracle, path)
-        trajectory = self.time(path, stats["certificate"]["proved"])
+        trajectory = self.time(path, stats["certificate"]["proved"]) if s.timing else None
         self.seconds["total"] = self.elapsed()[0]
         return PlanResult(
             success=True,

@@ -19,8 +19,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from app.budget import Budget
-from app.errors import UserError
-from app.ik import solve_poses
+from app.errors import NoPath, UserError
+from app.ik import solve_poses, tool_line
 from app.path import dedupe
 from app.planner import PlanSettings, plan
 from app.timing import parameterize_smooth
@@ -39,14 +39,14 @@ ROUTES = {
 class Leg:
     start: str
     goal: str
-    method: str  # "straight" or the sampler's name
+    method: str  # "straight", "tool line" or the sampler's name
     narrow_samples: int
     narrow_on_path: int
     collision_checks: int
     seconds: float
     duration: float  # of this leg within the job's motion (from its start pose to its goal pose)
     path: np.ndarray
-    trajectory: Trajectory
+    trajectory: Trajectory | None  # None for a leg timed with the next ones, through the pose joining them
     narrow: np.ndarray  # the leg's narrow-passage samples (empty for a straight leg)
     on_path: np.ndarray
 
@@ -123,14 +123,24 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     configurations = {HOME: home, **solve_poses(oracle, rng, poses, reference=home)}
     ik_seconds = time.perf_counter() - clock
 
+    last = len(names) - 1
+    stops = [k for k, name in enumerate(names) if k in (0, last) or name not in oracle.scene.pass_through]
+    # Legs that pass through a pose are timed together (_through): timing each alone would be thrown away.
+    joined = {i for a, b in zip(stops[:-1], stops[1:]) if b - a > 1 for i in range(a, b)}
     legs = []
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
         t, c = time.perf_counter(), oracle.checks
-        # The planner tries the straight move first (a seam step of a few centimetres needs no roadmap).
-        result = plan(oracle, replace(settings, seed=seed * 1000 + i), start=qa, goal=qb)
+        # The planner tries the easy route first: the straight joint move (a seam step of a few centimetres needs
+        # no roadmap), or where that is blocked the tool's straight line (the forearm following the torch into a
+        # hatch: the joint move between two such postures swings the forearm into the frame).
+        via = None if oracle.edges_free(qa, qb, ends_free=True)[0] else tool_line(oracle, qa, qb, rng)
+        leg_settings = replace(settings, seed=seed * 1000 + i, timing=i not in joined)
+        result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)
         path, trajectory = result.path, result.trajectory
-        method = "straight" if result.smoothing.get("straight") else sampler
+        method = sampler
+        if result.smoothing.get("straight"):
+            method = "tool line" if result.smoothing["via"] else "straight"
         samples, on_path = result.narrow_samples()
         narrow_count = result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"]
         used = result.narrow_on_path + result.workspace_on_path
@@ -143,7 +153,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
                 int(used),
                 oracle.checks - c,
                 time.perf_counter() - t,
-                trajectory.duration,
+                trajectory.duration if trajectory else 0.0,
                 path,
                 trajectory,
                 samples,
@@ -151,8 +161,6 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
             )
         )
 
-    last = len(names) - 1
-    stops = [k for k, name in enumerate(names) if k in (0, last) or name not in oracle.scene.pass_through]
     motions = [_through(oracle, legs[a:b], settings.dt) for a, b in zip(stops[:-1], stops[1:])]
     planning = time.perf_counter() - clock - ik_seconds
     return RunResult(
@@ -173,24 +181,36 @@ def _through(oracle, legs: list[Leg], dt: float) -> Trajectory:
     if len(legs) == 1:
         return legs[0].trajectory
     paths = [dedupe(leg.path) for leg in legs]
-    scene = oracle.scene
     try:
-        trajectory = parameterize_smooth(
-            oracle,
-            oracle.space.unwrap(np.vstack([paths[0]] + [p[1:] for p in paths[1:]])),
-            scene.velocity_limits,
-            scene.acceleration_limits,
-            dt,
-            oracle.space.names,
-            edges_proved=all(leg.trajectory.certified for leg in legs),  # each leg's edges are certified already
-        )
+        trajectory = time_path(oracle, np.vstack([paths[0]] + [p[1:] for p in paths[1:]]), dt)
     except RuntimeError:  # Toppra found no timing of the joined curve: stop at the poses after all
+        for leg in legs:
+            try:
+                leg.trajectory = time_path(oracle, leg.path, dt)
+            except RuntimeError as exc:
+                raise NoPath(f"leg {leg.start} -> {leg.goal} found but not time-parameterized: {exc}") from None
+            leg.duration = leg.trajectory.duration
         return join([leg.trajectory for leg in legs], oracle)
     ends = np.cumsum([len(p) - 1 for p in paths])  # each leg's goal among the joined waypoints
     times = trajectory.waypoint_times[np.concatenate([[0], ends])]
     for leg, duration in zip(legs, np.diff(times)):
         leg.duration = float(duration)
     return trajectory
+
+
+def time_path(oracle, path: np.ndarray, dt: float) -> Trajectory:
+    """Toppra along the path, its corners blended where the blends can be proved (its edges are: every path a
+    query returns is certified)."""
+    scene = oracle.scene
+    return parameterize_smooth(
+        oracle,
+        oracle.space.unwrap(path),
+        scene.velocity_limits,
+        scene.acceleration_limits,
+        dt,
+        oracle.space.names,
+        edges_proved=True,
+    )
 
 
 def join(trajectories: list[Trajectory], oracle) -> Trajectory:

@@ -119,3 +119,29 @@ def test_pose_goal_places_the_scene_tool_frame_by_default(oracles):
     assert oracle.space.distance(near, oracle.scene.goal) < 0.01
     assert ik.robot_frame(oracle, "tool0").name() == "tool0"
     assert ik.robot_frame(oracles("bar")).body().name() == "link7"  # no tool frame: the chain's last body
+
+
+def test_a_tool_line_keeps_the_tool_on_the_segment_and_the_arm_in_its_posture(oracles):
+    """window -> reach: the torch pushed 21 cm straight on through the hatch. Every configuration of the line puts
+    the tool on the segment between the two poses, level as they are, in order, and no step is a jump."""
+    from pydrake.math import RigidTransform
+
+    oracle = oracles("window")
+    rng = np.random.default_rng(0)
+    c = ik.solve_poses(oracle, rng, ["window", "reach"], reference=oracle.scene.start)
+    line = ik.tool_line(oracle, c["window"], c["reach"], rng)
+    assert line is not None and len(line) >= 9  # 21 cm every 2 cm
+    a, b = tool_pose(oracle, c["window"]).translation(), tool_pose(oracle, c["reach"]).translation()
+    along = []
+    for q in line:
+        X = tool_pose(oracle, q)
+        t = float((X.translation() - a) @ (b - a) / ((b - a) @ (b - a)))
+        assert np.linalg.norm(X.translation() - (a + t * (b - a))) <= POSITION_TOLERANCE
+        # level as both poses are: within their own IK tolerance of the slerp between them
+        level = RigidTransform(oracle.scene.poses["window"].rotation(), X.translation())
+        assert_reaches(oracle, q, level, angle_tolerance=2 * ANGLE_TOLERANCE)
+        along.append(t)
+    assert np.all(np.diff(along) > 0) and 0 < along[0] and along[-1] < 1
+    P = np.vstack([c["window"], line, c["reach"]])
+    assert oracle.space.distance(P[:-1], P[1:]).max() < 0.1  # a 2 cm tool step moves the arm about 0.07
+    assert ik.tool_line(oracle, c["window"], oracle.scene.start, rng) is None  # home is another posture: a jump

@@ -326,6 +326,32 @@ def test_a_free_straight_motion_is_the_answer_after_one_edge_check(oracles):
     assert result.collision_checks == 2 + inner and result.trajectory.certified
 
 
+def test_a_free_route_through_via_points_is_the_answer_without_a_roadmap(oracles):
+    """The caller's easy route (a job's tool line) is taken as the straight motion is: checked, proved, timed, no
+    sample drawn. A route that collides is only a first try: with no samples allowed the query then fails."""
+    oracle = oracles("bar-3link")
+    found = plan(oracle, PlanSettings(seed=0))
+    via = found.path[1:-1]
+    assert len(via) >= 1 and not oracle.edges_free(oracle.scene.start, oracle.scene.goal)[0]
+    result = plan(oracle, PlanSettings(seed=1, narrow=0, uniform=0), via=via)
+    assert result.rounds == 0 and result.smoothing["straight"] and result.smoothing["via"] == len(via)
+    assert np.array_equal(result.path[1:-1], via) and result.trajectory.certified
+    assert np.array_equal(result.roadmap_path, result.path)
+    with pytest.raises(NoPath):
+        plan(oracle, PlanSettings(seed=1, narrow=0, uniform=0), via=[oracle.scene.start])  # the straight motion again
+    with pytest.raises(UserError, match="via point out of bounds"):
+        plan(oracle, PlanSettings(seed=1), via=[np.full(oracle.space.dim, 1e6)])
+
+
+def test_a_plan_without_timing_returns_the_certified_path_alone(oracles):
+    oracle = oracles("bar-3link")
+    timed, bare = (plan(oracle, PlanSettings(seed=0, timing=t)) for t in (True, False))
+    assert bare.trajectory is None and timed.trajectory is not None and bare.seconds["timing"] == 0
+    assert np.array_equal(bare.path, timed.path)
+    answer = json.loads(json.dumps(bare.to_json()))
+    assert answer["trajectory"] is None and answer["certified"] is True
+
+
 def test_a_check_budget_is_never_overrun(oracles):
     oracle = oracles("joint3d")  # joint3d's hole is beyond 8000 checks of uniform samples
     with pytest.raises(NoPath, match=r"budget 8000checks spent \(checks\)") as info:
