@@ -7,7 +7,9 @@
 
 Goals are the scene's tool poses solved to collision-free configurations by inverse kinematics (as one chain, so
 consecutive seam points get neighbouring arm postures). Each leg is one query: the planner takes the straight
-joint-space move where it is proved free (a seam step of a few centimetres needs no roadmap) and plans the others.
+joint-space move where it is proved free (a seam step of a few centimetres needs no roadmap); where that move is
+blocked, the tool's straight line between the two poses (app.ik.tool_line: the torch pushed on through the hatch,
+the forearm following) if it is proved free; and plans the others.
 The robot stops at home and at each pose where the job needs it at rest (a weld point, a grasp) and nowhere else:
 legs joined at a pose marked `stop: false` in the scene (an approach: the torch lined up in a slot, in a hatch)
 are timed as one curve, blended and certified there as at any other corner (app.timing).
