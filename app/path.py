@@ -117,13 +117,12 @@ def shortcut(
     `candidates` pairs of points anywhere along the path and takes, of those whose shortcut is free, the one that
     saves most length. Candidates are checked one at a time, best first, and the first free one ends the search:
     a colliding candidate costs a few checks (coarse to fine), so a round costs about one free edge, as OMPL's
-    PathSimplifier does. Shortcuts are checked at `resolution` (default: the scene's), and so are the pieces of the
-    edges they cut: if every edge of P passed a check at `resolution`, every edge of the result has. A budget that
-    runs out (BudgetSpent from the oracle) ends smoothing with the path as it stands, which is always checked.
-    Only the shortcut itself is checked: the pieces of the edges it cuts are parts of checked edges, and the planner
-    certifies the result in the continuous sense anyway (at the same check cap, dropping the re-check took the median
-    path on joint from 454 to 367 and on teeth3d from 194 to 186, 8 seeds). `memo` remembers checks and bans across replays (see Shortcuts). Deterministic for
-    a given rng state and memo.
+    PathSimplifier does. Shortcuts are checked at `resolution` (default: the scene's); the pieces of the edges they
+    cut are not checked again: they are parts of checked edges, and the planner certifies the result in the
+    continuous sense anyway (at the same check cap, dropping that re-check took the median path on joint from 454 to
+    367 and on teeth3d from 194 to 186, 8 seeds). So every edge of the result lies on an edge of P or on a shortcut
+    checked free. A budget that runs out (BudgetSpent from the oracle) ends smoothing with the path as it stands.
+    `memo` remembers checks and bans across replays (see Shortcuts). Deterministic for a given rng state and memo.
     """
     resolution = resolution or oracle.space.resolution
     memo = memo if memo is not None else Shortcuts()
