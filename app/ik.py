@@ -43,11 +43,7 @@ TOOL_STEP, TOOL_TURN, JUMP = 0.02, math.radians(10.0), 10.0
 
 def pose_error(oracle, q, pose, frame=None) -> tuple[float, float]:
     """(position error in m, rotation error in rad) of the tool frame at q against `pose` (a RigidTransform)."""
-    plant = oracle.plant
-    frame = frame or oracle.scene.tool_frame
-    context = plant.CreateDefaultContext()
-    plant.SetPositions(context, np.asarray(q, float))
-    X = frame.CalcPoseInWorld(context)
+    X = tool_pose(oracle, q, frame)
     position = float(np.linalg.norm(X.translation() - pose.translation()))
     R = pose.rotation().inverse().multiply(X.rotation())
     angle = float(R.ToAngleAxis().angle())

@@ -22,7 +22,7 @@ import numpy as np
 from app.budget import Budget, BudgetSpent, Stop
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.path import FINE, Shortcuts, path_length, shortcut, verify
-from app.timing import parameterize_smooth
+from app.timing import time_path
 from app.trajectory import Trajectory, TrajectoryFile
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
@@ -549,23 +549,13 @@ class Query:
     def time(self, path: np.ndarray, proved: bool = False) -> Trajectory:
         """Toppra along the path with its corners blended where the blends can be proved free (app.timing); proved:
         the path's edges are certified already (by this query's certifier), so only the blends need to be."""
-        scene = self.oracle.scene
         try:
             return self._timed(
-                "timing",
-                parameterize_smooth,
-                self.oracle,
-                self.oracle.space.unwrap(path),
-                scene.velocity_limits,
-                scene.acceleration_limits,
-                self.settings.dt,
-                self.oracle.space.names,
-                certifier=self._certifier,
-                edges_proved=proved,
+                "timing", time_path, self.oracle, path, self.settings.dt, certifier=self._certifier, edges_proved=proved
             )
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
             raise NoPath(
-                f"path found on {scene.name} but not time-parameterized: {' '.join(str(exc).split())}"
+                f"path found on {self.oracle.scene.name} but not time-parameterized: {' '.join(str(exc).split())}"
             ) from None
 
     def solve(self) -> PlanResult:

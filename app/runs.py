@@ -25,7 +25,7 @@ from app.errors import NoPath, UserError
 from app.ik import solve_poses, tool_line
 from app.path import dedupe
 from app.planner import PlanSettings, plan
-from app.timing import parameterize_smooth
+from app.timing import time_path
 from app.trajectory import Trajectory, TrajectoryFile
 
 HOME = "home"
@@ -183,12 +183,13 @@ def _through(oracle, legs: list[Leg], dt: float) -> Trajectory:
     if len(legs) == 1:
         return legs[0].trajectory
     paths = [dedupe(leg.path) for leg in legs]
+    # Every path a query returns is certified, so only the blends need proving.
     try:
-        trajectory = time_path(oracle, np.vstack([paths[0]] + [p[1:] for p in paths[1:]]), dt)
+        trajectory = time_path(oracle, np.vstack([paths[0]] + [p[1:] for p in paths[1:]]), dt, edges_proved=True)
     except RuntimeError:  # Toppra found no timing of the joined curve: stop at the poses after all
         for leg in legs:
             try:
-                leg.trajectory = time_path(oracle, leg.path, dt)
+                leg.trajectory = time_path(oracle, leg.path, dt, edges_proved=True)
             except RuntimeError as exc:
                 raise NoPath(f"leg {leg.start} -> {leg.goal} found but not time-parameterized: {exc}") from None
             leg.duration = leg.trajectory.duration
@@ -198,21 +199,6 @@ def _through(oracle, legs: list[Leg], dt: float) -> Trajectory:
     for leg, duration in zip(legs, np.diff(times)):
         leg.duration = float(duration)
     return trajectory
-
-
-def time_path(oracle, path: np.ndarray, dt: float) -> Trajectory:
-    """Toppra along the path, its corners blended where the blends can be proved (its edges are: every path a
-    query returns is certified)."""
-    scene = oracle.scene
-    return parameterize_smooth(
-        oracle,
-        oracle.space.unwrap(path),
-        scene.velocity_limits,
-        scene.acceleration_limits,
-        dt,
-        oracle.space.names,
-        edges_proved=True,
-    )
 
 
 def join(trajectories: list[Trajectory], oracle) -> Trajectory:

@@ -301,6 +301,21 @@ def parameterize(
     return _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified=False)
 
 
+def time_path(oracle, path: np.ndarray, dt: float, *, certifier=None, edges_proved: bool = False) -> Trajectory:
+    """A path of the oracle's scene (wrapped waypoints) timed under the scene's limits by parameterize_smooth."""
+    scene = oracle.scene
+    return parameterize_smooth(
+        oracle,
+        oracle.space.unwrap(path),
+        scene.velocity_limits,
+        scene.acceleration_limits,
+        dt,
+        oracle.space.names,
+        certifier=certifier,
+        edges_proved=edges_proved,
+    )
+
+
 def parameterize_smooth(
     oracle,
     waypoints: np.ndarray,

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from app.path import FINE
-from app.runs import HOME, JOB_SETTINGS, run_job, time_path
+from app.runs import HOME, JOB_SETTINGS, run_job
+from app.timing import time_path
 from independent import fine_points, raw_free
 
 
