@@ -211,17 +211,20 @@ def tool_line(oracle, qa, qb, rng: np.random.Generator, *, frame=None, step: flo
 
 def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **options) -> dict[str, np.ndarray]:
     """Configurations for the scene's poses (default: all, in file order) that form a chain: a forward pass solves
-    each pose nearest the previous solution; a backward pass then re-solves each pose nearest its successor's and keeps
-    whichever of the two is nearer that successor, so an odd arm posture picked for the first pose does not survive
-    when the rest of the sequence (a weld seam, say) settled on another."""
+    each pose nearest the previous solution; a backward pass then solves each pose again from its successor's
+    posture (one local solve: the solution nearest it) and keeps whichever of the two is nearer that successor, so an
+    odd arm posture picked for the first pose does not survive when the rest of the sequence (a weld seam, say)
+    settled on another. A full solve there found the same postures in the welding and window jobs, at 64 seeds a pose
+    instead of one."""
     names = list(oracle.scene.poses) if names is None else list(names)
     chain = []
     for name in names:
         reference = solve_pose(oracle, name, rng, reference, **options)
         chain.append(reference)
+    local = {**options, "seeds": 1, "keep": 1}
     for i in range(len(chain) - 2, -1, -1):
         try:
-            again = solve_pose(oracle, names[i], rng, chain[i + 1], **options)
+            again = solve_pose(oracle, names[i], rng, chain[i + 1], **local)
         except InvalidEndpoint:
             continue
         if oracle.space.distance(again, chain[i + 1]) < oracle.space.distance(chain[i], chain[i + 1]):
