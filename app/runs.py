@@ -1,6 +1,6 @@
 """Scripted arm jobs: a route of named tool poses, each leg planned, all legs joined into one trajectory.
 
-- `welding`: home, the torch lined up in the slot into the chassis box section (the scene's first pose), then seam
+- `welding`: home, the torch lined up in the access hole into the chassis box section (the scene's first pose), then seam
   point to seam point along the weld.
 - `window`: home, the torch through the enclosure's hatch, the forearm in after it to the part, back out, above the
   side table, home.
@@ -9,7 +9,8 @@ Goals are the scene's tool poses solved to collision-free configurations by inve
 consecutive seam points get neighbouring arm postures). Each leg is one query: the planner takes the straight
 joint-space move where it is proved free (a seam step of a few centimetres needs no roadmap); where that move is
 blocked, the tool's straight line between the two poses (app.ik.tool_line: the torch pushed on through the hatch,
-the forearm following) if it is proved free; and plans the others.
+the forearm following) if it is proved free; and plans the others. A leg back to where an earlier leg started
+(out of the hatch) takes that leg's path reversed: it is proved already.
 The robot stops at home and at each pose where the job needs it at rest (a weld point, a grasp) and nowhere else:
 legs joined at a pose marked `stop: false` in the scene (an approach: the torch lined up in a slot, in a hatch)
 are timed as one curve, blended and certified there as at any other corner (app.timing).
@@ -41,7 +42,7 @@ ROUTES = {
 class Leg:
     start: str
     goal: str
-    method: str  # "straight", "tool line" or the sampler's name
+    method: str  # "straight", "tool line", "back" (an earlier leg's path reversed) or the sampler's name
     narrow_samples: int
     narrow_on_path: int
     collision_checks: int
@@ -132,10 +133,20 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     legs = []
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
-        t, c = time.perf_counter(), oracle.checks
+        t = time.perf_counter()
+        back = next((leg for leg in legs if (leg.start, leg.goal) == (b, a)), None)
+        if back is not None:
+            # Back out the way the job came in (out of the hatch after the part): that path is proved already.
+            path = back.path[::-1]
+            trajectory = None if i in joined else time_path(oracle, path, settings.dt, edges_proved=True)
+            duration = trajectory.duration if trajectory else 0.0
+            none, used = np.empty((0, oracle.space.dim)), np.zeros(0, bool)
+            legs.append(Leg(a, b, "back", 0, 0, 0, time.perf_counter() - t, duration, path, trajectory, none, used))
+            continue
         # The planner tries the easy route first: the straight joint move (a seam step of a few centimetres needs
         # no roadmap), or where that is blocked the tool's straight line (the forearm following the torch into a
         # hatch: the joint move between two such postures swings the forearm into the frame).
+        c = oracle.checks
         via = None if oracle.edges_free(qa, qb, ends_free=True)[0] else tool_line(oracle, qa, qb, rng)
         leg_settings = replace(settings, seed=seed * 1000 + i, timing=i not in joined)
         result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)

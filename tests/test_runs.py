@@ -23,9 +23,11 @@ def test_window_route_goes_through_the_window_and_back(oracles, window_run):
     assert legs == [(HOME, "window"), ("window", "reach"), ("reach", "window"), ("window", "place"), ("place", HOME)]
     assert any(leg.method == "lfbs" for leg in window_run.legs)  # at least one leg needed the planner
     # In the hatch, no roadmap: the joint move to the part where it is free, else the tool's straight line (a joint
-    # move between other postures there swings the forearm into the frame).
+    # move between other postures there swings the forearm into the frame); out again the same way, reversed.
     joint_free = oracle.edges_free(window_run.configurations["window"], window_run.configurations["reach"])[0]
-    assert [leg.method for leg in window_run.legs[1:3]] == ["straight" if joint_free else "tool line"] * 2
+    assert [leg.method for leg in window_run.legs[1:3]] == ["straight" if joint_free else "tool line", "back"]
+    assert np.array_equal(window_run.legs[2].path, window_run.legs[1].path[::-1])
+    assert window_run.legs[2].collision_checks == 0
     for a, b in zip(window_run.legs[:-1], window_run.legs[1:]):  # legs meet where the previous one stopped
         assert oracle.space.distance(a.path[-1], b.path[0]) < 1e-9
 
