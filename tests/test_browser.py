@@ -5,105 +5,30 @@ property on the robot's model instance). Chromium screenshots both. The check fa
 WebGL, a script error, a wrong camera): the real page must show many pixels of the robot's colour, the hidden one
 almost none, and the two screenshots must differ. Screenshots go to out/browser-<scene>.png (and -hidden.png).
 
-Run with `make browser-test`, which installs Chromium (Debian package `chromium`) when it is missing.
+Run with `make browser-test`, which installs Chromium and chromedriver (Debian's `chromium`, `chromium-driver`) when
+they are missing.
 """
 
-import os
-import shutil
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from app.scene import ROOT
+from chromium import chromium, needs_chromium, screenshot_when_still
 
 OUT = ROOT / "out"
 WINDOW = (800, 600)
-BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+pytestmark = [pytest.mark.browser, needs_chromium]
 
 
-def find_browser() -> str | None:
-    explicit = os.environ.get("CHROMIUM")
-    if explicit:
-        return shutil.which(explicit)
-    return next((path for path in map(shutil.which, BROWSERS) if path), None)
-
-
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(
-        find_browser() is None,
-        reason="Chromium not installed (make browser-test installs the Debian package 'chromium')",
-    ),
-]
-
-
-def chromium_command(browser: str, page: Path, screenshot: Path, profile: str) -> list[str]:
-    return [
-        browser,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        # WebGL without a GPU: SwiftShader, asked for explicitly (Chromium is retiring the silent fallback).
-        "--enable-unsafe-swiftshader",
-        "--use-angle=swiftshader",
-        # Offline and quiet: no network, no updates, no first-run work, a fresh profile.
-        "--disable-quic",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--disable-extensions",
-        "--hide-scrollbars",
-        f"--user-data-dir={profile}",
-        f"--window-size={WINDOW[0]},{WINDOW[1]}",
-        "--virtual-time-budget=4000",
-        f"--screenshot={screenshot}",
-        page.as_uri(),
-    ]
-
-
-def screenshot_all(pages: dict[Path, Path], attempts: int = 3, timeout: float = 90.0) -> None:
-    """Screenshot every page in parallel (one Chromium each, fresh profiles). Headless Chromium now and then never
-    finishes a page's virtual time (seen on a quiet machine too, with the same page drawing in seconds on the next
-    try): a run that has written nothing after `timeout` seconds is killed and started again, up to `attempts`."""
-    browser = find_browser()
-    with tempfile.TemporaryDirectory(prefix="npp-chromium-") as profiles:
-        todo, outputs = dict(pages), {}
-        for attempt in range(attempts):
-            runs = []
-            for i, (page, shot) in enumerate(todo.items()):
-                shot.unlink(missing_ok=True)
-                command = chromium_command(browser, page, shot, os.path.join(profiles, f"{attempt}-{i}"))
-                runs.append(
-                    (
-                        page,
-                        shot,
-                        subprocess.Popen(
-                            command,
-                            stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT,
-                            text=True,
-                        ),
-                    )
-                )
-            for page, shot, run in runs:
-                try:
-                    outputs[page], _ = run.communicate(timeout=timeout)
-                except subprocess.TimeoutExpired:
-                    run.kill()
-                    outputs[page], _ = run.communicate()
-                if shot.is_file():
-                    del todo[page]
-            if not todo:
-                return
-        page = next(iter(todo))
-        raise AssertionError(
-            f"Chromium wrote no screenshot of {page.name} in {attempts} tries:\n{outputs[page][-2000:]}"
-        )
+def screenshot_all(pages: dict, profile) -> None:
+    """Each page (path -> screenshot path) opened in one Chromium and screenshot once it stands still."""
+    with chromium(profile, WINDOW) as driver:
+        for page, shot in pages.items():
+            driver.get(page.as_uri())
+            screenshot_when_still(driver, shot)
 
 
 def robot_pixels(png: Path) -> int:
@@ -135,6 +60,7 @@ def test_exported_page_draws_the_robot_in_chromium(scene, oracles, monkeypatch, 
     from app.viewer import ILLUSTRATION_PATH, ViewData, show
 
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # Drake reads it per Meshcat; conftest says "none"
+    monkeypatch.setenv("SE_OFFLINE", "true")  # Selenium Manager must not look for drivers or browsers online
     oracle = oracles(scene)
     fraction, default_colour = SCENES[scene]
     start, goal = oracle.scene.start, oracle.scene.goal
@@ -151,7 +77,7 @@ def test_exported_page_draws_the_robot_in_chromium(scene, oracles, monkeypatch, 
 
     OUT.mkdir(exist_ok=True)
     shot, hidden_shot = OUT / f"browser-{scene}.png", OUT / f"browser-{scene}-hidden.png"
-    screenshot_all({page: shot, hidden_page: hidden_shot})
+    screenshot_all({page: shot, hidden_page: hidden_shot}, tmp_path / "profile")
 
     image = np.asarray(Image.open(shot).convert("RGB"), int)
     hidden = np.asarray(Image.open(hidden_shot).convert("RGB"), int)

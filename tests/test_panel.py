@@ -12,7 +12,6 @@ Run the browser test with `make browser-test`, which installs Chromium and chrom
 
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -23,17 +22,13 @@ import pytest
 
 from app.scene import ROOT
 from app.viewer import PATH_COLOUR
+from chromium import chromium, needs_chromium
 from meshcat_page import commands
 
 OUT = ROOT / "out"
 WINDOW = (1000, 800)
 SCENE = "bar-3link"  # plans in about a second
 GOAL_X = 70.0  # the goal's base moved 10 to the left of the scene's, still clear of the wall
-CHROMIUM, CHROMEDRIVER = shutil.which("chromium"), shutil.which("chromedriver")
-needs_chromium = pytest.mark.skipif(
-    CHROMIUM is None or CHROMEDRIVER is None,
-    reason="Chromium or chromedriver not installed (make browser-test installs Debian's chromium, chromium-driver)",
-)
 
 
 def wait_for(condition, timeout: float, what: str):
@@ -90,30 +85,9 @@ def panel(tmp_path):
 @pytest.fixture
 def browser(tmp_path, monkeypatch):
     monkeypatch.setenv("SE_OFFLINE", "true")  # Selenium Manager must not look for drivers or browsers online
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in (
-        "--headless=new",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--enable-unsafe-swiftshader",  # WebGL without a GPU (see test_browser.py)
-        "--use-angle=swiftshader",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--hide-scrollbars",
-        f"--user-data-dir={tmp_path / 'profile'}",
-        f"--window-size={WINDOW[0]},{WINDOW[1]}",
-    ):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(executable_path=CHROMEDRIVER), options=options)
-    try:
+    pytest.importorskip("selenium.webdriver")
+    with chromium(tmp_path / "profile", WINDOW) as driver:
         yield driver
-    finally:
-        driver.quit()
 
 
 def control(driver, kind: str, name: str):
