@@ -128,6 +128,7 @@ def shortcut(
     memo = memo if memo is not None else Shortcuts()
     P = dedupe(P)
     stats = {
+        "unwound": 0,
         "greedy_removed": 0,
         "random_accepted": 0,
         "candidates_checked": 0,
@@ -145,10 +146,41 @@ def shortcut(
         if len(P) > 2 and rounds:
             # Random shortcuts leave two new waypoints each; a last greedy pass removes those that became redundant.
             P = _greedy(oracle, P, resolution, stats, memo)
+        if len(P) > 2:
+            P = unwind(oracle, P, resolution, stats, memo)
     except BudgetSpent:
         stats["stopped"] = True
     stats["length_after"] = path_length(oracle, P)
     return P, stats
+
+
+def unwind(oracle, P: np.ndarray, resolution: float, stats: dict, memo: Shortcuts) -> np.ndarray:
+    """Each continuous angle that P turns a whole turn further than the short way between its ends is turned the
+    short way instead: spread over P's edges in proportion to their length, the other coordinates as they were
+    (OMPL's partial shortcut, on one coordinate), kept if every new edge is free. Each edge takes the short way
+    round, but several in a row need not, and a shortcut takes the short way between its ends even where the part of
+    the path it replaces turned the other way: a window job's path into the hatch came out of smoothing turning
+    wrist 3 by 4.71 rad where -1.57 would do (4 of 6 window jobs ended a whole turn off home, winding the torch's
+    cable), and the shortcuts that would undo it crossed the hatch. Done once the shortcuts are taken (done before
+    them as well, its checks came out of smoothing's share and left the maze's path longer: seed 1, 48.1 against
+    44.7); a budget that runs out leaves the path as it stands (stats["stopped"])."""
+    space = oracle.space
+    try:
+        for c in np.flatnonzero(space.continuous):
+            U = space.unwrap(P)
+            net = U[-1, c] - U[0, c]
+            short = (net + np.pi) % (2 * np.pi) - np.pi
+            if abs(net - short) < np.pi:  # they differ by whole turns
+                continue
+            cum = np.cumsum(np.concatenate([[0.0], segment_lengths(oracle, P)]))
+            Q = P.copy()
+            Q[1:-1, c] = (U[0, c] + short * cum[1:-1] / cum[-1] + np.pi) % (2 * np.pi) - np.pi  # the ends stay exact
+            if all(memo.free(oracle, a, b, resolution) for a, b in zip(Q[:-1], Q[1:])):
+                stats["unwound"] += 1
+                P = Q
+    except BudgetSpent:
+        stats["stopped"] = True
+    return P
 
 
 def _random_shortcut(oracle, P, rng, candidates: int, resolution: float, stats: dict, memo: Shortcuts) -> np.ndarray:

@@ -21,7 +21,7 @@ import numpy as np
 
 from app.budget import Budget, BudgetSpent, Stop
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
-from app.path import FINE, Shortcuts, path_length, shortcut, verify
+from app.path import FINE, Shortcuts, path_length, shortcut, unwind, verify
 from app.timing import time_path
 from app.trajectory import Trajectory, TrajectoryFile
 
@@ -435,6 +435,8 @@ class Query:
         at most SMOOTHING_SHARE of the checks that finding it took, SMOOTHING_CAP with the passes before: a path
         is worth shortening, not at any price. `memo`: what an earlier pass on the same path checked and banned."""
         outer, raw = self.oracle.stop, self.roadmap.Q[nodes]
+        memo = memo if memo is not None else Shortcuts()
+        resolution = self.fine if self.fine_only else self.oracle.space.resolution
         if outer is not None:
             spent = self.checks["smoothing"]
             finding = self.elapsed()[1] - spent
@@ -448,11 +450,14 @@ class Query:
                 raw,
                 np.random.default_rng(self._smoothing_seed),
                 rounds=self.settings.smooth_rounds,
-                resolution=self.fine if self.fine_only else None,
+                resolution=resolution,
                 memo=memo,
             )
         finally:
             self.oracle.stop = outer
+        # Not held to the cap: a path that winds a joint a whole turn more than it needs is worth a pass of checks.
+        if stats["stopped"]:
+            path = self._timed("smoothing", unwind, self.oracle, path, resolution, stats, memo)
         stats["fine_only"] = self.fine_only
         return path, stats
 

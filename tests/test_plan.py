@@ -253,6 +253,43 @@ def test_a_replay_repeats_the_shortcuts_for_free_and_a_banned_one_is_avoided():
     assert memo.ban_carriers(oracle.space, P, [0, 1]) == 0  # the path's own edges have no shortcut carrying them
 
 
+def test_an_angle_wound_a_whole_turn_along_the_path_is_turned_the_short_way():
+    """x linear, theta continuous: the path turns theta by 6 rad (three edges, each the short way) where -0.28 would
+    do, and every shortcut between its waypoints that would undo that crosses a block near x = 0. Smoothing (its
+    greedy pass alone: random shortcuts may hop round the block) turns theta the short way, spread along the path;
+    the ends stay exactly where they were."""
+    from app.cspace import ConfigurationSpace
+    from app.oracle import CollisionOracle
+    from app.path import shortcut
+
+    oracle = CollisionOracle.__new__(CollisionOracle)
+    oracle.space = ConfigurationSpace(
+        lower=np.array([-20.0, -np.pi]),
+        upper=np.array([20.0, np.pi]),
+        weights=np.ones(2),
+        angular=np.array([False, True]),
+        continuous=np.array([False, True]),
+        resolution=0.05,
+    )
+    oracle.checks = 0
+
+    def are_free(Q):
+        oracle.checks += len(np.atleast_2d(Q))
+        x, theta = np.atleast_2d(Q).T
+        return ~((np.abs(x) <= 1.0) & (theta >= -0.2) & (theta <= -0.1))
+
+    oracle.are_free = are_free
+    P = oracle.space.wrap(np.array([[0.0, 0.0], [10.0, 2.0], [10.0, 4.0], [0.0, 6.0]]))
+    assert oracle.edges_free(P[:-1], P[1:]).all()
+    assert not oracle.edges_free(P[:1], P[2:3]).any() and not oracle.edges_free(P[1:2], P[3:]).any()
+    smoothed, stats = shortcut(oracle, P, np.random.default_rng(0), rounds=0)
+    turn = oracle.space.unwrap(smoothed)[:, 1]
+    assert stats["unwound"] == 1 and turn[-1] - turn[0] == pytest.approx(6.0 - 2 * np.pi)
+    assert np.array_equal(smoothed[[0, -1]], P[[0, -1]])
+    assert oracle.edges_free(smoothed[:-1], smoothed[1:]).all()
+    assert stats["length_after"] < stats["length_before"]
+
+
 def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkeypatch):
     """The certificate is made to refuse the first smoothed path's longest shortcut: smoothing is replayed without
     it, the result is proved and still shorter than the roadmap path, and smoothing stays within its cap."""
