@@ -170,7 +170,7 @@ def unwind(oracle, P: np.ndarray, resolution: float, stats: dict, memo: Shortcut
             U = space.unwrap(P)
             net = U[-1, c] - U[0, c]
             short = (net + np.pi) % (2 * np.pi) - np.pi
-            if abs(net - short) < np.pi:  # they differ by whole turns
+            if abs(net - short) < np.pi:  # (they differ by whole turns) the path turns the short way already
                 continue
             cum = np.cumsum(np.concatenate([[0.0], segment_lengths(oracle, P)]))
             Q = P.copy()
