@@ -44,6 +44,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from app.kinematics import TreeKinematics
+
 # A piece is bisected until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
 FLOOR_DIVISOR = 256
 # max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
@@ -388,6 +390,11 @@ class Certifier:
         self._robot = [g for i, g in enumerate(geometries) if self._rows[i] >= 0]
         self._slot = np.full(len(geometries), -1)
         self._slot[self._rows >= 0] = np.arange(len(self._robot))
+        plant = oracle.plant
+        self._kinematics = TreeKinematics.of(
+            plant,
+            [(plant.GetBodyFromFrameId(inspector.GetFrameId(g)), inspector.GetPoseInFrame(g)) for g in self._robot],
+        )
         query = oracle.query_object(oracle.scene.start)
         poses = [query.GetPoseInWorld(g) for g in geometries]
         self._R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
@@ -465,7 +472,7 @@ class Certifier:
         """Into the cache: the certificate's distances at each (key, q, limit) of `todo` -- Drake's for the pairs it
         computes exactly, our lower bound for the others (a pair left out is at least `limit` apart); None where q
         is out of bounds or Drake finds a pair touching."""
-        drake, rotations, centres = [], [], []
+        drake = []
         for key, q, limit in todo:
             self._cache[key] = None
             if not self.oracle.space.within_bounds(q)[0]:
@@ -474,17 +481,13 @@ class Certifier:
             distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
             if np.any(distance <= 0):
                 continue
-            query = self.oracle.query_object(q)
-            poses = [query.GetPoseInWorld(g) for g in self._robot]
-            # Copied now: Drake's poses are views into the query's cache, which the next configuration overwrites.
-            rotations.append(np.array([X.rotation().matrix() for X in poses]))
-            centres.append(np.array([X.translation() for X in poses]))
-            drake.append((key, limit, pairs, distance))
+            drake.append((key, limit, pairs, distance, q))
         if not drake:
             return
         # One table of poses, the environment's then each configuration's robot geometries.
-        rotations = np.concatenate([self._R, np.reshape(rotations, (-1, 3, 3))])
-        centres = np.concatenate([self._p, np.reshape(centres, (-1, 3))])
+        rotations, centres = self._robot_poses(np.array([q for *_, q in drake]))
+        rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
+        centres = np.concatenate([self._p, centres.reshape(-1, 3)])
         slot, count, robots = self._slot, len(self._slot), len(self._robot)
 
         def row(k, g):
@@ -496,8 +499,8 @@ class Certifier:
         def centre(k, g):
             return centres[row(k, g)]
 
-        exact_parts, nhat = [], np.full((len(drake), len(self._gaps.keys), 3), np.nan)
-        for k, (_, _, pairs, distance) in enumerate(drake):
+        exact_parts, reported = [], []
+        for _, _, pairs, distance, _ in drake:
             ix = self._indices
             index = np.array([(ix[p.id_A], ix[p.id_B]) for p in pairs], np.int64).reshape(-1, 2)
             swapped = index[:, 0] > index[:, 1]
@@ -505,11 +508,12 @@ class Certifier:
             keys = index[:, 0] * _KEY + index[:, 1]
             exact = self._exact[index[:, 0], index[:, 1]]
             directions = np.array([p.nhat_BA_W for p in pairs], float).reshape(-1, 3)
-            nhat[k] = self._directions(keys[~exact], swapped[~exact], directions[~exact])
+            reported.append((keys[~exact], swapped[~exact], directions[~exact]))
             exact_parts.append((index[exact], keys[exact], distance[exact]))
-        limits = np.array([limit for _, limit, _, _ in drake])
+        nhat = self._directions(reported)
+        limits = np.array([limit for _, limit, *_ in drake])
         near_k, near_pair, bounds = self._gaps.near(rotation, centre, nhat, limits)
-        for k, (key, limit, _, _) in enumerate(drake):
+        for k, (key, limit, *_) in enumerate(drake):
             mine = near_k == k
             index = np.concatenate([exact_parts[k][0], self._gaps.pairs[near_pair[mine]]])
             keys = np.concatenate([exact_parts[k][1], self._gaps.keys[near_pair[mine]]])
@@ -518,14 +522,31 @@ class Certifier:
             rows = self._rows[index[order]]
             self._cache[key] = _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
 
-    def _directions(self, keys: np.ndarray, swapped: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported, as one row per pair of the
-        gaps, turned to point from the pair's second geometry to its first in our order; NaN where not reported."""
+    def _robot_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (n, robots, 3, 3) and centres (n, robots, 3) of the robot geometries at configurations Q."""
+        if self._kinematics is not None:
+            return self._kinematics.poses(Q)
+        rotations, centres = [], []
+        for q in Q:
+            query = self.oracle.query_object(q)
+            poses = [query.GetPoseInWorld(g) for g in self._robot]
+            # Copied now: Drake's poses are views into the query's cache, which the next configuration overwrites.
+            rotations.append(np.array([X.rotation().matrix() for X in poses]))
+            centres.append(np.array([X.translation() for X in poses]))
+        return np.reshape(rotations, (len(Q), -1, 3, 3)), np.reshape(centres, (len(Q), -1, 3))
+
+    def _directions(self, reported: list) -> np.ndarray:
+        """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported -- per configuration, (keys,
+        whether Drake named the pair's geometries the other way round, directions) -- as (configurations, pairs of
+        the gaps, 3), turned to point from the pair's second geometry to its first in our order; NaN where not
+        reported."""
+        config = np.repeat(np.arange(len(reported)), [len(keys) for keys, _, _ in reported])
+        keys, swapped, directions = (np.concatenate(parts) for parts in zip(*reported))
         at = np.searchsorted(self._gaps.keys, keys)  # the gaps' keys are sorted (pairs in lexicographic order)
         if np.any(at >= len(self._gaps.keys)) or np.any(self._gaps.keys[at.clip(max=len(self._gaps.keys) - 1)] != keys):
             raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
-        nhat = np.full((len(self._gaps.keys), 3), np.nan)
-        nhat[at] = np.where(swapped[:, None], -1.0, 1.0) * directions
+        nhat = np.full((len(reported), len(self._gaps.keys), 3), np.nan)
+        nhat[config, at] = np.where(swapped[:, None], -1.0, 1.0) * directions.reshape(-1, 3)
         return nhat
 
 

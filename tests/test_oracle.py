@@ -177,9 +177,32 @@ def test_both_batch_paths_give_the_same_answers_and_the_cheaper_is_chosen():
         answers[path] = oracle.are_free(Q)
     assert np.array_equal(answers["batch"], answers["raw"])
     oracle._cost = {"batch": 5e-6, "raw": 2e-5}
-    oracle._batch_calls = 1
+    oracle._batch_calls, oracle._next_probe, oracle._probe_wait = 1, 16, 16
     assert oracle._choose_path() == "batch"
     oracle._cost = {"batch": 9e-5, "raw": 2e-5}
     assert oracle._choose_path() == "raw"
-    oracle._batch_calls = 15  # the next call re-measures the path out of favour
+
+
+def test_a_path_found_dearer_again_is_probed_less_often():
+    from app.oracle import CollisionOracle
+    from app.scene import Scene
+
+    oracle = CollisionOracle(Scene("bar"), threads=2)
+    oracle._cost = {"batch": 9e-5, "raw": 2e-5}
+    probes = []
+    for _ in range(200):
+        path = oracle._choose_path()
+        if path == "batch":
+            probes.append(oracle._batch_calls)
+            oracle._cost["batch"] = 8e-5  # measured dearer again
+        if oracle._batch_calls == oracle._next_probe:
+            oracle._settle_probe(path)
+    assert probes == [16, 48, 112]  # waits of 32, then 64
+    oracle._cost = {"batch": 9e-5, "raw": 2e-5}
+    path = None
+    while path != "batch":
+        path = oracle._choose_path()
+    oracle._cost["batch"] = 1e-5  # the probe finds batch cheaper now: it is chosen, and probing starts over
+    oracle._settle_probe(path)
     assert oracle._choose_path() == "batch"
+    assert oracle._next_probe == oracle._batch_calls - 1 + 16
