@@ -16,8 +16,8 @@ Certificate. Signed distance changes no faster than that, so if at the ends a, b
 d_PQ(a) + d_PQ(b) > B_PQ for every pair the scene counts, P and Q never touch in between:
 d(t) >= d(a) - B_PQ(a..t) and d(t) >= d(b) - B_PQ(t..b), and the two add up to at most B_PQ. A piece that fails
 is bisected; one that still fails once its motion is shorter than the floor (in the space's weighted metric) is
-reported as colliding. Each interval is bisected depth first, but several pieces of every interval are taken at a
-time and their ends bounded in one batch (see Certifier).
+reported as colliding. Each interval is bisected nearest to contact first, several pieces of every interval at a
+time with their ends bounded in one batch (see Certifier).
 
 Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
 mesh by GJK, whose answers can be too large -- unsafe here: up to 0.34 mm for the maze's hull near a pillar's corner,
@@ -37,6 +37,7 @@ adjacent pieces, and by rounds of a caller that retries, are asked once.
 
 from __future__ import annotations
 
+import heapq
 import itertools
 import time
 import weakref
@@ -359,12 +360,16 @@ def motion_bound(oracle) -> MotionBound:
 class Certifier:
     """Certifies pieces of motion for one oracle, keeping the distances it has asked for across calls.
 
-    Each interval is bisected depth first, leftmost piece first (a failing interval stops at its first failure),
-    but WIDTH pieces of every interval are taken at a time and their ends bounded together: Drake is asked per
+    Each interval's pieces are bisected nearest to contact first: the halves of a piece that failed its test go
+    by the least distance at its ends, the leftmost first among equals. Whether an interval is proved does not
+    depend on the order (every piece of its bisection must pass), but a failing interval stops at its first
+    failure, and this order dives to where the motion comes nearest an obstacle: leftmost first proved everything
+    before it, 665 distance queries on an edge of a welding path that grazes a rail at 0.05 mm, against 97 now.
+    WIDTH pieces of every interval are taken at a time and their ends bounded together: Drake is asked per
     configuration, but the gaps (numpy) run once over all those configurations and pairs, where one configuration
     at a time spent most of its time in numpy's call overhead."""
 
-    # Pieces taken from each interval's stack at a time: more batches more, but may do more work past a failure.
+    # Pieces taken from each interval at a time: more batches more, but may do more work past a failure.
     WIDTH = 16
 
     # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
@@ -381,6 +386,7 @@ class Certifier:
         inspector = oracle.model.scene_graph().model_inspector()
         geometries = inspector.GetAllGeometryIds(Role.kProximity)
         self._indices = {g: i for i, g in enumerate(geometries)}  # a small integer per geometry, for pair keys
+        self._ids = list(geometries)
         self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
         self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
@@ -408,11 +414,14 @@ class Certifier:
         stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds.
         """
         clock, queries = time.perf_counter(), self.oracle.distance_queries
-        # Per interval, its pieces still to prove, the leftmost on top: a collision near the start shows up early.
-        stacks = {i: [(float(a), float(b))] for i, (a, b) in enumerate(intervals)}
+        # Per interval, a heap of its pieces still to prove, as (distance at the ends of the piece they halve, start,
+        # end): nearest to contact first.
+        heaps = {i: [(0.0, float(a), float(b))] for i, (a, b) in enumerate(intervals)}
         failed, pieces = [], 0
-        while stacks:
-            todo = [(i, stack.pop()) for i, stack in stacks.items() for _ in range(min(self.WIDTH, len(stack)))]
+        while heaps:
+            todo = [
+                (i, heapq.heappop(heap)[1:]) for i, heap in heaps.items() for _ in range(min(self.WIDTH, len(heap)))
+            ]
             variations = np.array([variation(a, b) for _, (a, b) in todo]).reshape(len(todo), -1)
             travel = self.bound.pair_travel(variations)
             # Each end is asked at the largest max_distance of the pieces it bounds (shared ends once).
@@ -421,19 +430,19 @@ class Certifier:
                 need[a], need[b] = max(need.get(a, 0.0), d), max(need.get(b, 0.0), d)
             ends = dict(zip(need, self._distances([position(s) for s in need], list(need.values()))))
             lengths = np.linalg.norm(variations * self.oracle.space.weights, axis=1)
-            # Rightmost first, so that the halves pushed back leave the leftmost piece on top.
-            for (i, (a, b)), pair_travel, length in reversed(list(zip(todo, travel, lengths))):
-                if i not in stacks:
+            for (i, (a, b)), pair_travel, length in zip(todo, travel, lengths):
+                if i not in heaps:
                     continue
                 if ends[a] is not None and ends[b] is not None and _clear(ends[a], ends[b], pair_travel):
                     pieces += 1
                 elif ends[a] is None or ends[b] is None or length <= self.floor:
                     failed.append(i)
-                    del stacks[i]
+                    del heaps[i]
                 else:
-                    m = 0.5 * (a + b)
-                    stacks[i] += [(m, b), (a, m)]
-            stacks = {i: stack for i, stack in stacks.items() if stack}
+                    m, nearest = 0.5 * (a + b), min(ends[a].nearest(), ends[b].nearest())
+                    heapq.heappush(heaps[i], (nearest, a, m))
+                    heapq.heappush(heaps[i], (nearest, m, b))
+            heaps = {i: heap for i, heap in heaps.items() if heap}
         stats = {
             "failed": sorted(failed),
             "pieces": pieces,
@@ -513,6 +522,24 @@ class Certifier:
         nhat = self._directions(reported)
         limits = np.array([limit for _, limit, *_ in drake])
         near_k, near_pair, bounds = self._gaps.near(rotation, centre, nhat, limits)
+        # A pair Drake's query left out is farther apart than the limit by Drake's reckoning, but without Drake's
+        # direction our bound can fall far below that: alternating projections converge slowly between long shapes
+        # side by side (the UR3's upper arm and torch 6 mm apart were bounded at -7 mm), and such a pair fails every
+        # piece down to the floor. So those pairs are bounded again along Drake's direction for them alone.
+        unaided = np.isnan(nhat[near_k, near_pair, 0])
+        if unaided.any():
+            again = np.unique(near_k[unaided])
+            for k in again.tolist():
+                query = self.oracle.query_object(drake[k][-1])
+                for pair in near_pair[unaided & (near_k == k)].tolist():
+                    nhat[k, pair] = self._direction(query, pair)
+            redone = self._gaps.near(
+                lambda k, g: rotation(again[k], g), lambda k, g: centre(again[k], g), nhat[again], limits[again]
+            )
+            kept = ~np.isin(near_k, again)
+            near_k = np.concatenate([near_k[kept], again[redone[0]]])
+            near_pair = np.concatenate([near_pair[kept], redone[1]])
+            bounds = np.concatenate([bounds[kept], redone[2]])
         for k, (key, limit, *_) in enumerate(drake):
             mine = near_k == k
             index = np.concatenate([exact_parts[k][0], self._gaps.pairs[near_pair[mine]]])
@@ -521,6 +548,12 @@ class Certifier:
             order = np.argsort(keys)
             rows = self._rows[index[order]]
             self._cache[key] = _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
+
+    def _direction(self, query, pair: int) -> np.ndarray:
+        """Drake's separating direction for one pair of the gaps, from its second geometry to its first."""
+        i, j = self._gaps.pairs[pair]
+        found = query.ComputeSignedDistancePairClosestPoints(self._ids[i], self._ids[j])
+        return found.nhat_BA_W if found.id_A == self._ids[i] else -found.nhat_BA_W
 
     def _robot_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rotations (n, robots, 3, 3) and centres (n, robots, 3) of the robot geometries at configurations Q."""
@@ -558,6 +591,10 @@ class _End(NamedTuple):
     distance: np.ndarray
     row_a: np.ndarray
     row_b: np.ndarray
+
+    def nearest(self) -> float:
+        """The least distance of a pair here (the limit if none is reported)."""
+        return min(float(self.distance.min()), self.limit) if len(self.distance) else self.limit
 
 
 def _clear(a: _End, b: _End, pair_travel: np.ndarray) -> bool:
