@@ -11,9 +11,9 @@ joint-space move where it is proved free (a seam step of a few centimetres needs
 blocked, the tool's straight line between the two poses (app.ik.tool_line: the torch pushed on through the hatch,
 the forearm following) if it is proved free; and plans the others. A leg back to where an earlier leg started
 (out of the hatch) takes that leg's path reversed: it is proved already.
-The robot stops at home and at each pose where the job needs it at rest (a weld point, a grasp) and nowhere else:
-legs joined at a pose marked `stop: false` in the scene (an approach: the torch lined up in a slot, in a hatch)
-are timed as one curve, blended and certified there as at any other corner (app.timing).
+The robot stops at home and at each pose where the job needs it at rest (a weld point, a grasp, the torch lined up
+before it goes in) and nowhere else: legs joined at a pose marked `stop: false` in the scene (the torch in a hatch
+on its way through) are timed as one curve, blended and certified there as at any other corner (app.timing).
 """
 
 import time
