@@ -510,8 +510,8 @@ class Query:
         treated as colliding, leaves the roadmap, and the search goes on (more rounds if need be). Proved edges are
         remembered, so the next candidate pays only for its new ones. The proved path is then shortened with
         shortcuts checked at the fine resolution, and if that cannot be proved either, the roadmap path is the answer.
-        Smoothing candidates before proving them cost 1-2 s per refused candidate on a 0.20 x 0.245 m variant of
-        the window scene's hatch, where most roadmap paths through the hatch graze its frame. Returning
+        Smoothing candidates before proving them cost 1-2 s per refused candidate at the window scene's hatch (then
+        in a 3 cm door), where most roadmap paths through the hatch graze its frame. Returning
         unproved paths marked uncertified was tried: 3 of the 5 an audit of 2,000 problems met really collided
         (`bench audit`). Certificates run whole even when the budget ran out."""
         while True:
