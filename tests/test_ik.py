@@ -65,6 +65,16 @@ def test_the_problem_file_goals_reach_their_poses(oracles):
     )
 
 
+@pytest.mark.parametrize("scene, pose", [("welding", "seam_0"), ("window", "reach")])
+def test_a_scene_goal_is_its_jobs_arm_posture_at_that_pose(oracles, scene, pose):
+    """What `plan` and `bench ompl` solve for a job scene is the job's own hard query: the goal is the posture the
+    job's IK chain reaches that pose in, not another arm posture for the same tool pose."""
+    oracle = oracles(scene)
+    home = oracle.space.wrap(oracle.scene.start)
+    job = ik.solve_poses(oracle, np.random.default_rng(0), reference=home)[pose]
+    assert oracle.space.distance(job, oracle.scene.goal) < 0.05  # weighted: metres of tool-tip travel
+
+
 def test_the_reference_is_preferred(oracles):
     oracle = oracles("window")
     goal = oracle.scene.goal  # itself a solution for "reach"
