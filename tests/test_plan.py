@@ -609,6 +609,19 @@ def test_bench_plan_runs_and_resumes_from_its_store(tmp_path, cli, one_line_erro
     one_line_error(cli("bench", "plan", "--samplers", "magic", "--store", store), 2)
 
 
+def test_bench_plan_can_leave_the_workspace_placements_out(tmp_path, cli, one_line_error):
+    """--workspace 0 measures the narrow-passage sampler alone; without the flag, the trials' params (their store
+    keys) are what they were before the flag existed."""
+    args = ["bench", "plan", "--scenes", "bar", "--samplers", "lfbs", "--seeds", "3", "--json"]
+    default = json.loads(cli(*args, "--store", tmp_path / "default.sqlite").stdout)
+    alone = json.loads(cli(*args, "--workspace", "0", "--store", tmp_path / "alone.sqlite").stdout)
+    assert "workspace" not in default["params"] and alone["params"]["workspace"] == 0
+    (with_placements,), (without,) = default["plan"], alone["plan"]
+    assert with_placements["successes"] == without["successes"] == 3
+    assert with_placements["median_workspace_on_path"] > 0 and without["median_workspace_on_path"] == 0
+    one_line_error(cli(*args, "--workspace", "1.5", "--store", tmp_path / "bad.sqlite"), 2)
+
+
 def test_bench_jobs_times_query_and_full_roadmap_side_by_side(tmp_path, cli, one_line_error):
     args = ["bench", "jobs", "--jobs", "welding", "--seeds", "1", "--store", str(tmp_path / "jobs.sqlite")]
     result = cli(*args)

@@ -59,6 +59,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
                 k=p.get("k", SIZE["k"]),
                 smooth_rounds=int(p.get("smooth", SIZE["smooth"])),
                 full_roadmap=full_roadmap,
+                workspace=float(p.get("workspace", PlanSettings.workspace)),
             ),
         )
     except NoPath as exc:
@@ -83,6 +84,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         "components": r.roadmap["components"],
         "rounds": r.rounds,
         "narrow_on_path": r.narrow_on_path,
+        "workspace_on_path": r.workspace_on_path,
         "path_length": r.smoothing["length_after"],
         "duration": r.trajectory.duration,
     }
@@ -108,6 +110,7 @@ def summarise(rows) -> list[dict]:
         checks = np.array([m["collision_checks"] for m in metrics])
         to_path = np.array([m["seconds_to_path"] for m in metrics if m["success"]])
         narrow = np.array([m["narrow_on_path"] for m in metrics if m["success"]])
+        placed = [m["workspace_on_path"] for m in metrics if m["success"] and "workspace_on_path" in m]
         table.append(
             {
                 "scene": scene,
@@ -120,17 +123,24 @@ def summarise(rows) -> list[dict]:
                 "median_seconds_to_path": float(np.median(to_path)) if ok.any() else None,
                 "median_checks": float(np.median(checks)),
                 "median_narrow_on_path": float(np.median(narrow)) if ok.any() else None,
+                "median_workspace_on_path": float(np.median(placed)) if placed else None,
             }
         )
     return table
 
 
-def trial_params(narrow: int, uniform: int, k: int | None, smooth: int, budget: float | None = None) -> dict:
+def trial_params(
+    narrow: int, uniform: int, k: int | None, smooth: int, budget: float | None = None, workspace: float | None = None
+) -> dict:
     """A plan trial's params: roadmap size, k (None: k-PRM*'s) and shortcut rounds; with `budget` (seconds),
-    rounds go on until connected or spent instead of one roadmap of that size."""
+    rounds go on until connected or spent instead of one roadmap of that size; with `workspace`, that share of the
+    narrow-passage samples placed in workspace gaps instead of the planner's default (0: the sampler alone). Left
+    out when not given, so that trials stored before keep their keys (a key hashes the params)."""
     params = {"narrow": narrow, "uniform": uniform, "k": k, "smooth": smooth}
     if budget is not None:
         params.update(mode="budget", budget=budget)
+    if workspace is not None:
+        params["workspace"] = workspace
     return params
 
 

@@ -12,6 +12,7 @@ from app.commands.common import (
     repetitions,
     sample_count,
     sampler_names,
+    share,
     shortcut_rounds,
 )
 
@@ -47,6 +48,13 @@ def register(kinds) -> None:
         help="instead of one round, add samples in rounds until connected or this many seconds pass",
     )
     p.add_argument(
+        "--workspace",
+        type=share,
+        default=None,
+        help="share of the narrow-passage samples placed with a piece of the robot in a narrow gap of the "
+        "workspace, on a query roadmap (0: the sampler alone; default: the planner's, as `plan`)",
+    )
+    p.add_argument(
         "--roadmap",
         choices=[*MODES, "both"],
         default="query",
@@ -66,7 +74,9 @@ def register(kinds) -> None:
 
 def run(args) -> int:
     check_outputs(creating_folders=(args.store,))
-    params = trial_params(args.narrow, args.uniform, args.neighbours, args.smooth, budget=args.budget)
+    params = trial_params(
+        args.narrow, args.uniform, args.neighbours, args.smooth, budget=args.budget, workspace=args.workspace
+    )
     modes = list(MODES) if args.roadmap == "both" else [args.roadmap]
     table, reuse = measure(
         args.scenes,
@@ -84,6 +94,8 @@ def run(args) -> int:
         print_json({"plan": table, "seeds": args.seeds, "params": params, "reused": reuse.to_json()})
         return 0
     budget = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
+    if args.workspace is not None:
+        budget += f"; {args.workspace:g} of the narrow samples placed in workspace gaps"
     print(
         f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
         f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
