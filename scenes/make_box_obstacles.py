@@ -115,10 +115,10 @@ def welding_boxes():
 # 15-18/20, 4-7/20; 0.20 x 0.245 m (20 seeds) 20/20, 9/20, 5/20; 0.20 x 0.24 m (10 seeds) 8/10, 0/10, 0/10. On a
 # machine twice as fast the budget buys twice the checks, and uniform samples alone need only about 1.7x ours:
 # 0.20 x 0.245 m 20/20, 17/20, 7/20; 0.20 x 0.24 m 10/10, 9/10; 0.19 x 0.245 m 10/10, 8/10. Narrowing did not stop
-# the baselines; deepening did: 0.20 x 0.245 m in a 7 cm door 9/10, 5/10, in a 10 cm door 10/10, 3/10. The joint move
-# between the torch in the hatch and at the part swings the forearm into the frame here: the job moves the tool
-# along its straight line there (app.ik.tool_line). Most roadmap paths through the hatch graze its frame between
-# checked points.
+# the baselines; deepening did: 0.20 x 0.245 m in a 7 cm door 9/10, 5/10; in a 10 cm door 10/10, 3/10, and over 20
+# seeds 20/20, 7/20, 4/20. The joint move between the torch in the hatch and at the part swings the forearm into
+# the frame here: the job moves the tool along its straight line there (app.ik.tool_line). Most roadmap paths
+# through the hatch graze its frame between checked points.
 HATCH = ((0.30, -0.13, 0.5875), (0.40, 0.07, 0.8325))  # in a 10 cm door, 7.5 cm off the cart
 # Inside: 0.42 m deep behind the door, 0.70 m wide, 0.50 m tall (a small machine tool's work area); the part sits
 # on a fixture 0.22-0.34 m behind the door, its top at z = 0.60, and the wire tip stops 5 cm above it.
