@@ -93,14 +93,14 @@ def run(args) -> int:
     if args.json:
         print_json({"plan": table, "seeds": args.seeds, "params": params, "reused": reuse.to_json()})
         return 0
-    budget = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
+    settings = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
     if args.workspace is not None:
-        budget += f"; {args.workspace:g} of the narrow samples placed in workspace gaps"
+        settings += f"; {args.workspace:g} of the narrow samples placed in workspace gaps"
     print(
         f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
         f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
         f"query: lazy edges, a quarter of the samples at a time until connected; full: the whole roadmap, every "
-        f"edge checked{budget}"
+        f"edge checked{settings}"
     )
     print(
         f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
