@@ -85,7 +85,7 @@ class PlanSettings:
     sampler_params: dict = field(default_factory=dict)
     skip_connected: bool = True
     full_roadmap: bool = False
-    workspace: float = 0.5
+    workspace: float = 0.75
     timing: bool = True
 
     def __post_init__(self):
@@ -247,17 +247,20 @@ class Query:
     starting walkers where candidate edges were found blocked (the boundary between the components) found the
     maze's window in 3 of 6 seeds instead of 6 of 6.
 
-    Half of every narrow round (`workspace`) is placed rather than walked to: configurations with a piece of the
-    robot in a narrow gap of the workspace (app.workspace), found by point queries against the obstacles. The
+    Three quarters of every narrow round (`workspace`) are placed rather than walked to: configurations with a piece
+    of the robot in a narrow gap of the workspace (app.workspace), found by point queries against the obstacles. The
     walkers find a passage wherever obstacles leave one, but in a passage narrow in many dimensions they end on the
     obstacles' faces: joint3d's hole got 0.2-0.7 % of the Lévy bridge samples, and the sampler alone needed about
-    400k checks for seed 0. Placements go straight to the gap; the walkers still cover passages with no workspace
-    gap behind them. Measured with `app.plan` (6 seeds, median checks to the first path, share 0 / 0.5 / 1):
-    joint3d unsolved at 150k / 10k / 6k, teeth3d 62k / 17k / 4.9k, joint 61k / 33k / 17k, bar 5.8k / 6.4k / 3.4k,
-    window 37k / 15k / -, maze 12.7k / 11.7k and 4 of 6 solved at 1 (its gaps are mostly corridors, and the walkers
-    find its window). A scene whose workspace has no narrow gap leaves the whole round to the sampler after a
-    bounded search (SEARCH_LIMIT points, a few tenths of a second). Every collision answer polls the query's budget
-    (`Stop`), so sampling, edge checks and smoothing all end when it is spent.
+    400k checks for seed 0. Placements go straight to the gap, for a tenth of a walk's checks; the walkers still
+    cover passages with no workspace gap behind them. Median checks (`bench plan --samplers lfbs --seeds 20 --budget
+    30 --workspace S`, all 10 scenes, 20/20 each unless said) at share 0.5 / 0.75 / 0.9 / 1: welding 36k / 20k / 15k
+    / 13k, window 40k / 26k / 16k / 13k, joint 38k / 27k / 26k / 27k, joint3d 19k / 10k / 10k / 6.1k, teeth3d 12k /
+    9.9k / 6.9k / 4.4k, bar 7.7k / 5.2k / 5.3k / 4.6k, tunnel 5.5k / 4.6k / 4.5k / 4.1k, maze 22k / 23k / 31k / 32k
+    and 17 of 20 solved at 1 (its gaps are mostly corridors, and the walkers find its window); bar-3link and
+    bar-5link as bar. Splitting each round's checks evenly between the two kinds instead (the cheaper placements the
+    more of them) left 2 of 20 maze queries unsolved. A scene whose workspace has no narrow gap leaves the whole
+    round to the sampler after a bounded search (SEARCH_LIMIT points, a few tenths of a second). Every collision
+    answer polls the query's budget (`Stop`), so sampling, edge checks and smoothing all end when it is spent.
 
     `full_roadmap` is the paper's protocol instead: one round of all `narrow` + `uniform` samples, every edge
     checked, then the query."""

@@ -119,8 +119,8 @@ def test_a_query_stops_at_the_first_round_that_connects_and_checks_edges_lazily(
     assert result.roadmap["uniform_nodes"] == 75 * result.rounds
     assert result.narrow_from_round == 2 and result.rounds >= 2  # bar's gap is not found by 75 uniform samples
     ramp = [min(50, 13 * 2**k) for k in range(result.rounds - 1)]
-    # half of each round's narrow-passage samples are placements in workspace gaps, the rest the sampler's
-    assert result.roadmap["workspace_nodes"] == sum(round(0.5 * n) for n in ramp)
+    # that share of each round's narrow-passage samples are placements in workspace gaps, the rest the sampler's
+    assert result.roadmap["workspace_nodes"] == sum(round(PlanSettings().workspace * n) for n in ramp)
     assert result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"] == sum(ramp)
     assert result.narrow_on_path + result.workspace_on_path >= 1
     assert result.rounds < 6 and result.roadmap["lazy"]
