@@ -1,7 +1,7 @@
 """Scripted arm jobs: a route of named tool poses, each leg planned, all legs joined into one trajectory.
 
-- `welding`: home, the torch lined up in the access hole into the chassis box section (the scene's first pose),
-  then seam point to seam point along the weld.
+- `welding`: home, the forearm through the access hole into the chassis box section and the torch lined up 4 cm off
+  the seam (the scene's first pose), then seam point to seam point along the weld.
 - `window`: home, the torch through the enclosure's hatch, the forearm in after it to the part, back out, above the
   side table, home.
 
