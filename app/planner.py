@@ -253,14 +253,15 @@ class Query:
     obstacles' faces: joint3d's hole got 0.2-0.7 % of the Lévy bridge samples, and the sampler alone needed about
     400k checks for seed 0. Placements go straight to the gap, for a tenth of a walk's checks; the walkers still
     cover passages with no workspace gap behind them. Median checks (`bench plan --samplers lfbs --seeds 20 --budget
-    30 --workspace S`, all 10 scenes, 20/20 each unless said) at share 0.5 / 0.75 / 0.9 / 1: welding 36k / 20k / 15k
-    / 13k, window 40k / 26k / 16k / 13k, joint 38k / 27k / 26k / 27k, joint3d 19k / 10k / 10k / 6.1k, teeth3d 12k /
-    9.9k / 6.9k / 4.4k, bar 7.7k / 5.2k / 5.3k / 4.6k, tunnel 5.5k / 4.6k / 4.5k / 4.1k, maze 22k / 23k / 31k / 32k
-    and 17 of 20 solved at 1 (its gaps are mostly corridors, and the walkers find its window); bar-3link and
-    bar-5link as bar. Splitting each round's checks evenly between the two kinds instead (the cheaper placements the
-    more of them) left 2 of 20 maze queries unsolved. A scene whose workspace has no narrow gap leaves the whole
-    round to the sampler after a bounded search (SEARCH_LIMIT points, a few tenths of a second). Every collision
-    answer polls the query's budget (`Stop`), so sampling, edge checks and smoothing all end when it is spent.
+    30 --workspace S`, all 10 scenes, 20/20 each unless said) at share 0.5 / 0.75 / 0.9 / 1: welding (a 0.26 m
+    access hole) 36k / 20k / 15k / 13k, window 40k / 26k / 16k / 13k, joint 38k / 27k / 26k / 27k, joint3d 19k / 10k
+    / 10k / 6.1k, teeth3d 12k / 9.9k / 6.9k / 4.4k, bar 7.7k / 5.2k / 5.3k / 4.6k, tunnel 5.5k / 4.6k / 4.5k / 4.1k,
+    maze 22k / 23k / 31k / 32k and 17 of 20 solved at 1 (its gaps are mostly corridors, and the walkers find its
+    window); bar-3link and bar-5link as bar. Splitting each round's checks evenly between the two kinds instead (the
+    cheaper placements the more of them) left 2 of 20 maze queries unsolved. A scene whose workspace has no narrow
+    gap leaves the whole round to the sampler after a bounded search (SEARCH_LIMIT points, a few tenths of a
+    second). Every collision answer polls the query's budget (`Stop`), so sampling, edge checks and smoothing all
+    end when it is spent.
 
     `full_roadmap` is the paper's protocol instead: one round of all `narrow` + `uniform` samples, every edge
     checked, then the query."""
