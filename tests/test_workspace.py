@@ -69,7 +69,8 @@ def test_joint3d_needs_the_gap_placements_to_pass_the_hole_on_a_small_budget(ora
     budget = Budget(checks=60_000)
     result = plan(oracle, PlanSettings(seed=0, budget=budget))
     assert result.workspace_on_path > 0 and result.trajectory.certified
-    assert oracle.in_passage(result.roadmap_path).any()
+    P = result.roadmap_path  # its edges go through the hole; its nodes may all lie at the hole's mouths
+    assert oracle.in_passage(np.vstack([oracle.space.interpolate(a, b) for a, b in zip(P[:-1], P[1:])])).any()
     with pytest.raises(NoPath, match="budget 60000checks spent"):  # the sampler alone needs about 400k
         plan(oracle, PlanSettings(seed=0, budget=budget, workspace=0.0))
 
