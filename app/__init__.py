@@ -16,15 +16,15 @@ import os
 # rounds) that made 2 threads slower than 1. Passive waiting gives the core back. Must be set before libgomp loads.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from app.budget import Budget  # noqa: E402
-from app.cspace import ConfigurationSpace  # noqa: E402
-from app.custom_scene import load_scene  # noqa: E402
+from app.checking.budget import Budget  # noqa: E402
+from app.checking.oracle import CollisionOracle  # noqa: E402
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError  # noqa: E402
-from app.oracle import CollisionOracle  # noqa: E402
-from app.planner import PlanResult, PlanSettings, Query, plan  # noqa: E402
+from app.motion.trajectory import Trajectory, TrajectoryFile  # noqa: E402
+from app.planning.planner import PlanResult, PlanSettings, Query, plan  # noqa: E402
 from app.samplers import SAMPLERS, Sampler, make_sampler  # noqa: E402
-from app.scene import Scene, scene_names  # noqa: E402
-from app.trajectory import Trajectory, TrajectoryFile  # noqa: E402
+from app.scene.cspace import ConfigurationSpace  # noqa: E402
+from app.scene.custom import load_scene  # noqa: E402
+from app.scene.model import Scene, scene_names  # noqa: E402
 
 __all__ = [
     # scenes and the collision oracle

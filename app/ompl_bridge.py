@@ -311,7 +311,7 @@ class OmplProblem:
 
     def solution_for_oracle(self) -> np.ndarray:
         """The solution as waypoints whose short-way edges (our oracle's) are OMPL's own motions: check this one
-        with oracle.edges_free, measure it with app.path.path_length."""
+        with oracle.edges_free, measure it with app.motion.path.path_length."""
         return self.map.for_oracle(self.solution())
 
 

@@ -30,9 +30,9 @@ import time
 import numpy as np
 
 from app.errors import UserError
-from app.ik import pose_goal, robot_frame
 from app.io import write_atomically
-from app.planner import PlanSettings, plan
+from app.planning.ik import pose_goal, robot_frame
+from app.planning.planner import PlanSettings, plan
 from app.samplers import SAMPLERS
 from app.viewer import PATH_COLOUR, Viewer, start_meshcat
 

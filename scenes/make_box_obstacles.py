@@ -118,7 +118,7 @@ def welding_boxes():
 # 0.20 x 0.245 m 20/20, 17/20, 7/20; 0.20 x 0.24 m 10/10, 9/10; 0.19 x 0.245 m 10/10, 8/10. Narrowing did not stop
 # the baselines; deepening did: 0.20 x 0.245 m in a 7 cm door 9/10, 5/10; in a 10 cm door 10/10, 3/10, and over 20
 # seeds 20/20, 7/20, 4/20. The joint move between the torch in the hatch and at the part swings the forearm into
-# the frame here: the job moves the tool along its straight line there (app.ik.tool_line). Most roadmap paths
+# the frame here: the job moves the tool along its straight line there (app.planning.ik.tool_line). Most roadmap paths
 # through the hatch graze its frame between checked points.
 HATCH = ((0.30, -0.13, 0.5875), (0.40, 0.07, 0.8325))  # in a 10 cm door, 7.5 cm off the cart
 # Inside: 0.42 m deep behind the door, 0.70 m wide, 0.50 m tall (a small machine tool's work area); the part sits

@@ -47,8 +47,8 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 @pytest.fixture(scope="session")
 def oracles():
     """One oracle per scene, built once per test session (building is the slow part)."""
-    from app.oracle import CollisionOracle
-    from app.scene import Scene
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
 
     cache = {}
 

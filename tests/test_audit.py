@@ -4,7 +4,7 @@ the motion, and a short run's table has every field, with no colliding state amo
 import numpy as np
 
 from app.bench.audit import DIVISOR, Recheck, audit_trajectory, measure, states
-from app.timing import parameterize
+from app.motion.timing import parameterize
 
 
 def test_a_trajectory_through_an_obstacle_is_counted(oracles):
@@ -60,5 +60,5 @@ def test_a_short_audit_has_every_field_and_no_colliding_state(tmp_path):
     total = table[-1]
     assert total["solved"] >= 1 and total["states_checked"] > 1000 * total["solved"]
     assert total["colliding_states"] == 0 and total["inexact_endpoints"] == 0
-    # Toppra's limits are checked at its grid points (and app.timing's between them): 1e-4 covers what is left.
+    # Toppra's limits are checked at its grid points (and app.motion.timing's between them): 1e-4 covers what is left.
     assert 0.5 < total["worst_limit_ratio"] <= 1 + 1e-4

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from app.scene import SCENES_DIR
+from app.scene.model import SCENES_DIR
 
 ROBOT = ["--robot", "{stl}", "--start", "0,0,0,0,0,0", "--goal", "1,0,0,0,0,0", "--bounds", "-1..1,-1..1,-1..1"]
 

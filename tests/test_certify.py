@@ -1,5 +1,5 @@
-"""Continuous certification (app.certify): it rejects a motion that grazes an obstacle between checked points, what
-it certifies is free under an independent check at 1/64 of the resolution, and its motion bound is never exceeded
+"""Continuous certification (app.checking.certify): it rejects a motion that grazes an obstacle between checked points,
+what it certifies is free under an independent check at 1/64 of the resolution, and its motion bound is never exceeded
 by the robot's own kinematics."""
 
 import json
@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.certify import Certifier, certify_path, motion_bound, polyline
+from app.checking.certify import Certifier, certify_path, motion_bound, polyline
 from independent import fine_points, raw_free
 
 PINNED = json.loads((Path(__file__).parent / "data" / "pinned_plans.json").read_text())
@@ -177,8 +177,8 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(tmp_pa
     """On the window's UR3 at this configuration, Drake's GJK puts the wrist cylinder 6.4 cm from the torch, which
     is 3.7 cm away: the certificate's bound for the pair stays below every sampled distance, and close to them.
     (The scene's SRDF leaves that pair out, as its distance never changes: here it is loaded without.)"""
-    from app.oracle import CollisionOracle
-    from app.scene import SCENES_DIR, Scene
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import SCENES_DIR, Scene
 
     for name in ("window.yaml", "window.dmd.yaml"):
         text = (SCENES_DIR / name).read_text()

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from app import errors
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.cli import EXIT_CODES, exit_code
 from app.commands.common import comma_list, names_from, parse_budget, sampler_names
 from app.errors import UserError
-from app.scene import SCENES_DIR, Scene
+from app.scene.model import SCENES_DIR, Scene
 
 
 def test_scenes_json_lists_every_scene_with_its_facts(cli):

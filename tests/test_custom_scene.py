@@ -1,4 +1,4 @@
-"""Bring your own robot and environment (app.custom_scene): a mesh robot flies through a non-convex mesh channel
+"""Bring your own robot and environment (app.scene.custom): a mesh robot flies through a non-convex mesh channel
 whose convex hull would block it, URDF robots with package paths, custom scene files, and bad input."""
 
 import json
@@ -11,8 +11,8 @@ pytest.importorskip("trimesh")
 
 import trimesh  # noqa: E402
 
-from app.custom_scene import ENV_TOLERANCE_PER_STEP, CustomSpec, build_scene, load_scene  # noqa: E402
 from app.errors import InvalidEndpoint, UserError  # noqa: E402
+from app.scene.custom import ENV_TOLERANCE_PER_STEP, CustomSpec, build_scene, load_scene  # noqa: E402
 from mesh_shapes import open_u, u_channel  # noqa: E402
 from meshcat_page import commands  # noqa: E402
 
@@ -47,7 +47,7 @@ def cache(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def channel_oracle(files, cache):
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
 
     scene = build_scene(_spec(files), cache_dir=cache, progress=False)
     return CollisionOracle(scene)
@@ -121,7 +121,7 @@ def test_default_step_follows_the_robot_not_its_face_plates(files, cache):
 
 
 def test_plan_goes_through_the_channel(channel_oracle):
-    from app.planner import PlanSettings, plan
+    from app.planning.planner import PlanSettings, plan
 
     result = plan(channel_oracle, PlanSettings(narrow=60, uniform=120, seed=1, smooth_rounds=10))
     path = result.path
@@ -135,7 +135,7 @@ def test_plan_goes_through_the_channel(channel_oracle):
 def test_open_collada_channel_and_second_build_is_cached(files, tmp_path):
     import time
 
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
 
     first = build_scene(_spec(files, env="open_channel.dae"), cache_dir=tmp_path, progress=False)
     assert first.info["decompositions"][1]["method"] == "faces"
@@ -149,7 +149,7 @@ def test_open_collada_channel_and_second_build_is_cached(files, tmp_path):
 
 
 def test_env_pose_moves_the_mesh(files, cache):
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
 
     # Channel turned to run along y and lifted by 10: the slot is now |x| < 1, z in 10.5..12.
     spec = _spec(
@@ -281,7 +281,7 @@ def arm_package(tmp_path_factory):
 
 @pytest.mark.parametrize("urdf", ["arm.urdf", "arm_stl.urdf"])
 def test_urdf_arm_with_a_package_path(arm_package, tmp_path, urdf):
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
 
     # A post at x = 0.8, y = 0 stands in the link's way at j1 = 0 (the link reaches x = 1, at z = 0.3).
     post = trimesh.creation.box([0.1, 0.1, 1.0], trimesh.transformations.translation_matrix([0.8, 0, 0.5]))
@@ -341,7 +341,7 @@ def test_bad_input_is_a_one_line_user_error(files, cache, change, message):
 
 
 def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):
-    from app.planner import PlanSettings, plan
+    from app.planning.planner import PlanSettings, plan
 
     with pytest.raises(InvalidEndpoint):
         plan(channel_oracle, PlanSettings(narrow=5, uniform=5), start=[0.0, 1.25, 1.5, 0, 0, 0])
@@ -408,7 +408,7 @@ PUCK_URDF = """<?xml version="1.0"?>
 
 
 def test_floating_urdf_robot_among_sdf_obstacles(tmp_path, cache):
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
 
     (tmp_path / "puck.urdf").write_text(PUCK_URDF)
     (tmp_path / "block.sdf").write_text(BLOCK_SDF.format(static=""))
@@ -471,7 +471,7 @@ CHANNEL_SDF = """<?xml version="1.0"?>
 
 def test_sdf_environment_with_a_non_convex_mesh_is_decomposed(files, tmp_path, cache):
     """Drake would take the SDF's mesh as its convex hull and close the slot: its collision is split into pieces."""
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
 
     (tmp_path / "meshes").mkdir()
     (tmp_path / "meshes" / "channel.stl").write_bytes((files / "channel.stl").read_bytes())
@@ -497,7 +497,7 @@ def test_an_upright_flat_piece_is_drawn_as_a_line_from_above():
 def test_the_certificate_bounds_mesh_distances_closely(channel_oracle):
     """The certificate's own lower bounds for mesh pieces (posed in the world frame, far from their points) must be
     near Drake's distances, not only below them: a loose bound makes free motions unprovable."""
-    from app.certify import Certifier
+    from app.checking.certify import Certifier
 
     oracle, certifier = channel_oracle, Certifier(channel_oracle)
     rng = np.random.default_rng(0)

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from app import ik
 from app.cli import exit_code
 from app.errors import InvalidEndpoint, UserError
+from app.planning import ik
 
 POSITION_TOLERANCE = ik.POSITION_TOLERANCE * (1 + 1e-6)
 ANGLE_TOLERANCE = ik.ANGLE_TOLERANCE * (1 + 1e-6)

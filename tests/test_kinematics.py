@@ -1,10 +1,10 @@
-"""Numpy forward kinematics (app.kinematics) against Drake's own: the same geometry poses, many configurations at
-once; a plant with a joint it does not handle has none, and its callers ask Drake."""
+"""Numpy forward kinematics (app.checking.kinematics) against Drake's own: the same geometry poses, many configurations
+at once; a plant with a joint it does not handle has none, and its callers ask Drake."""
 
 import numpy as np
 import pytest
 
-from app.kinematics import TreeKinematics
+from app.checking.kinematics import TreeKinematics
 
 
 @pytest.mark.parametrize("name", ["welding", "bar", "joint3d", "tunnel"])
@@ -39,7 +39,7 @@ def test_a_floating_body_has_no_numpy_kinematics():
 def test_the_oracle_and_the_certificate_answer_the_same_with_drakes_poses(oracles, name):
     """What the numpy kinematics feed -- workspace piece centres, the certificate's gap bounds -- is what Drake's
     poses give, to rounding."""
-    from app.certify import Certifier
+    from app.checking.certify import Certifier
 
     oracle = oracles(name)
     rng = np.random.default_rng(8)

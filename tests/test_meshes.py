@@ -1,4 +1,4 @@
-"""app.meshes: conversion, the per-mesh method choice, validation (it must be able to fail) and the cache."""
+"""app.scene.meshes: conversion, the per-mesh method choice, validation (it must be able to fail) and the cache."""
 
 import time
 
@@ -9,8 +9,8 @@ pytest.importorskip("trimesh")
 
 import trimesh  # noqa: E402
 
-from app import meshes  # noqa: E402
 from app.errors import UserError  # noqa: E402
+from app.scene import meshes  # noqa: E402
 from mesh_shapes import bent_sheet, holed_shell, open_u, u_boxes, u_channel  # noqa: E402
 
 

@@ -4,7 +4,7 @@ import importlib.util
 
 import pytest
 
-from app.scene import ROOT
+from app.scene.model import ROOT
 
 
 @pytest.mark.parametrize("links", [3, 5, 7])

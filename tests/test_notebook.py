@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from app.scene import ROOT
+from app.scene.model import ROOT
 
 NOTEBOOK = ROOT / "examples" / "narrow_passages.ipynb"
 

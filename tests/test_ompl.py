@@ -20,7 +20,6 @@ except ImportError as exc:  # pragma: no cover - depends on the machine
 
 from app.bench.ompl import PROTOCOL, best_ompl, compare, parse_method, run_trial_spec, summarise
 from app.bench.store import TrialSpec
-from app.cspace import ConfigurationSpace
 from app.errors import UserError
 from app.ompl_bridge import (
     BridgeTestSampler,
@@ -31,8 +30,9 @@ from app.ompl_bridge import (
     motion_check_steps,
     motion_spacing,
 )
-from app.planner import default_step
-from app.scene import Scene
+from app.planning.planner import default_step
+from app.scene.cspace import ConfigurationSpace
+from app.scene.model import Scene
 
 SCENE = "bar-3link"
 BUDGET = 5.0  # seconds, at most, per OMPL solve

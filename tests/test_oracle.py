@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from app.scene import scene_names
+from app.scene.model import scene_names
 
 SAMPLING_SCENES = ["bar", "bar-3link", "bar-5link", "joint", "joint3d", "teeth3d"]
 
@@ -165,8 +165,8 @@ def test_every_shipped_scene_is_listed():
 
 
 def test_both_batch_paths_give_the_same_answers_and_the_cheaper_is_chosen():
-    from app.oracle import CollisionOracle
-    from app.scene import Scene
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar"), threads=2)
     Q = oracle.space.uniform(np.random.default_rng(5), 400)
@@ -184,8 +184,8 @@ def test_both_batch_paths_give_the_same_answers_and_the_cheaper_is_chosen():
 
 
 def test_a_path_found_dearer_again_is_probed_less_often():
-    from app.oracle import CollisionOracle
-    from app.scene import Scene
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar"), threads=2)
     oracle._cost = {"batch": 9e-5, "raw": 2e-5}

@@ -13,9 +13,9 @@ pytest.importorskip("trimesh")
 
 import trimesh  # noqa: E402
 
-from app.custom_scene import CustomSpec, build_scene, load_scene  # noqa: E402
-from app.oracle import CollisionOracle  # noqa: E402
-from app.scene import ROOT  # noqa: E402
+from app.checking.oracle import CollisionOracle  # noqa: E402
+from app.scene.custom import CustomSpec, build_scene, load_scene  # noqa: E402
+from app.scene.model import ROOT  # noqa: E402
 from independent import fine_points, raw_free  # noqa: E402
 from mesh_shapes import extrude_x  # noqa: E402
 
@@ -119,7 +119,7 @@ def _readme_command() -> list[str]:
 
 
 def test_own_arm_is_planned_from_a_tool_pose_with_self_collision_on(arm, cli, monkeypatch):
-    from app.ik import robot_frame
+    from app.planning.ik import robot_frame
 
     monkeypatch.chdir(arm)
     command = _readme_command()
@@ -168,7 +168,7 @@ def test_no_self_collision_accepts_the_folded_start_and_says_so(arm, cli, monkey
 def test_srdf_pairs_are_left_out_of_every_answer(arm, tmp_path):
     """Disabling the folded pair (forearm, shoulder) frees the folded configuration for the raw query, the batched
     checker, the bodies and contacts it reports, and the certificate's pair list."""
-    from app.certify import certify_path
+    from app.checking.certify import certify_path
 
     folded = np.array([float(v) for v in FOLDED.split(",")])
     plain = _oracle(arm)

@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from app.scene import ROOT
+from app.scene.model import ROOT
 from app.viewer import PATH_COLOUR
 from chromium import chromium, needs_chromium
 from meshcat_page import commands
@@ -162,10 +162,10 @@ def test_panel_plans_in_chromium(panel, browser):
 @pytest.fixture
 def make_panel(oracles, monkeypatch):
     """`make_panel(scene)`: a Panel over the session's oracle of `scene` (planning) and a fresh one (preview)."""
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
     from app.panel import Panel
-    from app.planner import PlanSettings
-    from app.scene import Scene
+    from app.planning.planner import PlanSettings
+    from app.scene.model import Scene
 
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")
     made = []
@@ -273,7 +273,7 @@ def test_html_export_holds_the_last_motion(make_panel, tmp_path):
 def test_an_arms_goal_pose_is_solved_by_ik_into_the_goal_sliders(make_panel):
     from pydrake.math import RigidTransform, RollPitchYaw
 
-    from app.ik import pose_error
+    from app.planning.ik import pose_error
 
     panel = make_panel("window")
     names = [n for n in panel.state()["sliders"] if n.startswith("goal pose ")]
@@ -295,7 +295,7 @@ def test_an_arms_goal_pose_is_solved_by_ik_into_the_goal_sliders(make_panel):
 
 
 def test_the_panel_plans_what_plan_plans(make_panel, oracles):
-    from app.planner import PlanSettings, plan
+    from app.planning.planner import PlanSettings, plan
 
     panel = make_panel(SCENE)
     panel.press("Plan")

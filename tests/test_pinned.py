@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.planner import PlanSettings, plan
+from app.planning.planner import PlanSettings, plan
 
 PINNED = json.loads((Path(__file__).parent / "data" / "pinned_plans.json").read_text())
 

@@ -9,10 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import InvalidEndpoint, NoPath, UserError
-from app.planner import PlanSettings, plan
-from app.roadmap import Roadmap
+from app.planning.planner import PlanSettings, plan
+from app.planning.roadmap import Roadmap
 from independent import fine_points, raw_free
 
 # The bar crossing needs the narrow samples: with 500 uniform samples alone it succeeds in under 10 % of seeds
@@ -138,8 +138,8 @@ def test_full_roadmap_builds_every_sample_and_checks_every_edge(oracles):
 
 
 def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
-    from app.oracle import CollisionOracle
-    from app.scene import Scene
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
 
     # At a 2 m planning resolution the maze's 0.9 m thick walls (in configuration space) slip between checked
     # points; the fine re-check at 0.5 m does not miss them.
@@ -152,8 +152,8 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
 
 
 def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
-    from app.oracle import CollisionOracle
-    from app.scene import Scene
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
 
     # At a 4 m resolution even the fine re-check (1 m) can step over the maze's 0.9 m walls: roadmap edges pass it
     # and then fail the certificate. They must leave the roadmap (not come back as an uncertified path).
@@ -168,9 +168,9 @@ def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
 def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(monkeypatch):
     """Smoothing a candidate the certificate then refuses wastes it: after the first refusal, candidates are proved
     first, so a query smooths at most two roadmap paths (once optimistic, once careful) however many edges it drops."""
-    from app.oracle import CollisionOracle
-    from app.planner import Query
-    from app.scene import Scene
+    from app.checking.oracle import CollisionOracle
+    from app.planning.planner import Query
+    from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("maze"))
     oracle.space = dataclasses.replace(oracle.space, resolution=4.0)  # edges that pass the checks, then fail
@@ -187,8 +187,8 @@ def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(m
 def _wall_oracle():
     """A 2-D oracle with a thin wall between the fine points of the test path's first edge, and a block that leaves
     no direct line from the start to the end (the path code needs only the metric and are_free)."""
-    from app.cspace import ConfigurationSpace
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
+    from app.scene.cspace import ConfigurationSpace
 
     oracle = CollisionOracle.__new__(CollisionOracle)
     oracle.space = ConfigurationSpace(
@@ -215,7 +215,7 @@ def _wall_oracle():
 def test_every_edge_of_a_shortened_path_lies_on_the_path_or_on_a_shortcut_checked_free():
     """What the certificate and the repair rely on: shortcuts are the only new motion (the pieces of the edges they
     cut are not re-checked: they are parts of checked edges), and each was checked before it was taken."""
-    from app.path import Shortcuts, on_segment, shortcut
+    from app.motion.path import Shortcuts, on_segment, shortcut
 
     oracle, P = _wall_oracle()
     shortened = 0
@@ -231,7 +231,7 @@ def test_every_edge_of_a_shortened_path_lies_on_the_path_or_on_a_shortcut_checke
 
 
 def test_a_replay_repeats_the_shortcuts_for_free_and_a_banned_one_is_avoided():
-    from app.path import Shortcuts, on_segment, shortcut
+    from app.motion.path import Shortcuts, on_segment, shortcut
 
     oracle, P = _wall_oracle()
     memo = Shortcuts()
@@ -258,9 +258,9 @@ def test_an_angle_wound_a_whole_turn_along_the_path_is_turned_the_short_way():
     do, and every shortcut between its waypoints that would undo that crosses a block near x = 0. Smoothing (its
     greedy pass alone: random shortcuts may hop round the block) turns theta the short way, spread along the path;
     the ends stay exactly where they were."""
-    from app.cspace import ConfigurationSpace
-    from app.oracle import CollisionOracle
-    from app.path import shortcut
+    from app.checking.oracle import CollisionOracle
+    from app.motion.path import shortcut
+    from app.scene.cspace import ConfigurationSpace
 
     oracle = CollisionOracle.__new__(CollisionOracle)
     oracle.space = ConfigurationSpace(
@@ -294,11 +294,11 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
     """The certificate is made to refuse the first smoothed path's longest shortcut: smoothing is replayed without
     it, the result is proved and still shorter than the roadmap path, and the shortcuts stay within smoothing's cap
     (turning a joint wound a whole turn back the short way is exempt: Query.smooth)."""
-    from app import planner
-    from app.oracle import CollisionOracle
-    from app.path import on_segment
-    from app.planner import SMOOTHING_CAP, Query, unwind
-    from app.scene import Scene
+    from app.checking.oracle import CollisionOracle
+    from app.motion.path import on_segment
+    from app.planning import planner
+    from app.planning.planner import SMOOTHING_CAP, Query, unwind
+    from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar-3link"))
     raw, refused, smooth, certify = [], [], Query.smooth, Query.certify
@@ -503,7 +503,7 @@ def test_cli_plan_json_and_out(tmp_path, cli):
     assert written["positions"] == doc["trajectory"]["positions"] and written["waypoints"] == doc["path"]
     assert len(written["narrow_samples"]) == doc["roadmap"]["narrow_nodes"] == 15 * doc["rounds"]
     assert sum(written["narrow_on_path"]) == doc["narrow_on_path"]
-    from app.trajectory import TrajectoryFile  # the file is what the viewer reads
+    from app.motion.trajectory import TrajectoryFile  # the file is what the viewer reads
 
     TrajectoryFile.from_json(written, 6)
     assert [p.name for p in tmp_path.iterdir()] == ["traj.json"]  # no temp file left behind

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from app.errors import UserError
-from app.scene import ROOT, SCENES_DIR, Scene
+from app.scene.model import ROOT, SCENES_DIR, Scene
 
 UAV_SCENES = ["maze", "tunnel"]
 ARM_SCENES = ["welding", "window"]
@@ -94,7 +94,7 @@ def test_ur3_self_collision_geometry_is_sane(oracles):
 def test_ur3_srdf_pairs_never_touch(oracles, tmp_path):
     """The UR3 scenes load robots/ur3_on_cart.srdf; its pairs, checked here on the same scene without it at fresh
     random configurations, never come within a few millimetres (the generator kept 1 cm)."""
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
 
     disabled = {frozenset(pair) for pair in oracles("window").scene.disabled_pairs}
     assert disabled and oracles("welding").scene.disabled_pairs == oracles("window").scene.disabled_pairs

@@ -6,9 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from app.path import FINE
-from app.runs import HOME, JOB_SETTINGS, run_job
-from app.timing import time_path
+from app.jobs import HOME, JOB_SETTINGS, run_job
+from app.motion.path import FINE
+from app.motion.timing import time_path
 from independent import fine_points, raw_free
 
 
@@ -48,7 +48,7 @@ def test_joined_trajectory_is_continuous_and_within_the_limits(oracles, window_r
     V = np.diff(X, axis=0) / np.diff(t)[:, None]
     assert np.all(np.abs(V) <= scene.velocity_limits * (1 + 1e-3) + 1e-6)  # no jump where legs join
     # Back home, the continuous wrist included: this job once ended a whole turn from where it began (smoothing
-    # wound wrist 3 round; app.path.unwind turns it back the short way).
+    # wound wrist 3 round; app.motion.path.unwind turns it back the short way).
     assert np.allclose(X[0], window_run.configurations[HOME]) and np.allclose(X[-1], X[0], atol=1e-9)
 
 

@@ -1,4 +1,4 @@
-"""Smooth time parameterization (app.timing.parameterize_smooth): corners blended and certified, Toppra along the
+"""Smooth time parameterization (app.motion.timing.parameterize_smooth): corners blended and certified, Toppra along the
 curve. Checked independently of what Toppra reports: limits from finite differences of the positions, collisions
 of samples no more than 1/64 of the resolution apart by SceneGraph directly, start and goal exact, no velocity
 jumps; and it is faster than stopping at every waypoint."""
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import app
-from app.timing import parameterize, parameterize_smooth
+from app.motion.timing import parameterize, parameterize_smooth
 from independent import raw_free
 
 PINNED = json.loads((Path(__file__).parent / "data" / "pinned_plans.json").read_text())
@@ -106,7 +106,7 @@ def test_planned_paths_are_timed_smoothly_within_limits(oracles, key):
 
 
 def test_a_planned_window_path(oracles):
-    from app.ik import solve_pose
+    from app.planning.ik import solve_pose
 
     oracle = oracles("window")
     # Home to the torch through the hatch, the job's first leg (the scene's goal, deep inside, is a harder query
@@ -178,7 +178,7 @@ def test_one_waypoint_is_a_motionless_trajectory(oracles):
 def test_edges_already_proved_are_not_certified_again(oracles):
     """Told that the polyline's edges are proved (as the planner's certificate does), the timing certifies only the
     blends: the same motion, certified, for fewer distance queries."""
-    from app.certify import certify_path
+    from app.checking.certify import certify_path
 
     oracle = oracles("maze")
     W, scene = ZIGZAGS["maze"], oracle.scene

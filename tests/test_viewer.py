@@ -37,8 +37,8 @@ def straight_trajectory(oracle, duration=2.0):
 
 
 def trajectory_doc(times, positions, narrow=None, on_path=None, path=None) -> dict:
-    """A trajectory file's object (app/trajectory.py's schema) for a motion through `positions`."""
-    from app.trajectory import SCHEMA
+    """A trajectory file's object (app/motion/trajectory.py's schema) for a motion through `positions`."""
+    from app.motion.trajectory import SCHEMA
 
     times, positions = np.asarray(times, float), np.asarray(positions, float)
     waypoints = positions[[0, -1]] if path is None else np.asarray(path, float)
@@ -317,7 +317,7 @@ def test_bad_wait_is_exit_2_before_planning(cli, one_line_error, flags):
 def test_out_files_of_plan_and_run_are_what_view_reads(tmp_path, meshcat_allowed, cli, command):
     """One trajectory format: the file `plan --out` / `run --out` writes opens in `view --trajectory`, with the
     same motion and samples."""
-    from app.trajectory import TrajectoryFile
+    from app.motion.trajectory import TrajectoryFile
 
     out, page = tmp_path / "motion.json", tmp_path / "motion.html"
     assert cli(*command, "--out", out).returncode == 0

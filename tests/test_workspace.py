@@ -1,12 +1,12 @@
-"""Narrow gaps of the workspace and the placements the planner draws there (app.workspace)."""
+"""Narrow gaps of the workspace and the placements the planner draws there (app.samplers.workspace)."""
 
 import numpy as np
 import pytest
 
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import NoPath
-from app.planner import PlanSettings, plan
-from app.workspace import SEARCH_LIMIT, WorkspaceGaps
+from app.planning.planner import PlanSettings, plan
+from app.samplers.workspace import SEARCH_LIMIT, WorkspaceGaps
 
 
 def test_a_gap_is_between_two_facing_obstacles_closer_than_the_width(oracles):
@@ -52,8 +52,8 @@ def test_every_placement_puts_a_moving_piece_at_a_gap_point(oracles, scene):
 
 
 def test_an_empty_workspace_has_no_gap_after_a_bounded_search(tmp_path):
-    from app.custom_scene import CustomSpec, build_scene
-    from app.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle
+    from app.scene.custom import CustomSpec, build_scene
 
     spec = CustomSpec(robot="examples/trap/cube.obj", bounds=["-2..2", "-2..2", "-2..2"], start=[0] * 6)
     oracle = CollisionOracle(build_scene(spec, cache_dir=tmp_path, progress=False))
@@ -81,7 +81,7 @@ def test_the_papers_protocol_draws_no_placements(oracles):
 
 
 def test_gaps_out_of_the_robots_reach_hand_the_rounds_back_to_the_sampler(oracles, monkeypatch):
-    from app.workspace import WorkspaceGaps as Gaps
+    from app.samplers.workspace import WorkspaceGaps as Gaps
 
     def unreachable(self, rng, n=0):  # a gap no placement can bring a piece to (far outside the bounds)
         self.points, self.searched = np.array([[1e4, 1e4, 0.0]]), self.searched + 1

@@ -22,10 +22,10 @@ import numpy as np
 
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import NoPath
-from app.planner import PlanSettings, default_step, plan
-from app.scene import Scene, scene_names
+from app.planning.planner import PlanSettings, default_step, plan
+from app.scene.model import Scene, scene_names
 
 # The re-check looks at states this fraction of the scene's resolution apart.
 DIVISOR = 64

@@ -4,8 +4,8 @@ Per scene and seed, one default query (`plan SCENE --seed S`): its phase timings
 (phase "certify") and timing it smoothly with certified blends (phase "timing") took. What a planner without
 certification would do instead is then done to the same path: re-check it at the fine resolution (FINE x the
 scene's, the discrete check the certificate replaced) and time it rest to rest at every waypoint
-(`app.timing.parameterize`); that time stands in for both phases in the plan time "without". So the two plan times
-compare the same query, in one run. Per UR3 job and seed (`run window --seed S`): the joined trajectory's duration
+(`app.motion.timing.parameterize`); that time stands in for both phases in the plan time "without". So the two plan
+times compare the same query, in one run. Per UR3 job and seed (`run window --seed S`): the joined trajectory's duration
 against each leg's path timed rest to rest at every waypoint.
 
 Trials are experiments "certify" (scenes) and "certify-job" in the results store, so a killed run resumes.
@@ -19,11 +19,11 @@ import numpy as np
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
 from app.errors import NoPath, UserError
-from app.path import verify
-from app.planner import PlanSettings, default_step, plan
-from app.runs import JOB_SETTINGS, run_job
-from app.scene import Scene
-from app.timing import parameterize
+from app.jobs import JOB_SETTINGS, run_job
+from app.motion.path import verify
+from app.motion.timing import parameterize
+from app.planning.planner import PlanSettings, default_step, plan
+from app.scene.model import Scene
 
 
 def _rest_to_rest(oracle, path: np.ndarray) -> tuple[float, float]:

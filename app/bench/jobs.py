@@ -15,11 +15,11 @@ import numpy as np
 from app.bench.plan import MODES
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import UserError
-from app.planner import default_step
-from app.runs import JOB_SETTINGS, ROUTES, run_job
-from app.scene import Scene
+from app.jobs import JOB_SETTINGS, ROUTES, run_job
+from app.planning.planner import default_step
+from app.scene.model import Scene
 
 JOBS = list(ROUTES)  # the scripted jobs: welding, window
 

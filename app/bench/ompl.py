@@ -26,12 +26,12 @@ import numpy as np
 
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import NoPath, UserError
-from app.path import FINE, path_length
-from app.planner import PlanSettings, default_step, plan
+from app.motion.path import FINE, path_length
+from app.planning.planner import PlanSettings, default_step, plan
 from app.samplers import check_name
-from app.scene import Scene
+from app.scene.model import Scene
 
 # app.ompl_bridge loads OMPL (optional) when imported: it is imported by the functions that run OMPL, so that the
 # command line starts, and the other benchmarks run, without it. Its planner names are repeated here for that reason.
@@ -241,8 +241,8 @@ def compare(rows: list[dict], ours: str = OURS) -> dict:
 def motion_checks(scene: str, methods: list[str], edges: int = 200) -> list[dict]:
     """The motion-check spacing of the OMPL state spaces `methods` use on `scene` (app.ompl_bridge.motion_spacing):
     one entry per space, naming the planners that use it."""
-    from app.cspace import ConfigurationSpace
     from app.ompl_bridge import REAL_VECTOR_ONLY, motion_spacing
+    from app.scene.cspace import ConfigurationSpace
 
     cspace = ConfigurationSpace.of(Scene(scene))
     spaces = {}

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from app.custom_scene import load_scene
-from app.oracle import CollisionOracle
+from app.checking.oracle import CollisionOracle
+from app.scene.custom import load_scene
 
 
 def _raw_loop(oracle: CollisionOracle, Q: np.ndarray) -> np.ndarray:

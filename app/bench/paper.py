@@ -10,7 +10,7 @@ run started again with the same options skips every stored trial):
 2. table1 -- RBBS and LFBS t_eps vs step on bar-3link, bar-5link and bar (the paper's Table 1; the bar cells are the
    same trials as sweep 1 and are not run twice);
 3. prm -- the maze/tunnel LFBS-vs-RBBS PRM tables (`bench uav` specs);
-4. ur3 -- the scripted UR3 welding and window jobs (`app.runs.run_job`), timed (experiment "ur3", the trial of
+4. ur3 -- the scripted UR3 welding and window jobs (`app.jobs.run_job`), timed (experiment "ur3", the trial of
    `bench jobs`).
 
 The report is built from the store alone (`--report-only` rebuilds it without running anything): the claims C1-C5
@@ -36,11 +36,11 @@ from app.bench import jobs, sampling, uav
 from app.bench.claims import ALPHA, RULES, detectable_drop, judge, success_ci
 from app.bench.runner import run_sweep
 from app.bench.store import ResultStore, TrialSpec
+from app.checking.oracle import CollisionOracle
 from app.io import write_atomically
-from app.oracle import CollisionOracle
-from app.planner import default_step
+from app.planning.planner import default_step
 from app.samplers import SAMPLERS
-from app.scene import Scene
+from app.scene.model import Scene
 
 SAMPLING_SCENES = ["bar", "joint", "joint3d", "teeth3d"]
 TABLE1_SCENES = ["bar-3link", "bar-5link", "bar"]
@@ -626,7 +626,7 @@ def _ur3_section(rows) -> list[str]:
     if not ur3:
         return lines + ["No rows.", ""]
     lines += [
-        f"`app.runs.run_job`: IK for the route's poses, then each leg straight or by PRM "
+        f"`app.jobs.run_job`: IK for the route's poses, then each leg straight or by PRM "
         f"(a full roadmap of {UR3_SIZE['narrow']} narrow + {UR3_SIZE['uniform']} uniform samples, "
         f"{UR3_SIZE['budget']:g} s per leg). Medians over successful runs; the paper's LFBS average in "
         "brackets (Gazebo/MoveIt set-up, step 0.5).",

@@ -1,6 +1,6 @@
 """`bench plan`: PRM success rate and time per narrow-passage sampler, at one fixed roadmap size, over many seeds.
 
-Each trial is one `app.planner.plan` call (up to narrow + uniform samples, no budget; `--full-roadmap` for the
+Each trial is one `app.planning.planner.plan` call (up to narrow + uniform samples, no budget; `--full-roadmap` for the
 paper's protocol of the whole roadmap first) on a per-process oracle;
 rows go to the results store (`experiment` "prm"), so a killed run resumes and the claims report can read them.
 `run_trial_spec` also serves other benchmarks: params {"mode": "budget", "budget": seconds} plans in rounds until
@@ -13,10 +13,10 @@ import numpy as np
 
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import NoPath
-from app.planner import DEFAULT_BUDGET, PlanSettings, default_step, plan
-from app.scene import Scene
+from app.planning.planner import DEFAULT_BUDGET, PlanSettings, default_step, plan
+from app.scene.model import Scene
 
 COMPARED_SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]  # the default of `bench plan --samplers`
 MODES = {"query": False, "full": True}  # roadmap mode -> plan(full_roadmap=...)

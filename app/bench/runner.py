@@ -22,9 +22,9 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from tqdm import tqdm
 
 from app.bench.store import ResultStore, Reuse, TrialSpec
+from app.checking.oracle import CollisionOracle, default_threads
 from app.errors import UserError
-from app.oracle import CollisionOracle, default_threads
-from app.scene import Scene
+from app.scene.model import Scene
 
 # Dask (optional) is imported only for a sweep sent to a scheduler.
 

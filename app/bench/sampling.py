@@ -14,10 +14,10 @@ import numpy as np
 from tqdm import tqdm
 
 from app.bench.claims import median_ci
+from app.checking.oracle import CollisionOracle
 from app.errors import SamplerBudgetExceeded
-from app.oracle import CollisionOracle
 from app.samplers import make_sampler
-from app.scene import Scene
+from app.scene.model import Scene
 
 STEPS = [2.0, 5.0, 10.0, 15.0, 20.0]
 METRICS = [("seconds", "t_eps (s)"), ("collision_checks", "gamma_c (checks)"), ("passage_fraction", "in passage")]

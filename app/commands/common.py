@@ -11,7 +11,7 @@ import os
 import re
 import sys
 
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import UserError
 from app.io import check_output
 from app.samplers import check_name

@@ -1,13 +1,13 @@
 """The --robot / --env flags (bring your own robot and environment), for a command that takes a scene: they build
-an app.custom_scene.CustomSpec, from which app.custom_scene.build_scene makes the scene."""
+an app.scene.custom.CustomSpec, from which app.scene.custom.build_scene makes the scene."""
 
 import argparse
 
-from app import meshes
 from app.commands.common import float_list, non_negative_float
-from app.custom_scene import CustomScene, CustomSpec, build_scene, load_scene
 from app.errors import UserError
-from app.scene import Scene
+from app.scene import meshes
+from app.scene.custom import CustomScene, CustomSpec, build_scene, load_scene
+from app.scene.model import Scene
 
 
 def add_arguments(parser) -> None:

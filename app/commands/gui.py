@@ -9,9 +9,9 @@ docs/schemas/gui.json). `--state FILE` holds the same state, rewritten (atomical
 import signal
 import sys
 
+from app.checking.oracle import CollisionOracle
 from app.commands import custom, plan
 from app.commands.common import check_outputs, non_negative_float, print_json, whole_number
-from app.oracle import CollisionOracle
 from app.panel import Panel
 from app.viewer import check_meshcat_allowed
 

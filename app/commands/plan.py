@@ -1,7 +1,9 @@
-"""`plan SCENE ...`: PRM with narrow-passage samples, shortcut smoothing and Toppra timing (app.planner.plan)."""
+"""`plan SCENE ...`: PRM with narrow-passage samples, shortcut smoothing and Toppra timing
+(app.planning.planner.plan)."""
 
 import argparse
 
+from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
 from app.commands.common import (
     float_list,
@@ -16,10 +18,9 @@ from app.commands.common import (
     shortcut_rounds,
 )
 from app.errors import UserError
-from app.ik import pose_goal
 from app.io import all_or_nothing
-from app.oracle import CollisionOracle
-from app.planner import PlanSettings, plan
+from app.planning.ik import pose_goal
+from app.planning.planner import PlanSettings, plan
 from app.viewer import ViewData
 
 DEFAULTS = PlanSettings()

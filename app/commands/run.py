@@ -2,6 +2,7 @@
 
 from dataclasses import replace
 
+from app.checking.oracle import CollisionOracle
 from app.commands.common import (
     parse_budget,
     positive_float,
@@ -13,9 +14,8 @@ from app.commands.common import (
 from app.commands.view import add_arguments, check_from_args, publish_from_args, wait
 from app.errors import UserError
 from app.io import all_or_nothing
-from app.oracle import CollisionOracle
-from app.runs import JOB_SETTINGS, ROUTES, run_job
-from app.scene import Scene
+from app.jobs import JOB_SETTINGS, ROUTES, run_job
+from app.scene.model import Scene
 from app.viewer import ViewData
 
 

@@ -1,6 +1,7 @@
 """`sample SCENE --sampler NAME`: draw k narrow-passage samples, report them (JSON or a summary) and draw them."""
 
 from app.bench.sampling import run_trial
+from app.checking.oracle import CollisionOracle
 from app.commands.common import (
     check_outputs,
     positive_float,
@@ -10,9 +11,8 @@ from app.commands.common import (
     samples_wanted,
     seed,
 )
-from app.custom_scene import load_scene
 from app.errors import SamplerBudgetExceeded
-from app.oracle import CollisionOracle
+from app.scene.custom import load_scene
 
 
 def register(subparsers) -> None:

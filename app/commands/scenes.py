@@ -1,9 +1,9 @@
 """`scenes` lists the shipped scenes; `show` draws one to a PNG."""
 
+from app.checking.oracle import CollisionOracle
 from app.commands.common import check_outputs, print_json
-from app.custom_scene import load_scene
-from app.oracle import CollisionOracle
-from app.scene import Scene, scene_names
+from app.scene.custom import load_scene
+from app.scene.model import Scene, scene_names
 
 
 def register(subparsers) -> None:

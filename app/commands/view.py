@@ -14,9 +14,9 @@ import sys
 import threading
 
 from app.commands.common import check_outputs, non_negative_float, print_json
-from app.custom_scene import load_scene
 from app.errors import UserError
-from app.trajectory import TrajectoryFile
+from app.motion.trajectory import TrajectoryFile
+from app.scene.custom import load_scene
 from app.viewer import ViewData, check_meshcat_allowed, publish
 
 

@@ -4,7 +4,7 @@ Drake checker at 1/64 of the scene's resolution, with its limits and endpoints (
 from app.bench.audit import DIVISOR, measure
 from app.commands.bench import results
 from app.commands.common import check_outputs, names_from, positive_float, print_json, processes, repetitions, seed
-from app.scene import scene_names
+from app.scene.model import scene_names
 
 
 def register(kinds) -> None:

@@ -5,7 +5,7 @@ from app.bench.certification import measure
 from app.bench.jobs import JOBS
 from app.commands.bench import results
 from app.commands.common import check_outputs, names_from, print_json, repetitions
-from app.scene import scene_names
+from app.scene.model import scene_names
 
 
 def register(kinds) -> None:

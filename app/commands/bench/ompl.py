@@ -7,7 +7,7 @@ from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure,
 from app.commands.bench import results
 from app.commands.common import check_outputs, comma_list, positive_float, print_json, processes, repetitions
 from app.errors import UserError
-from app.scene import scene_names
+from app.scene.model import scene_names
 
 
 def method_names(text: str) -> list[str]:

@@ -28,9 +28,9 @@ import time
 
 import numpy as np
 
-from app.budget import BudgetSpent, Stop
-from app.cspace import ConfigurationSpace
-from app.scene import Scene
+from app.checking.budget import BudgetSpent, Stop
+from app.scene.cspace import ConfigurationSpace
+from app.scene.model import Scene
 
 # pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
 
@@ -347,9 +347,9 @@ class CollisionOracle:
 
     @functools.cached_property
     def robot_kinematics(self):
-        """Numpy forward kinematics of the robot's collision geometries, in `_robot_shapes` order (app.kinematics),
-        or None when a joint is not revolute, prismatic or weld."""
-        from app.kinematics import TreeKinematics
+        """Numpy forward kinematics of the robot's collision geometries, in `_robot_shapes` order
+        (app.checking.kinematics), or None when a joint is not revolute, prismatic or weld."""
+        from app.checking.kinematics import TreeKinematics
 
         return TreeKinematics.of(self.plant, [(body, X_BG) for body, X_BG, _ in self._robot_shapes])
 

@@ -8,12 +8,12 @@
 Goals are the scene's tool poses solved to collision-free configurations by inverse kinematics (as one chain, so
 consecutive seam points get neighbouring arm postures). Each leg is one query: the planner takes the straight
 joint-space move where it is proved free (a seam step of a few centimetres needs no roadmap); where that move is
-blocked, the tool's straight line between the two poses (app.ik.tool_line: the torch pushed on through the hatch,
-the forearm following) if it is proved free; and plans the others. A leg back to where an earlier leg started
+blocked, the tool's straight line between the two poses (app.planning.ik.tool_line: the torch pushed on through the
+hatch, the forearm following) if it is proved free; and plans the others. A leg back to where an earlier leg started
 (out of the hatch) takes that leg's path reversed: it is proved already.
 The robot stops at home and at each pose where the job needs it at rest (a weld point, a grasp, the torch lined up
 before it goes in) and nowhere else: legs joined at a pose marked `stop: false` in the scene (the torch in a hatch
-on its way through) are timed as one curve, blended and certified there as at any other corner (app.timing).
+on its way through) are timed as one curve, blended and certified there as at any other corner (app.motion.timing).
 """
 
 import time
@@ -21,13 +21,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from app.budget import Budget
+from app.checking.budget import Budget
 from app.errors import NoPath, UserError
-from app.ik import solve_poses, tool_line
-from app.path import dedupe
-from app.planner import PlanSettings, plan
-from app.timing import time_path
-from app.trajectory import Trajectory, TrajectoryFile
+from app.motion.path import dedupe
+from app.motion.timing import time_path
+from app.motion.trajectory import Trajectory, TrajectoryFile
+from app.planning.ik import solve_poses, tool_line
+from app.planning.planner import PlanSettings, plan
 
 HOME = "home"
 # A leg of a job is short: smaller roadmap rounds and fewer shortcut rounds than a scene's default query.

@@ -19,14 +19,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.budget import Budget, BudgetSpent, Stop
+from app.checking.budget import Budget, BudgetSpent, Stop
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
-from app.path import FINE, Shortcuts, path_length, shortcut, unwind, verify
-from app.timing import time_path
-from app.trajectory import Trajectory, TrajectoryFile
+from app.motion.path import FINE, Shortcuts, path_length, shortcut, unwind, verify
+from app.motion.timing import time_path
+from app.motion.trajectory import Trajectory, TrajectoryFile
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
-    from app.roadmap import Roadmap
+    from app.planning.roadmap import Roadmap
 
 PHASES = ("sampling", "roadmap", "search", "smoothing", "certify", "timing")
 # What a query may spend unless told otherwise: every query ends, and says so when this is why.
@@ -69,9 +69,9 @@ class PlanSettings:
     smooth_rounds: random shortcut rounds; dt: trajectory sample period (s); sampler_params: extra keyword
     arguments of the sampler (e.g. alpha_angle); skip_connected: Kavraki's rule for a full roadmap;
     full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query); workspace: the
-    share of a query's narrow-passage samples placed in narrow gaps of the workspace (app.workspace; 0: the sampler
-    alone; a full roadmap draws none); timing: time the path with Toppra (False: the result's trajectory is None, for
-    a caller that times several paths as one motion, as a job does through its pass-through poses)."""
+    share of a query's narrow-passage samples placed in narrow gaps of the workspace (app.samplers.workspace; 0: the
+    sampler alone; a full roadmap draws none); timing: time the path with Toppra (False: the result's trajectory is
+    None, for a caller that times several paths as one motion, as a job does through its pass-through poses)."""
 
     sampler: str = "lfbs"
     narrow: int = 200
@@ -150,7 +150,7 @@ class PlanResult:
 
     def narrow_samples(self) -> tuple[np.ndarray, np.ndarray]:
         """The narrow-passage samples in the roadmap (M, dim), and which of them the roadmap path used (M,)."""
-        from app.roadmap import NARROW, WORKSPACE
+        from app.planning.roadmap import NARROW, WORKSPACE
 
         if self.graph is None:
             return np.empty((0, len(self.start))), np.zeros(0, bool)
@@ -216,7 +216,7 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
 
 def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None, via=None, cancel=None) -> PlanResult:
     """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()); `via`: waypoints
-    of the easy route to try instead of the straight motion (an arm's tool line, app.ik.tool_line).
+    of the easy route to try instead of the straight motion (an arm's tool line, app.planning.ik.tool_line).
 
     Returns a PlanResult; raises InvalidEndpoint for a bad start or goal, NoPath (with `.details`) when the
     samples or the budget run out before start and goal connect (code PREEMPTED when `cancel`, a threading.Event,
@@ -248,10 +248,10 @@ class Query:
     maze's window in 3 of 6 seeds instead of 6 of 6.
 
     Three quarters of every narrow round (`workspace`) are placed rather than walked to: configurations with a piece
-    of the robot in a narrow gap of the workspace (app.workspace), found by point queries against the obstacles. The
-    walkers find a passage wherever obstacles leave one, but in a passage narrow in many dimensions they end on the
-    obstacles' faces: joint3d's hole got 0.2-0.7 % of the Lévy bridge samples, and the sampler alone needed about
-    400k checks for seed 0. Placements go straight to the gap, for a tenth of a walk's checks; the walkers still
+    of the robot in a narrow gap of the workspace (app.samplers.workspace), found by point queries against the
+    obstacles. The walkers find a passage wherever obstacles leave one, but in a passage narrow in many dimensions they
+    end on the obstacles' faces: joint3d's hole got 0.2-0.7 % of the Lévy bridge samples, and the sampler alone needed
+    about 400k checks for seed 0. Placements go straight to the gap, for a tenth of a walk's checks; the walkers still
     cover passages with no workspace gap behind them. Median checks (`bench plan --samplers lfbs --seeds 20 --budget
     30 --workspace S`, all 10 scenes, 20/20 each unless said) at share 0.5 / 0.75 / 0.9 / 1: welding (a 0.26 m
     access hole) 36k / 20k / 15k / 13k, window 40k / 26k / 16k / 13k, joint 38k / 27k / 26k / 27k, joint3d 19k / 10k
@@ -268,7 +268,7 @@ class Query:
 
     def __init__(self, oracle, settings: PlanSettings, *, start=None, goal=None, via=None, cancel=None):
         # The roadmap and samplers pull in scipy and networkx: imported when a query is made, not at CLI start-up.
-        from app.roadmap import GOAL, START, Roadmap
+        from app.planning.roadmap import GOAL, START, Roadmap
         from app.samplers import make_sampler
 
         self.oracle, self.settings, self._cancel = oracle, settings, cancel
@@ -381,7 +381,7 @@ class Query:
     def _workspace_share(self, narrow: int) -> int:
         """How many of a round's `narrow` samples are placements in workspace gaps. The first time, the gaps are
         searched for (polling the budget) until one is found; a scene with none leaves them all to the sampler."""
-        from app.workspace import WorkspaceGaps, WorkspaceSampler
+        from app.samplers.workspace import WorkspaceGaps, WorkspaceSampler
 
         if narrow <= 0 or not self._workspace_on:
             return 0
@@ -400,7 +400,7 @@ class Query:
     def grow(self, narrow: int, uniform: int) -> np.ndarray:
         """One round: draw the samples, add them as nodes (the first round also connects start and goal) and
         connect the new nodes to their neighbours. Returns the new nodes."""
-        from app.roadmap import NARROW, UNIFORM, WORKSPACE
+        from app.planning.roadmap import NARROW, UNIFORM, WORKSPACE
 
         self.rounds += 1
         placed = self._timed("sampling", self._workspace_share, narrow)
@@ -467,9 +467,9 @@ class Query:
 
     def certify(self, path: np.ndarray, edges=None) -> tuple[bool, dict]:
         """Whether every straight edge of `path` (or those of `edges`, indices into it) is free in the continuous
-        sense (app.certify: signed distances at the ends exceed how far any point of the robot can travel along the
-        edge, bisected where they do not); stats["failed"] lists the edges that could not be proved."""
-        from app.certify import Certifier, polyline
+        sense (app.checking.certify: signed distances at the ends exceed how far any point of the robot can travel
+        along the edge, bisected where they do not); stats["failed"] lists the edges that could not be proved."""
+        from app.checking.certify import Certifier, polyline
 
         if self._certifier is None:
             self._certifier = Certifier(self.oracle)
@@ -507,11 +507,11 @@ class Query:
         """(roadmap path, smoothed path, smoothing stats) once start and goal connect, else None.
 
         Optimistic first: the roadmap path is shortened with shortcuts checked at the planning resolution, and the
-        result proved by the certificate (continuous, app.certify) -- a discrete re-check at a finer resolution would
-        only repeat part of its work. If the certificate refuses it, something grazes an obstacle between checked
-        points, as in a narrow passage: the query turns careful (fine-only). From then on a roadmap path is
-        fine-checked and then proved before any smoothing is spent on it; an edge the certificate cannot prove is
-        treated as colliding, leaves the roadmap, and the search goes on (more rounds if need be). Proved edges are
+        result proved by the certificate (continuous, app.checking.certify) -- a discrete re-check at a finer
+        resolution would only repeat part of its work. If the certificate refuses it, something grazes an obstacle
+        between checked points, as in a narrow passage: the query turns careful (fine-only). From then on a roadmap
+        path is fine-checked and then proved before any smoothing is spent on it; an edge the certificate cannot prove
+        is treated as colliding, leaves the roadmap, and the search goes on (more rounds if need be). Proved edges are
         remembered, so the next candidate pays only for its new ones. The proved path is then shortened with
         shortcuts checked at the fine resolution, and if that cannot be proved either, the roadmap path is the answer.
         Smoothing candidates before proving them cost 1-2 s per refused candidate at the window scene's hatch (then
@@ -556,8 +556,8 @@ class Query:
         return None
 
     def time(self, path: np.ndarray, proved: bool = False) -> Trajectory:
-        """Toppra along the path with its corners blended where the blends can be proved free (app.timing); proved:
-        the path's edges are certified already (by this query's certifier), so only the blends need to be."""
+        """Toppra along the path with its corners blended where the blends can be proved free (app.motion.timing);
+        proved: the path's edges are certified already (by this query's certifier), so only the blends need to be."""
         try:
             return self._timed(
                 "timing", time_path, self.oracle, path, self.settings.dt, certifier=self._certifier, edges_proved=proved
@@ -650,7 +650,7 @@ class Query:
 
     def _result(self, nodes: list[int], path: np.ndarray, stats: dict, raw: np.ndarray | None = None) -> PlanResult:
         """raw: the path before smoothing (default: the roadmap's through `nodes`)."""
-        from app.roadmap import NARROW, WORKSPACE
+        from app.planning.roadmap import NARROW, WORKSPACE
 
         roadmap, s = self.roadmap, self.settings
         raw = roadmap.Q[nodes] if raw is None else raw

@@ -3,17 +3,17 @@
 A path is an (n, dim) array of waypoints; its edges are straight in the scene's metric (the short way round on
 continuous angles), exactly as `oracle.space.interpolate` walks them. Shortcuts are checked at one resolution (batched,
 coarse-to-fine, so colliding ones cost a few checks); the planner smooths at the planning resolution and certifies the
-result (app.certify). A shortcut the certificate refuses is banned and smoothing replayed with a `Shortcuts` memo:
-every check it made before is remembered, so the replay pays only for what differs (checking every accepted shortcut
-at the fine resolution instead doubled the cost of smoothing on the maze). `verify` is the discrete fine check, for
-paths no certificate vouches for (OMPL's, in `bench ompl`).
+result (app.checking.certify). A shortcut the certificate refuses is banned and smoothing replayed with a `Shortcuts`
+memo: every check it made before is remembered, so the replay pays only for what differs (checking every accepted
+shortcut at the fine resolution instead doubled the cost of smoothing on the maze). `verify` is the discrete fine
+check, for paths no certificate vouches for (OMPL's, in `bench ompl`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from app.budget import BudgetSpent
+from app.checking.budget import BudgetSpent
 
 # The fine check runs at this fraction of the planning resolution.
 FINE = 0.25

@@ -10,7 +10,7 @@ Inputs (the keys of a custom scene file, see `CustomSpec`; `plan` takes the same
   A URDF/SDF robot whose root is not attached to the world is welded to it at the origin, unless `floating` is set:
   then (as for a mesh) it is carried by prismatic x, y, z and revolute yaw, pitch, roll joints (R = Rz Ry Rx, as
   robots/l_body.urdf), so its first six coordinates are x, y, z, yaw, pitch, roll.
-- env: mesh files (decomposed into validated convex pieces, see app.meshes) or .sdf/.urdf files; `env_pose`
+- env: mesh files (decomposed into validated convex pieces, see app.scene.meshes) or .sdf/.urdf files; `env_pose`
   x,y,z (m), roll,pitch,yaw (degrees) places them (once for all, or once per env).
 - collisions / srdf: self-collision counts unless `collisions: environment`; an SRDF's <disable_collisions> pairs
   (adjacent links, pairs that cannot touch) are left out. Mesh links are decomposed like environment meshes, so
@@ -30,10 +30,10 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from app import meshes
 from app.errors import UserError
 from app.io import write_atomically
-from app.scene import PACKAGES, Scene, robot_diagram_builder
+from app.scene import meshes
+from app.scene.model import PACKAGES, Scene, robot_diagram_builder
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
@@ -43,7 +43,7 @@ ROBOT_SUFFIXES = {".urdf", ".sdf"}
 # moves up to a step, so the planner already misses overlaps about half a step deep; pieces half a step proud are
 # of that order, finer than it resolves (a gap narrows by at most one step). Tied to the mesh's own size instead
 # (0.2 % of its diagonal), a 3,072-triangle torus rejected CoACD's 15 pieces and fell back to ~1,500 face plates.
-# Robot meshes keep app.meshes' default.
+# Robot meshes keep app.scene.meshes' default.
 ENV_TOLERANCE_PER_STEP = 0.5
 CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
 
@@ -293,7 +293,7 @@ def convert_model_meshes(
 ) -> Path:
     """`path` itself when nothing needs changing; else a rewritten copy in the cache where
     - with `decompose_options` (environment models and robots' mesh links): each <collision> holding a mesh becomes
-      one <collision> per validated convex piece of it (app.meshes.decompose), since Drake would use the mesh's
+      one <collision> per validated convex piece of it (app.scene.meshes.decompose), since Drake would use the mesh's
       convex hull; the pieces stay on the link's body, so they are never checked against each other;
     - mesh references Drake cannot read (.stl, .dae, ...) point to converted .obj files (without decompose_options
       that means their convex hull, conservative);
@@ -809,7 +809,7 @@ def hull_disagreement(
     that collide as hulls but not as pieces, what the decomposition saves self-collision checking from."""
     from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
 
-    from app.scene import exclude_body_pairs, read_srdf
+    from app.scene.model import exclude_body_pairs, read_srdf
 
     pairs = read_srdf(inputs.srdf_path) if inputs.srdf_path else []
     exact = scene_dir / "robot.dmd.yaml"

@@ -15,7 +15,7 @@ Edges are checked by `oracle.edges_free`, coarse-to-fine and batched, at the sce
   `shortest_path` checks only the edges of the current shortest candidate path, drops those that collide and
   searches again. Most edges of a roadmap are never on a candidate path (`bench plan --roadmap both` and
   `bench jobs` measure the query mode, lazy and stopping when connected, against the full roadmap).
-Shortcut smoothing (app/path.py) then recovers the path quality a denser graph would have given.
+Shortcut smoothing (app/motion/path.py) then recovers the path quality a denser graph would have given.
 """
 
 from __future__ import annotations

@@ -30,10 +30,10 @@ and renamed into place, so concurrent runs see a whole entry or none.
 
 Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (measured: 250 pieces
 0.4 s, 500 1.8 s, 1000 4.9 s, 2000 22 s), so merging faces into few pieces matters as much as the decomposition.
-(Check cost need not grow so: app.custom_scene anchors environment pieces to the world, see `env_urdf`.)
+(Check cost need not grow so: app.scene.custom anchors environment pieces to the world, see `env_urdf`.)
 
 The tolerance is the caller's choice; `default_tolerance` (0.2 % of the mesh's size) knows nothing of the robot, so
-app.custom_scene derives environment tolerances from the edge-check step instead.
+app.scene.custom derives environment tolerances from the edge-check step instead.
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ the joint velocity would jump there. Stopping at every corner (rest to rest per 
 robot stop at each waypoint. Here each corner is rounded instead by a parabolic blend -- a quadratic Bezier curve
 from a point `radius` before the corner, through the corner as control point, to the point `radius` after it -- so
 the path is C1 and Toppra slows down just as much as its curvature needs. A blend leaves the checked polyline, so
-the whole curve is certified (app.certify); a blend that cannot be certified is halved, and after TIGHTEN halvings
-the corner becomes a stop (the path is cut there into legs, each timed from rest to rest).
+the whole curve is certified (app.checking.certify); a blend that cannot be certified is halved, and after TIGHTEN
+halvings the corner becomes a stop (the path is cut there into legs, each timed from rest to rest).
 
 The path parameter s is arc length in the space's weighted metric along the polyline, and a blend of radius r
 spans s in [corner - r, corner + r], so straight parts keep their s whatever the blends: a straight piece that was
@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
-from app.certify import Certifier
-from app.path import dedupe
-from app.trajectory import Trajectory
+from app.checking.certify import Certifier
+from app.motion.path import dedupe
+from app.motion.trajectory import Trajectory
 
 # A blend's first radius: this fraction of the shorter of its two segments (at most 1/2, so blends never overlap).
 BLEND = 0.5
@@ -333,9 +333,9 @@ def parameterize_smooth(
 
     The trajectory is `certified` when the whole executed curve is (blends and straight pieces); if a straight
     piece of the polyline itself cannot be certified, the curve is still timed and returned, uncertified.
-    floor: the certificate's bisection floor (default: app.certify's); tighten: halvings of a failing blend before
-    its corner becomes a stop. stats, if given, receives: stops (corners the robot stops at), distance_queries and
-    seconds (certification), rounds (of blend tightening). certifier: one to reuse (its distances are cached).
+    floor: the certificate's bisection floor (default: app.checking.certify's); tighten: halvings of a failing blend
+    before its corner becomes a stop. stats, if given, receives: stops (corners the robot stops at), distance_queries
+    and seconds (certification), rounds (of blend tightening). certifier: one to reuse (its distances are cached).
     edges_proved: every straight edge of the waypoints' polyline is certified already (the planner's certificate):
     then only the blends are.
     """

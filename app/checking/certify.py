@@ -47,7 +47,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from app.kinematics import TreeKinematics
+from app.checking.kinematics import TreeKinematics
 
 # A piece is bisected until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
 FLOOR_DIVISOR = 256

@@ -17,7 +17,7 @@ from app.errors import UserError
 # pydrake is imported inside the functions that use it, so that importing the package (as the command line does)
 # does not load Drake.
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCENES_DIR = ROOT / "scenes"
 MIN_RESOLUTION = 1e-5  # the finest edge-check step, as a fraction of the weighted diagonal of the bounds
 PACKAGES = {"npp_robots": ROOT / "robots", "npp_scenes": SCENES_DIR}
