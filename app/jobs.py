@@ -119,7 +119,8 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     seed, sampler = settings.seed, settings.sampler
 
     names = route(oracle, job)
-    clock, checks0 = time.perf_counter(), oracle.checks
+    clock = time.perf_counter()
+    checker = oracle.context()  # the job's own checks (straight moves, timing); each leg's plan counts its own
     rng = np.random.default_rng(seed)
     home = oracle.space.wrap(oracle.scene.start)
     poses = list(dict.fromkeys(n for n in names if n != HOME))
@@ -130,7 +131,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     stops = [k for k, name in enumerate(names) if k in (0, last) or name not in oracle.scene.pass_through]
     # Legs that pass through a pose are timed together (_through): timing each alone would be thrown away.
     joined = {i for a, b in zip(stops[:-1], stops[1:]) if b - a > 1 for i in range(a, b)}
-    legs = []
+    legs, planned_checks = [], 0
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
         t = time.perf_counter()
@@ -138,7 +139,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         if back is not None:
             # Back out the way the job came in (out of the hatch after the part): that path is proved already.
             path = back.path[::-1]
-            trajectory = None if i in joined else time_path(oracle, path, settings.dt, edges_proved=True)
+            trajectory = None if i in joined else time_path(checker, path, settings.dt, edges_proved=True)
             duration = trajectory.duration if trajectory else 0.0
             none, used = np.empty((0, oracle.space.dim)), np.zeros(0, bool)
             legs.append(Leg(a, b, "back", 0, 0, 0, time.perf_counter() - t, duration, path, trajectory, none, used))
@@ -146,10 +147,19 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         # The planner tries the easy route first: the straight joint move (a seam step of a few centimetres needs
         # no roadmap), or where that is blocked the tool's straight line (the forearm following the torch into a
         # hatch: the joint move between two such postures swings the forearm into the frame).
-        c = oracle.checks
-        via = None if oracle.edges_free(qa, qb, ends_free=True)[0] else tool_line(oracle, qa, qb, rng)
+        c = checker.checks
+        via = None if checker.edges_free(qa, qb, ends_free=True)[0] else tool_line(oracle, qa, qb, rng)
         leg_settings = replace(settings, seed=seed * 1000 + i, timing=i not in joined)
-        result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)
+        try:
+            result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)
+        except NoPath as failure:  # the job's checks up to here, for a caller that counts what a failure cost
+            details = getattr(failure, "details", {})
+            failure.details = {
+                **details,
+                "job_checks": checker.checks + planned_checks + details.get("collision_checks", 0),
+            }
+            raise
+        planned_checks += result.collision_checks
         path, trajectory = result.path, result.trajectory
         method = sampler
         if result.smoothing.get("straight"):
@@ -164,7 +174,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
                 method,
                 int(narrow_count),
                 int(used),
-                oracle.checks - c,
+                checker.checks - c + result.collision_checks,
                 time.perf_counter() - t,
                 trajectory.duration if trajectory else 0.0,
                 path,
@@ -174,7 +184,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
             )
         )
 
-    motions = [_through(oracle, legs[a:b], settings.dt) for a, b in zip(stops[:-1], stops[1:])]
+    motions = [_through(checker, legs[a:b], settings.dt) for a, b in zip(stops[:-1], stops[1:])]
     planning = time.perf_counter() - clock - ik_seconds
     return RunResult(
         oracle.scene.name,
@@ -183,7 +193,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         legs,
         join(motions, oracle),
         {"ik": ik_seconds, "planning": planning, "total": time.perf_counter() - clock},
-        oracle.checks - checks0,
+        checker.checks + planned_checks,
         configurations,
     )
 

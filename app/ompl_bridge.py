@@ -16,9 +16,9 @@
   proof are there), applied by `OmplSpace.apply_motion_checks`; `motion_spacing` measures the spacing OMPL's motion
   validator really uses, on random edges.
 - `OmplProblem(oracle, planner=...)` sets up OMPL's SimpleSetup with the oracle as validity checker (every check
-  counted in oracle.checks, like our own planner's), the scene's start and goal, and one of `PLANNERS`. Every
-  planner gets a path-length objective whose cost threshold is infinite, so the optimising ones (PRM, BIT*) stop
-  at their first solution, as RRTConnect and KPIECE1 do anyway.
+  counted in the problem's own context, `problem.checker.checks`, like our own planner's), the scene's start and goal,
+  and one of `PLANNERS`. Every planner gets a path-length objective whose cost threshold is infinite, so the optimising
+  ones (PRM, BIT*) stop at their first solution, as RRTConnect and KPIECE1 do anyway.
 - OMPL's Gaussian and bridge-test samplers are not bound in the Python wheel; `GaussianSampler` and
   `BridgeTestSampler` re-implement OMPL 2.0.1's algorithms as `ValidStateSampler` subclasses. `ProjectSampler`
   offers any of our samplers (lfbs, rbbs, ...) to OMPL's PRM: `problem.use_sampler("lfbs", step=10)`.
@@ -247,6 +247,7 @@ class OmplProblem:
             ou.RNG.setSeed(int(seed) + 1)  # (seed 0 would mean "pick one")
             _seeded = True
         self.oracle, self.planner_name = oracle, planner
+        self.checker = oracle.context()  # this problem's collision checks, counted apart from other queries'
         self.rng = np.random.default_rng(seed)
         self.map = OmplSpace(oracle.space, wrap_angles=planner not in REAL_VECTOR_ONLY)
         self.space = self.map.space
@@ -271,7 +272,7 @@ class OmplProblem:
         return self.map.q(state)
 
     def _valid(self, state) -> bool:
-        return self.oracle.is_free(self.map.q(state))
+        return self.checker.is_free(self.map.q(state))
 
     def use_sampler(self, name: str, **params) -> None:
         """Make OMPL's PRM draw valid states from `name`: ompl-uniform, ompl-obstacle, ompl-gaussian, ompl-bridge,
@@ -311,7 +312,7 @@ class OmplProblem:
 
     def solution_for_oracle(self) -> np.ndarray:
         """The solution as waypoints whose short-way edges (our oracle's) are OMPL's own motions: check this one
-        with oracle.edges_free, measure it with app.motion.path.path_length."""
+        with a checker's edges_free, measure it with app.motion.path.path_length."""
         return self.map.for_oracle(self.solution())
 
 
@@ -393,7 +394,7 @@ class ProjectSampler(_Sampler):
     def __init__(self, si, problem: OmplProblem, name: str, params: dict):
         super().__init__(si)
         self.problem = problem
-        self.sampler = make_sampler(name, problem.oracle, **params)
+        self.sampler = make_sampler(name, problem.checker, **params)
         self.buffer = []
 
     def sample(self, state):

@@ -4,9 +4,9 @@ MotionPlanning panel in RViz.
 
 Threads. Drake's Meshcat is driven from the thread that made it: `Panel.step` (called by `serve` about POLL_HZ times
 a second) reads the sliders and button clicks, redraws and plays the motion. Planning is `app.plan` -- the planner of
-`plan`, with its settings -- run on one worker thread, so the page stays live while it runs. A collision oracle is
-used by one thread only (its check counter and budget are per query), so the panel has two over the same scene: the
-worker's, for planning and IK, and the main thread's, which colours the start and goal robots red in collision.
+`plan`, with its settings -- run on one worker thread, so the page stays live while it runs. Both threads share the
+scene's one collision oracle (it serializes their Drake queries; each query counts and bounds its own checks): the
+worker plans and solves IK on it, the main thread colours the start and goal robots red in collision.
 
 A Plan press takes the sliders' start and goal and the sampler shown at that moment. A press while a query runs
 cancels it (`plan(..., cancel=)`: the query's stop condition polls the event before every collision batch) and the
@@ -53,13 +53,11 @@ def is_arm(scene) -> bool:
 
 
 class Panel:
-    """The panel's state and its Meshcat. `plan_oracle` is used only on the worker thread, `preview_oracle` only on
-    the caller's; both must be oracles of the same scene (two loads of it)."""
+    """The panel's state and its Meshcat, over one scene's shared collision oracle."""
 
     def __init__(
         self,
-        plan_oracle,
-        preview_oracle,
+        oracle,
         settings: PlanSettings,
         *,
         port: int | None = None,
@@ -67,8 +65,9 @@ class Panel:
         state_path=None,
     ):
         _collect_meshcats()
-        self.oracle, self.preview, self.settings = plan_oracle, preview_oracle, settings
-        self.scene = preview_oracle.scene
+        self.oracle, self.settings = oracle, settings
+        self.preview = oracle.context()  # the main thread's checks of the sliders' start and goal
+        self.scene = oracle.scene
         self.viewer = Viewer(self.scene, meshcat=start_meshcat(port), frame=frame)
         self.meshcat = self.viewer.meshcat
         self.state_path = state_path
@@ -105,10 +104,10 @@ class Panel:
         arm's reach of its base."""
         from pydrake.math import RollPitchYaw
 
-        plant = self.preview.plant
+        plant = self.oracle.plant
         context = plant.CreateDefaultContext()
         plant.SetPositions(context, self.scene.goal)
-        pose = robot_frame(self.preview).CalcPoseInWorld(context)
+        pose = robot_frame(self.oracle).CalcPoseInWorld(context)
         base = plant.get_body(plant.GetBodyIndices(self.scene.robot_instances[0])[0])
         reach = np.linalg.norm(pose.translation() - plant.EvalBodyPoseInWorld(context, base).translation())
         values = [*pose.translation(), *np.degrees(RollPitchYaw(pose.rotation()).vector())]

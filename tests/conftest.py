@@ -60,6 +60,12 @@ def oracles():
     return get
 
 
+@pytest.fixture(scope="session")
+def checkers(oracles):
+    """`checkers(name)`: a fresh QueryContext (its own counters, no budget) on the session's oracle of the scene."""
+    return lambda name: oracles(name).context()
+
+
 # ---- the command line ---------------------------------------------------------------------------------------------
 # `cli` runs a command in this process (app.cli.main), `run_app` as `python -m app` in a child process (for what
 # only the entry point does). Both answer a subprocess.CompletedProcess, which `one_line_error` checks.

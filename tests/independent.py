@@ -11,10 +11,11 @@ _contexts = {}
 def raw_free(oracle, q) -> bool:
     """Free under the scene's policy, asked of SceneGraph directly on a context of our own (not the oracle's paths):
     signed distances on the unfiltered geometry, keeping the pairs the scene counts."""
-    plant = oracle.plant
-    if id(oracle) not in _contexts:
-        _contexts[id(oracle)] = (oracle.model.CreateDefaultContext(),)
-    root = _contexts[id(oracle)][0]
+    plant, model = oracle.plant, oracle.model
+    # Keyed by the model, held with its context so that its id is never reused (a query's contexts come and go).
+    if id(model) not in _contexts:
+        _contexts[id(model)] = (model.CreateDefaultContext(), model)
+    root = _contexts[id(model)][0]
     context = plant.GetMyContextFromRoot(root)
     plant.SetPositions(context, q)
     query = plant.get_geometry_query_input_port().Eval(context)

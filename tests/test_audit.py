@@ -13,7 +13,7 @@ def test_a_trajectory_through_an_obstacle_is_counted(oracles):
     oracle = oracles("bar")
     scene = oracle.scene
     start, goal = np.asarray(scene.start, float), np.asarray(scene.goal, float)
-    assert not oracle.edge_free(start, goal)
+    assert not oracle.context().edge_free(start, goal)
     through = parameterize(oracle.plant, np.array([start, goal]), scene.velocity_limits, scene.acceleration_limits)
     recheck = Recheck("bar")
     found = audit_trajectory(recheck, oracle.space, through, start, goal, scene)

@@ -28,8 +28,8 @@ def _corner_pass(oracle, clearance: float) -> np.ndarray:
     return np.array([[*(nearest - (half + shift) * along), 1.5, 0.0], [*(nearest + (half - shift) * along), 1.5, 0.0]])
 
 
-def test_a_graze_between_checked_points_is_rejected(oracles):
-    oracle = oracles("maze")
+def test_a_graze_between_checked_points_is_rejected(checkers):
+    oracle = checkers("maze")
     graze = _corner_pass(oracle, -3e-5)  # 30 um into the corner, between the checked points
     assert oracle.edge_free(*graze) and oracle.edge_free(*graze, oracle.space.resolution / 4)
     assert not all(raw_free(oracle, q) for q in fine_points(oracle, graze, oracle.space.resolution / 64))
@@ -40,8 +40,8 @@ def test_a_graze_between_checked_points_is_rejected(oracles):
     assert ok and stats["pieces"] > 1
 
 
-def test_distance_queries_are_counted_apart_from_checks(oracles):
-    oracle = oracles("maze")
+def test_distance_queries_are_counted_apart_from_checks(checkers):
+    oracle = checkers("maze")
     checks, queries = oracle.checks, oracle.distance_queries
     ok, stats = certify_path(oracle, _corner_pass(oracle, 1e-2))
     assert ok and oracle.checks == checks
@@ -72,8 +72,8 @@ def _edges_near_obstacles(oracle, rng, n):
 
 
 @pytest.mark.parametrize("name", ["bar-3link", "maze", "tunnel", "window", "joint3d"])
-def test_what_is_certified_is_free_at_a_64th_of_the_resolution(oracles, name):
-    oracle = oracles(name)
+def test_what_is_certified_is_free_at_a_64th_of_the_resolution(checkers, name):
+    oracle = checkers(name)
     rng = np.random.default_rng(7)
     certifier = Certifier(oracle)
     certified = 0
@@ -86,8 +86,8 @@ def test_what_is_certified_is_free_at_a_64th_of_the_resolution(oracles, name):
 
 
 @pytest.mark.parametrize("key", list(PINNED))
-def test_pinned_plans_are_certified(oracles, key):
-    oracle = oracles(key.split()[0])
+def test_pinned_plans_are_certified(checkers, key):
+    oracle = checkers(key.split()[0])
     ok, stats = certify_path(oracle, np.array(PINNED[key]["path"]))
     assert ok and stats["failed"] == []
 
@@ -117,8 +117,8 @@ def _shape_points(inspector, geometry, rng) -> np.ndarray:
 
 
 @pytest.mark.parametrize("name", ["bar", "maze", "window", "joint3d"])
-def test_the_motion_bound_holds_for_the_kinematics(oracles, name):
-    oracle = oracles(name)
+def test_the_motion_bound_holds_for_the_kinematics(checkers, name):
+    oracle = checkers(name)
     plant, bound = oracle.plant, motion_bound(oracle)
     inspector = oracle.model.scene_graph().model_inspector()
     context = plant.CreateDefaultContext()
@@ -147,11 +147,11 @@ def test_the_motion_bound_holds_for_the_kinematics(oracles, name):
     assert worst > 0.2  # and it is not absurdly loose
 
 
-def test_the_distances_used_are_never_larger_than_the_true_ones(oracles):
+def test_the_distances_used_are_never_larger_than_the_true_ones(checkers):
     """Drake's GJK distance of the maze's hull (a cylinder) to a pillar's corner comes out too large by up to a
     few tenths of a millimetre; the certificate's own lower bound never does. True distance here: the hull's
     centre is `gap` + 0.35 from the corner's vertical edge, in the corner's outer quadrant."""
-    oracle = oracles("maze")
+    oracle = checkers("maze")
     certifier, rng = Certifier(oracle), np.random.default_rng(5)
     drake_over = 0.0
     for gap in np.repeat([1e-4, 1e-3, 1e-2], 60):
@@ -183,7 +183,7 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(tmp_pa
     for name in ("window.yaml", "window.dmd.yaml"):
         text = (SCENES_DIR / name).read_text()
         (tmp_path / name).write_text("\n".join(line for line in text.splitlines() if not line.startswith("srdf:")))
-    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml")))
+    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml"))).context()
     q = np.array([1.04377472, -0.92859484, 1.60936435, -2.24710633, -1.56433128, -0.52707146])
     inspector = oracle.model.scene_graph().model_inspector()
     ids = {inspector.GetName(g): g for g in inspector.GetAllGeometryIds()}
@@ -197,11 +197,11 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(tmp_pa
     assert sampled - 1e-3 < ours <= sampled
 
 
-def test_a_robot_pairs_distance_changes_no_more_than_its_relative_motion_bound(oracles):
+def test_a_robot_pairs_distance_changes_no_more_than_its_relative_motion_bound(checkers):
     """For two links of the window's UR3, every distance between a point of one and a point of the other changes
     by at most the pair's bound, which leaves out the joints both links ride on (so the pair's distance, their
     smallest, does too); and for links on one chain that bound is well below the sum of the two links' travels."""
-    oracle = oracles("window")
+    oracle = checkers("window")
     plant, bound = oracle.plant, motion_bound(oracle)
     inspector = oracle.model.scene_graph().model_inspector()
     context = plant.CreateDefaultContext()
@@ -235,9 +235,9 @@ def test_a_robot_pairs_distance_changes_no_more_than_its_relative_motion_bound(o
     assert tighter > 0
 
 
-def test_each_interval_is_judged_on_its_own(oracles):
+def test_each_interval_is_judged_on_its_own(checkers):
     """A path whose middle edge grazes an obstacle: that edge alone fails, the free edges around it are proved."""
-    oracle = oracles("maze")
+    oracle = checkers("maze")
     graze = _corner_pass(oracle, -3e-5)
     before, after = graze[0] - [0.2, 0.2, 0, 0], graze[1] + [0.2, 0.2, 0, 0]
     ok, stats = certify_path(oracle, np.array([before, *graze, after]))
@@ -248,9 +248,9 @@ def test_each_interval_is_judged_on_its_own(oracles):
 
 
 @pytest.mark.parametrize("name", ["maze", "window"])
-def test_distances_bounded_together_equal_those_bounded_one_at_a_time(oracles, name):
+def test_distances_bounded_together_equal_those_bounded_one_at_a_time(checkers, name):
     """The certifier bounds many configurations' distances in one batch: each comes out as if asked alone."""
-    oracle = oracles(name)
+    oracle = checkers(name)
     Q = oracle.space.uniform(np.random.default_rng(11), 12)
     limit = 20 * oracle.space.resolution
     together = Certifier(oracle)._distances(list(Q), [limit] * len(Q))
@@ -264,22 +264,22 @@ def test_distances_bounded_together_equal_those_bounded_one_at_a_time(oracles, n
             )
 
 
-def test_the_full_speed_bound_is_below_every_timing_of_the_same_path(oracles):
+def test_the_full_speed_bound_is_below_every_timing_of_the_same_path(checkers):
     """bench certify's lower bound on a path's duration within the velocity limits: rest-to-rest timing of that
     path obeys those limits, so it can never be faster than the bound."""
     from app.bench.certification import run_trial_spec
     from app.bench.store import TrialSpec
 
-    metrics = run_trial_spec(oracles("bar-3link"), TrialSpec("certify", "bar-3link", "default", 10.0, 0))
+    metrics = run_trial_spec(checkers("bar-3link").oracle, TrialSpec("certify", "bar-3link", "default", 10.0, 0))
     assert metrics["success"]
     assert 0 < metrics["duration_full_speed"] <= metrics["duration_rest_to_rest"]
 
 
-def test_a_pair_drake_leaves_out_is_bounded_along_drakes_direction(oracles):
+def test_a_pair_drake_leaves_out_is_bounded_along_drakes_direction(checkers):
     """The UR3's upper arm and torch side by side, 9.8 mm apart: the alternating projections alone bounded them at
     -2.4 mm, and every piece of motion there failed down to the floor. Drake's direction for the pair (asked for
     it alone, as its query at a small max_distance leaves the pair out) bounds it above the limit."""
-    oracle = oracles("welding")
+    oracle = checkers("welding")
     q = np.array([-2.3649, -0.1883, -1.7518, 2.8593, 1.1624, -0.9686])
     inspector = oracle.model.scene_graph().model_inspector()
     pair = {"ur3::torch_body", "ur3::upper_arm"}
@@ -294,11 +294,11 @@ def test_a_pair_drake_leaves_out_is_bounded_along_drakes_direction(oracles):
     assert not [d for ids, d in reported.items() if {inspector.GetName(g) for g in ids} == pair]
 
 
-def test_a_failing_edge_stops_where_it_comes_nearest_not_after_proving_what_lies_before(oracles):
+def test_a_failing_edge_stops_where_it_comes_nearest_not_after_proving_what_lies_before(checkers):
     """An edge of a welding path whose torch passes the near rail at 0.05 mm (certificate floor) about 58 % of the
     way along, the clearance small all the way there: it fails in fewer distance queries than half of what proving
     its first 55 % takes (leftmost-first bisection proved that part before it got to the failure: 641 queries)."""
-    oracle = oracles("welding")
+    oracle = checkers("welding")
     a = np.array([-1.3577, -1.3156, 2.1487, 0.2291, -0.3386, 2.2679])
     b = np.array([-0.9667, -1.1954, 2.3442, 2.0333, -0.0085, 3.0877])
     ok, failing = certify_path(oracle, np.array([a, b]))

@@ -62,7 +62,7 @@ def test_floating_mesh_robot_has_six_coordinates(channel_oracle):
 
 
 def test_the_decomposition_not_the_hull_is_used(channel_oracle):
-    o = channel_oracle
+    o = channel_oracle.context()
     assert o.is_free(np.array(IN_SLOT))  # inside the U's convex hull, yet free
     assert not o.is_free(np.array([0.0, 1.25, 1.5, 0, 0, 0]))  # in a wall
     assert not o.is_free(np.array([0.0, 0.0, 0.5, 0, 0, 0]))  # in the floor
@@ -139,7 +139,7 @@ def test_open_collada_channel_and_second_build_is_cached(files, tmp_path):
 
     first = build_scene(_spec(files, env="open_channel.dae"), cache_dir=tmp_path, progress=False)
     assert first.info["decompositions"][1]["method"] == "faces"
-    oracle = CollisionOracle(first)
+    oracle = CollisionOracle(first).context()
     assert oracle.is_free(np.array(IN_SLOT)) and not oracle.is_free(np.array([0.0, 1.0, 1.5, 0, 0, 0]))
     assert oracle.edge_free(np.array([-3.0, 0, 1.5, 0, 0, 0]), np.array([3.0, 0, 1.5, 0, 0, 0]))
     started = time.perf_counter()
@@ -159,7 +159,7 @@ def test_env_pose_moves_the_mesh(files, cache):
         start=[0, -3, 11.5, 0, 0, 0],
         goal=[0, 3, 11.5, 0, 0, 0],
     )
-    oracle = CollisionOracle(build_scene(spec, cache_dir=cache, progress=False))
+    oracle = CollisionOracle(build_scene(spec, cache_dir=cache, progress=False)).context()
     assert oracle.edge_free(oracle.scene.start, oracle.scene.goal)
     assert not oracle.is_free(np.array([1.25, 0, 11.5, 0, 0, 0]))
 
@@ -295,7 +295,7 @@ def test_urdf_arm_with_a_package_path(arm_package, tmp_path, urdf):
     )
     scene = build_scene(spec, cache_dir=tmp_path, progress=False)
     assert scene.dim == 1 and scene.lower.tolist() == [-3] and scene.upper.tolist() == [3]
-    oracle = CollisionOracle(scene)
+    oracle = CollisionOracle(scene).context()
     assert oracle.is_free(np.array([1.0])) and not oracle.is_free(np.array([0.0]))
     assert not oracle.edge_free(np.array([1.0]), np.array([-1.0]))
 
@@ -423,7 +423,7 @@ def test_floating_urdf_robot_among_sdf_obstacles(tmp_path, cache):
     )
     scene = build_scene(spec, cache_dir=cache, progress=False)
     assert scene.coordinate_names == ["x", "y", "z", "yaw", "pitch", "roll"]
-    oracle = CollisionOracle(scene)
+    oracle = CollisionOracle(scene).context()
     assert oracle.is_free(scene.start) and not oracle.is_free(np.array([1.0, 0, 0, 0, 0, 0]))
     # the block is turned 45 degrees: its corner reaches 0.35 along y from its centre
     assert not oracle.is_free(np.array([1.0, 0.36, 0, 0, 0, 0])) and oracle.is_free(np.array([1.0, 0.5, 0, 0, 0, 0]))
@@ -478,7 +478,7 @@ def test_sdf_environment_with_a_non_convex_mesh_is_decomposed(files, tmp_path, c
     (tmp_path / "channel.sdf").write_text(CHANNEL_SDF)
     scene = build_scene(_spec(files, env=str(tmp_path / "channel.sdf")), cache_dir=cache, progress=False)
     assert scene.info["decompositions"][1]["mesh"] == "channel.stl"
-    oracle = CollisionOracle(scene)
+    oracle = CollisionOracle(scene).context()
     assert oracle.is_free(np.array(IN_SLOT)) and not oracle.is_free(np.array([0.0, 1.25, 1.5, 0, 0, 0]))
 
 
@@ -499,7 +499,8 @@ def test_the_certificate_bounds_mesh_distances_closely(channel_oracle):
     near Drake's distances, not only below them: a loose bound makes free motions unprovable."""
     from app.checking.certify import Certifier
 
-    oracle, certifier = channel_oracle, Certifier(channel_oracle)
+    oracle = channel_oracle.context()
+    certifier = Certifier(oracle)
     rng = np.random.default_rng(0)
     # Along the slot, turned a little: the walls' pieces on both sides are near, none touching.
     Q = [np.array([x, 0.0, 1.5, *rng.uniform(-0.2, 0.2, 3)]) for x in np.linspace(-2.5, 2.5, 11)]

@@ -55,7 +55,7 @@ def test_the_oracle_and_the_certificate_answer_the_same_with_drakes_poses(oracle
         assert np.allclose(a, b, rtol=0, atol=1e-12)
 
     limit = 20 * oracle.space.resolution
-    ours, drakes = Certifier(oracle), Certifier(oracle)
+    ours, drakes = Certifier(oracle.context()), Certifier(oracle.context())
     assert ours._kinematics is not None
     drakes._kinematics = None
     ends = ours._distances(list(Q), [limit] * len(Q)), drakes._distances(list(Q), [limit] * len(Q))

@@ -40,9 +40,7 @@ BUDGET = 5.0  # seconds, at most, per OMPL solve
 
 @pytest.fixture
 def problem(oracles):
-    oracle = oracles(SCENE)
-    oracle.reset()
-    return OmplProblem(oracle, seed=0)
+    return OmplProblem(oracles(SCENE), seed=0)
 
 
 def _draw(sampler, problem, n, tries=400):
@@ -58,7 +56,7 @@ def _draw(sampler, problem, n, tries=400):
 
 
 def test_gaussian_sampler_returns_valid_states_next_to_invalid_ones(problem):
-    oracle = problem.oracle
+    oracle = problem.oracle.context()
     sampler = GaussianSampler(problem.si, None)
     drawn = _draw(sampler, problem, 10)
     assert len(drawn) == 10
@@ -72,7 +70,7 @@ def test_gaussian_sampler_returns_valid_states_next_to_invalid_ones(problem):
 
 
 def test_bridge_test_sampler_returns_valid_midpoints_of_invalid_endpoints(problem):
-    oracle = problem.oracle
+    oracle = problem.oracle.context()
     sampler = BridgeTestSampler(problem.si, None)
     drawn = _draw(sampler, problem, 5)
     assert len(drawn) >= 3, "the bridge test found too few samples on bar-3link"
@@ -99,7 +97,7 @@ def test_our_sampler_feeds_ompls_prm_only_free_states(problem, monkeypatch):
     problem.solve(1.0)
     assert problem._samplers and all(isinstance(s, ProjectSampler) for s in problem._samplers)
     assert handed, "OMPL's PRM drew no state from the lfbs adapter"
-    assert problem.oracle.are_free(np.array(handed)).all()
+    assert problem.oracle.context().are_free(np.array(handed)).all()
 
 
 @pytest.mark.parametrize("name", ["lfbs", "ompl-uniform"])
@@ -109,13 +107,12 @@ def test_each_sampler_drives_ompls_prm_on_bar_3link(oracles, name):
     takes from under a second to more than the budget, depending on OMPL's per-process draw, and OMPL checks motions
     only at its own resolution (`bench ompl` holds its paths to ours)."""
     oracle = oracles(SCENE)
-    oracle.reset()
     problem = OmplProblem(oracle, seed=0)
     problem.use_sampler(name, **({"step": default_step(oracle.scene)} if name == "lfbs" else {}))
     solved = problem.solve(BUDGET)
     expected = ProjectSampler if name == "lfbs" else problem.ob.UniformValidStateSampler
     assert problem._samplers and all(type(s) is expected for s in problem._samplers)
-    assert oracle.checks > 0
+    assert problem.checker.checks > 0
     assert solved or name != "lfbs", f"OMPL's PRM with lfbs did not solve {SCENE} in {BUDGET:g} s"
     if solved:
         path = problem.solution_for_oracle()
@@ -124,7 +121,7 @@ def test_each_sampler_drives_ompls_prm_on_bar_3link(oracles, name):
         assert all(raw_free(oracle, q) for q in problem.solution())
     if name == "lfbs":
         # OMPL interpolates continuous angles linearly; solution_for_oracle adds waypoints so our edges follow suit
-        assert oracle.edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all()
+        assert oracle.context().edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all()
 
 
 def test_straight_waypoints_make_short_way_edges_follow_ompls_linear_motion(oracles):
@@ -139,18 +136,17 @@ def test_straight_waypoints_make_short_way_edges_follow_ompls_linear_motion(orac
     assert np.allclose([oracle.space.difference(p, q) for p, q in zip(dense[:-1], dense[1:])], steps)
 
 
-def test_the_oracle_counts_ompls_validity_calls(problem):
-    oracle = problem.oracle
-    oracle.reset()
+def test_the_problem_counts_ompls_validity_calls(problem):
+    checker = problem.checker
     state = problem.space.allocState()
     sampler = problem.si.allocStateSampler()
     for _ in range(25):
         sampler.sampleUniform(state)
         problem.si.isValid(state)
-    assert oracle.checks == 25
+    assert checker.checks == 25
     problem.use_sampler("ompl-uniform")
     problem.solve(0.5)
-    assert oracle.checks > 25
+    assert checker.checks > 25
 
 
 def test_bench_ompl_ends_without_ompls_leak_report(tmp_path, run_app):
@@ -182,17 +178,20 @@ def test_bench_ompl_ends_without_ompls_leak_report(tmp_path, run_app):
     assert "leak" not in result.stderr
 
 
-def test_rrtconnect_through_the_oracle_counts_checks_and_returns_a_fine_checked_path(oracles):
+def test_rrtconnect_through_the_oracle_counts_checks_and_returns_a_fine_checked_path(oracles, monkeypatch):
     oracle = oracles(SCENE)
     spec = TrialSpec(
         "ompl", SCENE, "ompl:RRTConnect", default_step(oracle.scene), 0, {"budget": BUDGET, "protocol": PROTOCOL}
     )
-    before = oracle.checks
+    answered = []  # configurations Drake answered, counted at the oracle's two entry points
+    single, batch = oracle.free, oracle.free_batch
+    monkeypatch.setattr(oracle, "free", lambda q: answered.append(1) or single(q))
+    monkeypatch.setattr(oracle, "free_batch", lambda Q: answered.append(len(Q)) or batch(Q))
     m = run_trial_spec(oracle, spec)
     assert m["success"] == 1.0 and m["space"] == "compound", m
     # every check OMPL asked for went through the oracle: first solution + smoothing + our verification
     assert m["checks"] > 0 and m["smoothing_checks"] > 0
-    assert oracle.checks - before == m["checks"] + m["smoothing_checks"] + m["verify_checks"]
+    assert sum(answered) == m["checks"] + m["smoothing_checks"] + m["verify_checks"]
     assert m["fine_check_passed"] == 1.0 and m["path_length"] <= m["raw_length"] + 1e-9
 
 
@@ -200,12 +199,11 @@ def test_bitstar_in_the_real_vector_space_solves_bar_3link_with_a_fine_checked_p
     oracle = oracles(SCENE)
     problem = OmplProblem(oracle, seed=0, planner="BITstar")
     assert not problem.map.compound  # BIT*'s informed sampler refuses compound spaces
-    before = oracle.checks
     assert problem.solve(BUDGET), "BIT* found no path on bar-3link"
-    assert oracle.checks > before
+    assert problem.checker.checks > 0
     path = problem.solution_for_oracle()
     assert np.allclose(path[0], oracle.scene.start) and np.allclose(path[-1], oracle.scene.goal)
-    assert oracle.edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all()
+    assert oracle.context().edges_free(path[:-1], path[1:], oracle.space.resolution / 4).all()
 
 
 def test_motion_checks_are_never_coarser_than_the_resolution():

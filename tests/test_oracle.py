@@ -24,8 +24,8 @@ def reference_free(oracle, q) -> bool:
 
 
 @pytest.mark.parametrize("name", SAMPLING_SCENES)
-def test_oracle_agrees_with_scenegraph_on_1000_configurations(oracles, name):
-    oracle = oracles(name)
+def test_oracle_agrees_with_scenegraph_on_1000_configurations(checkers, name):
+    oracle = checkers(name)
     Q = oracle.space.uniform(np.random.default_rng(7), 1000)
     batch = oracle.are_free(Q)
     single = np.array([oracle.is_free(q) for q in Q])
@@ -36,11 +36,11 @@ def test_oracle_agrees_with_scenegraph_on_1000_configurations(oracles, name):
     assert 0.05 < reference.mean() < 0.95
 
 
-def test_counters_are_exact(oracles):
-    oracle = oracles("bar")
+def test_counters_are_exact(checkers):
+    oracle = checkers("bar")
     rng = np.random.default_rng(1)
     Q = oracle.space.uniform(rng, 50)
-    oracle.reset()
+    oracle = oracle.oracle.context()
     assert oracle.checks == 0
     oracle.is_free(Q[0])
     assert oracle.checks == 1
@@ -51,29 +51,29 @@ def test_counters_are_exact(oracles):
     assert not oracle.are_free(outside).any()
     assert not oracle.is_free(outside[0])
     assert oracle.checks == 51
-    oracle.reset()
+    oracle = oracle.oracle.context()
     assert oracle.checks == 0
 
 
-def test_edge_check_counts_the_configurations_it_looked_at(oracles):
-    oracle = oracles("bar")
+def test_edge_check_counts_the_configurations_it_looked_at(checkers):
+    oracle = checkers("bar")
     start = oracle.scene.start
     free_end = start.copy()
     free_end[1] += 10.0  # slide the arm sideways in open space
-    oracle.reset()
+    oracle = oracle.oracle.context()
     assert oracle.edge_free(start, free_end)
     assert oracle.checks == len(oracle.space.interpolate(start, free_end))
 
     through_wall = start.copy()
     through_wall[0] = 50.0
     through_wall[1] = 20.0  # the base inside the lower bar
-    oracle.reset()
+    oracle = oracle.oracle.context()
     assert not oracle.edge_free(start, through_wall)
     assert 0 < oracle.checks < len(oracle.space.interpolate(start, through_wall))
 
 
-def test_edges_free_matches_pointwise_checks(oracles):
-    oracle = oracles("joint3d")
+def test_edges_free_matches_pointwise_checks(checkers):
+    oracle = checkers("joint3d")
     rng = np.random.default_rng(3)
     A, B = oracle.space.uniform(rng, 40), oracle.space.uniform(rng, 40)
     B = A + 0.1 * (B - A)  # short edges: a mix of free and colliding
@@ -83,20 +83,20 @@ def test_edges_free_matches_pointwise_checks(oracles):
     assert 0 < flags.sum() < len(flags)
 
 
-def test_known_free_ends_are_skipped_and_a_path_check_ends_at_its_first_collision(oracles):
-    oracle = oracles("joint3d")
+def test_known_free_ends_are_skipped_and_a_path_check_ends_at_its_first_collision(checkers):
+    oracle = checkers("joint3d")
     rng = np.random.default_rng(3)
     A, B = oracle.space.uniform(rng, 60), oracle.space.uniform(rng, 60)
     keep = oracle.are_free(A) & oracle.are_free(B)  # endpoints free, as roadmap nodes are
     A, B = A[keep], B[keep]
     full = oracle.edges_free(A, B)
     assert full.any() and not full.all()
-    oracle.reset()
+    oracle = oracle.oracle.context()
     assert np.array_equal(oracle.edges_free(A, B, ends_free=True), full)
     expected = sum(len(oracle.space.interpolate(a, b)) - 2 for a, b in zip(A[full], B[full]))
     assert oracle.checks >= expected  # every free edge's inner points, not its ends
     everything = oracle.checks
-    oracle.reset()
+    oracle = oracle.oracle.context()
     free, decided = oracle.edges_status(A, B, ends_free=True, until_one_collides=True)
     assert oracle.checks < everything / 4  # stopped early: the first round with a collision ends it
     assert np.array_equal(free[decided], full[decided])  # what it decided is right
@@ -104,8 +104,8 @@ def test_known_free_ends_are_skipped_and_a_path_check_ends_at_its_first_collisio
     assert np.all(free[~decided])  # an undecided edge has not been seen to collide
 
 
-def test_distance_takes_the_short_way_round_on_continuous_angles(oracles):
-    oracle = oracles("bar")
+def test_distance_takes_the_short_way_round_on_continuous_angles(checkers):
+    oracle = checkers("bar")
     q1 = oracle.scene.start.copy()
     q2 = q1.copy()
     q1[2], q2[2] = np.pi - 0.1, -np.pi + 0.1
@@ -114,8 +114,8 @@ def test_distance_takes_the_short_way_round_on_continuous_angles(oracles):
     assert np.all(np.abs(path[:, 2]) > np.pi - 0.11)  # never swings through zero
 
 
-def test_clearance_is_signed(oracles):
-    oracle = oracles("bar")
+def test_clearance_is_signed(checkers):
+    oracle = checkers("bar")
     start = oracle.scene.start
     assert oracle.clearance(start) > 0
     inside = start.copy()
@@ -123,8 +123,8 @@ def test_clearance_is_signed(oracles):
     assert oracle.clearance(inside) < 0
 
 
-def test_contacts_tell_environment_from_self(oracles):
-    oracle = oracles("bar")
+def test_contacts_tell_environment_from_self(checkers):
+    oracle = checkers("bar")
     folded = oracle.scene.start.copy()
     folded[3] = np.pi  # link 2 folds back onto link 1: self-contact, ignored by the environment-only policy
     assert oracle.contacts(folded) == {"environment": False, "self": True}
@@ -135,8 +135,8 @@ def test_contacts_tell_environment_from_self(oracles):
 
 
 @pytest.mark.parametrize("name", scene_names())
-def test_scene_start_goal_free_and_outside_the_passage(oracles, name):
-    oracle = oracles(name)
+def test_scene_start_goal_free_and_outside_the_passage(checkers, name):
+    oracle = checkers(name)
     ends = np.array([oracle.scene.start, oracle.scene.goal])
     assert oracle.are_free(ends).all()
     assert oracle.scene.passage_boxes
@@ -144,16 +144,16 @@ def test_scene_start_goal_free_and_outside_the_passage(oracles, name):
 
 
 @pytest.mark.parametrize("name", scene_names())
-def test_passage_is_narrow_for_uniform_sampling(oracles, name):
-    oracle = oracles(name)
+def test_passage_is_narrow_for_uniform_sampling(checkers, name):
+    oracle = checkers(name)
     Q = oracle.space.uniform(np.random.default_rng(11), 6000)
     free = Q[oracle.are_free(Q)]
     assert len(free) > 1000
     assert oracle.in_passage(free).mean() < 0.02
 
 
-def test_in_passage_sees_the_frame_in_the_box(oracles):
-    oracle = oracles("bar")
+def test_in_passage_sees_the_frame_in_the_box(checkers):
+    oracle = checkers("bar")
     q = oracle.scene.start.copy()
     q[0], q[1], q[2] = 50.0, 50.0, 0.0  # base in the gap, arm pointing along it
     assert oracle.in_passage(q)[0]
@@ -174,7 +174,7 @@ def test_both_batch_paths_give_the_same_answers_and_the_cheaper_is_chosen():
     for path in ("batch", "raw"):
         oracle._cost = {"batch": None, "raw": None}
         oracle._cost["raw" if path == "batch" else "batch"] = 1.0  # the other path looks dear: this one is taken
-        answers[path] = oracle.are_free(Q)
+        answers[path] = oracle.free_batch(Q)
     assert np.array_equal(answers["batch"], answers["raw"])
     oracle._cost = {"batch": 5e-6, "raw": 2e-5}
     oracle._batch_calls, oracle._next_probe, oracle._probe_wait = 1, 16, 16
@@ -206,3 +206,44 @@ def test_a_path_found_dearer_again_is_probed_less_often():
     oracle._settle_probe(path)
     assert oracle._choose_path() == "batch"
     assert oracle._next_probe == oracle._batch_calls - 1 + 16
+
+
+def test_two_contexts_on_one_oracle_keep_their_own_counts_and_budgets(oracles):
+    from app.checking.budget import Budget, BudgetSpent
+
+    oracle = oracles("bar")
+    Q = oracle.space.uniform(np.random.default_rng(3), 30)
+    bounded, free = oracle.context(Budget(checks=10)), oracle.context()
+    free.are_free(Q)
+    with pytest.raises(BudgetSpent):
+        bounded.are_free(Q)
+    assert bounded.checks == 10  # checked as far as its own limit allowed, then stopped
+    free.are_free(Q)  # the other context is not bound by it, and counts only its own
+    assert free.checks == 60
+    assert bounded.checks == 10
+
+
+def test_queries_from_two_threads_on_one_oracle_get_the_answers_of_one(oracles):
+    import threading
+
+    oracle = oracles("joint3d")
+    Q = oracle.space.uniform(np.random.default_rng(11), 600)
+    expected = oracle.context().are_free(Q)
+    answers, errors = {}, []
+
+    def work(name, rows):
+        try:
+            checker = oracle.context()
+            answers[name] = (rows, [checker.is_free(q) for q in Q[rows]], checker.checks)
+        except Exception as exc:  # a failure in the thread must fail the test
+            errors.append(exc)
+
+    threads = [threading.Thread(target=work, args=(k, np.arange(k, 600, 2))) for k in (0, 1)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
+    for rows, flags, checks in answers.values():
+        assert np.array_equal(flags, expected[rows])
+        assert checks == len(rows)

@@ -171,13 +171,13 @@ def test_srdf_pairs_are_left_out_of_every_answer(arm, tmp_path):
     from app.checking.certify import certify_path
 
     folded = np.array([float(v) for v in FOLDED.split(",")])
-    plain = _oracle(arm)
+    plain = _oracle(arm).context()
     assert not plain.is_free(folded)
     assert ("robot::forearm", "robot::shoulder") in plain.colliding_bodies(folded)
     (tmp_path / "fold.srdf").write_text(_srdf(ADJACENT + NEVER + [("shoulder", "forearm")]))
-    oracle = _oracle(arm, srdf=str(tmp_path / "fold.srdf"))
+    oracle = _oracle(arm, srdf=str(tmp_path / "fold.srdf")).context()
     assert plain.colliding_bodies(folded) == [("robot::forearm", "robot::shoulder")]  # that pair alone
-    assert oracle.is_free(folded) and oracle.checker.CheckConfigCollisionFree(folded)
+    assert oracle.is_free(folded) and oracle.oracle.checker.CheckConfigCollisionFree(folded)
     assert oracle.are_free(np.repeat(folded[None], 16, axis=0)).all()  # the batched path
     assert oracle.colliding_bodies(folded) == [] and not oracle.contacts(folded)["self"]
     near = folded.copy()
@@ -213,7 +213,7 @@ def test_scene_file_takes_srdf_and_collisions(arm):
     scene = load_scene(str(arm / "cell.yaml"))
     assert not scene.self_collisions and len(scene.disabled_pairs) == len(ADJACENT + NEVER)
     assert np.allclose(scene.goal, 0)  # no goal: the home configuration
-    assert CollisionOracle(scene).is_free(np.array([0, 0, 2.0, 0, 0, 0]))
+    assert CollisionOracle(scene).context().is_free(np.array([0, 0, 2.0, 0, 0, 0]))
 
 
 @pytest.mark.parametrize(

@@ -161,17 +161,15 @@ def test_panel_plans_in_chromium(panel, browser):
 # ---- in-process: Panel.press stands for a click, Panel.step for the server loop ----------------------------------
 @pytest.fixture
 def make_panel(oracles, monkeypatch):
-    """`make_panel(scene)`: a Panel over the session's oracle of `scene` (planning) and a fresh one (preview)."""
-    from app.checking.oracle import CollisionOracle
+    """`make_panel(scene)`: a Panel over the session's oracle of `scene`."""
     from app.panel import Panel
     from app.planning.planner import PlanSettings
-    from app.scene.model import Scene
 
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")
     made = []
 
     def make(scene: str, **options):
-        made.append(Panel(oracles(scene), CollisionOracle(Scene(scene)), PlanSettings(seed=0), **options))
+        made.append(Panel(oracles(scene), PlanSettings(seed=0), **options))
         return made[-1]
 
     yield make

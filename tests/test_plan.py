@@ -55,7 +55,7 @@ def test_roadmap_neighbours_are_exact_under_the_wrapping_metric(oracles):
     rng = np.random.default_rng(3)
     Q = oracle.space.uniform(rng, 600)
     Q[:100, 2:] = rng.choice([-np.pi + 1e-3, np.pi - 1e-3], size=(100, 7))  # crowd the +-pi seam
-    roadmap = Roadmap(oracle)
+    roadmap = Roadmap(oracle.context())
     roadmap.add(Q, "uniform", connect=False)
     probes = np.vstack([oracle.space.uniform(rng, 30), Q[:20] * np.r_[1, 1, [-1] * 7]])
     distances, indices = roadmap.neighbours(probes, 10)
@@ -185,12 +185,12 @@ def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(m
 
 
 def _wall_oracle():
-    """A 2-D oracle with a thin wall between the fine points of the test path's first edge, and a block that leaves
+    """A 2-D checker with a thin wall between the fine points of the test path's first edge, and a block that leaves
     no direct line from the start to the end (the path code needs only the metric and are_free)."""
-    from app.checking.oracle import CollisionOracle
+    from app.checking.context import QueryContext
     from app.scene.cspace import ConfigurationSpace
 
-    oracle = CollisionOracle.__new__(CollisionOracle)
+    oracle = QueryContext.__new__(QueryContext)
     oracle.space = ConfigurationSpace(
         lower=np.full(2, -20.0),
         upper=np.full(2, 20.0),
@@ -258,11 +258,11 @@ def test_an_angle_wound_a_whole_turn_along_the_path_is_turned_the_short_way():
     do, and every shortcut between its waypoints that would undo that crosses a block near x = 0. Smoothing (its
     greedy pass alone: random shortcuts may hop round the block) turns theta the short way, spread along the path;
     the ends stay exactly where they were."""
-    from app.checking.oracle import CollisionOracle
+    from app.checking.context import QueryContext
     from app.motion.path import shortcut
     from app.scene.cspace import ConfigurationSpace
 
-    oracle = CollisionOracle.__new__(CollisionOracle)
+    oracle = QueryContext.__new__(QueryContext)
     oracle.space = ConfigurationSpace(
         lower=np.array([-20.0, -np.pi]),
         upper=np.array([20.0, np.pi]),
@@ -381,7 +381,7 @@ def test_a_free_route_through_via_points_is_the_answer_without_a_roadmap(oracles
     oracle = oracles("bar-3link")
     found = plan(oracle, PlanSettings(seed=0))
     via = found.path[1:-1]
-    assert len(via) >= 1 and not oracle.edges_free(oracle.scene.start, oracle.scene.goal)[0]
+    assert len(via) >= 1 and not oracle.context().edge_free(oracle.scene.start, oracle.scene.goal)
     result = plan(oracle, PlanSettings(seed=1, narrow=0, uniform=0), via=via)
     assert result.rounds == 0 and result.smoothing["straight"] and result.smoothing["via"] == len(via)
     assert np.array_equal(result.path[1:-1], via) and result.trajectory.certified

@@ -100,7 +100,7 @@ def test_ur3_srdf_pairs_never_touch(oracles, tmp_path):
     assert disabled and oracles("welding").scene.disabled_pairs == oracles("window").scene.disabled_pairs
     (tmp_path / "window.dmd.yaml").write_text((SCENES_DIR / "window.dmd.yaml").read_text())
     (tmp_path / "window.yaml").write_text(re.sub(r"srdf: .*\n", "", WINDOW))
-    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml")))
+    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml"))).context()
     assert not oracle.scene.disabled_pairs
     plant, inspector = oracle.plant, oracle.model.scene_graph().model_inspector()
     context = plant.GetMyContextFromRoot(oracle.model.CreateDefaultContext())
@@ -151,7 +151,7 @@ def test_quadrotor_model_and_safety_hull(oracles):
 
 @pytest.mark.parametrize("name, side, up", [("maze", 0.1, 0.25), ("tunnel", 0.12, 0.28)])
 def test_uav_passage_is_narrow_but_open(oracles, name, side, up):
-    oracle = oracles(name)
+    oracle = oracles(name).context()
     Q = oracle.space.uniform(np.random.default_rng(11), 6000)
     free = Q[oracle.are_free(Q)]
     assert len(free) > 3000
@@ -168,7 +168,7 @@ def test_uav_passage_is_narrow_but_open(oracles, name, side, up):
 
 def test_maze_window_is_the_only_way_across(oracles):
     """Walls are full height: at the dividing wall's x, only the window is free."""
-    oracle = oracles("maze")
+    oracle = oracles("maze").context()
     ys, zs = np.linspace(0.35, 19.65, 200), np.linspace(0.2, 2.8, 14)
     Q = np.array([[10.0, y, z, 0.0] for y in ys for z in zs])
     free = Q[oracle.are_free(Q)]
@@ -219,7 +219,7 @@ def test_the_cart_stands_clear_of_every_obstacle(oracles, name):
     measured here on the shapes' own bounding boxes."""
     from pydrake.geometry import Role
 
-    oracle = oracles(name)
+    oracle = oracles(name).context()
     plant, inspector = oracle.plant, oracle.model.scene_graph().model_inspector()
     query = oracle.query_object(oracle.scene.start)
     welded = {body.index() for body in plant.GetBodiesWeldedTo(plant.world_body())}
@@ -277,7 +277,7 @@ def test_models_are_primitive_shapes_only():
 def test_batched_and_single_checks_agree_on_the_uav_and_arm_scenes(oracles, name):
     """The cart is welded to the world yet part of the robot: the checker's batch path and the raw SceneGraph path
     must still see the same pairs (cart-arm counts, cart-floor obstacles never move relative to each other)."""
-    oracle = oracles(name)
+    oracle = oracles(name).context()
     Q = oracle.space.uniform(np.random.default_rng(7), 600)
     batch = oracle.are_free(Q)
     single = np.array([oracle.is_free(q) for q in Q])

@@ -24,7 +24,7 @@ def test_window_route_goes_through_the_window_and_back(oracles, window_run):
     assert any(leg.method == "lfbs" for leg in window_run.legs)  # at least one leg needed the planner
     # In the hatch, no roadmap: the joint move to the part where it is free, else the tool's straight line (a joint
     # move between other postures there swings the forearm into the frame); out again the same way, reversed.
-    joint_free = oracle.edges_free(window_run.configurations["window"], window_run.configurations["reach"])[0]
+    joint_free = oracle.context().edges_free(window_run.configurations["window"], window_run.configurations["reach"])[0]
     assert [leg.method for leg in window_run.legs[1:3]] == ["straight" if joint_free else "tool line", "back"]
     assert np.array_equal(window_run.legs[2].path, window_run.legs[1].path[::-1])
     assert window_run.legs[2].collision_checks == 0
@@ -88,7 +88,7 @@ def test_the_welding_job_threads_the_hole_once_and_then_moves_straight(welding_r
 def test_passing_through_the_hatch_is_faster_than_stopping_there(oracles, window_run):
     """window's hatch is `stop: false`: the legs on either side timed as one curve take less time than the same legs
     from rest to rest."""
-    alone = sum(time_path(oracles("window"), leg.path, 0.001).duration for leg in window_run.legs)
+    alone = sum(time_path(oracles("window").context(), leg.path, 0.001).duration for leg in window_run.legs)
     assert window_run.trajectory.duration < 0.99 * alone
 
 

@@ -27,27 +27,27 @@ def _check_samples(oracle, X, k):
     assert all(raw_free(oracle, q) for q in X)  # re-checked by SceneGraph directly, not by the sampling oracle
 
 
-def test_registry_names_and_errors(oracles):
+def test_registry_names_and_errors(checkers):
     assert list(SAMPLERS) == NAMES
     with pytest.raises(UserError, match="known: uniform, gaussian, rbbs, rws, lfs, rwbs, lfbs"):
-        make_sampler("levy", oracles("bar"))
+        make_sampler("levy", checkers("bar"))
     with pytest.raises(UserError, match="sampler 'lfbs'"):
-        make_sampler("lfbs", oracles("bar"), stepsize=3)
+        make_sampler("lfbs", checkers("bar"), stepsize=3)
     with pytest.raises(UserError):
-        make_sampler("rws", oracles("bar"), step=float("nan"))
+        make_sampler("rws", checkers("bar"), step=float("nan"))
 
 
-def test_four_walkers_are_one_class_with_two_switches(oracles):
+def test_four_walkers_are_one_class_with_two_switches(checkers):
     expected = {"rws": ("gaussian", False), "lfs": ("levy", False), "rwbs": ("gaussian", True), "lfbs": ("levy", True)}
     for name, (law, bridge) in expected.items():
-        s = make_sampler(name, oracles("bar"), step=5)
+        s = make_sampler(name, checkers("bar"), step=5)
         assert type(s) is Walker and (s.step_law, s.bridge, s.name) == (law, bridge, name)
 
 
 @pytest.mark.parametrize("scene", SCENES)
 @pytest.mark.parametrize("name", NAMES)
-def test_samples_are_free_and_in_bounds(oracles, scene, name):
-    oracle = oracles(scene)
+def test_samples_are_free_and_in_bounds(checkers, scene, name):
+    oracle = checkers(scene)
     k = 4 if name == "rbbs" else 8
     sampler = make_sampler(name, oracle, step=10)
     X = sampler.sample(k, np.random.default_rng(3))
@@ -58,8 +58,8 @@ def test_samples_are_free_and_in_bounds(oracles, scene, name):
 
 @pytest.mark.parametrize("scene", SCENES)
 @pytest.mark.parametrize("name", BRIDGED)
-def test_bridge_endpoints_collide_and_straddle_the_sample(oracles, scene, name):
-    oracle = oracles(scene)
+def test_bridge_endpoints_collide_and_straddle_the_sample(checkers, scene, name):
+    oracle = checkers(scene)
     k = 4 if name == "rbbs" else 8
     sampler = make_sampler(name, oracle, step=10)
     X = sampler.sample(k, np.random.default_rng(5))
@@ -73,8 +73,8 @@ def test_bridge_endpoints_collide_and_straddle_the_sample(oracles, scene, name):
         assert np.allclose(oracle.space.difference(far, b), 0.0, atol=1e-9)
 
 
-def test_unbridged_samplers_report_no_bridges(oracles):
-    s = make_sampler("lfs", oracles("bar"), step=10)
+def test_unbridged_samplers_report_no_bridges(checkers):
+    s = make_sampler("lfs", checkers("bar"), step=10)
     s.sample(3, np.random.default_rng(0))
     assert s.bridges is None
 
@@ -94,8 +94,8 @@ def test_levy_draws_are_finite_for_any_alpha(alpha, seed):
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_same_seed_same_samples(oracles, name):
-    oracle = oracles("bar")
+def test_same_seed_same_samples(checkers, name):
+    oracle = checkers("bar")
     k, step = (2, 20) if name == "rbbs" else (6, 10)  # long bridges are cheap ones
     a = make_sampler(name, oracle, step=step).sample(k, np.random.default_rng(11))
     sampler = make_sampler(name, oracle, step=step)
@@ -133,8 +133,8 @@ def test_reported_checks_are_the_configurations_drake_answered(oracles, monkeypa
     assert row["collision_checks"] == len(single) + batch.configurations > 0
 
 
-def test_budget_is_bounded_and_reported(oracles):
-    oracle = oracles("bar")
+def test_budget_is_bounded_and_reported(checkers):
+    oracle = checkers("bar")
     sampler = make_sampler("rbbs", oracle, step=2, max_checks=500)
     before = oracle.checks
     with pytest.raises(SamplerBudgetExceeded, match="gave up after"):
@@ -149,22 +149,22 @@ def test_budget_is_bounded_and_reported(oracles):
     walkers=st.sampled_from([None, 1, 7, 64]),
     name=st.sampled_from(["rws", "lfs", "rwbs", "lfbs"]),
 )
-def test_walkers_free_in_bounds_for_any_step_and_pool(oracles, step, seed, walkers, name):
-    oracle = oracles("bar")
+def test_walkers_free_in_bounds_for_any_step_and_pool(checkers, step, seed, walkers, name):
+    oracle = checkers("bar")
     sampler = make_sampler(name, oracle, step=step, walkers=walkers)
     X = sampler.sample(3, np.random.default_rng(seed))
     _check_samples(oracle, X, 3)
 
 
-def test_walk_length_is_bounded_and_counted(oracles):
+def test_walk_length_is_bounded_and_counted(checkers):
     # One-step walks often do not end free: those are abandoned, and each abandonment is counted.
-    sampler = make_sampler("rws", oracles("bar"), step=5, max_steps=1, walkers=32)
+    sampler = make_sampler("rws", checkers("bar"), step=5, max_steps=1, walkers=32)
     sampler.sample(2, np.random.default_rng(0))
     assert sampler.stats["gave_up"] > 0
 
 
-def test_proposals_never_leave_the_bounds(oracles):
-    oracle = oracles("bar")
+def test_proposals_never_leave_the_bounds(checkers):
+    oracle = checkers("bar")
     sampler = make_sampler("lfs", oracle, step=20)
     sampler.stats = {"gave_up": 0}
     Q = oracle.space.uniform(np.random.default_rng(1), 500)
@@ -173,8 +173,8 @@ def test_proposals_never_leave_the_bounds(oracles):
     assert oracle.space.within_bounds(P[ok]).all() and ok.mean() > 0.95
 
 
-def test_resumed_batches_carry_walkers_over_and_stay_reproducible(oracles):
-    oracle = oracles("bar")
+def test_resumed_batches_carry_walkers_over_and_stay_reproducible(checkers):
+    oracle = checkers("bar")
 
     def batches(resume):
         sampler, rng = make_sampler("lfbs", oracle, step=10), np.random.default_rng(4)
@@ -191,8 +191,8 @@ def test_resumed_batches_carry_walkers_over_and_stay_reproducible(oracles):
     assert resumed_checks < fresh_checks  # fresh calls abandon their unfinished walkers every time
 
 
-def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(oracles):
-    oracle = oracles("bar")
+def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(checkers):
+    oracle = checkers("bar")
     lfbs = make_sampler("lfbs", oracle, step=10).sample(60, np.random.default_rng(0))
     uniform = make_sampler("uniform", oracle).sample(1000, np.random.default_rng(0))
     assert oracle.in_passage(uniform).mean() < 0.02
@@ -235,8 +235,8 @@ def test_cli_json(tmp_path, cli):
     assert len(out["samples"]) == 5 and out["collision_checks"] > 0 and png.stat().st_size > 0
 
 
-def test_the_density_reading_of_alpha_gives_tail_index_alpha_minus_one(oracles):
-    oracle = oracles("bar-3link")
+def test_the_density_reading_of_alpha_gives_tail_index_alpha_minus_one(checkers):
+    oracle = checkers("bar-3link")
     for convention, expected in (("stability", 1.9), ("density", 0.9)):
         walker = make_sampler("lfs", oracle, step=10.0, angle_law="length", alpha_convention=convention)
         d = walker._draw(np.random.default_rng(0), 200_000)
@@ -244,8 +244,8 @@ def test_the_density_reading_of_alpha_gives_tail_index_alpha_minus_one(oracles):
         assert abs(hill_tail_index(lengths / 10.0 - 1.0) - expected) < 0.2
 
 
-def test_each_angle_law_moves_the_angles_its_own_way(oracles):
-    oracle = oracles("bar-3link")
+def test_each_angle_law_moves_the_angles_its_own_way(checkers):
+    oracle = checkers("bar-3link")
     angles = oracle.space.angular
 
     def increments(law):
@@ -258,8 +258,8 @@ def test_each_angle_law_moves_the_angles_its_own_way(oracles):
     assert hill_tail_index(gaussian) > 4.0  # Gaussian tails
 
 
-def test_the_bridge_fail_rule_decides_whether_a_walk_leaves_the_obstacle(oracles):
-    oracle = oracles("bar-3link")
+def test_the_bridge_fail_rule_decides_whether_a_walk_leaves_the_obstacle(checkers):
+    oracle = checkers("bar-3link")
     starts = {}
     for rule in ("stay", "move"):
         walker = make_sampler("rwbs", oracle, step=10.0, bridge_fail=rule)
@@ -269,6 +269,6 @@ def test_the_bridge_fail_rule_decides_whether_a_walk_leaves_the_obstacle(oracles
     assert starts["move"].any()  # moved on to a free q' that failed the bridge test
 
 
-def test_an_unknown_reading_is_bad_input(oracles):
+def test_an_unknown_reading_is_bad_input(checkers):
     with pytest.raises(UserError, match="angle_law"):
-        make_sampler("lfbs", oracles("bar-3link"), angle_law="sideways")
+        make_sampler("lfbs", checkers("bar-3link"), angle_law="sideways")

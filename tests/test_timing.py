@@ -75,8 +75,8 @@ def _check_free(oracle, W, **kw):
 
 
 @pytest.mark.parametrize("name", list(ZIGZAGS))
-def test_a_zigzag_in_free_space_is_smooth_certified_and_free(oracles, name):
-    oracle = oracles(name)
+def test_a_zigzag_in_free_space_is_smooth_certified_and_free(checkers, name):
+    oracle = checkers(name)
     W = ZIGZAGS[name]
     smooth, _, stats = _times(oracle, W)
     assert smooth.certified and stats["stops"] == 0 and stats["distance_queries"] > 0
@@ -84,17 +84,17 @@ def test_a_zigzag_in_free_space_is_smooth_certified_and_free(oracles, name):
     _check_free(oracle, W)
 
 
-def test_stopping_at_every_corner_is_slower_where_segments_are_short(oracles):
+def test_stopping_at_every_corner_is_slower_where_segments_are_short(checkers):
     ratios = []
     for name, W in ZIGZAGS.items():
-        smooth, rest, _ = _times(oracles(name), W)
+        smooth, rest, _ = _times(checkers(name), W)
         ratios.append(smooth.duration / rest.duration)
     assert np.median(ratios) <= 0.6
 
 
 @pytest.mark.parametrize("key", list(PINNED))
-def test_planned_paths_are_timed_smoothly_within_limits(oracles, key):
-    oracle = oracles(key.split()[0])
+def test_planned_paths_are_timed_smoothly_within_limits(checkers, key):
+    oracle = checkers(key.split()[0])
     W = oracle.space.unwrap(np.array(PINNED[key]["path"]))
     smooth, rest, stats = _times(oracle, W)
     assert smooth.certified and stats["stops"] == 0
@@ -105,14 +105,14 @@ def test_planned_paths_are_timed_smoothly_within_limits(oracles, key):
     assert np.all(np.diff(smooth.waypoint_times) > 0) and smooth.waypoint_times[-1] == pytest.approx(smooth.duration)
 
 
-def test_a_planned_window_path(oracles):
+def test_a_planned_window_path(checkers):
     from app.planning.ik import solve_pose
 
-    oracle = oracles("window")
+    oracle = checkers("window")
     # Home to the torch through the hatch, the job's first leg (the scene's goal, deep inside, is a harder query
     # than a test of timing should wait for).
-    goal = solve_pose(oracle, "window", np.random.default_rng(0))
-    result = app.plan(oracle, app.PlanSettings(seed=1, budget=app.Budget(seconds=20)), goal=goal)
+    goal = solve_pose(oracle.oracle, "window", np.random.default_rng(0))
+    result = app.plan(oracle.oracle, app.PlanSettings(seed=1, budget=app.Budget(seconds=20)), goal=goal)
     W = oracle.space.unwrap(result.path)
     smooth, rest, _ = _times(oracle, W)
     assert smooth.duration < 0.8 * rest.duration
@@ -121,10 +121,10 @@ def test_a_planned_window_path(oracles):
         _check_free(oracle, W)
 
 
-def test_a_corner_toppra_cannot_time_becomes_a_stop(oracles):
+def test_a_corner_toppra_cannot_time_becomes_a_stop(checkers):
     """Drake's Toppra finds no solution where a blend is tiny (seen: a window path with a corner 2e-5 from the next,
     left by a partial shortcut); such corners become stops instead of failing the query."""
-    oracle = oracles("window")
+    oracle = checkers("window")
     steps = [[0.3, 0, 0, 0, 0, 0], [0, 0, 0, 0, 1e-4, 0], [0, 0.2, 0, 0, 0, 0]]
     W = np.cumsum(np.vstack([oracle.scene.start, steps]), axis=0)
     smooth, _, stats = _times(oracle, W)
@@ -139,8 +139,8 @@ def _round_the_pillar(clearance: float) -> np.ndarray:
     return np.array([[3.0, low, 1.5, 0.0], [right, low, 1.5, 0.0], [right, 11.5, 1.5, 0.0]])
 
 
-def test_a_blend_that_would_hit_an_obstacle_is_tightened(oracles):
-    oracle = oracles("maze")
+def test_a_blend_that_would_hit_an_obstacle_is_tightened(checkers):
+    oracle = checkers("maze")
     W = _round_the_pillar(0.01)
     smooth, rest, stats = _times(oracle, W)
     assert smooth.certified and stats["rounds"] > 1 and stats["stops"] == 0
@@ -148,8 +148,8 @@ def test_a_blend_that_would_hit_an_obstacle_is_tightened(oracles):
     _check_free(oracle, W)
 
 
-def test_a_blend_that_cannot_be_tightened_becomes_a_stop(oracles):
-    oracle = oracles("maze")
+def test_a_blend_that_cannot_be_tightened_becomes_a_stop(checkers):
+    oracle = checkers("maze")
     W = _round_the_pillar(0.01)
     smooth, rest, stats = _times(oracle, W, tighten=0)
     assert smooth.certified and stats["stops"] == 1
@@ -161,26 +161,26 @@ def test_a_blend_that_cannot_be_tightened_becomes_a_stop(oracles):
     _check_free(oracle, W, tighten=0)
 
 
-def test_a_path_that_cannot_be_certified_is_timed_but_not_certified(oracles):
-    oracle = oracles("maze")
+def test_a_path_that_cannot_be_certified_is_timed_but_not_certified(checkers):
+    oracle = checkers("maze")
     W = _round_the_pillar(-1e-3)  # the straight legs themselves touch the pillar
     smooth, _, _ = _times(oracle, W)
     assert not smooth.certified and smooth.duration > 0
 
 
-def test_one_waypoint_is_a_motionless_trajectory(oracles):
-    oracle = oracles("maze")
+def test_one_waypoint_is_a_motionless_trajectory(checkers):
+    oracle = checkers("maze")
     q = oracle.scene.start
     smooth, _, _ = _times(oracle, np.array([q, q]))
     assert smooth.duration == 0 and np.array_equal(smooth.positions, [q])
 
 
-def test_edges_already_proved_are_not_certified_again(oracles):
+def test_edges_already_proved_are_not_certified_again(checkers):
     """Told that the polyline's edges are proved (as the planner's certificate does), the timing certifies only the
     blends: the same motion, certified, for fewer distance queries."""
     from app.checking.certify import certify_path
 
-    oracle = oracles("maze")
+    oracle = checkers("maze")
     W, scene = ZIGZAGS["maze"], oracle.scene
     assert certify_path(oracle, W)[0]
     every, blends = {}, {}
@@ -192,7 +192,7 @@ def test_edges_already_proved_are_not_certified_again(oracles):
     assert 0 < blends["distance_queries"] < every["distance_queries"]
 
 
-def test_a_toppra_solution_holding_nans_is_not_used(oracles, monkeypatch):
+def test_a_toppra_solution_holding_nans_is_not_used(checkers, monkeypatch):
     """Drake's Toppra has returned s(t) full of NaNs (a tunnel path in `bench audit`); evaluating the path there
     aborts the whole process. Such a solution counts as none: the next grid is tried."""
     import pydrake.multibody.optimization as optimization
@@ -208,7 +208,7 @@ def test_a_toppra_solution_holding_nans_is_not_used(oracles, monkeypatch):
             return super().SolvePathParameterization()
 
     monkeypatch.setattr(optimization, "Toppra", FirstAnswerNan)
-    oracle = oracles("maze")
+    oracle = checkers("maze")
     W = ZIGZAGS["maze"]
     smooth, _, _ = _times(oracle, W)
     assert len(calls) > 1 and np.all(np.isfinite(smooth.positions))

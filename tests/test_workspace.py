@@ -26,9 +26,9 @@ def test_a_gap_is_between_two_facing_obstacles_closer_than_the_width(oracles):
 
 def test_a_free_body_is_shifted_into_a_gap_and_an_arm_is_not(oracles):
     rng = np.random.default_rng(0)
-    body = WorkspaceGaps(oracles("joint3d"), rng)
+    body = WorkspaceGaps(oracles("joint3d").context(), rng)
     assert body.axes.tolist() == [0, 1, 2] and np.allclose(body.directions, np.eye(3))
-    arm = WorkspaceGaps(oracles("window"), rng)
+    arm = WorkspaceGaps(oracles("window").context(), rng)
     assert arm.axes.tolist() == []
     # The cart is welded to the world: its pieces never move and are never placed.
     centres = oracles("window").robot_geometry_centres(oracles("window").space.uniform(rng, 8))
@@ -38,7 +38,7 @@ def test_a_free_body_is_shifted_into_a_gap_and_an_arm_is_not(oracles):
 
 @pytest.mark.parametrize("scene", ["joint3d", "window"])
 def test_every_placement_puts_a_moving_piece_at_a_gap_point(oracles, scene):
-    oracle = oracles(scene)
+    oracle = oracles(scene).context()
     rng = np.random.default_rng(1)
     gaps = WorkspaceGaps(oracle, rng)
     while len(gaps.points) < 50:
@@ -56,7 +56,7 @@ def test_an_empty_workspace_has_no_gap_after_a_bounded_search(tmp_path):
     from app.scene.custom import CustomSpec, build_scene
 
     spec = CustomSpec(robot="examples/trap/cube.obj", bounds=["-2..2", "-2..2", "-2..2"], start=[0] * 6)
-    oracle = CollisionOracle(build_scene(spec, cache_dir=tmp_path, progress=False))
+    oracle = CollisionOracle(build_scene(spec, cache_dir=tmp_path, progress=False)).context()
     rng = np.random.default_rng(0)
     gaps = WorkspaceGaps(oracle, rng)
     while not gaps.exhausted:

@@ -168,7 +168,7 @@ def problem(oracle, seed: int, index: int) -> tuple[np.ndarray, np.ndarray] | No
     found = []
     for _ in range(math.ceil(DRAWS / 16)):
         Q = oracle.space.uniform(rng, 16)
-        found.extend(Q[oracle.are_free(Q)])
+        found.extend(Q[oracle.context().are_free(Q)])
         if len(found) >= 2:
             return found[0], found[1]
     return None

@@ -44,14 +44,13 @@ def _full_speed(oracle, path: np.ndarray) -> float:
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One default query on a scene: plan seconds with certification and smooth timing, and without (the phases
     replaced by a fine re-check and rest-to-rest timing), and the smooth and rest-to-rest durations."""
-    oracle.reset()
     try:
         r = plan(oracle, PlanSettings(seed=spec.seed, step=spec.step))
     except NoPath:
         return {"success": False}
     duration, seconds = _rest_to_rest(oracle, r.path)
     clock = time.perf_counter()
-    verify(oracle, r.path)
+    verify(oracle.context(), r.path)
     seconds += time.perf_counter() - clock
     s = r.seconds
     return {
@@ -70,7 +69,6 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
 
 def run_job_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One scripted UR3 job: its duration, and its legs' paths timed rest to rest at every waypoint."""
-    oracle.reset()
     try:
         r = run_job(oracle, spec.scene, replace(JOB_SETTINGS, seed=spec.seed))
     except UserError:

@@ -88,7 +88,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
 
 
 def _ours(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
-    checks0, start = oracle.checks, time.perf_counter()
+    start = time.perf_counter()
     try:
         r = plan(
             oracle,
@@ -101,8 +101,9 @@ def _ours(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
                 workspace=0.0 if method["alone"] else PlanSettings.workspace,
             ),
         )
-    except NoPath:
-        return {"solved": 0.0, "seconds": time.perf_counter() - start, "checks": oracle.checks - checks0}
+    except NoPath as failure:
+        checks = getattr(failure, "details", {}).get("collision_checks")
+        return {"solved": 0.0, "seconds": time.perf_counter() - start, "checks": checks}
     smoothing, timing = r.checks["smoothing"], r.checks.get("timing", 0)
     out = {
         "solved": 1.0,
@@ -118,9 +119,9 @@ def _ours(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
 
 def _fine_check(oracle, path: np.ndarray) -> dict:
     """The smoothed path held to our fine check, counted apart: the bench's own verdict, not the planner's work."""
-    checks0 = oracle.checks
-    free = oracle.edges_free(path[:-1], path[1:], FINE * oracle.space.resolution)
-    return {"verify_checks": oracle.checks - checks0, "fine_check_passed": float(free.all())}
+    checker = oracle.context()
+    free = checker.edges_free(path[:-1], path[1:], FINE * oracle.space.resolution)
+    return {"verify_checks": checker.checks, "fine_check_passed": float(free.all())}
 
 
 def _ompl(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
@@ -130,28 +131,28 @@ def _ompl(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
     sampler = method["sampler"]
     if sampler is not None:
         problem.use_sampler(sampler, **({} if sampler in OMPL_PRM_SAMPLERS else {"step": spec.step}))
-    checks0, start = oracle.checks, time.perf_counter()
+    checker, start = problem.checker, time.perf_counter()
     solved = problem.solve(budget)
     out = {
         "solved": float(solved),
         "seconds": time.perf_counter() - start,
-        "checks": oracle.checks - checks0,
+        "checks": checker.checks,
         "space": problem.map.kind,
     }
     if not solved:
         return out
     raw = problem.solution_for_oracle()
-    checks0, start = oracle.checks, time.perf_counter()
+    checks0, start = checker.checks, time.perf_counter()
     problem.simplify()
-    out.update(smoothing_checks=oracle.checks - checks0, smoothing_seconds=time.perf_counter() - start)
+    out.update(smoothing_checks=checker.checks - checks0, smoothing_seconds=time.perf_counter() - start)
     path = problem.solution_for_oracle()  # OMPL's own motions, as our oracle's edges
     out.update(_fine_check(oracle, path))
     # Whether the first solution, before smoothing, would have passed: tells the planner's grazes from the
     # simplifier's. Ours, not OMPL's work: counted apart.
-    checks0 = oracle.checks
-    raw_free = oracle.edges_free(raw[:-1], raw[1:], FINE * oracle.space.resolution)
+    verifier = oracle.context()
+    raw_free = verifier.edges_free(raw[:-1], raw[1:], FINE * oracle.space.resolution)
     out.update(
-        verify_checks=out["verify_checks"] + oracle.checks - checks0,
+        verify_checks=out["verify_checks"] + verifier.checks,
         raw_fine_check_passed=float(raw_free.all()),
         raw_length=path_length(oracle, raw),
         path_length=path_length(oracle, path),

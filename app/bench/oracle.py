@@ -48,8 +48,8 @@ def _bench_scene(name: str, cache: Path, n: int, repeats: int, seed: int) -> dic
     times = {"raw": [], "one": [], "two": []}
     for _ in tqdm(range(repeats), desc=f"bench oracle {name}", leave=False):
         t_raw, raw = _timed(_raw_loop, one, Q)
-        t_one, free_one = _timed(one.are_free, Q)
-        t_two, free_two = _timed(two.are_free, Q)
+        t_one, free_one = _timed(one.context().are_free, Q)
+        t_two, free_two = _timed(two.context().are_free, Q)
         if not (np.array_equal(raw, free_one) and np.array_equal(raw, free_two)):
             raise RuntimeError(f"{name}: oracle and raw HasCollisions disagree")
         times["raw"].append(t_raw)

@@ -52,9 +52,9 @@ def run_trial(
     """
     if max_checks is not None:
         params["max_checks"] = max_checks
-    sampler = make_sampler(sampler_name, oracle, step=step, **params)
+    checker = oracle.context()
+    sampler = make_sampler(sampler_name, checker, step=step, **params)
     rng = np.random.default_rng(seed)
-    before = oracle.checks
     start = time.perf_counter()
     try:
         samples, ok = sampler.sample(k, rng), True
@@ -69,7 +69,7 @@ def run_trial(
         "k": int(k),
         "ok": ok,
         "seconds": seconds,
-        "collision_checks": int(oracle.checks - before),
+        "collision_checks": int(checker.checks),
         "samples_drawn": len(samples),
         "passage_fraction": float(oracle.in_passage(samples).mean()) if len(samples) else float("nan"),
         "gave_up": int(sampler.stats.get("gave_up", 0)),
@@ -97,7 +97,6 @@ def run_trial_spec(oracle, spec) -> dict:
     p = spec.params
     margin = p.get("margin")
     margin = 2 * oracle.space.resolution if margin is None else float(margin)
-    oracle.reset()
     row = run_trial(
         oracle,
         spec.method,

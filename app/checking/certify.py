@@ -353,14 +353,15 @@ _bounds: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def motion_bound(oracle) -> MotionBound:
-    """The oracle's MotionBound, computed once per oracle."""
+    """The shared oracle's MotionBound, computed once per oracle."""
     if oracle not in _bounds:
         _bounds[oracle] = MotionBound(oracle)
     return _bounds[oracle]
 
 
 class Certifier:
-    """Certifies pieces of motion for one oracle, keeping the distances it has asked for across calls.
+    """Certifies pieces of motion on one checker's oracle, keeping the distances it has asked for across calls (and
+    across queries: a caller may hand it another query's checker, whose `distance_queries` it then counts in).
 
     Each interval's pieces are bisected nearest to contact first: the halves of a piece that failed its test go
     by the least distance at its ends, the leftmost first among equals. Whether an interval is proved does not
@@ -378,10 +379,11 @@ class Certifier:
     # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
     BATCH_ROWS = 1 << 17
 
-    def __init__(self, oracle, floor: float | None = None):
+    def __init__(self, checker, floor: float | None = None):
         from pydrake.geometry import Role
 
-        self.oracle = oracle
+        oracle = checker.oracle
+        self.checker = checker
         self.bound = motion_bound(oracle)
         self.floor = floor if floor is not None else oracle.space.resolution / FLOOR_DIVISOR
         self._cache = {}  # configuration bytes -> _End, or None where it collides
@@ -416,7 +418,7 @@ class Certifier:
         The curve must stay within the space's bounds between in-bound ends (a straight edge or a blend does).
         stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds.
         """
-        clock, queries = time.perf_counter(), self.oracle.distance_queries
+        clock, queries = time.perf_counter(), self.checker.distance_queries
         # Per interval, a heap of its pieces still to prove, as (distance at the ends of the piece they halve, start,
         # end): nearest to contact first.
         heaps = {i: [(0.0, float(a), float(b))] for i, (a, b) in enumerate(intervals)}
@@ -432,7 +434,7 @@ class Certifier:
             for (_, (a, b)), d in zip(todo, self.bound.max_distance(travel).tolist()):
                 need[a], need[b] = max(need.get(a, 0.0), d), max(need.get(b, 0.0), d)
             ends = dict(zip(need, self._distances([position(s) for s in need], list(need.values()))))
-            lengths = np.linalg.norm(variations * self.oracle.space.weights, axis=1)
+            lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
             for (i, (a, b)), pair_travel, length in zip(todo, travel, lengths):
                 if i not in heaps:
                     continue
@@ -449,7 +451,7 @@ class Certifier:
         stats = {
             "failed": sorted(failed),
             "pieces": pieces,
-            "distance_queries": self.oracle.distance_queries - queries,
+            "distance_queries": self.checker.distance_queries - queries,
             "seconds": time.perf_counter() - clock,
         }
         return not failed, stats
@@ -486,9 +488,9 @@ class Certifier:
         drake = []
         for key, q, limit in todo:
             self._cache[key] = None
-            if not self.oracle.space.within_bounds(q)[0]:
+            if not self.checker.space.within_bounds(q)[0]:
                 continue
-            pairs = self.oracle.signed_distances(q, limit)
+            pairs = self.checker.signed_distances(q, limit)
             distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
             if np.any(distance <= 0):
                 continue
@@ -532,7 +534,7 @@ class Certifier:
         if unaided.any():
             again = np.unique(near_k[unaided])
             for k in again.tolist():
-                query = self.oracle.query_object(drake[k][-1])
+                query = self.checker.query_object(drake[k][-1])
                 for pair in near_pair[unaided & (near_k == k)].tolist():
                     nhat[k, pair] = self._direction(query, pair)
             redone = self._gaps.near(
@@ -563,7 +565,7 @@ class Certifier:
             return self._kinematics.poses(Q)
         rotations, centres = [], []
         for q in Q:
-            query = self.oracle.query_object(q)
+            query = self.checker.query_object(q)
             poses = [query.GetPoseInWorld(g) for g in self._robot]
             # Copied now: Drake's poses are views into the query's cache, which the next configuration overwrites.
             rotations.append(np.array([X.rotation().matrix() for X in poses]))

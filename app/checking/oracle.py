@@ -14,8 +14,10 @@ Both see the same collision pairs: the scene's policy is applied to the checker 
 query context (geometry filter), and a test holds them to agreement. An SRDF's disabled pairs need neither: the
 Scene filters them on the SceneGraph model, which the checker and every context start from.
 
-`checks` counts every configuration handed to Drake for a collision answer (the paper's gamma_c); an edge check
-counts the configurations it looked at. Configurations outside the bounds are rejected before Drake and not counted.
+One oracle per scene is shared by every query on it; a query counts and bounds what it asks through its own
+`QueryContext` (app.checking.context; `oracle.context(budget)`), so the oracle holds no per-query state. It may be
+shared between threads: its Drake contexts are one set, so every query on them holds the oracle's lock (pydrake holds
+the GIL inside them anyway, so the lock costs no parallelism; the batch path spreads over Drake's own threads).
 """
 
 from __future__ import annotations
@@ -24,11 +26,13 @@ import functools
 import itertools
 import logging
 import os
+import threading
 import time
 
 import numpy as np
 
-from app.checking.budget import BudgetSpent, Stop
+from app.checking.budget import Budget
+from app.checking.context import QueryContext
 from app.scene.cspace import ConfigurationSpace
 from app.scene.model import Scene
 
@@ -41,8 +45,6 @@ _BATCH_MIN = 8
 # penetrating pair where HasCollisions stops at the first), and a probe every 16 calls spent a third of a welding
 # job's collision-check time in it.
 _PROBE_FIRST, _PROBE_MAX = 16, 1024
-# Most configurations one edge-check call hands Drake at once (a few tenths of a second), so a stop is polled often.
-_MAX_BATCH = 4096
 
 
 def default_threads() -> int:
@@ -65,10 +67,7 @@ class CollisionOracle:
         self._batch_calls = 0
         self._probe_wait = _PROBE_FIRST  # batch calls from one probe to the next
         self._next_probe = _PROBE_FIRST  # the batch call that probes
-        self.checks = 0
-        self.stop: Stop | None = None  # set by a query for its duration: every counted answer polls it
-        self.distance_queries = 0  # signed-distance queries (continuous certification), apart from `checks`
-        self.point_queries = 0  # workspace points asked for their distances to the environment (`environment_gaps`)
+        self._lock = threading.RLock()  # held by every query on the shared Drake contexts
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
         self.checker = SceneGraphCollisionChecker(
@@ -125,64 +124,44 @@ class CollisionOracle:
             )
         return root
 
-    def reset(self) -> None:
-        self.checks = 0
-        self.distance_queries = 0
-        self.point_queries = 0
+    def context(self, budget: Budget | None = None, cancel=None) -> QueryContext:
+        """A new QueryContext on this oracle: one query's counters, budget and cancel flag."""
+        return QueryContext(self, budget, cancel)
 
-    # ---- collision answers (counted) -----------------------------------------------------------------------
+    # ---- collision answers (uncounted: a QueryContext counts and bounds them) ---------------------------------
     def _raw_free(self, q: np.ndarray) -> bool:
         self.plant.SetPositions(self._ctx, q)
         return not self._query_port.Eval(self._ctx).HasCollisions()
 
-    def poll(self) -> None:
-        """BudgetSpent if the stop is spent: for loops that may go round without asking Drake anything (a
-        sampler whose proposals all leave the bounds)."""
-        if self.stop is not None:
-            self.stop.allow(0)
+    def free(self, q: np.ndarray) -> bool:
+        """Whether the configuration q (within bounds) is collision-free under the scene's policy."""
+        with self._lock:
+            return self._raw_free(np.asarray(q, float))
 
-    def is_free(self, q: np.ndarray) -> bool:
-        q = np.asarray(q, float)
-        if not self.space.within_bounds(q)[0]:
-            return False
-        if self.stop is not None:
-            self.stop.allow(1)
-        self.checks += 1
-        return self._raw_free(q)
-
-    def are_free(self, Q: np.ndarray) -> np.ndarray:
-        """Free flags for a batch (n, dim); the batch is spread over the oracle's threads. Under a `stop`, a batch
-        the check limit cannot hold is checked as far as it goes, then BudgetSpent is raised."""
+    def free_batch(self, Q: np.ndarray) -> np.ndarray:
+        """Free flags for configurations (n, dim), all within bounds, by the cheaper of the two Drake paths."""
         Q = np.atleast_2d(np.asarray(Q, float))
-        free = self.space.within_bounds(Q)
-        inside = np.flatnonzero(free)
-        if self.stop is not None and len(inside):
-            allowed = self.stop.allow(len(inside))
-            if allowed < len(inside):
-                self._answer(Q, inside[:allowed], free)
-                raise BudgetSpent("checks")
-        self._answer(Q, inside, free)
+        free = np.zeros(len(Q), bool)
+        if not len(Q):
+            return free
+        with self._lock:
+            if self.threads == 1 or len(Q) < _BATCH_MIN:
+                path = "raw"
+            else:
+                path = self._choose_path()
+            start = time.perf_counter()
+            if path == "raw":
+                for i, q in enumerate(Q):
+                    free[i] = self._raw_free(q)
+            else:
+                free[:] = self.checker.CheckConfigsCollisionFree(list(Q), parallelize=self._parallelism)
+            if len(Q) >= _BATCH_MIN:
+                cost = (time.perf_counter() - start) / len(Q)
+                old = self._cost[path]
+                self._cost[path] = cost if old is None else 0.7 * old + 0.3 * cost
+                if self._batch_calls == self._next_probe:
+                    self._settle_probe(path)
         return free
-
-    def _answer(self, Q: np.ndarray, inside: np.ndarray, free: np.ndarray) -> None:
-        """Ask Drake about Q[inside], counted, into `free`, by the cheaper path."""
-        self.checks += len(inside)
-        if self.threads == 1 or len(inside) < _BATCH_MIN:
-            path = "raw"
-        else:
-            path = self._choose_path()
-        start = time.perf_counter()
-        if path == "raw":
-            for i in inside:
-                free[i] = self._raw_free(Q[i])
-        else:
-            free[inside] = self.checker.CheckConfigsCollisionFree(list(Q[inside]), parallelize=self._parallelism)
-        if len(inside) >= _BATCH_MIN:
-            cost = (time.perf_counter() - start) / len(inside)
-            old = self._cost[path]
-            self._cost[path] = cost if old is None else 0.7 * old + 0.3 * cost
-            if self._batch_calls == self._next_probe:
-                self._settle_probe(path)
 
     def _choose_path(self) -> str:
         """The batch path with the lower running cost per configuration; each is tried first, and the other one
@@ -202,75 +181,23 @@ class CollisionOracle:
         self._probe_wait = min(2 * self._probe_wait, _PROBE_MAX) if dearer else _PROBE_FIRST
         self._next_probe = self._batch_calls + self._probe_wait
 
-    def edges_free(
-        self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False
-    ) -> np.ndarray:
-        """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
-
-        Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
-        its first collision, so colliding edges cost few checks and every round is one batched call (split into
-        batches of at most _MAX_BATCH, so a stop is polled often). Only the points a round checks are computed.
-        ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
-        """
-        return self.edges_status(Q1, Q2, resolution, ends_free)[0]
-
-    def edges_status(
-        self,
-        Q1: np.ndarray,
-        Q2: np.ndarray,
-        resolution: float | None = None,
-        ends_free: bool = False,
-        until_one_collides: bool = False,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(free, decided) flags for the edges, checked as `edges_free` does. With `until_one_collides` the check
-        ends after the first coarse-to-fine round in which any edge collides (the edges of one candidate path: one
-        collision condemns the path, and finishing its free edges would be wasted); edges not finished by then are
-        not decided."""
-        space = self.space
-        Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
-        D = space.difference(Q1, Q2)
-        n = space.segments(Q1, Q2, resolution)
-        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0 :] for k in n.tolist()]
-        free = np.ones(len(Q1), bool)
-        cursor = np.zeros(len(Q1), int)
-        chunk = 1
-        while True:
-            live = [i for i in np.flatnonzero(free).tolist() if cursor[i] < len(orders[i])]
-            if not live:
-                return free, np.ones(len(Q1), bool)
-            takes = [orders[i][cursor[i] : cursor[i] + chunk] for i in live]
-            lengths = np.array([len(t) for t in takes])
-            cursor[live] += lengths
-            owner = np.repeat(live, lengths)
-            t = np.concatenate(takes) / n[owner]
-            points = space.wrap(Q1[owner] + t[:, None] * D[owner])
-            ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
-            hit_owners = np.unique(owner[~ok])
-            free[hit_owners] = False
-            if until_one_collides and len(hit_owners):
-                decided = ~free | (cursor >= np.array([len(o) for o in orders]))
-                return free, decided
-            chunk *= 2  # few points first (endpoints, midpoints), then ever finer
-
-    def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
-        return bool(self.edges_free(q1, q2, resolution)[0])
-
     # ---- geometry (not counted: these are measurements, not collision answers) ------------------------------
     def clearance(self, q: np.ndarray, max_distance: float = 10.0) -> float:
         """Signed distance from the robot to whatever counts under the scene's policy (negative: penetration).
 
         Pairs farther apart than `max_distance` are not computed, so the answer is capped there.
         """
-        self.plant.SetPositions(self._ctx, np.asarray(q, float))
-        pairs = self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+        with self._lock:
+            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            pairs = self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
         return min((p.distance for p in pairs), default=float(max_distance))
 
     def contacts(self, q: np.ndarray, margin: float = 0.0) -> dict[str, bool]:
         """What the robot touches (or comes within `margin` of) at q, environment and self, whether or not the scene
         counts self-collision (pairs Drake or the SRDF filter are never reported)."""
-        self.plant.SetPositions(self._diag, np.asarray(q, float))
-        query = self._query_port.Eval(self._diag)
-        pairs = query.ComputeSignedDistancePairwiseClosestPoints(max(margin, 1e-9))
+        with self._lock:
+            self.plant.SetPositions(self._diag, np.asarray(q, float))
+            pairs = self._query_port.Eval(self._diag).ComputeSignedDistancePairwiseClosestPoints(max(margin, 1e-9))
         touched = {"environment": False, "self": False}
         for p in pairs:
             if p.distance > margin:
@@ -285,12 +212,14 @@ class CollisionOracle:
     def colliding_bodies(self, q: np.ndarray) -> list[tuple[str, str]]:
         """The body pairs (scoped names, sorted) in collision at q under the scene's policy; for error messages.
         Geometry anchored to the world (a custom scene's environment pieces) is named itself, not "world"."""
-        self.plant.SetPositions(self._ctx, np.asarray(q, float))
-        query = self._query_port.Eval(self._ctx)
-        try:
-            pairs = [(p.id_A, p.id_B) for p in query.ComputePointPairPenetration()]
-        except RuntimeError:  # a shape pair without penetration support: fall back to signed distances
-            pairs = [(p.id_A, p.id_B) for p in query.ComputeSignedDistancePairwiseClosestPoints(0.0) if p.distance < 0]
+        with self._lock:
+            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            query = self._query_port.Eval(self._ctx)
+            try:
+                pairs = [(p.id_A, p.id_B) for p in query.ComputePointPairPenetration()]
+            except RuntimeError:  # a shape pair without penetration support: fall back to signed distances
+                distances = query.ComputeSignedDistancePairwiseClosestPoints(0.0)
+                pairs = [(p.id_A, p.id_B) for p in distances if p.distance < 0]
         world = self._inspector.world_frame_id()
 
         def name(g):
@@ -306,9 +235,10 @@ class CollisionOracle:
         configuration, (n, 3)."""
         Q = np.atleast_2d(np.asarray(Q, float))
         out = np.empty((len(Q), 3))
-        for i, q in enumerate(Q):
-            self.plant.SetPositions(self._ctx, q)
-            out[i] = self._tracked_frame.CalcPoseInWorld(self._ctx).translation()
+        with self._lock:
+            for i, q in enumerate(Q):
+                self.plant.SetPositions(self._ctx, q)
+                out[i] = self._tracked_frame.CalcPoseInWorld(self._ctx).translation()
         return out
 
     def in_passage(self, Q: np.ndarray) -> np.ndarray:
@@ -321,20 +251,22 @@ class CollisionOracle:
 
     def query_object(self, q: np.ndarray):
         """SceneGraph's QueryObject with the robot at q, under the scene's collision policy, for pictures and
-        measurements that need Drake's own answers (not counted). Valid until the oracle's next query."""
-        self.plant.SetPositions(self._ctx, np.asarray(q, float))
-        return self._query_port.Eval(self._ctx)
+        measurements that need Drake's own answers (not counted). Valid until the oracle's next query: one thread's
+        use only."""
+        with self._lock:
+            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            return self._query_port.Eval(self._ctx)
 
     def is_robot_geometry(self, geometry_id) -> bool:
         """Whether a SceneGraph geometry belongs to the robot (else to the environment)."""
         return geometry_id in self._robot_geometries
 
-    def signed_distances(self, q: np.ndarray, max_distance: float) -> list:
+    def signed_distance_pairs(self, q: np.ndarray, max_distance: float) -> list:
         """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
-        `max_distance` (farther pairs are left out); counted in `distance_queries`, not in `checks`."""
-        self.distance_queries += 1
-        self.plant.SetPositions(self._ctx, np.asarray(q, float))
-        return self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+        `max_distance` (farther pairs are left out)."""
+        with self._lock:
+            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            return self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
 
     # ---- the workspace (not collision checks) --------------------------------------------------------------------
     @functools.cached_property
@@ -364,11 +296,12 @@ class CollisionOracle:
         shapes = self._robot_shapes
         every = np.arange(len(shapes))
         out = np.empty((len(Q), len(shapes), 3))
-        for i, q in enumerate(Q):
-            self.plant.SetPositions(self._ctx, q)
-            for j in every if pieces is None else (int(pieces[i]),):
-                body, X_BG, _ = shapes[j]
-                out[i, j] = self.plant.EvalBodyPoseInWorld(self._ctx, body).multiply(X_BG.translation())
+        with self._lock:
+            for i, q in enumerate(Q):
+                self.plant.SetPositions(self._ctx, q)
+                for j in every if pieces is None else (int(pieces[i]),):
+                    body, X_BG, _ = shapes[j]
+                    out[i, j] = self.plant.EvalBodyPoseInWorld(self._ctx, body).multiply(X_BG.translation())
         return out if pieces is None else out[np.arange(len(Q)), np.asarray(pieces, int)]
 
     def robot_geometry_radii(self) -> np.ndarray:
@@ -380,19 +313,19 @@ class CollisionOracle:
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`: two
         obstacles on roughly opposite sides of it (their distance gradients more than 120 degrees apart) whose
-        distances add up to less than `width`. One SceneGraph point query each, counted in `point_queries`."""
+        distances add up to less than `width`. One SceneGraph point query each."""
         P = np.atleast_2d(np.asarray(P, float))
-        query = self._query_port.Eval(self._ctx)
         gap = np.zeros(len(P), bool)
-        for i, p in enumerate(P):
-            near = [r for r in query.ComputeSignedDistanceToPoint(p, width) if r.id_G not in self._robot_geometries]
+        with self._lock:
+            answers = [self._query_port.Eval(self._ctx).ComputeSignedDistanceToPoint(p, width) for p in P]
+        for i, answer in enumerate(answers):
+            near = [r for r in answer if r.id_G not in self._robot_geometries]
             if not near or min(r.distance for r in near) <= 0:
                 continue
             for a, b in itertools.combinations(near, 2):
                 if a.distance + b.distance < width and float(np.dot(a.grad_W, b.grad_W)) < -0.5:
                     gap[i] = True
                     break
-        self.point_queries += len(P)
         return gap
 
 
@@ -415,26 +348,3 @@ def half_extent(shape, rotation: np.ndarray) -> np.ndarray:
         points = np.array([hull.vertex(i) for i in range(hull.num_vertices())]) @ rotation.T
         return np.abs(points).max(axis=0)
     return np.zeros(3)
-
-
-@functools.lru_cache(maxsize=4096)
-def _coarse_to_fine(n: int) -> np.ndarray:
-    """Indices 0..n-1 ordered endpoints first, then by bisection (van der Corput), so a collision shows up early.
-
-    Cached: edges at one resolution come in few lengths, and building the order in Python cost more than the
-    collision checks of a short edge."""
-    if n <= 2:
-        return np.arange(n)
-    order = [0, n - 1]
-    seen = {0, n - 1}
-    denominator = 2
-    while len(order) < n:
-        for k in range(1, denominator, 2):
-            i = int(round(k * (n - 1) / denominator))
-            if i not in seen:
-                seen.add(i)
-                order.append(i)
-        denominator *= 2
-    out = np.array(order)
-    out.flags.writeable = False  # shared by every caller through the cache
-    return out

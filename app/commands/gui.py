@@ -41,11 +41,9 @@ def register(subparsers) -> None:
 def run(args) -> int:
     settings = plan.settings_from_args(args)
     check_outputs(args.state, args.html)
-    # Two loads of the scene: one oracle plans on the worker thread, the other checks the sliders' start and goal.
-    scenes = [custom.scene_from_args(args, args.scene) for _ in range(2)]
+    scene = custom.scene_from_args(args, args.scene)
     check_meshcat_allowed()
-    planner, preview = map(CollisionOracle, scenes)
-    panel = Panel(planner, preview, settings, port=args.port, frame=args.frame, state_path=args.state)
+    panel = Panel(CollisionOracle(scene), settings, port=args.port, frame=args.frame, state_path=args.state)
     print(f"meshcat: {panel.viewer.url()}", file=sys.stderr, flush=True)
     how = f"for {args.wait:g} s" if args.wait is not None else "until Ctrl-C (or SIGTERM)"
     print(f"gui: serving the planning panel {how}", file=sys.stderr, flush=True)

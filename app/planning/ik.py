@@ -17,7 +17,7 @@ Nothing free: `InvalidEndpoint` naming the pose.
 Measured on the UR3 scenes: one pose takes 30-70 ms (about 5 ms per SNOPT solve); an unreachable pose fails in about
 0.2 s; a pose reachable only in collision costs a few seconds (the minimum-distance round).
 
-IK is set-up work, not planning: the oracle's check counter is left as it was found.
+IK is set-up work, not planning: it takes the shared oracle and its collision answers are not counted in any query.
 """
 
 from __future__ import annotations
@@ -101,7 +101,6 @@ def solve_pose(
         raise UserError(f"scene {scene.name} names no tool frame, so it has no tool poses to reach")
     reference = scene.start if reference is None else oracle.space.check_configuration(reference, "reference")
     plant = oracle.plant
-    checks_before = oracle.checks
 
     def attempt(seed_list, with_clearance: bool, colliding: list) -> list[np.ndarray]:
         root = oracle.policy_context()
@@ -142,7 +141,7 @@ def solve_pose(
             position, angle = pose_error(oracle, candidate, X_WT, frame)
             if position > position_tolerance or angle > angle_tolerance:
                 continue
-            if oracle.is_free(candidate):
+            if oracle.space.within_bounds(candidate)[0] and oracle.free(candidate):
                 found.append(candidate)
                 if len(found) >= keep:
                     break
@@ -152,16 +151,11 @@ def solve_pose(
 
     colliding: list[np.ndarray] = []
     first = [reference] + [rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds - 1)]
-    try:
-        found = attempt(first, False, colliding)
-        if not found and colliding:
-            # The pose is reachable but every solution found collides: push those (and a few fresh seeds) clear.
-            second = colliding[:keep] + [
-                rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds // 16)
-            ]
-            found = attempt(second, True, [])
-    finally:
-        oracle.checks = checks_before
+    found = attempt(first, False, colliding)
+    if not found and colliding:
+        # The pose is reachable but every solution found collides: push those (and a few fresh seeds) clear.
+        second = colliding[:keep] + [rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds // 16)]
+        found = attempt(second, True, [])
     if not found:
         raise InvalidEndpoint(
             f"pose '{label}' cannot be reached collision-free by {frame.name()} "

@@ -214,6 +214,29 @@ def check_endpoint(oracle, q, what: str) -> np.ndarray:
     return oracle.space.wrap(q)
 
 
+def check_goals(checker, goal) -> np.ndarray:
+    """One goal, or several (k, dim) of which the query may reach any (every IK solution of a tool pose), as rows.
+    A single bad goal is refused as check_endpoint refuses it; among several, those that are out of bounds or collide
+    are left out, and only when none is left is the first one's fault raised."""
+    try:
+        several = np.ndim(np.asarray(goal, float)) == 2
+    except (TypeError, ValueError):  # ragged or not numbers: check_endpoint says what is wrong
+        several = False
+    if not several:
+        return check_endpoint(checker, goal, "goal")[None, :]
+    kept, faults = [], []
+    for q in goal:
+        try:
+            kept.append(check_endpoint(checker, q, "goal"))
+        except InvalidEndpoint as fault:
+            faults.append(fault)
+    if not kept:
+        if len(faults) == 1:
+            raise faults[0]
+        raise InvalidEndpoint(f"none of {len(faults)} goals is valid; the first: {faults[0]}", faults[0].code)
+    return np.array(kept)
+
+
 def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None, via=None, cancel=None) -> PlanResult:
     """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()); `via`: waypoints
     of the easy route to try instead of the straight motion (an arm's tool line, app.planning.ik.tool_line).
@@ -222,6 +245,76 @@ def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None,
     samples or the budget run out before start and goal connect (code PREEMPTED when `cancel`, a threading.Event,
     was set from another thread), UserError for bad parameters."""
     return Query(oracle, settings or PlanSettings(), start=start, goal=goal, via=via, cancel=cancel).solve()
+
+
+class Samples:
+    """Where a roadmap's samples come from, in rounds: placements in narrow workspace gaps (a share `workspace` of
+    each round's narrow-passage samples, app.samplers.workspace), the narrow-passage sampler's walks, and uniform
+    samples. Each source has its own random stream from `seeds` (a spawned SeedSequence list), so one source drawing
+    more does not move another's samples; walkers still under way when a round ends go on in the next one. A query
+    and a cell roadmap's build draw through this one object."""
+
+    def __init__(self, checker, sampler: str, step: float, seeds, workspace: float, params: dict | None = None):
+        from app.samplers import make_sampler
+
+        self.checker, self.step, self.workspace = checker, step, workspace
+        self._rngs = {
+            "narrow": np.random.default_rng(seeds[0]),
+            "uniform": np.random.default_rng(seeds[1]),
+            "workspace": np.random.default_rng(seeds[3]),
+        }
+        self._samplers = {
+            "narrow": make_sampler(sampler, checker, step=step, **(params or {})),
+            "uniform": make_sampler("uniform", checker, step=step),
+        }
+        self.stats = {"narrow": {}, "uniform": {}, "workspace": {}}
+        self._workspace_on = workspace > 0  # off once no placement can be made
+
+    def draw(self, narrow: int, uniform: int) -> list[tuple[str, np.ndarray]]:
+        """One round: `narrow` narrow-passage samples (placements first, then walks) and `uniform` uniform ones, as
+        (roadmap kind, samples) pairs. SamplerBudgetExceeded when the narrow or uniform sampler cannot find its
+        samples within its own check cap."""
+        from app.planning.roadmap import NARROW, UNIFORM, WORKSPACE
+
+        W = self._draw("workspace", self._placements(narrow))
+        N = self._draw("narrow", narrow - len(W))
+        return [(WORKSPACE, W), (NARROW, N), (UNIFORM, self._draw("uniform", uniform))]
+
+    def _draw(self, kind: str, count: int) -> np.ndarray:
+        if count <= 0:
+            return np.empty((0, self.checker.space.dim))
+        sampler = self._samplers[kind]
+        try:
+            return sampler.sample(count, self._rngs[kind], resume=True)
+        except SamplerBudgetExceeded:
+            if kind != "workspace":
+                raise
+            self._workspace_on = False  # no piece of the robot reaches the gaps found: the sampler takes over
+            return np.empty((0, self.checker.space.dim))
+        finally:
+            totals = self.stats[kind]
+            for name, value in sampler.stats.items():
+                if isinstance(value, (int, float)):
+                    totals[name] = totals.get(name, 0) + value
+
+    def _placements(self, narrow: int) -> int:
+        """How many of a round's `narrow` samples are placements in workspace gaps. The first time, the gaps are
+        searched for (polling the budget) until one is found; a scene with none leaves them all to the sampler."""
+        from app.samplers.workspace import WorkspaceGaps, WorkspaceSampler
+
+        if narrow <= 0 or not self._workspace_on:
+            return 0
+        if "workspace" not in self._samplers:
+            rng = self._rngs["workspace"]
+            gaps = WorkspaceGaps(self.checker, rng)
+            while not len(gaps.points) and not gaps.exhausted:
+                self.checker.poll()
+                gaps.search(rng)
+            if gaps.exhausted:
+                self._workspace_on = False
+                return 0
+            self._samplers["workspace"] = WorkspaceSampler(self.checker, gaps, step=self.step)
+        return round(self.workspace * narrow)
 
 
 class Query:
@@ -266,85 +359,108 @@ class Query:
     `full_roadmap` is the paper's protocol instead: one round of all `narrow` + `uniform` samples, every edge
     checked, then the query."""
 
-    def __init__(self, oracle, settings: PlanSettings, *, start=None, goal=None, via=None, cancel=None):
+    def __init__(
+        self,
+        oracle,
+        settings: PlanSettings,
+        *,
+        start=None,
+        goal=None,
+        via=None,
+        cancel=None,
+        roadmap=None,
+        certifier=None,
+    ):
         # The roadmap and samplers pull in scipy and networkx: imported when a query is made, not at CLI start-up.
         from app.planning.roadmap import GOAL, START, Roadmap
-        from app.samplers import make_sampler
 
+        # The query's own counters and budget on the shared oracle (its stop is set when solve() runs).
         self.oracle, self.settings, self._cancel = oracle, settings, cancel
+        self.checker = checker = oracle.context()
         self.step = default_step(oracle.scene) if settings.step is None else float(settings.step)
         diagonal = float(np.linalg.norm((oracle.space.upper - oracle.space.lower) * oracle.space.weights))
         if self.step > diagonal:  # a walk of such steps leaves the bounds at every step and never ends
             raise UserError(f"step {self.step:g} is longer than the scene's diagonal ({diagonal:g})")
-        self._clock0, self._checks0 = time.perf_counter(), oracle.checks
+        self._clock0, self._checks0 = time.perf_counter(), checker.checks
         self.seconds = dict.fromkeys(PHASES, 0.0)
         self.checks = dict.fromkeys(("endpoints",) + PHASES, 0)
 
-        self.start = check_endpoint(oracle, oracle.scene.start if start is None else start, "start")
-        self.goal = check_endpoint(oracle, oracle.scene.goal if goal is None else goal, "goal")
-        self.checks["endpoints"] = oracle.checks - self._checks0
+        self.start = check_endpoint(checker, oracle.scene.start if start is None else start, "start")
+        self.goals = check_goals(checker, oracle.scene.goal if goal is None else goal)
+        self.goal = self.goals[0]  # until the query has reached one of them
+        self.checks["endpoints"] = checker.checks - self._checks0
         # The easy route: the straight motion, or the polyline through `via`.
         via = [] if via is None or len(via) == 0 else np.atleast_2d(np.asarray(via, float))
         via = [oracle.space.check_configuration(q, "via point") for q in via]
         outside = [fault for q in via for fault in oracle.space.out_of_bounds(q)]
         if outside:
             raise UserError(f"via point out of bounds: {outside[0]}")
+        self.via = via
         self.route = np.vstack([self.start, *via, self.goal])
 
-        seeds = np.random.SeedSequence(settings.seed).spawn(4)
-        self._rngs = {
-            "narrow": np.random.default_rng(seeds[0]),
-            "uniform": np.random.default_rng(seeds[1]),
-            "workspace": np.random.default_rng(seeds[3]),
-        }
+        # A roadmap that already holds samples gets a seed of its own per size, so that its next query does not draw
+        # the same samples again.
+        given = roadmap is not None and len(roadmap) > 0
+        seeds = np.random.SeedSequence(settings.seed, spawn_key=(len(roadmap),) if given else ()).spawn(4)
         self._smoothing_seed = seeds[2]
-        self._samplers = {
-            "narrow": make_sampler(settings.sampler, oracle, step=self.step, **settings.sampler_params),
-            "uniform": make_sampler("uniform", oracle, step=self.step),
-        }
-        self.sampler_stats = {"narrow": {}, "uniform": {}, "workspace": {}}
-        # Whether narrow rounds place samples in workspace gaps: not for a full roadmap, nor once none can be placed.
-        self._workspace_on = settings.workspace > 0 and not settings.full_roadmap
+        workspace = 0.0 if settings.full_roadmap else settings.workspace  # a full roadmap places none
+        self.samples = Samples(checker, settings.sampler, self.step, seeds, workspace, settings.sampler_params)
         self.rounds = 0
         # Narrow-passage samples from the round after the first one that left start and goal apart.
         self.narrow_from_round: int | None = 1 if settings.full_roadmap else None
-        # A single query checks only the edges its candidate paths use; a full roadmap is checked whole.
-        self.roadmap = Roadmap(
-            oracle, k=settings.k, skip_connected=settings.skip_connected, lazy=not settings.full_roadmap
-        )
-        self.start_node = int(self.roadmap.add(self.start, START, connect=False)[0])
-        self.goal_node = int(self.roadmap.add(self.goal, GOAL, connect=False)[0])
+        # A single query checks only the edges its candidate paths use; a full roadmap is checked whole. A persistent
+        # roadmap (app.planning.cell) is handed in with every verdict it holds, and answers this query's checker.
+        if roadmap is None:
+            roadmap = Roadmap(
+                checker, k=settings.k, skip_connected=settings.skip_connected, lazy=not settings.full_roadmap
+            )
+        roadmap.checker = checker
+        self.roadmap = roadmap
+        before = len(roadmap)
+        self.start_node = roadmap.node(self.start, START)
+        self.goal_nodes = [roadmap.node(g, GOAL) for g in self.goals]
+        # Endpoints are connected with the first round's samples, or at once where the roadmap has nodes already.
+        self._unconnected = list(dict.fromkeys([self.start_node, *self.goal_nodes]))
+        self._searchable = before > 0
         self.fine = FINE * self.roadmap.resolution
         # Set once an optimistic path has failed the certificate: from then on roadmap paths must pass the fine
         # check and shortcuts are checked at the fine resolution.
         self.fine_only = False
         self.stopped: str | None = None  # why the query's work ended early: "time", "checks" or "cancelled"
-        self._certifier = None  # made when the first path is to be proved (it sets up per-geometry bounds)
+        # Made when the first path is to be proved (it sets up per-geometry bounds), or a persistent roadmap's, whose
+        # cached distances serve every query on it.
+        self.certifier = certifier
+        if certifier is not None:
+            certifier.checker = checker
         self.unproved_edges = 0  # roadmap edges fine-checked free that the certificate could not prove
-        self._proved_edges: set[tuple[int, int]] = set()  # roadmap edges the certificate proved, (smaller, larger)
-        self._queries0, self._points0 = oracle.distance_queries, oracle.point_queries
 
     # ---- bookkeeping ----------------------------------------------------------------------------------------------
     def _timed(self, phase: str, fn, *args, **kwargs):
-        t, c = time.perf_counter(), self.oracle.checks
+        t, c = time.perf_counter(), self.checker.checks
         try:
             return fn(*args, **kwargs)
         finally:
             self.seconds[phase] += time.perf_counter() - t
-            self.checks[phase] += self.oracle.checks - c
+            self.checks[phase] += self.checker.checks - c
 
     def elapsed(self) -> tuple[float, int]:
         """Seconds and collision checks spent since the query was made."""
-        return time.perf_counter() - self._clock0, self.oracle.checks - self._checks0
+        return time.perf_counter() - self._clock0, self.checker.checks - self._checks0
 
     # ---- the easy route -----------------------------------------------------------------------------------------
     def straight(self) -> bool:
-        """Whether the easy route (the straight motion from start to goal, or the polyline through `via`) is free at
-        the resolution (one batched edge check; the certificate then proves it between the checked points). Via
-        points are checked too: only the endpoints are known free."""
-        R, resolution = self.route, self.roadmap.resolution
-        free = self._timed("search", self.oracle.edges_free, R[:-1], R[1:], resolution, ends_free=len(R) == 2)
-        return bool(free.all())
+        """Whether an easy route (the straight motion from start to a goal, or the polyline through `via`; the
+        nearest goal first) is free at the resolution (one batched edge check each; the certificate then proves it
+        between the checked points); it is then `route`, and its goal `goal`. Via points are checked too: only the
+        endpoints are known free."""
+        resolution = self.roadmap.resolution
+        for g in self.goals[np.argsort(self.checker.space.distance(self.start, self.goals), kind="stable")]:
+            R = np.vstack([self.start, *self.via, g])
+            free = self._timed("search", self.checker.edges_free, R[:-1], R[1:], resolution, ends_free=len(R) == 2)
+            if free.all():
+                self.route, self.goal = R, g
+                return True
+        return False
 
     # ---- grow -------------------------------------------------------------------------------------------------------
     def round_sizes(self) -> tuple[int, int] | None:
@@ -359,63 +475,18 @@ class Query:
         k = self.rounds + 1 - self.narrow_from_round
         return min(math.ceil(s.narrow / 4), math.ceil(s.narrow / NARROW_RAMP) * 2**k), math.ceil(s.uniform / 4)
 
-    def _draw(self, kind: str, count: int) -> np.ndarray:
-        """`count` samples from the narrow or uniform sampler, resuming its walkers; a sampler that cannot find
-        them within its own check cap makes the query fail."""
-        if count <= 0:
-            return np.empty((0, self.oracle.space.dim))
-        sampler = self._samplers[kind]
-        try:  # resume: walkers still under way when a round ends go on in the next one
-            return sampler.sample(count, self._rngs[kind], resume=True)
-        except SamplerBudgetExceeded as exc:
-            if kind == "workspace":  # no piece of the robot reaches the gaps found: the sampler takes over
-                self._workspace_on = False
-                return np.empty((0, self.oracle.space.dim))
-            raise self._failure(f"no path on {self.oracle.scene.name}: {exc}", sampler=str(exc)) from None
-        finally:
-            totals = self.sampler_stats[kind]
-            for name, value in sampler.stats.items():
-                if isinstance(value, (int, float)):
-                    totals[name] = totals.get(name, 0) + value
-
-    def _workspace_share(self, narrow: int) -> int:
-        """How many of a round's `narrow` samples are placements in workspace gaps. The first time, the gaps are
-        searched for (polling the budget) until one is found; a scene with none leaves them all to the sampler."""
-        from app.samplers.workspace import WorkspaceGaps, WorkspaceSampler
-
-        if narrow <= 0 or not self._workspace_on:
-            return 0
-        if "workspace" not in self._samplers:
-            rng = self._rngs["workspace"]
-            gaps = WorkspaceGaps(self.oracle, rng)
-            while not len(gaps.points) and not gaps.exhausted:
-                self.oracle.poll()
-                gaps.search(rng)
-            if gaps.exhausted:
-                self._workspace_on = False
-                return 0
-            self._samplers["workspace"] = WorkspaceSampler(self.oracle, gaps, step=self.step)
-        return round(self.settings.workspace * narrow)
-
     def grow(self, narrow: int, uniform: int) -> np.ndarray:
         """One round: draw the samples, add them as nodes (the first round also connects start and goal) and
         connect the new nodes to their neighbours. Returns the new nodes."""
-        from app.planning.roadmap import NARROW, UNIFORM, WORKSPACE
 
         self.rounds += 1
-        placed = self._timed("sampling", self._workspace_share, narrow)
-        W = self._timed("sampling", self._draw, "workspace", placed)
-        N = self._timed("sampling", self._draw, "narrow", narrow - len(W))
-        U = self._timed("sampling", self._draw, "uniform", uniform)
-        new = np.concatenate(
-            [
-                self.roadmap.add(W, WORKSPACE, connect=False),
-                self.roadmap.add(N, NARROW, connect=False),
-                self.roadmap.add(U, UNIFORM, connect=False),
-            ]
-        )
-        if self.rounds == 1:
-            new = np.concatenate([[self.start_node, self.goal_node], new])
+        try:
+            drawn = self._timed("sampling", self.samples.draw, narrow, uniform)
+        except SamplerBudgetExceeded as exc:
+            raise self._failure(f"no path on {self.checker.scene.name}: {exc}", sampler=str(exc)) from None
+        new = np.concatenate([self.roadmap.add(Q, kind, connect=False) for kind, Q in drawn])
+        new = np.concatenate([np.array(self._unconnected, int), new])
+        self._unconnected = []
         self._timed("roadmap", self.roadmap.connect, new)
         return new
 
@@ -425,10 +496,10 @@ class Query:
         resolution too; edges failing it are dropped), or None while start and goal are apart."""
         roadmap = self.roadmap
         while True:
-            nodes = self._timed("search", roadmap.shortest_path, self.start_node, self.goal_node)
+            nodes = self._timed("search", roadmap.shortest_path, self.start_node, self.goal_nodes)
             if nodes is None or not self.fine_only:
                 return nodes
-            ok = self._timed("search", verify, self.oracle, roadmap.Q[nodes], self.fine)
+            ok = self._timed("search", verify, self.checker, roadmap.Q[nodes], self.fine)
             if ok.all():
                 return nodes
             for i in np.flatnonzero(~ok):
@@ -438,19 +509,19 @@ class Query:
         """The roadmap path shortened (same seed, same shortcuts), at the fine resolution when fine-only, spending
         at most SMOOTHING_SHARE of the checks that finding it took, SMOOTHING_CAP with the passes before: a path
         is worth shortening, not at any price. `memo`: what an earlier pass on the same path checked and banned."""
-        outer, raw = self.oracle.stop, self.roadmap.Q[nodes]
+        outer, raw = self.checker.stop, self.roadmap.Q[nodes]
         memo = memo if memo is not None else Shortcuts()
-        resolution = self.fine if self.fine_only else self.oracle.space.resolution
+        resolution = self.fine if self.fine_only else self.checker.space.resolution
         if outer is not None:
             spent = self.checks["smoothing"]
             finding = self.elapsed()[1] - spent
             share = max(SMOOTHING_MIN, int(SMOOTHING_SHARE * finding))
-            self.oracle.stop = outer.within(max(0, min(share, int(SMOOTHING_CAP * finding) - spent)))
+            self.checker.stop = outer.within(max(0, min(share, int(SMOOTHING_CAP * finding) - spent)))
         try:
             path, stats = self._timed(
                 "smoothing",
                 shortcut,
-                self.oracle,
+                self.checker,
                 raw,
                 np.random.default_rng(self._smoothing_seed),
                 rounds=self.settings.smooth_rounds,
@@ -458,10 +529,10 @@ class Query:
                 memo=memo,
             )
         finally:
-            self.oracle.stop = outer
+            self.checker.stop = outer
         # Not held to the cap: a path that winds a joint a whole turn more than it needs is worth a pass of checks.
         if stats["stopped"]:
-            path = self._timed("smoothing", unwind, self.oracle, path, resolution, stats, memo)
+            path = self._timed("smoothing", unwind, self.checker, path, resolution, stats, memo)
         stats["fine_only"] = self.fine_only
         return path, stats
 
@@ -471,13 +542,11 @@ class Query:
         along the edge, bisected where they do not); stats["failed"] lists the edges that could not be proved."""
         from app.checking.certify import Certifier, polyline
 
-        if self._certifier is None:
-            self._certifier = Certifier(self.oracle)
-        position, variation = polyline(self.oracle.space, path)
+        if self.certifier is None:
+            self.certifier = Certifier(self.checker)
+        position, variation = polyline(self.checker.space, path)
         edges = list(range(len(path) - 1) if edges is None else edges)
-        proved, stats = self._timed(
-            "certify", self._certifier.certify, position, variation, [(i, i + 1) for i in edges]
-        )
+        proved, stats = self._timed("certify", self.certifier.certify, position, variation, [(i, i + 1) for i in edges])
         return proved, {**stats, "failed": [edges[k] for k in stats["failed"]]}
 
     def smooth_and_prove(self, nodes: list[int], proof: dict | None = None) -> tuple[np.ndarray, dict, dict | None]:
@@ -500,7 +569,7 @@ class Query:
             work = {k: work[k] + certificate[k] for k in work}
             if proved:
                 return path, stats, {**certificate, **work}
-            if repairs == SMOOTHING_REPAIRS or not memo.ban_carriers(self.oracle.space, path, certificate["failed"]):
+            if repairs == SMOOTHING_REPAIRS or not memo.ban_carriers(self.checker.space, path, certificate["failed"]):
                 return path, stats, None
 
     def connect_and_smooth(self) -> tuple[list[int], np.ndarray, dict] | None:
@@ -542,17 +611,17 @@ class Query:
         """The certificate of the roadmap path through `nodes` (its edges not proved before), or None when it cannot
         be proved; then its unprovable edges have left the roadmap."""
         edges = [(min(a, b), max(a, b)) for a, b in itertools.pairwise(nodes)]
-        new = [i for i, edge in enumerate(edges) if edge not in self._proved_edges]
+        new = [i for i, edge in enumerate(edges) if edge not in self.roadmap.proved]
         with self._unlimited():
             proved, certificate = self.certify(self.roadmap.Q[nodes], new)
-        self._proved_edges.update(edges[i] for i in new if i not in certificate["failed"])
+        self.roadmap.proved.update(edges[i] for i in new if i not in certificate["failed"])
         if proved:
             return certificate
         for i in certificate["failed"]:
             self.roadmap.remove_edge(*edges[i])
         self.unproved_edges += len(certificate["failed"])
-        if self.oracle.stop is not None:  # certificates ask no collision checks, so the budget is polled here
-            self.oracle.stop.allow(0)
+        if self.checker.stop is not None:  # certificates ask no collision checks, so the budget is polled here
+            self.checker.stop.allow(0)
         return None
 
     def time(self, path: np.ndarray, proved: bool = False) -> Trajectory:
@@ -560,18 +629,24 @@ class Query:
         proved: the path's edges are certified already (by this query's certifier), so only the blends need to be."""
         try:
             return self._timed(
-                "timing", time_path, self.oracle, path, self.settings.dt, certifier=self._certifier, edges_proved=proved
+                "timing",
+                time_path,
+                self.checker,
+                path,
+                self.settings.dt,
+                certifier=self.certifier,
+                edges_proved=proved,
             )
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
             raise NoPath(
-                f"path found on {self.oracle.scene.name} but not time-parameterized: {' '.join(str(exc).split())}"
+                f"path found on {self.checker.scene.name} but not time-parameterized: {' '.join(str(exc).split())}"
             ) from None
 
     def solve(self) -> PlanResult:
         """The easy route (straight, or through `via`) if it is free and proved; else grow round by round until start
         and goal connect, then smooth, certify and time the path. The budget bounds everything but the certificate
         and timing."""
-        self.oracle.stop = Stop(self.settings.budget, self.oracle, self._cancel)
+        self.checker.stop = Stop(self.settings.budget, self.checker, self._cancel)
         try:
             if self.straight():
                 path = self.route
@@ -579,13 +654,17 @@ class Query:
                     proved, certificate = self.certify(path)
                 if proved:  # else the roadmap may find a route it can prove
                     return self._result(
-                        [self.start_node, self.goal_node],
+                        [self.start_node, self.goal_nodes[self._goal_index(self.goal)]],
                         path,
                         {"straight": True, "via": len(path) - 2, "certificate": {**certificate, "proved": True}},
                         raw=path,
                     )
             found = None
-            sizes = self.round_sizes()
+            if self._searchable:  # a persistent roadmap: search what it holds before drawing any sample
+                self._timed("roadmap", self.roadmap.connect, np.array(self._unconnected, int))
+                self._unconnected = []
+                found = self.connect_and_smooth()
+            sizes = None if found is not None else self.round_sizes()
             while sizes is not None:
                 self.grow(*sizes)
                 found = self.connect_and_smooth()
@@ -598,7 +677,7 @@ class Query:
             self.stopped = spent.reason
             found = None
         finally:
-            self.oracle.stop = None
+            self.checker.stop = None
         if found is None:
             raise self._not_connected()
         return self._result(*found)
@@ -606,11 +685,14 @@ class Query:
     @contextlib.contextmanager
     def _unlimited(self):
         """The oracle answers past the budget in here: for the bounded work of proving a path already found."""
-        saved, self.oracle.stop = self.oracle.stop, None
+        saved, self.checker.stop = self.checker.stop, None
         try:
             yield
         finally:
-            self.oracle.stop = saved
+            self.checker.stop = saved
+
+    def _goal_index(self, q: np.ndarray) -> int:
+        return int(np.argmin(self.checker.space.distance(q, self.goals)))
 
     # ---- answers ----------------------------------------------------------------------------------------------------
     def _failure(self, message: str, **details) -> NoPath:
@@ -629,7 +711,7 @@ class Query:
 
     def _not_connected(self) -> NoPath:
         stats, s = self.roadmap.stats(), self.settings
-        sizes = self.roadmap.component_sizes(self.start_node, self.goal_node)
+        sizes = self.roadmap.component_sizes(self.start_node, *self.goal_nodes)
         seconds, spent = self.elapsed()
         if self.stopped == "cancelled":
             ending = ", cancelled"
@@ -640,7 +722,7 @@ class Query:
         if self.unproved_edges:
             ending += f"; {self.unproved_edges} edge(s) checked free but not provably free were dropped"
         return self._failure(
-            f"no path from start to goal on {self.oracle.scene.name}: roadmap of {stats['nodes']} nodes "
+            f"no path from start to goal on {self.checker.scene.name}: roadmap of {stats['nodes']} nodes "
             f"({stats['narrow_nodes']} narrow-passage samples from {s.sampler}, {stats['uniform_nodes']} uniform), "
             f"start and goal not joined by edges checked free; {stats['edges_tried']} edges decided, {spent} "
             f"collision checks, {seconds:.1f} s, {self.rounds} round(s)" + ending,
@@ -654,13 +736,14 @@ class Query:
 
         roadmap, s = self.roadmap, self.settings
         raw = roadmap.Q[nodes] if raw is None else raw
-        stats["raw_length"] = path_length(self.oracle, raw)
-        stats["length_after"] = path_length(self.oracle, path)
+        self.goal = self.goals[self._goal_index(raw[-1])]
+        stats["raw_length"] = path_length(self.checker, raw)
+        stats["length_after"] = path_length(self.checker, path)
         trajectory = self.time(path, stats["certificate"]["proved"]) if s.timing else None
         self.seconds["total"] = self.elapsed()[0]
         return PlanResult(
             success=True,
-            scene=self.oracle.scene.name,
+            scene=self.checker.scene.name,
             sampler=s.sampler,
             seed=int(s.seed),
             step=self.step,
@@ -677,11 +760,11 @@ class Query:
             rounds=self.rounds,
             budget=str(s.budget),
             smoothing=stats,
-            sampler_stats=self.sampler_stats,
+            sampler_stats=self.samples.stats,
             narrow_from_round=self.narrow_from_round,
             graph=roadmap,
             path_nodes=list(nodes),
-            distance_queries=self.oracle.distance_queries - self._queries0,
+            distance_queries=self.checker.distance_queries,
             workspace_on_path=int(sum(roadmap.kinds[i] == WORKSPACE for i in nodes)),
-            point_queries=self.oracle.point_queries - self._points0,
+            point_queries=self.checker.point_queries,
         )

@@ -7,8 +7,8 @@ round on continuous angles -- the very number `ConfigurationSpace.distance` give
 misranked across the +-pi seam (embedding an angle as (w cos, w sin) would rank by chord length instead of arc
 length, which is not the metric the edges are checked and weighed in).
 
-Edges are checked by `oracle.edges_free`, coarse-to-fine and batched, at the scene's resolution, in one of two ways:
-- eager (a multi-query roadmap, the paper's PRM): every k-nearest edge is checked as nodes are connected (one call
+Edges are checked by the checker's `edges_free`, coarse-to-fine and batched, at the scene's resolution, in one of two
+ways: - eager (a multi-query roadmap, the paper's PRM): every k-nearest edge is checked as nodes are connected (one call
   per chunk of 32 new nodes). A pair is tried at most once, and by default not at all when both nodes already share
   a component (Kavraki's PRM rule: such an edge adds no connectivity; it cut the checks on `bar` about 3x).
 - lazy (a single query; Bohlin and Kavraki's Lazy PRM, ICRA 2000): k-nearest edges go into the graph unchecked, and
@@ -46,7 +46,7 @@ class Roadmap:
 
     def __init__(
         self,
-        oracle,
+        checker,
         k: int | None = 10,
         resolution: float | None = None,
         skip_connected: bool = True,
@@ -55,8 +55,8 @@ class Roadmap:
     ):
         if k is not None and k < 1:
             raise ValueError("k must be positive")
-        self.oracle = oracle
-        self.space = oracle.space
+        self.checker = checker  # the current query's (a persistent roadmap is handed each query's in turn)
+        self.space = checker.space
         self.k = k  # None: k-PRM*'s, growing with the roadmap (`prm_star_k`)
         self.k_used = k or 0
         self.lazy = lazy
@@ -66,8 +66,8 @@ class Roadmap:
         self.skip_connected = skip_connected
         self.chunk = max(1, int(chunk))
         self._components = _UnionFind()
-        self.resolution = resolution or oracle.space.resolution
-        self.Q = np.empty((0, oracle.space.dim))
+        self.resolution = resolution or checker.space.resolution
+        self.Q = np.empty((0, checker.space.dim))
         self.kinds: list[str] = []
         self.graph = nx.Graph()
         # The same edges as arrays, for the search, which builds its sparse matrix from them (iterating networkx's
@@ -80,11 +80,13 @@ class Roadmap:
         self.edges_tried = 0  # decided: checked in full, or found to collide
         self.edges_proposed = 0  # lazy candidates ever added
         self._tried: set[tuple[int, int]] = set()
+        self.proved: set[tuple[int, int]] = set()  # edges the certificate proved free, (smaller, larger)
+        self._nodes: dict[bytes, int] = {}  # a configuration's bytes -> its node, so a repeated one is not added twice
         self._tree: cKDTree | None = None
         # Periodic axes for continuous angles, flat (0) elsewhere; the scaled embedding lives in [0, box).
-        w = oracle.space.weights
-        self._box = np.where(oracle.space.continuous, 2 * np.pi * w, 0.0)
-        self._embedded = np.empty((0, oracle.space.dim))
+        w = checker.space.weights
+        self._box = np.where(checker.space.continuous, 2 * np.pi * w, 0.0)
+        self._embedded = np.empty((0, checker.space.dim))
 
     def __len__(self) -> int:
         return len(self.Q)
@@ -118,8 +120,10 @@ class Roadmap:
         new = np.arange(first, first + len(Q))
         if len(Q) == 0:
             return new
-        self.Q = np.vstack([self.Q, self.space.wrap(Q)])
+        wrapped = self.space.wrap(Q)
+        self.Q = np.vstack([self.Q, wrapped])
         self.kinds.extend([kind] * len(Q))
+        self._nodes.update((q.tobytes(), int(i)) for q, i in zip(wrapped, new))
         self._components.grow(len(self.Q))
         self._embedded = np.vstack([self._embedded, self.embed(Q)])
         self._tree = cKDTree(self._embedded, boxsize=self._box)
@@ -128,6 +132,12 @@ class Roadmap:
         if connect:
             self.connect(new)
         return new
+
+    def node(self, q: np.ndarray, kind: str) -> int:
+        """The node at configuration q (free), added unconnected if the roadmap has none there: a persistent roadmap
+        asked for the same start or goal again reuses the node and every edge decided from it."""
+        found = self._nodes.get(self.space.wrap(np.asarray(q, float)).tobytes())
+        return found if found is not None else int(self.add(q, kind, connect=False)[0])
 
     def connect(self, nodes: np.ndarray) -> int:
         """Try the edges from `nodes` to their k nearest neighbours not tried before; return how many were free.
@@ -143,7 +153,9 @@ class Roadmap:
             added += self._connect_chunk(nodes[begin : begin + step])
         return added
 
-    def _connect_chunk(self, nodes: np.ndarray) -> int:
+    def candidates(self, nodes: np.ndarray) -> np.ndarray:
+        """The edges (node index pairs, smaller first) from `nodes` to their k nearest neighbours that were never
+        tried, now marked tried: each pair is decided at most once in the roadmap's life."""
         self.k_used = self.k or prm_star_k(len(self), self.space.dim)
         _, idx = self.neighbours(self.Q[nodes], self.k_used + 1)  # +1: a node is its own nearest neighbour
         pairs = []
@@ -158,9 +170,31 @@ class Roadmap:
                     continue
                 self._tried.add(key)
                 pairs.append(key)
-        if not pairs:
+        return np.array(pairs, int).reshape(-1, 2)
+
+    def record(self, P: np.ndarray, free: np.ndarray) -> None:
+        """Verdicts decided elsewhere (another process, for the same roadmap) for candidate edges P: the free ones
+        join the graph checked, the colliding ones are kept as known to collide, so neither is checked again."""
+        P, free = np.asarray(P, int).reshape(-1, 2), np.asarray(free, bool)
+        self.edges_tried += len(P)
+        self._add_edges(P[free], checked=True)
+        self._add_dead(P[~free])
+
+    def _add_dead(self, P: np.ndarray) -> None:
+        """Rows for edges known to collide: out of the graph, remembered (and saved) so they are never tried again."""
+        if not len(P):
+            return
+        first = len(self._ends)
+        self._rows.update(zip(map(tuple, P.tolist()), range(first, first + len(P))))
+        self._ends = np.vstack([self._ends, P])
+        self._lengths = np.concatenate([self._lengths, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]])])
+        self._alive = np.concatenate([self._alive, np.zeros(len(P), bool)])
+        self._checked = np.concatenate([self._checked, np.ones(len(P), bool)])
+
+    def _connect_chunk(self, nodes: np.ndarray) -> int:
+        P = self.candidates(nodes)
+        if not len(P):
             return 0
-        P = np.array(pairs)
         if self.lazy:
             # Candidates, checked when a shortest path uses them. No check up front: screening every candidate at
             # its midpoint cost 1 check per edge and, on the maze and the UR3, more than the searches it saved.
@@ -169,12 +203,13 @@ class Roadmap:
             return len(P)
         free = self._check(P)
         self._add_edges(P[free], checked=True)
+        self._add_dead(P[~free])
         return int(free.sum())
 
     def _check(self, P: np.ndarray) -> np.ndarray:
         """Free flags of the edges (node index pairs) P, checked in one batch."""
         self.edges_tried += len(P)
-        return self.oracle.edges_free(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True)
+        return self.checker.edges_free(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True)
 
     def _add_edges(self, P: np.ndarray, checked: bool) -> None:
         """Add edges (node index pairs, smaller index first) of the given state, to the graph and the arrays."""
@@ -202,8 +237,9 @@ class Roadmap:
     def component_sizes(self, *nodes: int) -> list[int]:
         return [len(nx.node_connected_component(self.graph, n)) for n in nodes]
 
-    def shortest_path(self, a: int, b: int) -> list[int] | None:
-        """Node indices of a short path by metric length whose every edge is checked free, or None.
+    def shortest_path(self, a: int, b) -> list[int] | None:
+        """Node indices of a short path by metric length from a to b (a node, or a list of nodes: to the nearest
+        that can be reached) whose every edge is checked free, or None.
 
         Lazy PRM's search: the unchecked edges of a candidate path are checked together, coarse to fine, until one
         collides; those decided free are marked checked, those that collide are removed. Candidates come from two
@@ -215,7 +251,8 @@ class Roadmap:
         The first free candidate is the shortest free path in the trees' graph, or a near-shortest one after
         removals (smoothing shortens it).
         """
-        if a not in self.graph or b not in self.graph:
+        targets = [int(t) for t in np.atleast_1d(b)]
+        if a not in self.graph or not any(t in self.graph for t in targets):
             return None
         alive = np.flatnonzero(self._alive)
         U, V, W = self._ends[alive, 0], self._ends[alive, 1], self._lengths[alive]
@@ -225,9 +262,12 @@ class Roadmap:
         )
         matrix.sort_indices()
         while True:
-            dist, pred = dijkstra(matrix, indices=[a, b], return_predecessors=True)
-            if not np.isfinite(dist[0, b]):
+            # The tree from the targets is a forest, one tree per target (min_only: each node under its nearest).
+            dist_a, pred_a = dijkstra(matrix, indices=a, return_predecessors=True)
+            dist_b, pred_b, _ = dijkstra(matrix, indices=targets, return_predecessors=True, min_only=True)
+            if not np.isfinite(dist_a[targets]).any():
                 return None
+            dist, pred = np.vstack([dist_a, dist_b]), np.vstack([pred_a, pred_b])
             through = dist[0] + dist[1]
             reachable = np.flatnonzero(np.isfinite(through))
             trees = _Tree(pred[0]), _Tree(pred[1])
@@ -254,7 +294,7 @@ class Roadmap:
         if not len(rows):
             return True
         P = self._ends[rows]
-        free, decided = self.oracle.edges_status(
+        free, decided = self.checker.edges_status(
             self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True, until_one_collides=True
         )
         self.edges_tried += int(decided.sum())
@@ -281,6 +321,55 @@ class Roadmap:
             for u, v, checked in self.graph.edges(data="checked"):
                 if checked:
                     self._components.union(u, v)
+
+    # ---- persistence ------------------------------------------------------------------------------------------------
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The whole roadmap as arrays: nodes, their kinds, every decided or proposed edge with its verdict flags
+        (alive: not known to collide; checked: decided free at the resolution, or known to collide; proved: the
+        certificate proved it), and the settings that shape later connections."""
+        names = sorted(set(self.kinds)) or [UNIFORM]
+        proved = np.array([(int(a), int(b)) in self.proved for a, b in self._ends.tolist()], bool)
+        return {
+            "Q": self.Q,
+            "kind_names": np.array(names),
+            "kinds": np.array([names.index(kind) for kind in self.kinds], np.int16),
+            "ends": self._ends.astype(np.int64),
+            "alive": self._alive,
+            "checked": self._checked,
+            "proved": proved,
+            "k": np.array(self.k or 0),
+            "resolution": np.array(self.resolution),
+            "counters": np.array([self.edges_tried, self.edges_proposed], np.int64),
+        }
+
+    @classmethod
+    def from_arrays(cls, checker, data) -> Roadmap:
+        """The roadmap `arrays()` described, on `checker`'s space (lazy: later edges are checked when used)."""
+        k = int(data["k"])
+        graph = cls(checker, k=k or None, resolution=float(data["resolution"]), skip_connected=False, lazy=True)
+        names = [str(n) for n in data["kind_names"]]
+        kinds = np.asarray(data["kinds"], int)
+        Q = np.asarray(data["Q"], float).reshape(-1, checker.space.dim)
+        graph.Q = checker.space.wrap(Q)
+        graph.kinds = [names[c] for c in kinds]
+        graph._nodes = {q.tobytes(): i for i, q in enumerate(graph.Q)}
+        graph._components.grow(len(Q))
+        graph._embedded = graph.embed(graph.Q) if len(Q) else np.empty((0, checker.space.dim))
+        graph._tree = cKDTree(graph._embedded, boxsize=graph._box) if len(Q) else None
+        graph.graph.add_nodes_from(range(len(Q)))
+        ends = np.asarray(data["ends"], int).reshape(-1, 2)
+        alive, checked, proved = (np.asarray(data[key], bool) for key in ("alive", "checked", "proved"))
+        graph._add_edges(ends[alive], checked=False)
+        graph._checked[:] = checked[alive]
+        for (a, b), ok in zip(ends[alive].tolist(), checked[alive]):
+            graph.graph[a][b]["checked"] = bool(ok)
+            if ok:
+                graph._components.union(a, b)
+        graph._add_dead(ends[~alive])
+        graph._tried = set(map(tuple, ends.tolist()))
+        graph.proved = {tuple(edge) for edge in ends[proved].tolist()}
+        graph.edges_tried, graph.edges_proposed = (int(c) for c in data["counters"])
+        return graph
 
     def stats(self) -> dict:
         """Sizes and counters. Lazy: `edges` and `components` are of the candidate graph (edges not known to

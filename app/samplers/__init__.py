@@ -1,7 +1,8 @@
 """The seven samplers, registered by name: the CLI, the benchmarks and the planner share this one table.
 
-Every sampler talks only to the collision oracle. `make_sampler(name, oracle, step=..., **params)` builds one;
-`sampler.sample(k, rng)` returns k free configurations and leaves its statistics in `sampler.stats`.
+Every sampler talks only to a Checker (app.checking.protocol: a query's QueryContext).
+`make_sampler(name, checker, step=..., **params)` builds one; `sampler.sample(k, rng)` returns k free configurations
+and leaves its statistics in `sampler.stats`.
 """
 
 from __future__ import annotations

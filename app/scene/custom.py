@@ -21,6 +21,7 @@ Inputs (the keys of a custom scene file, see `CustomSpec`; `plan` takes the same
   for a jointed arm: its joint limits.
 """
 
+import functools
 import hashlib
 import json
 import math
@@ -76,6 +77,7 @@ class CustomScene(Scene):
         self.info = info  # what was built: decompositions, timings
         super().__init__(str(problem_path))
         self.name = name
+        self.recipe = functools.partial(CustomScene, problem_path, self.extra_packages, name, {})
 
     def add_models(self, parser) -> None:
         for package, directory in self.extra_packages.items():

@@ -6,6 +6,7 @@ coordinates are angles, which wrap, how to weigh them) is read here once.
 """
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -177,6 +178,8 @@ class Scene:
 
         self.path = scene_path(name_or_path)
         self.name = self.path.stem
+        # How another process loads this very scene (a roadmap built on several processes): picklable, no Drake.
+        self.recipe = functools.partial(Scene, str(self.path))
         self.problem = problem = read_problem(self.path)
 
         builder = robot_diagram_builder()

@@ -1,0 +1,191 @@
+"""A query's own view of the shared collision oracle: its budget, its counters and its cancel flag.
+
+OMPL splits a planner's state the same way: the `SpaceInformation` and its validity checker are shared, while each
+`solve()` gets its own `PlannerTerminationCondition`. Here the `CollisionOracle` (one per scene: the Drake model, its
+contexts, the measured cost of each batch path) is shared by every query, and a `QueryContext` is made per query:
+`checks` (the paper's gamma_c), `distance_queries` and `point_queries` count only what this query asked, and its
+`stop` (a Budget running against these counters, plus an optional cancel flag) bounds only this query. Two queries
+on one oracle never mix their counts or budgets.
+
+A context is used from one thread at a time. The oracle behind it may be shared between threads: it serializes its
+Drake queries with a lock (see CollisionOracle).
+
+`checks` counts every configuration handed to Drake for a collision answer; an edge check counts the configurations
+it looked at. Configurations outside the bounds are rejected before Drake and not counted.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from app.checking.budget import Budget, BudgetSpent, Stop
+
+# Most configurations one edge-check call hands Drake at once (a few tenths of a second), so a stop is polled often.
+_MAX_BATCH = 4096
+# The oracle's uncounted measurements and model, which a context passes through (CollisionOracle documents each).
+_PASSED_THROUGH = frozenset(
+    {
+        "plant",
+        "model",
+        "threads",
+        "clearance",
+        "contacts",
+        "colliding_bodies",
+        "frame_positions",
+        "in_passage",
+        "query_object",
+        "is_robot_geometry",
+        "policy_context",
+        "robot_kinematics",
+        "robot_geometry_centres",
+        "robot_geometry_radii",
+    }
+)
+
+
+class QueryContext:
+    """What one query (or one script) asks of a shared `CollisionOracle`, counted and bounded.
+
+    budget: what the context may spend (None: no limit); cancel: a threading.Event (or anything with `is_set()`)
+    that stops it from another thread. `stop` may be replaced for part of the work (`Stop.within`) and restored.
+    """
+
+    def __init__(self, oracle, budget: Budget | None = None, cancel=None):
+        self.oracle = oracle
+        self.space = oracle.space
+        self.scene = oracle.scene
+        self.checks = 0
+        self.distance_queries = 0  # signed-distance queries (continuous certification), apart from `checks`
+        self.point_queries = 0  # workspace points asked for their distances to the environment
+        self.stop: Stop | None = None
+        if budget is not None or cancel is not None:
+            self.stop = Stop(budget or Budget(), self, cancel)
+
+    def __getattr__(self, name: str):
+        if name in _PASSED_THROUGH:
+            return getattr(self.oracle, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    # ---- collision answers (counted, bounded by the stop) ------------------------------------------------------
+    def poll(self) -> None:
+        """BudgetSpent if the stop is spent: for loops that may go round without asking Drake anything (a
+        sampler whose proposals all leave the bounds)."""
+        if self.stop is not None:
+            self.stop.allow(0)
+
+    def is_free(self, q: np.ndarray) -> bool:
+        q = np.asarray(q, float)
+        if not self.space.within_bounds(q)[0]:
+            return False
+        if self.stop is not None:
+            self.stop.allow(1)
+        self.checks += 1
+        return self.oracle.free(q)
+
+    def are_free(self, Q: np.ndarray) -> np.ndarray:
+        """Free flags for a batch (n, dim), spread over the oracle's threads. Under a `stop`, a batch the check
+        limit cannot hold is checked as far as it goes, then BudgetSpent is raised."""
+        Q = np.atleast_2d(np.asarray(Q, float))
+        free = self.space.within_bounds(Q)
+        inside = np.flatnonzero(free)
+        if self.stop is not None and len(inside):
+            allowed = self.stop.allow(len(inside))
+            if allowed < len(inside):
+                self.checks += allowed
+                free[inside[:allowed]] = self.oracle.free_batch(Q[inside[:allowed]])
+                raise BudgetSpent("checks")
+        self.checks += len(inside)
+        free[inside] = self.oracle.free_batch(Q[inside])
+        return free
+
+    def edges_free(
+        self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False
+    ) -> np.ndarray:
+        """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
+
+        Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
+        its first collision, so colliding edges cost few checks and every round is one batched call (split into
+        batches of at most _MAX_BATCH, so a stop is polled often). Only the points a round checks are computed.
+        ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
+        """
+        return self.edges_status(Q1, Q2, resolution, ends_free)[0]
+
+    def edges_status(
+        self,
+        Q1: np.ndarray,
+        Q2: np.ndarray,
+        resolution: float | None = None,
+        ends_free: bool = False,
+        until_one_collides: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(free, decided) flags for the edges, checked as `edges_free` does. With `until_one_collides` the check
+        ends after the first coarse-to-fine round in which any edge collides (the edges of one candidate path: one
+        collision condemns the path, and finishing its free edges would be wasted); edges not finished by then are
+        not decided."""
+        space = self.space
+        Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
+        D = space.difference(Q1, Q2)
+        n = space.segments(Q1, Q2, resolution)
+        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0 :] for k in n.tolist()]
+        free = np.ones(len(Q1), bool)
+        cursor = np.zeros(len(Q1), int)
+        chunk = 1
+        while True:
+            live = [i for i in np.flatnonzero(free).tolist() if cursor[i] < len(orders[i])]
+            if not live:
+                return free, np.ones(len(Q1), bool)
+            takes = [orders[i][cursor[i] : cursor[i] + chunk] for i in live]
+            lengths = np.array([len(t) for t in takes])
+            cursor[live] += lengths
+            owner = np.repeat(live, lengths)
+            t = np.concatenate(takes) / n[owner]
+            points = space.wrap(Q1[owner] + t[:, None] * D[owner])
+            ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
+            hit_owners = np.unique(owner[~ok])
+            free[hit_owners] = False
+            if until_one_collides and len(hit_owners):
+                decided = ~free | (cursor >= np.array([len(o) for o in orders]))
+                return free, decided
+            chunk *= 2  # few points first (endpoints, midpoints), then ever finer
+
+    def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
+        return bool(self.edges_free(q1, q2, resolution)[0])
+
+    # ---- measurements (counted apart from collision checks) -----------------------------------------------------
+    def signed_distances(self, q: np.ndarray, max_distance: float) -> list:
+        """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
+        `max_distance`; counted in `distance_queries`, not in `checks`."""
+        self.distance_queries += 1
+        return self.oracle.signed_distance_pairs(q, max_distance)
+
+    def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
+        """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`
+        (CollisionOracle.environment_gaps); counted in `point_queries`."""
+        P = np.atleast_2d(np.asarray(P, float))
+        self.point_queries += len(P)
+        return self.oracle.environment_gaps(P, width)
+
+
+@functools.lru_cache(maxsize=4096)
+def _coarse_to_fine(n: int) -> np.ndarray:
+    """Indices 0..n-1 ordered endpoints first, then by bisection (van der Corput), so a collision shows up early.
+
+    Cached: edges at one resolution come in few lengths, and building the order in Python cost more than the
+    collision checks of a short edge."""
+    if n <= 2:
+        return np.arange(n)
+    order = [0, n - 1]
+    seen = {0, n - 1}
+    denominator = 2
+    while len(order) < n:
+        for k in range(1, denominator, 2):
+            i = int(round(k * (n - 1) / denominator))
+            if i not in seen:
+                seen.add(i)
+                order.append(i)
+        denominator *= 2
+    out = np.array(order)
+    out.flags.writeable = False  # shared by every caller through the cache
+    return out
