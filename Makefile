@@ -24,7 +24,7 @@ test: $(STAMP) chromium
 	$(VENV)/bin/lint-imports
 	$(VENV)/bin/ruff check app tests docs/hooks examples/*.py
 	$(VENV)/bin/ruff format --check app tests docs/hooks examples/*.py
-	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 	$(PY) -m pytest -q
 
 test-slow: $(STAMP)
