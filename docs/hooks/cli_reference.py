@@ -7,9 +7,18 @@ A page containing the line `<!-- cli-reference -->` gets that line replaced by o
 import argparse
 import html
 import re
+import sys
+from pathlib import Path
 
 MARKER = "<!-- cli-reference -->"
 USAGE_WIDTH = 100  # characters per line of a usage block, as argparse wraps it
+
+
+def on_config(config):
+    """The parser documented is this checkout's (as mkdocstrings' `paths: [.]`), whichever `app` is installed."""
+    root = str(Path(config["config_file_path"]).parent)
+    sys.path[:] = [root] + [p for p in sys.path if p != root]
+    return config
 
 
 def on_page_markdown(markdown: str, page, config, files) -> str:
