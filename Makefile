@@ -1,10 +1,10 @@
-# make plan: create .venv, install, run the default job.  make test: the import contracts and the test suite (what CI
-# runs).
+# make plan: create .venv, install, run the default job.  make test: the import contracts, ruff, the documentation site
+# built --strict and the test suite (what CI runs).  make docs: the documentation site, into site/.
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: plan test test-slow browser-test chromium bench clean
+.PHONY: plan test test-slow browser-test chromium bench docs clean
 
 $(STAMP): pyproject.toml
 	python3 -m venv $(VENV)
@@ -22,8 +22,9 @@ chromium:
 
 test: $(STAMP) chromium
 	$(VENV)/bin/lint-imports
-	$(VENV)/bin/ruff check app tests
-	$(VENV)/bin/ruff format --check app tests
+	$(VENV)/bin/ruff check app tests docs/hooks examples/*.py
+	$(VENV)/bin/ruff format --check app tests docs/hooks examples/*.py
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 	$(PY) -m pytest -q
 
 test-slow: $(STAMP)
@@ -35,8 +36,12 @@ browser-test: $(STAMP) chromium
 	mkdir -p out
 	$(PY) -m pytest -q -m browser tests/test_browser.py tests/test_panel.py
 
+# A broken link, a page left out of the nav or an API name that no longer exists fails the build (--strict).
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
+
 bench: $(STAMP)
 	$(PY) -m app bench oracle
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) out site .pytest_cache

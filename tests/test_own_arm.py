@@ -109,12 +109,10 @@ def _oracle(arm, **keys) -> CollisionOracle:
     return CollisionOracle(build_scene(CustomSpec(**{**spec, **keys}), progress=False))
 
 
-def _readme_command() -> list[str]:
-    """The README's own-arm command ("bring your own robot"), continuation lines joined."""
-    readme = re.sub(r"\\\n\s*", "", (ROOT / "README.md").read_text())
-    line = next(
-        line for line in readme.splitlines() if line.startswith("python -m app plan --robot my_arm.urdf --srdf")
-    )
+def _docs_command() -> list[str]:
+    """The own-arm command of docs/own-robot.md, continuation lines joined."""
+    page = re.sub(r"\\\n\s*", "", (ROOT / "docs" / "own-robot.md").read_text())
+    line = next(line for line in page.splitlines() if line.startswith("python -m app plan --robot my_arm.urdf --srdf"))
     return line.split()[3:]  # after "python -m app"
 
 
@@ -122,7 +120,7 @@ def test_own_arm_is_planned_from_a_tool_pose_with_self_collision_on(arm, cli, mo
     from app.planning.ik import robot_frame
 
     monkeypatch.chdir(arm)
-    command = _readme_command()
+    command = _docs_command()
     assert command[0] == "plan" and f"--start={START}" in command
     assert command[command.index("--goal-pose") + 1] == ",".join(f"{v:g}" for v in GOAL_POSE)
     result = cli(*command, "--json")
@@ -159,7 +157,7 @@ def test_own_arm_is_planned_from_a_tool_pose_with_self_collision_on(arm, cli, mo
 
 def test_no_self_collision_accepts_the_folded_start_and_says_so(arm, cli, monkeypatch):
     monkeypatch.chdir(arm)
-    command = [a.replace(START, FOLDED) for a in _readme_command()]
+    command = [a.replace(START, FOLDED) for a in _docs_command()]
     result = cli(*command, "--no-self-collision")
     assert result.returncode == 0, result.stderr
     assert "self-collision off" in result.stdout

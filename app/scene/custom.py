@@ -409,8 +409,8 @@ def env_urdf(name: str, decomposition: meshes.Decomposition, pose: list[float]) 
     """The pieces as convex collision shapes and the original mesh as the visual, all on the URDF link named `world`
     (which Drake takes as the world body itself), placed at pose. On the world body SceneGraph registers them as
     *anchored* geometry: its broad phase keeps them in a tree built once, whereas geometry on a body (even one welded
-    to the world, as in a static SDF model) is dynamic: re-posed and re-sorted on every query, which made a check
-    among ~1,500 pieces cost ~100x more."""
+    to the world, as in a static SDF model) is dynamic: re-posed and re-sorted on every query, which makes a check
+    among many pieces far dearer (docs/benchmarks.md, "Mesh scenes")."""
     x, y, z, r, p, w = pose
     origin = f'<origin xyz="{x!r} {y!r} {z!r}" rpy="' + " ".join(f"{math.radians(a)!r}" for a in (r, p, w)) + '"/>'
     lines = [

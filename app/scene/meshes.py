@@ -9,9 +9,9 @@ edge) and a method is chosen per part (`choose_method`):
   (`shell_pieces`). A patch of faces plus its corners moved inward by half the wall's thickness, as one convex
   hull, grows while it holds no other point of the surface deeper than SHELL_REACH * tolerance. A side that bulges
   outward (a sphere seen from outside, a thick wall's face) becomes a few large caps; a hollow side stays within
-  reach of flat. Seconds on a few thousand triangles (a 3,072-triangle thick spherical shell with an opening: 334
-  pieces in 4 s, where "faces" made 1,012 and CoACD's 139 failed validation after 95 s). Pieces that fail
-  validation become face pieces (once); if the part still fails, it moves on to "coacd".
+  reach of flat. Seconds on a few thousand triangles, with far fewer pieces than "faces" makes and where CoACD can
+  fail validation (docs/benchmarks.md, "Mesh scenes"). Pieces that fail validation become face pieces (once); if
+  the part still fails, it moves on to "coacd".
 - "coacd": CoACD approximate decomposition, pre-processing off (it thickens thin walls), in a child process with a
   time limit (it can crash or run for minutes). Falls back to "faces" when it fails or its pieces fail validation.
 - "faces": open or thin parts (typical COLLADA scene exports): exact pieces. Adjacent faces are grown into one
@@ -28,8 +28,8 @@ the method request, the parameters, DECOMPOSER_VERSION and CoACD's version; a ma
 guards against truncated or corrupt entries (they are rebuilt, not trusted). Entries are built in a staging folder
 and renamed into place, so concurrent runs see a whole entry or none.
 
-Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (measured: 250 pieces
-0.4 s, 500 1.8 s, 1000 4.9 s, 2000 22 s), so merging faces into few pieces matters as much as the decomposition.
+Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (docs/benchmarks.md,
+"Mesh scenes"), so merging faces into few pieces matters as much as the decomposition.
 (Check cost need not grow so: app.scene.custom anchors environment pieces to the world, see `env_urdf`.)
 
 The tolerance is the caller's choice; `default_tolerance` (0.2 % of the mesh's size) knows nothing of the robot, so
