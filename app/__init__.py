@@ -2,9 +2,12 @@
 
     import app
 
-    oracle = app.CollisionOracle(app.load_scene("bar"))
+    oracle = app.CollisionOracle(app.load_scene("bar"))  # one per scene, shared by every query on it
     result = app.plan(oracle, app.PlanSettings(sampler="lfbs", seed=0))
     result.trajectory.positions  # (N, 9), with velocities, accelerations and joint names
+
+    cell = app.CellRoadmap.build(oracle, app.BuildSettings(nodes=1000))  # once per work cell
+    cell.solve(start, [goal_a, goal_b])  # many queries, each reaching any of its goals; cell.save(path)
 
 Everything a user needs is named in `__all__`; the rest of the package is implementation.
 """
@@ -17,13 +20,15 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from app.checking.budget import Budget  # noqa: E402
+from app.checking.context import QueryContext  # noqa: E402
 from app.checking.oracle import CollisionOracle  # noqa: E402
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError  # noqa: E402
 from app.motion.trajectory import Trajectory, TrajectoryFile  # noqa: E402
+from app.planning.cell import BuildSettings, CellRoadmap  # noqa: E402
 from app.planning.planner import PlanResult, PlanSettings, Query, plan  # noqa: E402
 from app.samplers import SAMPLERS, Sampler, make_sampler  # noqa: E402
 from app.scene.cspace import ConfigurationSpace  # noqa: E402
-from app.scene.custom import load_scene  # noqa: E402
+from app.scene.custom import CustomSpec, build_scene, load_scene  # noqa: E402
 from app.scene.model import Scene, scene_names  # noqa: E402
 
 __all__ = [
@@ -31,7 +36,10 @@ __all__ = [
     "Scene",
     "load_scene",
     "scene_names",
+    "CustomSpec",
+    "build_scene",
     "CollisionOracle",
+    "QueryContext",
     "ConfigurationSpace",
     # planning
     "plan",
@@ -39,6 +47,9 @@ __all__ = [
     "PlanResult",
     "Query",
     "Budget",
+    # a work cell's roadmap, built once and queried many times
+    "CellRoadmap",
+    "BuildSettings",
     # samplers
     "SAMPLERS",
     "Sampler",

@@ -26,6 +26,7 @@ from app.errors import NoPath, UserError
 from app.motion.path import dedupe
 from app.motion.timing import time_path
 from app.motion.trajectory import Trajectory, TrajectoryFile
+from app.planning.cell import CellRoadmap
 from app.planning.ik import solve_poses, tool_line
 from app.planning.planner import PlanSettings, plan
 
@@ -113,12 +114,15 @@ def route(oracle, job: str) -> list[str]:
     return names
 
 
-def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResult:
-    """The job's route, leg by leg: a straight move where it is free and proved, else `plan` with
-    `settings` (leg i seeded settings.seed * 1000 + i)."""
+def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellRoadmap | None = None) -> RunResult:
+    """The job's route, leg by leg: a straight move where it is free and proved, else a query with `settings` (leg i
+    seeded settings.seed * 1000 + i) on `cell`, the cell's roadmap (default: a new one). Every leg answers on that
+    one roadmap, so what one leg sampled and decided serves the next; with settings.full_roadmap (the paper's
+    protocol) each leg builds a roadmap of its own instead."""
     seed, sampler = settings.seed, settings.sampler
 
     names = route(oracle, job)
+    cell = cell if cell is not None else CellRoadmap(oracle)
     clock = time.perf_counter()
     checker = oracle.context()  # the job's own checks (straight moves, timing); each leg's plan counts its own
     rng = np.random.default_rng(seed)
@@ -131,7 +135,10 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
     stops = [k for k, name in enumerate(names) if k in (0, last) or name not in oracle.scene.pass_through]
     # Legs that pass through a pose are timed together (_through): timing each alone would be thrown away.
     joined = {i for a, b in zip(stops[:-1], stops[1:]) if b - a > 1 for i in range(a, b)}
+    from app.planning.roadmap import NARROW, WORKSPACE  # (scipy and networkx: loaded when a job runs)
+
     legs, planned_checks = [], 0
+    narrow_seen = sum(kind in (NARROW, WORKSPACE) for kind in cell.graph.kinds)
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
         t = time.perf_counter()
@@ -151,7 +158,10 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         via = None if checker.edges_free(qa, qb, ends_free=True)[0] else tool_line(oracle, qa, qb, rng)
         leg_settings = replace(settings, seed=seed * 1000 + i, timing=i not in joined)
         try:
-            result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)
+            if settings.full_roadmap:
+                result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)
+            else:
+                result = cell.solve(qa, qb, leg_settings, via=via)
         except NoPath as failure:  # the job's checks up to here, for a caller that counts what a failure cost
             details = getattr(failure, "details", {})
             failure.details = {
@@ -165,7 +175,9 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS) -> RunResul
         if result.smoothing.get("straight"):
             method = "tool line" if result.smoothing["via"] else "straight"
         samples, on_path = result.narrow_samples()
-        narrow_count = result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"]
+        narrow_total = result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"]
+        narrow_count = narrow_total - (0 if settings.full_roadmap else narrow_seen)  # the samples this leg added
+        narrow_seen = narrow_total
         used = result.narrow_on_path + result.workspace_on_path
         legs.append(
             Leg(

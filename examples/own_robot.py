@@ -4,10 +4,9 @@ Run from the repository's root: `python examples/own_robot.py`. Put in your own 
 """
 
 import app
-from app.scene.custom import CustomSpec, build_scene
 
 # The robot: URDF or SDF (package:// URIs: package_path=["NAME=DIR"]); obstacles: meshes, SDF or URDF files.
-scene = build_scene(CustomSpec(robot="robots/planar_arm_3.urdf", env=["scenes/bar_obstacles.sdf"]))
+scene = app.build_scene(app.CustomSpec(robot="robots/planar_arm_3.urdf", env=["scenes/bar_obstacles.sdf"]))
 print("joints:", scene.coordinate_names)  # start and goal: one value per joint, in this order
 oracle = app.CollisionOracle(scene)  # self-collision counts (unless CustomSpec(collisions="environment"))
 settings = app.PlanSettings(seed=0, budget=app.Budget(seconds=30))

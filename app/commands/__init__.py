@@ -4,6 +4,6 @@ Beside them: `common` (argument types, the JSON answer), `custom` (the --robot/-
 in `view`, shared by the commands that take them.
 """
 
-from app.commands import bench, gui, plan, run, sample, scenes, view
+from app.commands import bench, gui, plan, roadmap, run, sample, scenes, view
 
-MODULES = [scenes, sample, plan, run, view, gui, bench]
+MODULES = [scenes, sample, plan, roadmap, run, view, gui, bench]

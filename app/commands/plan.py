@@ -19,6 +19,7 @@ from app.commands.common import (
 )
 from app.errors import UserError
 from app.io import all_or_nothing
+from app.planning.cell import CellRoadmap
 from app.planning.ik import pose_goal
 from app.planning.planner import PlanSettings, plan
 from app.viewer import ViewData
@@ -39,13 +40,27 @@ def register(subparsers) -> None:
             f"--{end}-pose",
             metavar="X,Y,Z,R,P,Y",
             type=pose,
-            help=f"{end} as a pose of the tool frame (metres; roll,pitch,yaw in degrees), solved by IK nearest "
-            + ("the scene's start" if end == "start" else "the start"),
+            help=f"{end} as a pose of the tool frame (metres; roll,pitch,yaw in degrees), solved by IK: "
+            + (
+                "the solution nearest the scene's start"
+                if end == "start"
+                else "every solution found, any of which the plan may reach"
+            ),
         )
     p.add_argument(
         "--tool",
         metavar="FRAME",
         help="the robot frame the poses place (default: the scene's tool frame, else the robot's last body)",
+    )
+    p.add_argument(
+        "--roadmap",
+        metavar="FILE.npz",
+        help="answer on this cell roadmap (`roadmap build`): refused if it was built for another cell",
+    )
+    p.add_argument(
+        "--update",
+        action="store_true",
+        help="write back to --roadmap what the query learned (its samples, the edges it decided or proved)",
     )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
@@ -154,19 +169,29 @@ def run(args) -> int:
             raise UserError(f"give either --{end} or --{end}-pose, not both")
     if args.tool and args.start_pose is None and args.goal_pose is None:
         raise UserError("--tool needs --start-pose or --goal-pose")
+    if args.update and not args.roadmap:
+        raise UserError("--update writes back to a roadmap: give --roadmap FILE")
+    if args.roadmap and args.full_roadmap:
+        raise UserError("--full-roadmap builds a roadmap of its own: give it or --roadmap, not both")
     view.check_from_args(args, args.out)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
+    cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
     start, goal = args.start, args.goal
     if args.start_pose is not None:
         start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
     if args.goal_pose is not None:
-        goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed)
-    result = plan(oracle, settings, start=start, goal=goal)
+        goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed, every=True)
+    if cell is None:
+        result = plan(oracle, settings, start=start, goal=goal)
+    else:
+        result = cell.solve(start, goal, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     with all_or_nothing():
         viewer = view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
         if args.out:
             result.trajectory_file().write(args.out)
+        if args.update:
+            cell.save(args.roadmap)
     if args.json:
         print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
     else:

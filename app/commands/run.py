@@ -15,6 +15,7 @@ from app.commands.view import add_arguments, check_from_args, publish_from_args,
 from app.errors import UserError
 from app.io import all_or_nothing
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
+from app.planning.cell import CellRoadmap
 from app.scene.model import Scene
 from app.viewer import ViewData
 
@@ -33,6 +34,12 @@ def register(subparsers) -> None:
         action="store_true",
         help="per planned leg, draw every sample and check every edge before the query (as `plan`)",
     )
+    p.add_argument(
+        "--roadmap",
+        metavar="FILE.npz",
+        help="plan every leg on this cell roadmap (`roadmap build`); default: one roadmap the legs share, from empty",
+    )
+    p.add_argument("--update", action="store_true", help="write back to --roadmap what the job's legs learned")
     p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
     p.add_argument("--json", action="store_true")
     add_arguments(p)
@@ -52,14 +59,21 @@ def run(args) -> int:
         budget=args.budget,
         full_roadmap=args.full_roadmap,
     )
+    if args.update and not args.roadmap:
+        raise UserError("--update writes back to a roadmap: give --roadmap FILE")
+    if args.roadmap and args.full_roadmap:
+        raise UserError("--full-roadmap builds a roadmap per leg: give it or --roadmap, not both")
     check_from_args(args, args.out)
     oracle = CollisionOracle(Scene(args.job))
-    result = run_job(oracle, args.job, settings)
+    cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
+    result = run_job(oracle, args.job, settings, cell)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     with all_or_nothing():
         viewer = publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
         if args.out:
             result.trajectory_file().write(args.out)
+        if args.update:
+            cell.save(args.roadmap)
     if args.json:
         print_json(result.to_json())
     else:

@@ -42,7 +42,8 @@ from app.checking.budget import Budget
 from app.errors import SamplerBudgetExceeded, UserError
 from app.io import write_atomically
 from app.planning.planner import PlanResult, PlanSettings, Query, Samples, default_step
-from app.planning.roadmap import Roadmap
+
+# The roadmap graph pulls in scipy and networkx: imported when a cell roadmap is made, not when the package is.
 
 FORMAT, FORMAT_VERSION = "narrow-passage-planner cell roadmap", 1
 # The largest roadmap file read: far above any roadmap a cell needs (10^6 nodes of 9 coordinates are 70 MB).
@@ -100,7 +101,9 @@ class CellRoadmap:
 
     Not for two threads at once (a query changes the graph); one oracle may serve it and other queries."""
 
-    def __init__(self, oracle, graph: Roadmap | None = None, provenance: dict | None = None):
+    def __init__(self, oracle, graph=None, provenance: dict | None = None):
+        from app.planning.roadmap import Roadmap
+
         self.oracle = oracle
         self.graph = graph if graph is not None else Roadmap(oracle.context(), k=None, skip_connected=False, lazy=True)
         self.provenance = provenance or {"builds": [], "queries": 0}
@@ -207,6 +210,8 @@ class CellRoadmap:
                 f"roadmap {path} was built for another cell than {oracle.scene.name}: its {', '.join(changed)} "
                 f"differ; build it again for this cell (roadmap build)"
             )
+        from app.planning.roadmap import Roadmap
+
         graph = Roadmap.from_arrays(oracle.context(), arrays)
         return cls(oracle, graph, header["provenance"])
 
@@ -227,9 +232,12 @@ def read(path) -> tuple[dict, dict]:
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
-        header = json.loads(str(arrays.pop("header")))
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise UserError(f"roadmap {path} is not a whole roadmap file (truncated or corrupt?): {exc}") from None
+    try:
+        header = json.loads(str(arrays.pop("header")))
+    except (KeyError, ValueError):
+        header = None
     if not isinstance(header, dict) or header.get("format") != FORMAT:
         raise UserError(f"{path} is not a roadmap file of this planner")
     if header.get("version") != FORMAT_VERSION:

@@ -85,10 +85,12 @@ def solve_pose(
     position_tolerance: float = POSITION_TOLERANCE,
     angle_tolerance: float = ANGLE_TOLERANCE,
     clearance: float = CLEARANCE,
+    every: bool = False,
 ) -> np.ndarray:
     """A free configuration putting `frame` (default: the scene's tool frame) at `pose` (a pose name of the scene or
     a RigidTransform in the world), the nearest to `reference` (default: the scene's start) among the first `keep`
-    found; `label` names the pose in errors. Raises InvalidEndpoint if no seed gives one."""
+    found; with `every`, all the distinct ones found, nearest first, (k, dim): goals a planner may reach any of.
+    `label` names the pose in errors. Raises InvalidEndpoint if no seed gives one."""
     from pydrake.math import RotationMatrix
     from pydrake.multibody.inverse_kinematics import InverseKinematics
     from pydrake.solvers import Solve
@@ -162,7 +164,15 @@ def solve_pose(
             f"(tolerance {position_tolerance * 1000:g} mm, {math.degrees(angle_tolerance):g} deg)",
             "NO_IK_SOLUTION",
         )
-    return min(found, key=lambda c: float(oracle.space.distance(reference, c)))
+    found.sort(key=lambda c: float(oracle.space.distance(reference, c)))
+    if not every:
+        return found[0]
+    # Seeds that converge to the same posture give the same goal twice; one of them is enough.
+    distinct = []
+    for q in found:
+        if all(oracle.space.distance(q, other) > oracle.space.resolution for other in distinct):
+            distinct.append(q)
+    return np.array(distinct)
 
 
 def tool_pose(oracle, q, frame=None):
@@ -258,10 +268,13 @@ def robot_frame(oracle, name: str | None = None):
     return max(reversed(bodies), key=depth).body_frame()
 
 
-def pose_goal(oracle, values, *, tool: str | None = None, reference=None, seed: int = 0) -> np.ndarray:
+def pose_goal(
+    oracle, values, *, tool: str | None = None, reference=None, seed: int = 0, every: bool = False
+) -> np.ndarray:
     """A free configuration putting the robot's `tool` frame (see robot_frame) at the world pose `values`:
     x, y, z in metres, roll, pitch, yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll)), the nearest to `reference`
-    (default: the scene's start) of those found from several seeds. Unreachable: InvalidEndpoint NO_IK_SOLUTION."""
+    (default: the scene's start) of those found from several seeds; with `every`, all the distinct ones, nearest
+    first (k, dim). Unreachable: InvalidEndpoint NO_IK_SOLUTION."""
     from pydrake.math import RigidTransform, RollPitchYaw
 
     values = np.asarray(values, float)
@@ -270,4 +283,4 @@ def pose_goal(oracle, values, *, tool: str | None = None, reference=None, seed: 
     pose = RigidTransform(RollPitchYaw(np.radians(values[3:])), values[:3])
     label = ",".join(f"{v:g}" for v in values)
     frame = robot_frame(oracle, tool)
-    return solve_pose(oracle, pose, np.random.default_rng(seed), reference, frame=frame, label=label)
+    return solve_pose(oracle, pose, np.random.default_rng(seed), reference, frame=frame, label=label, every=every)

@@ -1,0 +1,147 @@
+"""`roadmap build SCENE --out FILE` and `roadmap info FILE`: a work cell's roadmap, built once and queried by `plan
+--roadmap FILE` and `run JOB --roadmap FILE` (app.planning.cell)."""
+
+import sys
+
+from app.checking.oracle import CollisionOracle
+from app.commands import custom
+from app.commands.common import (
+    check_outputs,
+    neighbours,
+    parse_budget,
+    positive_float,
+    print_json,
+    processes,
+    sampler_name,
+    seed,
+    share,
+    whole_number,
+)
+from app.planning.cell import BuildSettings, CellRoadmap, read, summary
+
+DEFAULTS = BuildSettings()
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("roadmap", help="build a work cell's roadmap once, then query it with plan/run --roadmap")
+    actions = p.add_subparsers(dest="action", required=True, parser_class=type(p))
+
+    b = actions.add_parser("build", help="sample the cell and decide every k-nearest edge; write one roadmap file")
+    b.add_argument("scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env)")
+    b.add_argument("--out", required=True, metavar="FILE.npz", help="the roadmap file to write (atomically)")
+    b.add_argument(
+        "--nodes",
+        type=whole_number(2, 1_000_000),
+        default=DEFAULTS.nodes,
+        help=f"samples the roadmap holds when the build ends (default {DEFAULTS.nodes})",
+    )
+    b.add_argument(
+        "--narrow",
+        type=share,
+        default=DEFAULTS.narrow,
+        help=f"share of the samples from the narrow-passage sampler and workspace gaps (default {DEFAULTS.narrow})",
+    )
+    b.add_argument(
+        "--sampler",
+        type=sampler_name,
+        default=DEFAULTS.sampler,
+        help=f"narrow-passage sampler (default {DEFAULTS.sampler})",
+    )
+    b.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
+    b.add_argument("--workspace", type=share, default=DEFAULTS.workspace, help="share placed in workspace gaps")
+    b.add_argument("-k", "--neighbours", type=neighbours, default=None, help="neighbours per node (default k-PRM*'s)")
+    b.add_argument("--seed", type=seed, default=0)
+    b.add_argument(
+        "--budget",
+        type=parse_budget,
+        default=DEFAULTS.budget,
+        help=f"what the build may spend, looked at between rounds: 60s, 3000kchecks, ... (default {DEFAULTS.budget})",
+    )
+    b.add_argument(
+        "--workers",
+        type=processes,
+        default=1,
+        help="processes that check edges (the roadmap is the same for any number)",
+    )
+    b.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    custom.add_arguments(b)
+    b.set_defaults(func=build)
+
+    i = actions.add_parser("info", help="what a roadmap file holds: nodes, edges by verdict, its cell, provenance")
+    i.add_argument("file", metavar="FILE.npz")
+    i.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    i.set_defaults(func=info)
+
+
+def build(args) -> int:
+    settings = BuildSettings(
+        nodes=args.nodes,
+        narrow=args.narrow,
+        sampler=args.sampler,
+        step=args.step,
+        workspace=args.workspace,
+        k=args.neighbours,
+        seed=args.seed,
+        budget=args.budget,
+    )
+    check_outputs(args.out)
+    oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
+    with _progress(settings.nodes) as progress:
+        cell = CellRoadmap.build(oracle, settings, workers=args.workers, progress=progress)
+    cell.save(args.out)
+    print(f"roadmap: wrote {args.out}", file=sys.stderr)
+    answer = {"file": args.out, **cell.info()}
+    if args.json:
+        print_json(answer)
+    else:
+        print(_describe(answer))
+    return 0
+
+
+def info(args) -> int:
+    header, arrays = read(args.file)
+    answer = {"file": args.file, **summary(arrays, header)}
+    if args.json:
+        print_json(answer)
+    else:
+        print(_describe(answer))
+    return 0
+
+
+def _describe(answer: dict) -> str:
+    edges, kinds = answer["edges"], answer["nodes_by_kind"]
+    builds = answer["provenance"]["builds"]
+    lines = [
+        f"roadmap {answer['file']}: cell {answer['scene']}, {answer['nodes']} nodes of {answer['dimension']} "
+        f"coordinates ({', '.join(f'{n} {kind}' for kind, n in kinds.items())})",
+        f"  edges     {edges['certified']} certified, {edges['free']} free at the resolution, {edges['unchecked']} "
+        f"not yet checked, {edges['colliding_or_unprovable']} known to collide or unprovable",
+    ]
+    for record in builds:
+        lines.append(
+            f"  built     {record['nodes']} nodes, {record['collision_checks']} collision checks, "
+            f"{record['seconds']:.1f} s on {record['workers']} process(es), ended by {record['ended']}"
+        )
+    lines.append(f"  queries   {answer['provenance']['queries']} answered with it and written back")
+    return "\n".join(lines)
+
+
+class _progress:
+    """A progress bar on stderr while the build runs (tqdm hides it when stderr is not a terminal)."""
+
+    def __init__(self, total: int):
+        self.total = total
+
+    def __enter__(self):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=self.total, desc="roadmap build", unit="node", file=sys.stderr, disable=None)
+
+        def update(nodes: int, target: int, checks: int) -> None:
+            self.bar.n = nodes
+            self.bar.set_postfix_str(f"{checks / 1000:.0f}k checks", refresh=True)
+
+        return update
+
+    def __exit__(self, *exc):
+        self.bar.close()

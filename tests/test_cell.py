@@ -1,0 +1,163 @@
+"""The cell roadmap (app.planning.cell): built once, it answers many queries and keeps what they learn; saved, it
+loads back only into the cell it was built for and answers as the one in memory does."""
+
+import re
+
+import numpy as np
+import pytest
+
+from app.checking.budget import Budget
+from app.errors import UserError
+from app.planning.cell import BuildSettings, CellRoadmap, read
+from app.planning.planner import PlanSettings
+from app.scene.model import SCENES_DIR
+
+SMALL = BuildSettings(nodes=250, seed=0)  # one build round on bar: a few seconds
+QUERY = PlanSettings(seed=0, budget=Budget(checks=200_000))
+
+
+@pytest.fixture(scope="module")
+def bar_file(oracles, tmp_path_factory):
+    """A small bar roadmap, saved once for the module."""
+    path = tmp_path_factory.mktemp("cell") / "bar.npz"
+    CellRoadmap.build(oracles("bar"), SMALL).save(path)
+    return path
+
+
+def _pairs(nodes) -> set:
+    return {(min(a, b), max(a, b)) for a, b in zip(nodes[:-1], nodes[1:])}
+
+
+def _queries(oracle, n: int, seed: int) -> list:
+    """n pairs of free configurations of the oracle's scene."""
+    rng, checker = np.random.default_rng(seed), oracle.context()
+    Q = oracle.space.uniform(rng, 40 * n)
+    Q = Q[checker.are_free(Q)]
+    return [(Q[2 * i], Q[2 * i + 1]) for i in range(n)]
+
+
+def test_a_loaded_roadmap_answers_as_the_one_in_memory(oracles, bar_file):
+    oracle = oracles("bar")
+    kept, loaded = CellRoadmap.load(bar_file, oracle), CellRoadmap.load(bar_file, oracle)
+    for start, goal in _queries(oracle, 3, seed=1):
+        a, b = kept.solve(start, goal, QUERY), loaded.solve(start, goal, QUERY)
+        assert np.array_equal(a.path, b.path) and a.collision_checks == b.collision_checks
+    # what the queries learned survives a save and a load too
+    again = bar_file.parent / "again.npz"
+    kept.save(again)
+    kept_info, again_info = kept.info(), CellRoadmap.load(again, oracle).info()
+    assert kept_info["edges"] == again_info["edges"] and kept_info["nodes"] == again_info["nodes"]
+
+
+def test_the_same_query_again_costs_fewer_checks_and_decides_no_edge_twice(oracles, bar_file):
+    oracle = oracles("bar")
+    cell = CellRoadmap.load(bar_file, oracle)
+    first = cell.solve(settings=QUERY)
+    decided = cell.graph.edges_tried
+    second = cell.solve(settings=QUERY)
+    assert first.success and second.success
+    assert second.collision_checks < first.collision_checks
+    assert second.rounds == 0  # answered from the roadmap: no sample drawn
+    assert cell.graph.edges_tried == decided  # every edge the second query used was decided by the first
+
+
+def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
+    oracle = oracles("bar")
+    cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))  # far too few to cross the wall
+    result = cell.solve(settings=QUERY)
+    assert result.success and result.rounds > 0 and len(cell) > 22
+    size = len(cell)
+    again = cell.solve(settings=QUERY)
+    assert again.rounds == 0 and len(cell) == size and again.collision_checks < result.collision_checks
+
+
+def test_an_edge_known_to_collide_is_never_used_or_checked_again(oracles, bar_file):
+    oracle = oracles("bar")
+    cell = CellRoadmap.load(bar_file, oracle)
+    first = cell.solve(settings=QUERY)
+    a, b = sorted(first.path_nodes[1:3])  # a roadmap edge the answer used, away from the endpoints
+    cell.graph.remove_edge(a, b)  # as if it had been found to collide
+    second = cell.solve(settings=QUERY)
+    assert (a, b) not in _pairs(second.path_nodes)
+    assert (a, b) not in {tuple(e) for e in cell.graph.candidates(np.array([a, b]))}
+
+
+def test_any_of_several_goals_may_be_reached_and_bad_ones_are_left_out(oracles, bar_file):
+    oracle = oracles("bar")
+    cell = CellRoadmap.load(bar_file, oracle)
+    scene = oracle.scene
+    inside_wall = scene.goal.copy()
+    inside_wall[:2] = [50.0, 20.0]  # the base in the wall
+    far = _queries(oracle, 1, seed=5)[0][0]
+    result = cell.solve(scene.start, [inside_wall, far, scene.goal], QUERY)
+    assert any(np.allclose(result.goal, g) for g in (far, scene.goal))
+    assert np.allclose(oracle.space.difference(result.path[-1], result.goal), 0)
+
+
+def test_a_roadmap_is_the_same_built_on_one_process_or_two(oracles):
+    oracle = oracles("bar")
+    one = CellRoadmap.build(oracle, SMALL, workers=1).graph.arrays()
+    two = CellRoadmap.build(oracle, SMALL, workers=2).graph.arrays()
+    for key in one:
+        assert np.array_equal(one[key], two[key]), key
+
+
+def test_a_roadmap_of_another_scene_is_refused(oracles, bar_file):
+    with pytest.raises(UserError, match="built for another cell .* robot"):
+        CellRoadmap.load(bar_file, oracles("bar-3link"))
+
+
+def _bar_copy(folder, obstacles: str):
+    """bar's scene files in `folder`, with the obstacles file's text `obstacles`."""
+    (folder / "obstacles.sdf").write_text(obstacles)
+    dmd = (SCENES_DIR / "bar.dmd.yaml").read_text()
+    (folder / "bar.dmd.yaml").write_text(
+        dmd.replace("package://npp_scenes/bar_obstacles.sdf", f"file://{folder}/obstacles.sdf")
+    )
+    (folder / "bar.yaml").write_text((SCENES_DIR / "bar.yaml").read_text())
+    return folder / "bar.yaml"
+
+
+def test_a_moved_obstacle_makes_the_roadmap_stale_and_an_unchanged_copy_does_not(bar_file, tmp_path):
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
+
+    text = (SCENES_DIR / "bar_obstacles.sdf").read_text()
+    same = tmp_path / "same"
+    same.mkdir()
+    assert len(CellRoadmap.load(bar_file, CollisionOracle(Scene(str(_bar_copy(same, text)))))) > 0
+    moved = tmp_path / "moved"
+    moved.mkdir()
+    pose = re.search(r"<pose>([^<]+)</pose>", text)
+    numbers = pose.group(1).split()
+    numbers[0] = str(float(numbers[0]) + 0.01)  # one obstacle 1 cm along x
+    changed = text[: pose.start(1)] + " ".join(numbers) + text[pose.end(1) :]
+    with pytest.raises(UserError, match="environment differ"):
+        CellRoadmap.load(bar_file, CollisionOracle(Scene(str(_bar_copy(moved, changed)))))
+
+
+def test_a_changed_srdf_makes_the_roadmap_stale(oracles, tmp_path):
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
+
+    path = tmp_path / "window.npz"
+    CellRoadmap.build(oracles("window"), BuildSettings(nodes=10, narrow=0.0)).save(path)
+    (tmp_path / "window.dmd.yaml").write_text((SCENES_DIR / "window.dmd.yaml").read_text())
+    (tmp_path / "window.yaml").write_text(re.sub(r"srdf: .*\n", "", (SCENES_DIR / "window.yaml").read_text()))
+    with pytest.raises(UserError, match="collision pairs differ"):
+        CellRoadmap.load(path, CollisionOracle(Scene(str(tmp_path / "window.yaml"))))
+
+
+def test_a_truncated_or_damaged_file_is_refused(oracles, bar_file, tmp_path):
+    data = bar_file.read_bytes()
+    truncated, damaged, other = tmp_path / "truncated.npz", tmp_path / "damaged.npz", tmp_path / "other.npz"
+    truncated.write_bytes(data[: len(data) // 2])
+    flipped = bytearray(data)
+    flipped[len(data) // 3] ^= 0xFF
+    damaged.write_bytes(bytes(flipped))
+    np.savez(other, Q=np.zeros((3, 9)))
+    for path in (truncated, damaged):
+        with pytest.raises(UserError, match="not a whole roadmap file"):
+            CellRoadmap.load(path, oracles("bar"))
+    with pytest.raises(UserError, match="lacks|not a roadmap file"):
+        read(other)
