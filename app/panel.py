@@ -8,9 +8,11 @@ a second) reads the sliders and button clicks, redraws and plays the motion. Pla
 scene's one collision oracle (it serializes their Drake queries; each query counts and bounds its own checks): the
 worker plans and solves IK on it, the main thread colours the start and goal robots red in collision.
 
-A Plan press takes the sliders' start and goal and the sampler shown at that moment. A press while a query runs
-cancels it (`plan(..., cancel=)`: the query's stop condition polls the event before every collision batch) and the
-latest press is planned: a new Plan always replaces the old result.
+A Plan press takes the sliders' start and goal and the sampler shown at that moment, and plans on the panel's one
+roadmap (app.planning.cell), which keeps the samples and edge verdicts of every earlier press: the second query in the
+same cell is cheaper than the first. A press while a query runs cancels it (`cancel=`: the query's stop condition
+polls the event before every collision batch) and the latest press is planned: a new Plan always replaces the old
+result.
 
 What the page shows of the last plan (success, collision checks, seconds) is the label of a button at the bottom of
 the controls: Meshcat has no text element. The same figures, the slider values as the server read them and what is
@@ -31,6 +33,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import write_atomically
+from app.planning.cell import CellRoadmap
 from app.planning.ik import pose_goal, robot_frame
 from app.planning.planner import PlanSettings, plan
 from app.samplers import SAMPLERS
@@ -66,6 +69,7 @@ class Panel:
     ):
         _collect_meshcats()
         self.oracle, self.settings = oracle, settings
+        self.cell = CellRoadmap(oracle)  # grows with every Plan press; used on the worker thread only
         self.preview = oracle.context()  # the main thread's checks of the sliders' start and goal
         self.scene = oracle.scene
         self.viewer = Viewer(self.scene, meshcat=start_meshcat(port), frame=frame)
@@ -199,7 +203,7 @@ class Panel:
             start, goal = self._q["start"].copy(), self._q["goal"].copy()
             settings = dataclasses.replace(self.settings, sampler=self.sampler)
             cancel = threading.Event()
-            self._request("plan", lambda: plan(self.oracle, settings, start=start, goal=goal, cancel=cancel), cancel)
+            self._request("plan", lambda: self._plan(settings, start, goal, cancel), cancel)
         elif label == PLAY:
             self._play_from = time.monotonic() if self.result is not None else None
         elif label.startswith(GOAL_FROM_POSE):
@@ -215,6 +219,13 @@ class Panel:
         elif label.startswith("Roadmap:"):
             self.roadmap_visible = not self.roadmap_visible
             self.meshcat.SetProperty("/roadmap", "visible", self.roadmap_visible)
+
+    def _plan(self, settings, start, goal, cancel):
+        """One Plan press's query, on the worker thread: on the panel's roadmap, which keeps what every earlier
+        press sampled and decided (unless each press must build a roadmap of its own, the paper's protocol)."""
+        if settings.full_roadmap:
+            return plan(self.oracle, settings, start=start, goal=goal, cancel=cancel)
+        return self.cell.solve(start, goal, settings, cancel=cancel)
 
     def _request(self, kind: str, job, cancel: threading.Event | None = None) -> None:
         """Queue a job for the worker; one of the same kind under way is cancelled if it can be (`cancel`)."""

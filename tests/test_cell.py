@@ -161,3 +161,57 @@ def test_a_truncated_or_damaged_file_is_refused(oracles, bar_file, tmp_path):
             CellRoadmap.load(path, oracles("bar"))
     with pytest.raises(UserError, match="lacks|not a roadmap file"):
         read(other)
+
+
+# ---- the command line ---------------------------------------------------------------------------------------------
+def test_build_info_plan_and_update_from_the_command_line(cli, tmp_path):
+    import json
+
+    path = tmp_path / "bar.npz"
+    built = cli("roadmap", "build", "bar", "--out", path, "--nodes", 250, "--json")
+    assert built.returncode == 0, built.stderr
+    answer = json.loads(built.stdout)
+    assert answer["nodes"] == 250 and answer["edges"]["free"] > 0 and f"wrote {path}" in built.stderr
+    planned = cli("plan", "bar", "--roadmap", path, "--update", "--json")
+    assert planned.returncode == 0, planned.stderr
+    assert json.loads(planned.stdout)["certified"]
+    info = json.loads(cli("roadmap", "info", path, "--json").stdout)
+    assert info["provenance"]["queries"] == 1 and info["nodes"] >= 250  # the query was written back
+    assert info["fingerprint"] == answer["fingerprint"]
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["plan", "bar-3link", "--roadmap", "{bar}"],  # built for another cell
+        ["plan", "bar", "--roadmap", "{truncated}"],
+        ["plan", "bar", "--update"],  # nothing to write back to
+        ["plan", "bar", "--roadmap", "{bar}", "--full-roadmap"],
+        ["roadmap", "info", "{missing}"],
+        ["roadmap", "build", "bar", "--out", "{bar}", "--nodes", "1"],
+        ["roadmap", "build", "bar", "--out", "{bar}", "--workers", "0"],
+    ],
+)
+def test_bad_roadmap_input_fails_in_one_line_and_writes_nothing(cli, one_line_error, bar_file, tmp_path, args):
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(bar_file.read_bytes()[:1000])
+    before = bar_file.read_bytes()
+    names = {"bar": bar_file, "truncated": truncated, "missing": tmp_path / "missing.npz"}
+    result = cli(*[a.format(**names) for a in args])
+    one_line_error(result, 2)
+    assert bar_file.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["truncated.npz"]
+
+
+def test_a_job_runs_its_legs_on_one_roadmap_and_a_saved_one_makes_it_cheaper(oracles, tmp_path):
+    from app.jobs import JOB_SETTINGS, run_job
+
+    oracle = oracles("window")
+    cell = CellRoadmap(oracle)
+    first = run_job(oracle, "window", JOB_SETTINGS, cell)
+    planned = [leg for leg in first.legs if leg.method == JOB_SETTINGS.sampler]
+    assert len(planned) >= 2 and cell.provenance["queries"] >= len(planned)
+    # A later leg found samples the earlier ones left: it added fewer than the first planned leg did.
+    assert planned[-1].narrow_samples < planned[0].narrow_samples
+    cell.save(tmp_path / "window.npz")
+    again = run_job(oracle, "window", JOB_SETTINGS, CellRoadmap.load(tmp_path / "window.npz", oracle))
+    assert again.collision_checks < first.collision_checks

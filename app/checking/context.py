@@ -33,6 +33,7 @@ _PASSED_THROUGH = frozenset(
         "clearance",
         "contacts",
         "colliding_bodies",
+        "touching",
         "frame_positions",
         "in_passage",
         "query_object",

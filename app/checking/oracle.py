@@ -38,6 +38,8 @@ from app.scene.model import Scene
 
 # pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
 
+# Signed distance at or below which two geometries touch: an endpoint there is refused (see `touching`).
+CONTACT = 1e-9
 # Below this many configurations the checker's batch set-up costs more than the raw loop saves.
 _BATCH_MIN = 8
 # Batch calls before the path not in favour is measured again: at first 16; each time it is found dearer still, twice
@@ -220,15 +222,26 @@ class CollisionOracle:
             except RuntimeError:  # a shape pair without penetration support: fall back to signed distances
                 distances = query.ComputeSignedDistancePairwiseClosestPoints(0.0)
                 pairs = [(p.id_A, p.id_B) for p in distances if p.distance < 0]
-        world = self._inspector.world_frame_id()
+        return sorted({tuple(sorted((self._body_name(a), self._body_name(b)))) for a, b in pairs})
 
-        def name(g):
-            frame = self._inspector.GetFrameId(g)
-            if frame == world:
-                return self._inspector.GetName(g)
-            return self.plant.GetBodyFromFrameId(frame).scoped_name().to_string()
+    def touching(self, q: np.ndarray, margin: float = CONTACT) -> list[tuple[str, str, float]]:
+        """The body pairs under the scene's policy no farther apart than `margin` at q, as (name, name, signed
+        distance), nearest first: a configuration whose geometry touches (distance 0, which HasCollisions calls
+        free) can be left by no motion the certificate proves."""
+        pairs = self.signed_distance_pairs(q, margin)
+        named = {}
+        for p in pairs:
+            key = tuple(sorted((self._body_name(p.id_A), self._body_name(p.id_B))))
+            named[key] = min(named.get(key, np.inf), p.distance)
+        return sorted(((a, b, d) for (a, b), d in named.items() if d <= margin), key=lambda t: t[2])
 
-        return sorted({tuple(sorted((name(a), name(b)))) for a, b in pairs})
+    def _body_name(self, g) -> str:
+        """A geometry's body, by scoped name; geometry anchored to the world (a custom scene's environment pieces)
+        by its own name, not "world"."""
+        frame = self._inspector.GetFrameId(g)
+        if frame == self._inspector.world_frame_id():
+            return self._inspector.GetName(g)
+        return self.plant.GetBodyFromFrameId(frame).scoped_name().to_string()
 
     def frame_positions(self, Q: np.ndarray) -> np.ndarray:
         """World position of the passage frame's origin (no passage declared: the robot's last body's) for each

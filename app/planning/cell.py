@@ -217,7 +217,12 @@ class CellRoadmap:
 
     def info(self) -> dict:
         """Sizes, verdict counts and provenance, as `roadmap info` prints them."""
-        return summary(self.graph.arrays(), {"scene": self.oracle.scene.name, "provenance": self.provenance})
+        header = {
+            "scene": self.oracle.scene.name,
+            "fingerprint": fingerprint(self.oracle),
+            "provenance": self.provenance,
+        }
+        return summary(self.graph.arrays(), header)
 
 
 def read(path) -> tuple[dict, dict]:

@@ -143,7 +143,8 @@ def solve_pose(
             position, angle = pose_error(oracle, candidate, X_WT, frame)
             if position > position_tolerance or angle > angle_tolerance:
                 continue
-            if oracle.space.within_bounds(candidate)[0] and oracle.free(candidate):
+            # Touching counts as colliding: no motion out of a contact can be certified (planner.check_endpoint).
+            if oracle.space.within_bounds(candidate)[0] and oracle.free(candidate) and not oracle.touching(candidate):
                 found.append(candidate)
                 if len(found) >= keep:
                     break

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from app.checking.budget import Budget, BudgetSpent, Stop
+from app.checking.oracle import CONTACT
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.motion.path import FINE, Shortcuts, path_length, shortcut, unwind, verify
 from app.motion.timing import time_path
@@ -194,24 +195,35 @@ class PlanResult:
         }
 
 
-def check_endpoint(oracle, q, what: str) -> np.ndarray:
-    """A start or goal as a vector; wrong length or non-finite -> UserError, out of bounds or colliding ->
-    InvalidEndpoint naming the coordinate or the touching bodies."""
-    q = oracle.space.check_configuration(q, what)
-    bad = oracle.space.out_of_bounds(q)
+def check_endpoint(checker, q, what: str) -> np.ndarray:
+    """A start or goal as a vector; wrong length or non-finite -> UserError, out of bounds, colliding or touching
+    -> InvalidEndpoint naming the coordinate or the bodies.
+
+    Touching (signed distance 0: a maze hull on the outer wall at its bound) is refused too, although the collision
+    check calls it free: no motion out of it can be certified, and a query from it would spend its whole budget
+    before failing. Refused rather than moved off the contact, because which way is "off" is the user's call (a
+    tool on a part means to touch it); the message says how close the bodies are, so a nudge is easy."""
+    q = checker.space.check_configuration(q, what)
+    bad = checker.space.out_of_bounds(q)
+    code = "START_STATE_IN_COLLISION" if what == "start" else "GOAL_IN_COLLISION"
     if bad:
         raise InvalidEndpoint(
             f"{what} is out of bounds: {'; '.join(bad)}",
             "START_STATE_INVALID" if what == "start" else "GOAL_STATE_INVALID",
         )
-    if not oracle.is_free(q):
-        pairs = oracle.colliding_bodies(q)
+    if not checker.is_free(q):
+        pairs = checker.colliding_bodies(q)
         touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
-        raise InvalidEndpoint(
-            f"{what} is in collision: {touching or 'contact reported by the checker'}",
-            "START_STATE_IN_COLLISION" if what == "start" else "GOAL_IN_COLLISION",
+        raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}", code)
+    contacts = checker.touching(q)
+    if contacts:
+        named = ", ".join(f"{a} with {b} at {d:.2g}" for a, b, d in contacts[:4]) + (
+            " ..." if len(contacts) > 4 else ""
         )
-    return oracle.space.wrap(q)
+        raise InvalidEndpoint(
+            f"{what} touches (signed distance <= {CONTACT:g}): {named}; move it off the contact", code
+        )
+    return checker.space.wrap(q)
 
 
 def check_goals(checker, goal) -> np.ndarray:

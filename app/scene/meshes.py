@@ -110,7 +110,7 @@ def load_mesh(path: str | Path):
             f"cannot read mesh {path.name}: {' '.join(str(exc).split())[:200] or type(exc).__name__}"
         ) from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise UserError(f"cannot read mesh {path.name}: no triangles in it")
+        raise UserError(f"cannot read mesh {path.name}: not a valid {path.suffix} file (no triangles in it)")
     mesh = loaded
     if path.suffix.lower() == ".dae":
         scale = _collada_unit(path)
