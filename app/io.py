@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import secrets
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
@@ -93,10 +95,37 @@ def write_atomically(path: str | os.PathLike, content: str | bytes | Callable[[P
     return target
 
 
+def write_folder_atomically(path: str | os.PathLike, fill: Callable[[Path], None]) -> Path:
+    """A folder (e.g. a ROS 2 bag) written whole or not at all: `fill` creates it at a fresh path beside `path`,
+    which is then renamed to `path` (inside all_or_nothing(): when the block ends). A `path` that exists is refused,
+    so nothing of the user's is merged into or replaced."""
+    target = Path(path)
+    if target.exists() or target.is_symlink():
+        raise UserError(f"cannot write {path}: it exists already; give a new folder name")
+    check_output(target)
+    tmp = target.parent / f".{target.name}.{secrets.token_hex(4)}.tmp"
+    try:
+        fill(tmp)
+        pending = _pending.get()
+        if pending is None:
+            os.rename(tmp, target)
+        else:
+            pending.append((str(tmp), target))
+    except BaseException as exc:
+        _discard([tmp])
+        if isinstance(exc, OSError):
+            raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise
+    return target
+
+
 def _discard(paths) -> None:
     for tmp in paths:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        if os.path.isdir(tmp) and not os.path.islink(tmp):
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 def _umask() -> int:

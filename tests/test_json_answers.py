@@ -132,6 +132,7 @@ def test_plan_and_view_answers_follow_their_schemas(cli, tmp_path, monkeypatch):
     trajectory, page = tmp_path / "bar.json", tmp_path / "bar.html"
     planned = check(cli("plan", "bar", "--out", trajectory, "--json"), "plan")
     assert planned["certified"] == planned["trajectory"]["certified"] and trajectory.is_file()
+    jsonschema.validate(json.loads(trajectory.read_text()), schema("trajectory"))
     shown = check(cli("view", "bar", "--trajectory", trajectory, "--html", page, "--json"), "view")
     assert shown["html"] == str(page) and page.is_file() and shown["meshcat"] is None
 

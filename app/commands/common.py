@@ -174,6 +174,13 @@ def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
         seen[real] = path
 
 
+def announce(*files: str | None) -> None:
+    """Name each file a command wrote on stderr, one line each (stdout may carry its JSON answer); None: not asked."""
+    for file in files:
+        if file:
+            print(f"wrote {file}", file=sys.stderr)
+
+
 def print_json(obj: dict) -> None:
     """A command's answer as one line of JSON on stdout; every answer says whether it is a success. JSON has no
     NaN or infinity (Python's json would print them anyway): they become null, e.g. a median over no successes."""

@@ -18,10 +18,8 @@ from app.commands.common import (
     shortcut_rounds,
 )
 from app.errors import UserError
-from app.io import all_or_nothing
 from app.planning.ik import pose_goal
 from app.planning.planner import PlanSettings, plan
-from app.viewer import ViewData
 
 DEFAULTS = PlanSettings()
 
@@ -163,10 +161,7 @@ def run(args) -> int:
         goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed)
     result = plan(oracle, settings, start=start, goal=goal)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-    with all_or_nothing():
-        viewer = view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
-        if args.out:
-            result.trajectory_file().write(args.out)
+    viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out)
     if args.json:
         print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
     else:

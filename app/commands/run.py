@@ -11,12 +11,10 @@ from app.commands.common import (
     sampler_name,
     seed,
 )
-from app.commands.view import add_arguments, check_from_args, publish_from_args, wait
+from app.commands.view import add_arguments, check_from_args, wait, write_outputs
 from app.errors import UserError
-from app.io import all_or_nothing
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
 from app.scene.model import Scene
-from app.viewer import ViewData
 
 
 def register(subparsers) -> None:
@@ -56,10 +54,7 @@ def run(args) -> int:
     oracle = CollisionOracle(Scene(args.job))
     result = run_job(oracle, args.job, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-    with all_or_nothing():
-        viewer = publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
-        if args.out:
-            result.trajectory_file().write(args.out)
+    viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out)
     if args.json:
         print_json(result.to_json())
     else:
