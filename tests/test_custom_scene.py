@@ -300,6 +300,16 @@ def test_urdf_arm_with_a_package_path(arm_package, tmp_path, urdf):
     assert not oracle.edge_free(np.array([1.0]), np.array([-1.0]))
 
 
+def test_a_robot_of_ones_own_sets_its_limits(arm_package, tmp_path):
+    spec = CustomSpec(robot=str(arm_package / "arm.urdf"), package_path=[f"my_arm={arm_package}"])
+    default = build_scene(spec, cache_dir=tmp_path, progress=False)
+    assert default.velocity_limits.tolist() == [1.0]  # the URDF's
+    assert default.acceleration_limits.tolist() == [2.0]  # twice that, as for a shipped scene
+    spec.velocity_limits, spec.acceleration_limits = [0.5], [3.0]
+    given = build_scene(spec, cache_dir=tmp_path, progress=False)
+    assert given.velocity_limits.tolist() == [0.5] and given.acceleration_limits.tolist() == [3.0]
+
+
 @pytest.mark.parametrize("urdf", ["arm.urdf", "arm_stl.urdf"])
 def test_unknown_package_is_one_line(arm_package, tmp_path, urdf):
     spec = CustomSpec(robot=str(arm_package / urdf), start=[1.0], goal=[-1.0], bounds=["-3..3"])
@@ -322,6 +332,8 @@ def test_unknown_package_is_one_line(arm_package, tmp_path, urdf):
         (dict(env_pose=[1, 2]), "env pose needs 6"),
         (dict(package_path=["nodir"]), "NAME=DIR"),
         (dict(package_path=["p=/no/such/dir"]), "directory not found"),
+        (dict(velocity_limits=[1, 2]), "velocity_limits needs 6 numbers"),
+        (dict(acceleration_limits=[1, 1, 1, 1, 1, 0]), "acceleration_limits must be positive"),
     ],
 )
 def test_bad_input_is_a_one_line_user_error(files, cache, change, message):

@@ -14,6 +14,7 @@ import sys
 from app.checking.budget import Budget
 from app.errors import UserError
 from app.io import check_output
+from app.motion.timing import scaled_limits
 from app.samplers import check_name
 
 
@@ -75,6 +76,33 @@ def share(text: str) -> float:
     if not 0 <= value <= 1:
         raise argparse.ArgumentTypeError(f"must be a share from 0 to 1: {text}")
     return value
+
+
+def fraction(text: str) -> float:
+    """A fraction in (0, 1]: a scaling factor."""
+    value = _finite_float(text)
+    if not 0 < value <= 1:
+        raise argparse.ArgumentTypeError(f"must be a fraction in (0, 1]: {text}")
+    return value
+
+
+def add_scaling_arguments(p) -> None:
+    """--velocity-scale and --acceleration-scale, as MoveIt's scaling factors, for a command that times motion."""
+    for kind in ("velocity", "acceleration"):
+        p.add_argument(
+            f"--{kind}-scale",
+            type=fraction,
+            default=1.0,
+            metavar="S",
+            help=f"time the motion with this fraction (0, 1] of the {kind} limits (default 1)",
+        )
+
+
+def apply_scaling(args, scene) -> None:
+    """The scene's limits scaled as --velocity-scale/--acceleration-scale ask, for every trajectory timed in it."""
+    scene.velocity_limits, scene.acceleration_limits = scaled_limits(
+        scene, args.velocity_scale, args.acceleration_scale
+    )
 
 
 def comma_list(text: str) -> list[str]:

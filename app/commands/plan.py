@@ -6,6 +6,8 @@ import argparse
 from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
 from app.commands.common import (
+    add_scaling_arguments,
+    apply_scaling,
     float_list,
     neighbours,
     parse_budget,
@@ -30,6 +32,7 @@ def register(subparsers) -> None:
         "scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env instead)"
     )
     add_settings_arguments(p)
+    add_scaling_arguments(p)
     p.add_argument("--start", type=float_list, default=None, help="comma-separated start configuration")
     p.add_argument("--goal", type=float_list, default=None, help="comma-separated goal configuration")
     for end in ("start", "goal"):
@@ -154,6 +157,7 @@ def run(args) -> int:
         raise UserError("--tool needs --start-pose or --goal-pose")
     view.check_from_args(args, args.out)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
+    apply_scaling(args, oracle.scene)
     start, goal = args.start, args.goal
     if args.start_pose is not None:
         start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)

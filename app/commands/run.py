@@ -4,6 +4,8 @@ from dataclasses import replace
 
 from app.checking.oracle import CollisionOracle
 from app.commands.common import (
+    add_scaling_arguments,
+    apply_scaling,
     parse_budget,
     positive_float,
     print_json,
@@ -33,6 +35,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
     p.add_argument("--json", action="store_true")
+    add_scaling_arguments(p)
     add_arguments(p)
     p.set_defaults(func=run)
 
@@ -52,6 +55,7 @@ def run(args) -> int:
     )
     check_from_args(args, args.out)
     oracle = CollisionOracle(Scene(args.job))
+    apply_scaling(args, oracle.scene)
     result = run_job(oracle, args.job, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out)
