@@ -5,11 +5,14 @@ A type raises argparse.ArgumentTypeError; the parser turns that into one line na
 """
 
 import argparse
+import contextlib
 import json
 import math
 import os
 import re
 import sys
+import threading
+import time
 
 from app.checking.budget import Budget
 from app.errors import UserError
@@ -200,6 +203,44 @@ def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
         if real in seen:
             raise UserError(f"{seen[real]} and {path} are the same file; give each output its own path")
         seen[real] = path
+
+
+# A command that runs longer than this shows its progress (on a terminal): shorter ones stay quiet.
+PROGRESS_AFTER = 1.5
+PROGRESS_EVERY = 0.25  # seconds between updates of the progress line
+
+
+@contextlib.contextmanager
+def progress(args, oracle, what: str):
+    """While the block runs longer than PROGRESS_AFTER s: one line on stderr, rewritten in place, with the time so far
+    and the oracle's collision checks (those of the current query or leg), cleared when the block ends. Only on a
+    terminal, and never with --json (a program reads that answer)."""
+    if getattr(args, "json", False) or not sys.stderr.isatty():
+        yield
+        return
+    from tqdm import tqdm
+
+    done = threading.Event()
+
+    def show() -> None:
+        if done.wait(PROGRESS_AFTER):
+            return
+        started = time.monotonic() - PROGRESS_AFTER
+        with tqdm(file=sys.stderr, leave=False, bar_format="{desc}", dynamic_ncols=True) as line:
+            while True:
+                line.set_description_str(
+                    f"{what}: {time.monotonic() - started:.0f} s, {oracle.checks:,} collision checks", refresh=True
+                )
+                if done.wait(PROGRESS_EVERY):
+                    return
+
+    shower = threading.Thread(target=show, name="progress", daemon=True)
+    shower.start()
+    try:
+        yield
+    finally:
+        done.set()
+        shower.join()
 
 
 def announce(*files: str | None) -> None:

@@ -13,6 +13,7 @@ from app.commands.common import (
     parse_budget,
     positive_float,
     print_json,
+    progress,
     sample_count,
     sampler_name,
     seed,
@@ -159,11 +160,12 @@ def run(args) -> int:
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     apply_scaling(args, oracle.scene)
     start, goal = args.start, args.goal
-    if args.start_pose is not None:
-        start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
-    if args.goal_pose is not None:
-        goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed)
-    result = plan(oracle, settings, start=start, goal=goal)
+    with progress(args, oracle, f"plan {oracle.scene.name}"):
+        if args.start_pose is not None:
+            start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
+        if args.goal_pose is not None:
+            goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed)
+        result = plan(oracle, settings, start=start, goal=goal)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out)
     if args.json:

@@ -9,6 +9,7 @@ from app.commands.common import (
     parse_budget,
     positive_float,
     print_json,
+    progress,
     sample_count,
     sampler_name,
     seed,
@@ -56,7 +57,8 @@ def run(args) -> int:
     check_from_args(args, args.out)
     oracle = CollisionOracle(Scene(args.job))
     apply_scaling(args, oracle.scene)
-    result = run_job(oracle, args.job, settings)
+    with progress(args, oracle, f"run {args.job}"):
+        result = run_job(oracle, args.job, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out)
     if args.json:

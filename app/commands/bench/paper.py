@@ -24,6 +24,7 @@ from app.bench.store import ResultStore
 from app.commands.bench import results
 from app.commands.common import (
     MAX_PROCESSES,
+    announce,
     check_count,
     check_outputs,
     comma_list,
@@ -159,6 +160,7 @@ def run(args) -> int:
     if args.ompl_db:
         Path(args.ompl_db).parent.mkdir(parents=True, exist_ok=True)
         database = str(ompl_db.write(store.rows(), args.ompl_db))
+    announce(str(store.path), str(path), str(trials_csv), database)
     if args.json:
         print_json(
             {
@@ -172,8 +174,4 @@ def run(args) -> int:
         )
     else:
         print(f"{ran} trials run; {store.count()} in {store.path}")
-        print(path)
-        print(trials_csv)
-        if database:
-            print(database)
     return 0
