@@ -132,20 +132,18 @@ def test_plan_goes_through_the_channel(channel_oracle):
     assert len(middle) and np.all(np.abs(middle[:, 1]) < 0.7) and np.all(middle[:, 2] < 2.2)
 
 
-def test_open_collada_channel_and_second_build_is_cached(files, tmp_path):
-    import time
-
+def test_open_collada_channel_and_second_build_is_cached(files, tmp_path, monkeypatch):
     from app.checking.oracle import CollisionOracle
+    from app.scene import meshes
 
     first = build_scene(_spec(files, env="open_channel.dae"), cache_dir=tmp_path, progress=False)
     assert first.info["decompositions"][1]["method"] == "faces"
     oracle = CollisionOracle(first)
     assert oracle.is_free(np.array(IN_SLOT)) and not oracle.is_free(np.array([0.0, 1.0, 1.5, 0, 0, 0]))
     assert oracle.edge_free(np.array([-3.0, 0, 1.5, 0, 0, 0]), np.array([3.0, 0, 1.5, 0, 0, 0]))
-    started = time.perf_counter()
+    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: the second build reads the cache
     again = build_scene(_spec(files, env="open_channel.dae"), cache_dir=tmp_path, progress=False)
     assert all(d["from_cache"] for d in again.info["decompositions"])
-    assert again.info["prepare_seconds"] < 1.0 and time.perf_counter() - started < 3.0
 
 
 def test_env_pose_moves_the_mesh(files, cache):
@@ -531,7 +529,7 @@ def test_a_cache_folder_with_uri_characters_in_its_name_works(files, tmp_path):
     assert scene.dim == 6
 
 
-def test_the_trap_example_loads_in_seconds_and_its_cube_escapes(tmp_path, monkeypatch, capsys):
+def test_the_trap_example_becomes_shell_pieces_and_its_cube_escapes(tmp_path, monkeypatch, capsys):
     """examples/trap: a 3,072-triangle closed, non-convex shell. Built from an empty cache it becomes shell pieces
     (a third of the face plates it made before), and the cube leaves through the opening on a certified path."""
     from app.cli import main
