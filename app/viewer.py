@@ -168,13 +168,21 @@ class Viewer:
         robot_frames = {
             plant.GetBodyFrameIdOrThrow(b) for i in self.scene.robot_instances for b in plant.GetBodyIndices(i)
         }
-        for gid in inspector.GetAllGeometryIds(Role.kIllustration):
-            properties = inspector.GetIllustrationProperties(gid)
-            if inspector.GetFrameId(gid) in robot_frames or properties.HasProperty("phong", "diffuse"):
-                continue
-            coloured = IllustrationProperties(properties)
-            coloured.AddProperty("phong", "diffuse", _rgba(ENVIRONMENT_COLOUR))
-            scene_graph.AssignRole(plant.get_source_id(), gid, coloured, RoleAssign.kReplace)
+        # Drake warns on every replaced illustration role that a visualizer made before would miss it; none is made
+        # yet (the visualizer is added after this), so the warnings are kept quiet.
+        drake_log = logging.getLogger("drake")
+        level = drake_log.level
+        drake_log.setLevel(logging.ERROR)
+        try:
+            for gid in inspector.GetAllGeometryIds(Role.kIllustration):
+                properties = inspector.GetIllustrationProperties(gid)
+                if inspector.GetFrameId(gid) in robot_frames or properties.HasProperty("phong", "diffuse"):
+                    continue
+                coloured = IllustrationProperties(properties)
+                coloured.AddProperty("phong", "diffuse", _rgba(ENVIRONMENT_COLOUR))
+                scene_graph.AssignRole(plant.get_source_id(), gid, coloured, RoleAssign.kReplace)
+        finally:
+            drake_log.setLevel(level)
 
     def _find_frame(self, name: str | None):
         plant, robots = self.plant, self.scene.robot_instances

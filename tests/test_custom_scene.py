@@ -544,3 +544,22 @@ def test_the_trap_example_becomes_shell_pieces_and_its_cube_escapes(tmp_path, mo
     built = load_scene(scene, cache_dir=tmp_path / "cache").info["decompositions"]
     trap = next(d for d in built if d["mesh"] == "trap.obj")
     assert trap["method"] == "shell" and trap["pieces"] < 400 and trap["from_cache"]
+
+
+def test_ones_own_robot_and_environment_are_drawn_in_different_colours(channel_oracle, monkeypatch):
+    """Neither a mesh robot nor an STL environment brings a colour: the viewer gives each its own."""
+    from app.viewer import ENVIRONMENT_COLOUR, ROBOT_COLOUR, ViewData, show
+    from meshcat_page import commands
+
+    monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")
+    html = show(channel_oracle.scene, ViewData()).html()
+    colours = {}  # model instance -> colours of its illustration meshes, as 0xRRGGBB
+    for c in commands(html):
+        if c["type"] == "set_object" and c["path"].startswith("/drake/illustration/"):
+            instance = c["path"].split("/")[3]
+            colours.setdefault(instance, set()).update(m["color"] for m in c["object"].get("materials", []))
+    hex_colour = lambda rgba: int.from_bytes(bytes(int(255 * x) for x in rgba[:3]), "big")  # noqa: E731 (as Drake)
+    robot = set(channel_oracle.scene.problem.robot)
+    assert {i for i in colours if i in robot} and {i for i in colours if i not in robot}
+    for instance, seen in colours.items():
+        assert seen == {hex_colour(ROBOT_COLOUR if instance in robot else ENVIRONMENT_COLOUR)}, instance
