@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import secrets
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator
@@ -18,6 +17,9 @@ from app.errors import UserError
 # Kernel pseudo-filesystems: a write there is never a file a user gets back (and may change the running system).
 _SYSTEM_FOLDERS = (Path("/proc"), Path("/sys"), Path("/dev"))
 
+# A folder is written inside a temporary folder of its own, named with this ending, under its own name (a ROS 2 bag
+# names its files after its folder).
+_FOLDER_WORK = ".folder.tmp"
 # The (temporary file, target) renames of the innermost all_or_nothing() block; None outside one.
 _pending: ContextVar[list[tuple[str, Path]] | None] = ContextVar("pending_writes", default=None)
 
@@ -60,6 +62,7 @@ def all_or_nothing() -> Iterator[None]:
     for done, (tmp, target) in enumerate(pending):
         try:
             os.replace(tmp, target)
+            _discard_work(tmp)
         except OSError as exc:
             _discard(tmp for tmp, _ in pending[done:])
             raise UserError(f"cannot write {target}: {exc.strerror or exc}") from None
@@ -103,12 +106,16 @@ def write_folder_atomically(path: str | os.PathLike, fill: Callable[[Path], None
     if target.exists() or target.is_symlink():
         raise UserError(f"cannot write {path}: it exists already; give a new folder name")
     check_output(target)
-    tmp = target.parent / f".{target.name}.{secrets.token_hex(4)}.tmp"
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=_FOLDER_WORK, dir=target.parent)) / target.name
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
         fill(tmp)
         pending = _pending.get()
         if pending is None:
             os.rename(tmp, target)
+            _discard_work(tmp)
         else:
             pending.append((str(tmp), target))
     except BaseException as exc:
@@ -121,11 +128,18 @@ def write_folder_atomically(path: str | os.PathLike, fill: Callable[[Path], None
 
 def _discard(paths) -> None:
     for tmp in paths:
-        if os.path.isdir(tmp) and not os.path.islink(tmp):
-            shutil.rmtree(tmp, ignore_errors=True)
-        else:
+        if not _discard_work(tmp):
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+
+
+def _discard_work(tmp) -> bool:
+    """Remove the temporary folder a folder `tmp` was written in (with whatever is left in it); False for a file."""
+    work = Path(tmp).parent
+    if not work.name.endswith(_FOLDER_WORK):
+        return False
+    shutil.rmtree(work, ignore_errors=True)
+    return True
 
 
 def _umask() -> int:

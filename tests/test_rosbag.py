@@ -43,6 +43,7 @@ def test_a_planned_trajectory_reads_back_as_one_joint_trajectory(cli, tmp_path):
     for key in ("positions", "velocities", "accelerations"):
         assert np.array_equal(np.array([getattr(p, key) for p in message.points]), np.array(file[key])), key
     assert not list(tmp_path.glob(".*"))  # no temporary folder left beside it
+    assert sorted(p.name for p in bag.iterdir()) == ["bag.db3", "metadata.yaml"]  # named as ros2 bag names them
 
 
 def test_view_writes_the_bag_of_a_trajectory_file(cli, tmp_path):
