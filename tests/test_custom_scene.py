@@ -399,6 +399,9 @@ def test_cli_flags(files, arm_package, tmp_path, monkeypatch, cli, one_line_erro
         (common + ["--start=" + ",".join(map(str, START)), "--bounds", "0..x"], 2, "bad bounds item"),
         (["plan", "bar", "--robot", str(files / "cube.obj"), "--start", "0", "--goal", "0"], 2, "not both"),
         (["plan", "--env", str(files / "channel.stl")], 2, "--env needs --robot"),
+        (["plan", "bar", "--acceleration-limits", "1"], 2, "--acceleration-limits needs --robot"),
+        (common + ["--start=" + ",".join(map(str, START)), "--velocity-limits", "1,1,-1"], 2, "positive numbers"),
+        (common + ["--start=" + ",".join(map(str, START)), "--acceleration-limits", "1,1"], 2, "needs 6 numbers"),
     ]
     for argv, code, words in bad:
         assert words in one_line_error(cli(*argv), code), argv

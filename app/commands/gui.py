@@ -62,7 +62,7 @@ def run(args) -> int:
         answer = {"html": args.html, **panel.state()}
     finally:
         panel.close()
-    announce(args.html)
+    announce(args.state, args.html)
     if args.json:
         print_json(answer)
     return 0
