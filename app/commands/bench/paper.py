@@ -131,6 +131,7 @@ def config_from_args(args) -> Config:
 
 def run(args) -> int:
     config = config_from_args(args)
+    began = time.time()  # figures written from here on are this run's
     folder = Path(args.out)
     outputs = (folder / "results.sqlite", folder / "report.md", folder / TRIALS_CSV)
     check_outputs(creating_folders=outputs + ((Path(args.ompl_db),) if args.ompl_db else ()))
@@ -160,7 +161,8 @@ def run(args) -> int:
     if args.ompl_db:
         Path(args.ompl_db).parent.mkdir(parents=True, exist_ok=True)
         database = str(ompl_db.write(store.rows(), args.ompl_db))
-    announce(str(store.path), str(path), str(trials_csv), database)
+    figures = sorted(str(p) for p in folder.glob("*.png") if p.stat().st_mtime >= began)
+    announce(str(store.path), str(path), *figures, str(trials_csv), database)
     if args.json:
         print_json(
             {
