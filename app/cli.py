@@ -6,6 +6,7 @@ as one line on stderr and exits with its code from EXIT_CODES.
 """
 
 import argparse
+import os
 import re
 import sys
 
@@ -21,6 +22,7 @@ EXIT_CODES = {
     UserError: 2,  # bad input
     InvalidEndpoint: 3,  # start or goal out of bounds or in collision
     KeyboardInterrupt: 130,  # Ctrl-C (128 + SIGINT, as a shell reports it)
+    BrokenPipeError: 141,  # the reader of stdout went away (`... | head -1`): 128 + SIGPIPE, as a shell reports it
 }
 
 
@@ -73,7 +75,13 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args = build_parser().parse_args(join_negative_values(argv))
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()  # here, so that a closed pipe is met inside this try, not at the interpreter's exit
+        return code
+    except BrokenPipeError as exc:
+        # Nobody reads the rest: end quietly. Later writes (and the final flush) go nowhere instead of raising again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return exit_code(exc)
     except (UserError, KeyboardInterrupt) as exc:
         message = str(exc) if isinstance(exc, UserError) else "interrupted"
         code = exit_code(exc)

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Circle, Patch, Polygon, Rectangle  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from app.io import write_atomically  # noqa: E402
@@ -32,6 +33,7 @@ OBSTACLE_EDGE = (0.3, 0.3, 0.35)
 PASSAGE = (1.0, 0.8, 0.0)
 PASSAGE_EDGE = (0.9, 0.6, 0.0)
 START, GOAL, SAMPLE, IN_PASSAGE = "tab:blue", "tab:green", "tab:blue", "tab:red"
+START_BEHIND_LINES = "tab:orange"  # the arm at the start behind the samples' blue lines
 _BOX_FACES = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]]
 
 
@@ -192,6 +194,15 @@ class Faces3D:
             for p, q in zip(ends[:-1], ends[1:]):
                 self._add(np.array([p, q]), none, edge, 0.6)
 
+    def line(self, P: np.ndarray, colour, width: float) -> None:
+        """A polyline through the points P, as short segments sorted with the faces."""
+        none = (0.0, 0.0, 0.0, 0.0)
+        for a, b in zip(P[:-1], P[1:]):
+            n = max(1, int(np.ceil(np.linalg.norm(b - a) / self.tile)))
+            ends = a + np.linspace(0, 1, n + 1)[:, None] * (b - a)
+            for p, q in zip(ends[:-1], ends[1:]):
+                self._add(np.array([p, q]), none, colour, width)
+
     def squares(self, P: np.ndarray, colour) -> None:
         """Points as small squares facing the camera."""
         u = np.cross([0.0, 0.0, 1.0], self.eye)
@@ -248,6 +259,10 @@ class Picture:
         if self.three_d:
             self.ax.set(xlim=bounds[0], ylim=bounds[1], zlim=bounds[2], xlabel="x", ylabel="y", zlabel="z")
             self.ax.set_box_aspect(hi - lo)
+            # Ticks in proportion to each axis's drawn length: a flat scene's short z axis holds two or three
+            # labels, not six on top of each other (the maze's 3 m beside its 20 m).
+            for axis, extent in zip((self.ax.xaxis, self.ax.yaxis, self.ax.zaxis), hi - lo):
+                axis.set_major_locator(MaxNLocator(nbins=max(2, round(6 * extent / max(hi - lo)))))
         else:
             self.ax.set(xlim=bounds[0], ylim=bounds[1], xlabel="x", ylabel="y", aspect="equal")
         self.ax.set_title(title or f"{scene.name}: {scene.problem.description}", fontsize=9, wrap=True)
@@ -305,12 +320,46 @@ class Picture:
         else:
             self.ax.scatter(P[:, 0], P[:, 1], s=size, color=colour, zorder=5)
 
+    def add_line(self, P: np.ndarray, colour, label: str, width: float = 1.5) -> None:
+        """A polyline through world points, (n, 3)."""
+        self._legend.setdefault(label, Line2D([], [], color=colour, linewidth=width, label=label))
+        if self.three_d:
+            self._faces.line(P, to_rgba(colour), width)
+        else:
+            self.ax.plot(P[:, 0], P[:, 1], color=colour, linewidth=width, zorder=4)
+
     def save(self, path: str) -> None:
         """Write the PNG, whole or not at all."""
         if self.three_d:
             self._faces.draw(self.ax)
         self.ax.legend(handles=list(self._legend.values()), loc="upper left", fontsize=7, framealpha=0.85)
         save(self.fig, path)
+
+
+def _articulated(oracle) -> bool:
+    """Whether the robot's parts move against each other between start and goal (an arm), not as one body."""
+    ends = [
+        [p.GetAsMatrix4() for _, p in _geometries(oracle, q, robot=True)]
+        for q in (oracle.scene.start, oracle.scene.goal)
+    ]
+    relative = [[np.linalg.inv(poses[0]) @ pose for pose in poses] for poses in ends]
+    return not np.allclose(relative[0], relative[1], atol=1e-9)
+
+
+def _skeleton(oracle, q) -> np.ndarray:
+    """World positions of the robot's body origins at q, in the plant's order (a serial arm's: base to tool), and of
+    the tracked frame: the arm drawn as one line, from the last body whose origin stays where it is at the start
+    (the arm's base, not the cart it stands on)."""
+    plant = oracle.plant
+    bodies = [plant.get_body(b) for i in oracle.scene.robot_instances for b in plant.GetBodyIndices(i)]
+    context = plant.CreateDefaultContext()
+    origins = []
+    for configuration in (oracle.scene.start, q):
+        plant.SetPositions(context, configuration)
+        origins.append(np.array([plant.EvalBodyPoseInWorld(context, body).translation() for body in bodies]))
+    moved = np.flatnonzero(np.linalg.norm(origins[1] - origins[0], axis=1) > 1e-9)
+    first = max(int(moved[0]) - 1, 0) if len(moved) else 0
+    return np.vstack([origins[1][first:], oracle.frame_positions(np.array([q]))])
 
 
 def _workspace_bounds(oracle):
@@ -352,11 +401,19 @@ def draw_scene(oracle, path: str) -> None:
 
 
 def draw_samples(oracle, samples: np.ndarray, path: str, title: str | None = None) -> None:
-    """The scene with every sample: faint robots in 2D (like the paper's Fig. 3), frame positions as dots in 3D."""
+    """The scene with every sample: faint robots in 2D (like the paper's Fig. 3), frame positions as dots in 3D; an
+    arm in 3D as a line through its links' origins per sample (thirty faint overlaid arms are one blue blob) over the
+    arm at the start."""
     picture = Picture(oracle, title=title)
     inside = oracle.in_passage(samples)
     p = oracle.frame_positions(samples) if len(samples) else np.empty((0, 3))
-    if picture.three_d:
+    if picture.three_d and _articulated(oracle):
+        picture.add_robot(oracle.scene.start, START_BEHIND_LINES, 0.15, "robot at start")
+        for q, hit in zip(samples, inside):
+            picture.add_line(_skeleton(oracle, q), IN_PASSAGE if hit else SAMPLE, "arm at a sample (link origins)")
+        picture.add_points(p[~inside], SAMPLE, "sample (tracked frame)")
+        picture.add_points(p[inside], IN_PASSAGE, "sample in passage")
+    elif picture.three_d:
         for q in samples:  # parts no sample moves (a cart) are left out: thirty faint copies would be opaque
             picture.add_robot(q, SAMPLE, 0.06, "robot at a sample", unmoved_from=oracle.scene.start)
         picture.add_points(p[~inside], SAMPLE, "sample (tracked frame)")

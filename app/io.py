@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
@@ -16,6 +17,9 @@ from app.errors import UserError
 # Kernel pseudo-filesystems: a write there is never a file a user gets back (and may change the running system).
 _SYSTEM_FOLDERS = (Path("/proc"), Path("/sys"), Path("/dev"))
 
+# A folder is written inside a temporary folder of its own, named with this ending, under its own name (a ROS 2 bag
+# names its files after its folder).
+_FOLDER_WORK = ".folder.tmp"
 # The (temporary file, target) renames of the innermost all_or_nothing() block; None outside one.
 _pending: ContextVar[list[tuple[str, Path]] | None] = ContextVar("pending_writes", default=None)
 
@@ -58,6 +62,7 @@ def all_or_nothing() -> Iterator[None]:
     for done, (tmp, target) in enumerate(pending):
         try:
             os.replace(tmp, target)
+            _discard_work(tmp)
         except OSError as exc:
             _discard(tmp for tmp, _ in pending[done:])
             raise UserError(f"cannot write {target}: {exc.strerror or exc}") from None
@@ -93,10 +98,48 @@ def write_atomically(path: str | os.PathLike, content: str | bytes | Callable[[P
     return target
 
 
+def write_folder_atomically(path: str | os.PathLike, fill: Callable[[Path], None]) -> Path:
+    """A folder (e.g. a ROS 2 bag) written whole or not at all: `fill` creates it at a fresh path beside `path`,
+    which is then renamed to `path` (inside all_or_nothing(): when the block ends). A `path` that exists is refused,
+    so nothing of the user's is merged into or replaced."""
+    target = Path(path)
+    if target.exists() or target.is_symlink():
+        raise UserError(f"cannot write {path}: it exists already; give a new folder name")
+    check_output(target)
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=_FOLDER_WORK, dir=target.parent)) / target.name
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
+    try:
+        fill(tmp)
+        pending = _pending.get()
+        if pending is None:
+            os.rename(tmp, target)
+            _discard_work(tmp)
+        else:
+            pending.append((str(tmp), target))
+    except BaseException as exc:
+        _discard([tmp])
+        if isinstance(exc, OSError):
+            raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise
+    return target
+
+
 def _discard(paths) -> None:
     for tmp in paths:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        if not _discard_work(tmp):
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def _discard_work(tmp) -> bool:
+    """Remove the temporary folder a folder `tmp` was written in (with whatever is left in it); False for a file."""
+    work = Path(tmp).parent
+    if not work.name.endswith(_FOLDER_WORK):
+        return False
+    shutil.rmtree(work, ignore_errors=True)
+    return True
 
 
 def _umask() -> int:

@@ -146,7 +146,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
         if back is not None:
             # Back out the way the job came in (out of the hatch after the part): that path is proved already.
             path = back.path[::-1]
-            trajectory = None if i in joined else time_path(checker, path, settings.dt, edges_proved=True)
+            trajectory = None if i in joined else time_path(checker, path, settings.dt, **_timing(settings))
             duration = trajectory.duration if trajectory else 0.0
             none, used = np.empty((0, oracle.space.dim)), np.zeros(0, bool)
             legs.append(Leg(a, b, "back", 0, 0, 0, time.perf_counter() - t, duration, path, trajectory, none, used))
@@ -196,7 +196,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
             )
         )
 
-    motions = [_through(checker, legs[a:b], settings.dt) for a, b in zip(stops[:-1], stops[1:])]
+    motions = [_through(checker, legs[a:b], settings) for a, b in zip(stops[:-1], stops[1:])]
     planning = time.perf_counter() - clock - ik_seconds
     return RunResult(
         oracle.scene.name,
@@ -210,7 +210,16 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
     )
 
 
-def _through(oracle, legs: list[Leg], dt: float) -> Trajectory:
+def _timing(settings: PlanSettings) -> dict:
+    """time_path's keywords for a job's proved paths under `settings`' limit scaling."""
+    return {
+        "edges_proved": True,
+        "velocity_scale": settings.velocity_scale,
+        "acceleration_scale": settings.acceleration_scale,
+    }
+
+
+def _through(oracle, legs: list[Leg], settings: PlanSettings) -> Trajectory:
     """The motion from rest to rest along legs that pass through the poses joining them: one curve timed over all
     their waypoints (a single leg keeps its own trajectory). Sets each leg's `duration` to its share of it."""
     if len(legs) == 1:
@@ -218,11 +227,12 @@ def _through(oracle, legs: list[Leg], dt: float) -> Trajectory:
     paths = [dedupe(leg.path) for leg in legs]
     # Every path a query returns is certified, so only the blends need proving.
     try:
-        trajectory = time_path(oracle, np.vstack([paths[0]] + [p[1:] for p in paths[1:]]), dt, edges_proved=True)
+        W = np.vstack([paths[0]] + [p[1:] for p in paths[1:]])
+        trajectory = time_path(oracle, W, settings.dt, **_timing(settings))
     except RuntimeError:  # Toppra found no timing of the joined curve: stop at the poses after all
         for leg in legs:
             try:
-                leg.trajectory = time_path(oracle, leg.path, dt, edges_proved=True)
+                leg.trajectory = time_path(oracle, leg.path, settings.dt, **_timing(settings))
             except RuntimeError as exc:
                 raise NoPath(f"leg {leg.start} -> {leg.goal} found but not time-parameterized: {exc}") from None
             leg.duration = leg.trajectory.duration

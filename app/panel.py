@@ -48,6 +48,8 @@ POSE_LABELS = ("x", "y", "z", "roll", "pitch", "yaw")  # metres and degrees, as 
 
 # Button labels that never change; the others carry their state (sampler, shown/hidden, an IK failure, the result).
 PLAN, PLAY, GOAL_FROM_POSE = "Plan", "Play", "Goal from pose (IK)"
+# Made once, before the sliders, so that they head the controls (a 1280 x 800 window shows them without scrolling).
+FIXED_BUTTONS = (PLAN, PLAY)
 
 
 def is_arm(scene) -> bool:
@@ -87,6 +89,9 @@ class Panel:
         self._play_from: float | None = None  # clock time the motion started playing at
         self._written = None
 
+        for label in FIXED_BUTTONS:
+            self.meshcat.AddButton(label)
+        self._clicks: dict[str, int] = dict.fromkeys(FIXED_BUTTONS, 0)
         names = self.scene.coordinate_names
         lower, upper = self.scene.lower, self.scene.upper
         self._sliders = {end: [f"{end} {name}" for name in names] for end in ("start", "goal")}
@@ -94,8 +99,7 @@ class Panel:
             for name, lo, hi, value in zip(self._sliders[end], lower, upper, q):
                 self.meshcat.AddSlider(name, float(lo), float(hi), float(hi - lo) / SLIDER_STEPS, float(value))
         self._pose_sliders = self._add_pose_sliders() if is_arm(self.scene) else []
-        self._labels: list[str] = []
-        self._clicks: dict[str, int] = {}
+        self._labels: list[str] = []  # the buttons after the sliders
         self._set_buttons()
         self._q = {end: None for end in ("start", "goal")}
         self._free = {end: True for end in ("start", "goal")}
@@ -123,8 +127,6 @@ class Panel:
 
     def _button_labels(self) -> list[str]:
         labels = [
-            PLAN,
-            PLAY,
             f"Sampler: {self.sampler}",
             f"Samples: {'shown' if self.samples_visible else 'hidden'}",
             f"Roadmap: {'shown' if self.roadmap_visible else 'hidden'}",
@@ -135,8 +137,8 @@ class Panel:
         return [*labels, self._summary()]
 
     def _set_buttons(self) -> None:
-        """(Re)make the buttons when a label changes. Meshcat appends a button at the end of the controls and a
-        label cannot be edited, so all are made again, in their order."""
+        """(Re)make the buttons after the sliders when a label changes. Meshcat appends a button at the end of the
+        controls and a label cannot be edited, so all of these are made again, in their order."""
         labels = self._button_labels()
         if labels == self._labels:
             return
@@ -144,12 +146,13 @@ class Panel:
             self.meshcat.DeleteButton(label, strict=False)
         for label in labels:
             self.meshcat.AddButton(label)
-        self._labels, self._clicks = labels, dict.fromkeys(labels, 0)
+        fixed = {label: self._clicks[label] for label in FIXED_BUTTONS}
+        self._labels, self._clicks = labels, {**fixed, **dict.fromkeys(labels, 0)}
 
     def _pressed(self) -> list[str]:
         """The buttons clicked since the last look (each once, however often it was clicked)."""
         pressed = []
-        for label in self._labels:
+        for label in [*FIXED_BUTTONS, *self._labels]:
             clicks = self.meshcat.GetButtonClicks(label)
             if clicks > self._clicks[label]:
                 self._clicks[label] = clicks

@@ -32,6 +32,8 @@ from app.scene.model import Scene, robot_diagram_builder
 YELLOW = (1.0, 0.85, 0.0, 1.0)  # narrow-passage samples
 RED = (0.9, 0.05, 0.05, 1.0)  # narrow-passage samples on the path
 ROBOT_COLOUR = (0.25, 0.55, 0.95, 1.0)  # for robot geometry without its own colour (ours have none)
+CAMERA_FOV = 50.0  # degrees, vertical
+ENVIRONMENT_COLOUR = (0.72, 0.66, 0.58, 1.0)  # for obstacles without their own (a user's STL): apart from the robot
 PATH_COLOUR = (0.55, 0.2, 0.75, 1.0)
 PASSAGE_COLOUR = (0.2, 0.8, 0.3, 0.25)
 ROADMAP_COLOUR = (0.45, 0.5, 0.55, 0.6)
@@ -115,6 +117,7 @@ class Viewer:
         builder = robot_diagram_builder()
         self.scene.add_models(builder.parser())
         builder.plant().Finalize()
+        self._colour_environment(builder.plant(), builder.scene_graph())
         params = MeshcatVisualizerParams(
             role=Role.kIllustration, prefix="illustration", default_color=_rgba(ROBOT_COLOUR)
         )
@@ -156,6 +159,31 @@ class Viewer:
         self.show_passage()
 
     # ---- set-up ----------------------------------------------------------------------------------------------
+    def _colour_environment(self, plant, scene_graph) -> None:
+        """Obstacles that bring no colour of their own (a mesh has none) in ENVIRONMENT_COLOUR: MeshcatVisualizer's
+        default colour is the robot's, and a robot among obstacles of its own colour is hard to see."""
+        from pydrake.geometry import IllustrationProperties, Role, RoleAssign
+
+        inspector = scene_graph.model_inspector()
+        robot_frames = {
+            plant.GetBodyFrameIdOrThrow(b) for i in self.scene.robot_instances for b in plant.GetBodyIndices(i)
+        }
+        # Drake warns on every replaced illustration role that a visualizer made before would miss it; none is made
+        # yet (the visualizer is added after this), so the warnings are kept quiet.
+        drake_log = logging.getLogger("drake")
+        level = drake_log.level
+        drake_log.setLevel(logging.ERROR)
+        try:
+            for gid in inspector.GetAllGeometryIds(Role.kIllustration):
+                properties = inspector.GetIllustrationProperties(gid)
+                if inspector.GetFrameId(gid) in robot_frames or properties.HasProperty("phong", "diffuse"):
+                    continue
+                coloured = IllustrationProperties(properties)
+                coloured.AddProperty("phong", "diffuse", _rgba(ENVIRONMENT_COLOUR))
+                scene_graph.AssignRole(plant.get_source_id(), gid, coloured, RoleAssign.kReplace)
+        finally:
+            drake_log.setLevel(level)
+
     def _find_frame(self, name: str | None):
         plant, robots = self.plant, self.scene.robot_instances
         name = name or self.scene.problem.passage.frame or getattr(self.scene.problem, "tool_frame", "")
@@ -227,25 +255,39 @@ class Viewer:
             self.meshcat.SetProperty("/Grid", "visible", False)
             self.meshcat.SetProperty("/Axes", "visible", False)
         r = self._radius
-        camera = Meshcat.PerspectiveCamera(fov=50.0, aspect=1.0, near=0.01 * r, far=20.0 * r)
+        camera = Meshcat.PerspectiveCamera(fov=CAMERA_FOV, aspect=1.0, near=0.01 * r, far=20.0 * r)
         self.meshcat.SetCamera(camera)
         target, position = self._camera_pose()
         self.meshcat.SetCameraPose(position, target)
 
-    def _camera_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """(target, position) of the camera on load.
+    def frame_motion(self, positions) -> None:
+        """Point the camera so that the whole motion through `positions` (configurations) stays in view."""
+        target, position = self._camera_pose(positions)
+        self.meshcat.SetCameraPose(position, target)
+
+    def _camera_pose(self, motion=None) -> tuple[np.ndarray, np.ndarray]:
+        """(target, position) of the camera.
 
         A robot at least a twentieth of the scene's size: the whole scene, a 2D scene from above (tilted a little to
         show depth), a 3D scene from an oblique corner. A smaller one (a quadrotor in a 20 m maze would be a few
-        pixels): a view over its shoulder at the start, from behind and above as seen from the scene's centre,
-        ten robot radii away (the robot a fifth of the picture's height); the camera stays inside the box its body can
-        reach, so the walls around that box (a tunnel's) do not hide it.
+        pixels) with a `motion` (configurations): the box its frame sweeps, grown by the robot's size, from above
+        and tilted, just far enough for the camera's field of view to hold it (a view from the start would lose the
+        robot as it flies off). Without a motion: a view over its shoulder at the start, from behind and above as
+        seen from the scene's centre, ten robot radii away (the robot a fifth of the picture's height); the camera
+        stays inside the box its body can reach, so the walls around that box (a tunnel's) do not hide it.
         """
         lo, hi = self._bounds(robot=True)
         robot_radius = float(np.linalg.norm(hi - lo)) / 2 if np.all(np.isfinite(lo)) else self._radius
         if robot_radius >= 0.05 * self._radius:
             direction = np.array([0.0, -0.35, 1.0]) if self.scene.problem.view == "2d" else np.array([-1.0, -1.3, 0.9])
             return self._centre, self._centre + 1.8 * self._radius * direction / np.linalg.norm(direction)
+        if motion is not None and len(motion):
+            P = self.frame_positions(motion)
+            swept_lo, swept_hi = P.min(axis=0) - robot_radius, P.max(axis=0) + robot_radius
+            centre, half = (swept_lo + swept_hi) / 2, float(np.linalg.norm(swept_hi - swept_lo)) / 2
+            direction = np.array([0.0, -0.6, 1.0])
+            distance = half / np.sin(np.radians(CAMERA_FOV / 2))
+            return centre, centre + distance * direction / np.linalg.norm(direction)
         robot = (lo + hi) / 2
         behind = robot - self._centre
         behind[2] = 0.0
@@ -414,6 +456,7 @@ def show(
     if data.positions is not None:
         viewer.set_configuration(data.positions[0])
         viewer.animate(data.times, data.positions)
+        viewer.frame_motion(data.positions)
     return viewer
 
 

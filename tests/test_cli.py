@@ -28,11 +28,26 @@ def test_scenes_json_lists_every_scene_with_its_facts(cli):
     assert len(scenes["bar"]["start"]) == 9
 
 
-def test_show_writes_a_png(tmp_path, cli):
+def test_show_writes_a_png_and_says_so_on_stderr(tmp_path, cli):
     target = tmp_path / "bar.png"
-    result = cli("show", "bar", "--png", target)
+    result = cli("show", "bar", "--png", target, "--json")
     assert result.returncode == 0, result.stderr
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert result.stderr.splitlines() == [f"wrote {target}"] and str(target) in json.loads(result.stdout)["png"]
+
+
+@pytest.mark.parametrize("json_flag", [["--json"], []])
+def test_a_closed_pipe_ends_quietly(json_flag):
+    """`python -m app scenes --json | head -1`: the reader goes away before the answer is written."""
+    import subprocess
+    import sys
+
+    child = subprocess.Popen(
+        [sys.executable, "-m", "app", "scenes", *json_flag], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    child.stdout.close()  # before the child has imported anything: its every write to stdout meets a closed pipe
+    stderr = child.stderr.read().decode()
+    assert child.wait(timeout=120) in (0, 141) and stderr == ""
 
 
 def test_unknown_scene_is_one_line_exit_2(tmp_path, cli, one_line_error):
@@ -132,6 +147,7 @@ def test_every_error_class_has_its_exit_code():
         "UserError": 2,
         "InvalidEndpoint": 3,
         "KeyboardInterrupt": 130,
+        "BrokenPipeError": 141,
     }
     assert not any(hasattr(cls, "exit_code") for cls in classes)  # the core does not know about exit codes
     assert exit_code(errors.NoPath("x")) == 1 and exit_code(errors.InvalidEndpoint("x")) == 3
@@ -218,3 +234,66 @@ def test_json_answers_failures_with_one_object_and_a_stable_code(cli, args, code
 def test_json_answers_success_with_one_object(cli):
     result = cli("scenes", "--json")
     assert result.returncode == 0 and json.loads(result.stdout)["success"] is True
+
+
+PROGRESS_CHILD = """
+import sys, time, types
+import app.commands.common as common
+common.PROGRESS_AFTER = 0.1
+oracle = types.SimpleNamespace(checks=0)
+with common.progress(types.SimpleNamespace(json={json}), oracle, "plan bar"):
+    for _ in range(40):
+        oracle.checks += 1000
+        time.sleep(0.02)
+print("after", file=sys.stderr)
+"""
+
+
+def _stderr_on_a_terminal(code: str) -> str:
+    """What a child running `code` writes to stderr when stderr is a 100-column terminal (a pty)."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import subprocess
+    import sys
+    import termios
+
+    leader, follower = pty.openpty()
+    fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+    child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                             stderr=follower)  # fmt: skip
+    os.close(follower)
+    out = b""
+    while True:
+        try:
+            chunk = os.read(leader, 4096)
+        except OSError:  # the child closed the terminal
+            break
+        if not chunk:
+            break
+        out += chunk
+    assert child.wait(timeout=60) == 0
+    return out.decode()
+
+
+def test_progress_shows_on_a_terminal_then_clears():
+    shown = _stderr_on_a_terminal(PROGRESS_CHILD.format(json=False))
+    lines = shown.split("\r")
+    assert any(line.startswith("plan bar: ") and "000 collision checks" in line for line in lines), shown
+    assert shown.endswith("after\r\n") and lines[-3].strip() == ""  # the progress line was blanked before "after"
+
+
+def test_no_progress_with_json():
+    assert _stderr_on_a_terminal(PROGRESS_CHILD.format(json=True)) == "after\r\n"
+
+
+def test_sample_takes_the_scenes_own_step(cli, tmp_path):
+    from app.planning.planner import default_step
+    from app.scene.model import Scene
+
+    png = tmp_path / "window.png"
+    result = cli("sample", "window", "--sampler", "lfbs", "-k", "5", "--json", "--png", png)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["step"] == default_step(Scene("window")) == Scene("window").step
+    assert result.stderr.splitlines() == [f"wrote {png}"]

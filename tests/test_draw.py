@@ -119,3 +119,36 @@ def test_a_robot_part_that_does_not_move_is_drawn_once(oracles):
     at_goal = picture.solids.count("robot at goal")
     assert 0 < at_goal < at_start
     plt.close(picture.fig)
+
+
+def test_an_arms_samples_are_lines_from_its_base_to_its_tool(oracles, monkeypatch):
+    """Thirty faint copies of an arm were one blob: each sample is a line through its links' origins instead, from
+    the arm's base (not the cart under it) to the tracked frame, over one arm at the start."""
+    oracle = oracles("window")
+    samples = oracle.space.uniform(np.random.default_rng(0), 5)
+    lines = []
+    monkeypatch.setattr(Picture, "add_line", lambda self, P, colour, label, width=1.5: lines.append(P))
+    labels = legend_labels(lambda: draw_samples(oracle, samples, "unused.png"), monkeypatch)
+    assert "robot at a sample" not in labels and "robot at start" in labels
+    assert len(lines) == len(samples)
+    base = lines[0][0]
+    for P, q in zip(lines, samples):
+        assert np.allclose(P[0], base)  # every line starts where the arm stands
+        assert np.allclose(P[-1], oracle.frame_positions(q)[0])
+        assert len(P) >= 6 and len({tuple(np.round(p, 6)) for p in P}) >= 4  # through the links, not a point
+
+
+def test_a_flat_scenes_axis_labels_do_not_overlap(oracles):
+    """The maze is 20 x 20 x 3 m: its short z axis once carried seven labels on top of each other. Consecutive z
+    labels are now further apart on the picture than a label is high."""
+    picture = Picture(oracles("maze"))
+    ax = picture.ax
+    picture.fig.canvas.draw()
+    lo, hi = ax.get_zlim()
+    ticks = [z for z in ax.get_zticks() if lo - 1e-9 <= z <= hi + 1e-9]
+    corner = np.full(len(ticks), ax.get_xlim()[0]), np.full(len(ticks), ax.get_ylim()[0])
+    x, y, _ = proj3d.proj_transform(*corner, np.array(ticks), ax.get_proj())
+    gaps = np.linalg.norm(np.diff(ax.transData.transform(np.c_[x, y]), axis=0), axis=1)
+    label_height = ax.zaxis.get_ticklabels()[0].get_fontsize() * picture.fig.dpi / 72
+    assert len(ticks) >= 2 and gaps.min() > 1.2 * label_height, (ticks, gaps, label_height)
+    plt.close(picture.fig)

@@ -132,6 +132,13 @@ def test_plan_and_view_answers_follow_their_schemas(cli, tmp_path, monkeypatch):
     trajectory, page = tmp_path / "bar.json", tmp_path / "bar.html"
     planned = check(cli("plan", "bar", "--out", trajectory, "--json"), "plan")
     assert planned["certified"] == planned["trajectory"]["certified"] and trajectory.is_file()
+    written = json.loads(trajectory.read_text())
+    jsonschema.validate(written, schema("trajectory"))
+    # The schema refuses what the reader refuses: a misspelt key, a missing one, a sample of the wrong shape.
+    for broken in ({**written, "velocity": []}, {k: v for k, v in written.items() if k != "certified"},
+                   {**written, "positions": [[1.0, "x"]]}):  # fmt: skip
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate(broken, schema("trajectory"))
     shown = check(cli("view", "bar", "--trajectory", trajectory, "--html", page, "--json"), "view")
     assert shown["html"] == str(page) and page.is_file() and shown["meshcat"] is None
 

@@ -1,7 +1,5 @@
 """app.scene.meshes: conversion, the per-mesh method choice, validation (it must be able to fail) and the cache."""
 
-import time
-
 import numpy as np
 import pytest
 
@@ -84,15 +82,15 @@ def test_bent_sheet_takes_exact_faces_and_validates(tmp_path):
         assert np.all(np.abs(radial - 2.0) < d.validation["tolerance"])
 
 
-def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path):
+def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path, monkeypatch):
     path = tmp_path / "u.stl"
     u_channel().export(path)
     first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
     assert first.facts["closed"] and not first.facts["convex"]
     assert first.method == "shell" and first.validation["ok"] and not first.from_cache
-    started = time.perf_counter()
+    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: this must read the cache
     again = meshes.decompose(path, cache_dir=tmp_path, progress=False)
-    assert again.from_cache and time.perf_counter() - started < 0.5
+    assert again.from_cache
     assert [p.read_bytes() for p in again.pieces] == [p.read_bytes() for p in first.pieces]
 
 
@@ -223,8 +221,8 @@ def test_collada_units_are_applied(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_2700_face_scene_builds_once_and_loads_fast(tmp_path):
-    """Timings on a generated COLLADA scene: 110 thin walls (closed boxes) + a finely curved open sheet."""
+def test_a_2700_face_scene_builds_few_pieces_once(tmp_path, monkeypatch):
+    """A generated COLLADA scene: 110 thin walls (closed boxes) + a finely curved open sheet."""
     import trimesh
 
     rng = np.random.default_rng(0)
@@ -237,10 +235,8 @@ def test_a_2700_face_scene_builds_once_and_loads_fast(tmp_path):
     sheet.apply_translation([0, 0, 12])
     path = tmp_path / "scene.dae"
     trimesh.util.concatenate(parts + [sheet]).export(path)
-    started = time.perf_counter()
     first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
-    built = time.perf_counter() - started
-    assert first.validation["ok"] and len(first.pieces) < 200 and built < 60
-    started = time.perf_counter()
+    assert first.validation["ok"] and len(first.pieces) < 200
+    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: this must read the cache
     again = meshes.decompose(path, cache_dir=tmp_path, progress=False)
-    assert again.from_cache and time.perf_counter() - started < 0.5
+    assert again.from_cache

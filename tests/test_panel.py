@@ -26,7 +26,7 @@ from chromium import chromium, needs_chromium
 from meshcat_page import commands
 
 OUT = ROOT / "out"
-WINDOW = (1000, 800)
+WINDOW = (1280, 800)  # a laptop's browser window
 SCENE = "bar-3link"  # plans in about a second
 GOAL_X = 70.0  # the goal's base moved 10 to the left of the scene's, still clear of the wall
 
@@ -111,6 +111,8 @@ def test_panel_plans_in_chromium(panel, browser):
     browser.get(state["meshcat"])
     wait_for(lambda: browser.find_elements(By.CSS_SELECTOR, "li.cr.function"), 30, "the panel's buttons")
     browser.find_element(By.CSS_SELECTOR, ".dg.main > .close-button").click()  # "Open Controls"
+    plan = control(browser, "function", "Plan")  # in view as the controls open, the scene tree unfolded
+    assert plan.is_displayed() and plan.rect["y"] + plan.rect["height"] <= WINDOW[1], plan.rect
     # The scene tree folded, so that every control fits in the window (a click on a control below it would scroll).
     browser.find_element(By.XPATH, "//li[@class='title'][text()='Scene']").click()
 

@@ -4,6 +4,7 @@ nothing new. The default-run test uses a tiny configuration (one scene, two samp
 import json
 import shutil
 import sqlite3
+from pathlib import Path
 
 import pytest
 
@@ -81,8 +82,11 @@ def test_each_reading_is_judged_on_its_own_trials_and_the_default_ones_of_the_ot
 def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
     out = tmp_path / "paper"
     assert main([*TINY, "--out", str(out)]) == 0
-    first = capsys.readouterr().out
-    assert "4 trials run" in first
+    said = capsys.readouterr()
+    assert "4 trials run" in said.out
+    written = [line.removeprefix("wrote ") for line in said.err.splitlines() if line.startswith("wrote ")]
+    assert {"results.sqlite", "report.md", "trials.csv.gz", "sampling-bar-3link.png"} <= {Path(w).name for w in written}
+    assert all(Path(w).is_file() for w in written)
     report = (out / "report.md").read_text()
     assert "## Claims" in report
     for claim in ("C1", "C2", "C3", "C4", "C5"):

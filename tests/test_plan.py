@@ -646,3 +646,20 @@ def test_bench_jobs_times_query_and_full_roadmap_side_by_side(tmp_path, cli, one
     assert ("welding lfbs: the query mode takes" in result.stdout) == (rows[0][3] == "1/1")
     one_line_error(cli("bench", "jobs", "--jobs", "parking", "--store", tmp_path / "x.sqlite"), 2)
     assert not (tmp_path / "x.sqlite").exists()
+
+
+def test_plan_scales_the_limits_it_times_with(cli, tmp_path, oracles):
+    full, slow = tmp_path / "full.json", tmp_path / "slow.json"
+    assert cli("plan", "bar", "--out", full).returncode == 0
+    assert cli("plan", "bar", "--out", slow, "--velocity-scale", "0.5", "--acceleration-scale", "0.25").returncode == 0
+    full, slow = (json.loads(f.read_text()) for f in (full, slow))
+    assert slow["waypoints"] == full["waypoints"]  # the same path (the same seed), timed more slowly
+    scene = oracles("bar").scene
+    assert np.all(np.abs(slow["velocities"]) <= 0.5 * scene.velocity_limits * (1 + 1e-6) + 1e-9)
+    assert np.all(np.abs(slow["accelerations"]) <= 0.25 * scene.acceleration_limits * (1 + 1e-6) + 1e-9)
+    assert slow["time_from_start"][-1] == pytest.approx(2 * full["time_from_start"][-1], rel=0.05)
+
+
+@pytest.mark.parametrize("flag, value", [("--velocity-scale", "0"), ("--acceleration-scale", "1.5")])
+def test_a_scale_outside_zero_to_one_is_bad_input(cli, one_line_error, flag, value):
+    assert "must be a fraction in (0, 1]" in one_line_error(cli("plan", "bar", flag, value), 2)

@@ -50,7 +50,14 @@ def test_ur3_limits_are_the_real_ones(oracles):
     scene = oracles("welding").scene
     plant = scene.plant
     assert scene.dim == 6
-    assert scene.coordinate_names == ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
+    assert scene.coordinate_names == [
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "elbow_joint",
+        "wrist_1_joint",
+        "wrist_2_joint",
+        "wrist_3_joint",
+    ]
     assert np.allclose(plant.GetVelocityUpperLimits(), [math.pi] * 3 + [2 * math.pi] * 3)  # 180 and 360 deg/s
     assert np.allclose(plant.GetPositionUpperLimits()[:5], 2 * math.pi)
     assert np.allclose(plant.GetPositionLowerLimits()[:5], -2 * math.pi)

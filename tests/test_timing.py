@@ -213,3 +213,28 @@ def test_a_toppra_solution_holding_nans_is_not_used(checkers, monkeypatch):
     smooth, _, _ = _times(oracle, W)
     assert len(calls) > 1 and np.all(np.isfinite(smooth.positions))
     _check_motion(oracle, smooth, W)
+
+
+def test_scaling_slows_the_motion_within_the_scaled_limits(oracles):
+    from app.motion.timing import time_path
+
+    oracle = oracles("bar")
+    W = ZIGZAGS["bar"]
+    full = time_path(oracle, W, 0.01, edges_proved=True)
+    half = time_path(oracle, W, 0.01, edges_proved=True, velocity_scale=0.5, acceleration_scale=0.25)
+    v, a = oracle.scene.velocity_limits, oracle.scene.acceleration_limits
+    assert np.all(np.abs(half.velocities) <= 0.5 * v * (1 + 1e-6) + 1e-9)
+    assert np.all(np.abs(half.accelerations) <= 0.25 * a * (1 + 1e-6) + 1e-9)
+    assert np.max(np.abs(full.velocities) / v) > 0.5 or np.max(np.abs(full.accelerations) / a) > 0.25
+    # Half the speed and a quarter of the acceleration is the same motion at half the pace (time-optimal both).
+    assert half.duration == pytest.approx(2 * full.duration, rel=0.05)
+    assert np.array_equal(half.positions[[0, -1]], full.positions[[0, -1]])
+
+
+@pytest.mark.parametrize("scale", [0.0, 1.5, float("nan")])
+def test_a_scale_outside_zero_to_one_is_refused(oracles, scale):
+    from app.errors import UserError
+    from app.motion.timing import time_path
+
+    with pytest.raises(UserError, match="velocity_scale must be a fraction in"):
+        time_path(oracles("bar"), ZIGZAGS["bar"], 0.01, velocity_scale=scale)

@@ -74,7 +74,7 @@ def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, ora
 
     result = cli("view", "bar", "--trajectory", trajectory, "--html", page)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == str(page)
+    assert result.stdout == "" and result.stderr.splitlines() == [f"wrote {page}"]  # files named on stderr
     html = page.read_text()
     assert html.lstrip().lower().startswith("<!doctype html") or html.lstrip().startswith("<html")
     # Standalone: no script or stylesheet fetched from anywhere (the JavaScript is inlined).
@@ -327,3 +327,30 @@ def test_out_files_of_plan_and_run_are_what_view_reads(tmp_path, meshcat_allowed
     written = TrajectoryFile.read(out, {"bar": 9, "welding": 6}[scene])
     assert written.scene == scene and written.trajectory.duration > 0
     assert np.allclose(written.trajectory.positions[0], written.trajectory.waypoints[0])
+
+
+def _camera(html: str) -> tuple[np.ndarray, np.ndarray]:
+    """The page's last camera position and target, in world coordinates (Meshcat's are three.js' y-up: x, z, -y)."""
+    cmds = commands(html)
+    position = [c["value"] for c in cmds if c["type"] == "set_property" and c["property"] == "position"
+                and c["path"] == "/Cameras/default/rotated/<object>"][-1]  # fmt: skip
+    target = [c["value"] for c in cmds if c["type"] == "set_target"][-1]
+    world = lambda v: np.array([v[0], -v[2], v[1]])  # noqa: E731
+    return world(position), world(target)
+
+
+@pytest.mark.usefixtures("meshcat_allowed")
+@pytest.mark.parametrize("scene", ["maze", "tunnel"])
+def test_a_small_robots_whole_motion_is_in_the_cameras_view(oracles, scene):
+    """The quadrotor is small in its scene: every place it flies through on its way from start to goal lies within
+    the camera's field of view (a view over its shoulder at the start lost it)."""
+    from app.viewer import CAMERA_FOV, ViewData, show
+
+    oracle = oracles(scene)
+    Q = oracle.space.interpolate(oracle.scene.start, oracle.scene.goal, resolution=0.5)
+    viewer = show(oracle.scene, ViewData(times=np.linspace(0, 10, len(Q)), positions=Q))
+    position, target = _camera(viewer.html())
+    rays = viewer.frame_positions(Q) - position
+    axis = (target - position) / np.linalg.norm(target - position)
+    angles = np.degrees(np.arccos(rays @ axis / np.linalg.norm(rays, axis=1)))
+    assert angles.max() < CAMERA_FOV / 2

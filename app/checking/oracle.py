@@ -70,6 +70,9 @@ class CollisionOracle:
         self._probe_wait = _PROBE_FIRST  # batch calls from one probe to the next
         self._next_probe = _PROBE_FIRST  # the batch call that probes
         self._lock = threading.RLock()  # held by every query on the shared Drake contexts
+        # Configurations answered for every query since the oracle was made: for a progress display that watches
+        # the oracle from another thread. A query's own count is its context's `checks`.
+        self.answered = 0
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
         self.checker = SceneGraphCollisionChecker(
@@ -138,6 +141,7 @@ class CollisionOracle:
     def free(self, q: np.ndarray) -> bool:
         """Whether the configuration q (within bounds) is collision-free under the scene's policy."""
         with self._lock:
+            self.answered += 1
             return self._raw_free(np.asarray(q, float))
 
     def free_batch(self, Q: np.ndarray) -> np.ndarray:
@@ -147,6 +151,7 @@ class CollisionOracle:
         if not len(Q):
             return free
         with self._lock:
+            self.answered += len(Q)
             if self.threads == 1 or len(Q) < _BATCH_MIN:
                 path = "raw"
             else:

@@ -5,11 +5,14 @@ A type raises argparse.ArgumentTypeError; the parser turns that into one line na
 """
 
 import argparse
+import contextlib
 import json
 import math
 import os
 import re
 import sys
+import threading
+import time
 
 from app.checking.budget import Budget
 from app.errors import UserError
@@ -75,6 +78,26 @@ def share(text: str) -> float:
     if not 0 <= value <= 1:
         raise argparse.ArgumentTypeError(f"must be a share from 0 to 1: {text}")
     return value
+
+
+def fraction(text: str) -> float:
+    """A fraction in (0, 1]: a scaling factor."""
+    value = _finite_float(text)
+    if not 0 < value <= 1:
+        raise argparse.ArgumentTypeError(f"must be a fraction in (0, 1]: {text}")
+    return value
+
+
+def add_scaling_arguments(p) -> None:
+    """--velocity-scale and --acceleration-scale, as MoveIt's scaling factors, for a command that times motion."""
+    for kind in ("velocity", "acceleration"):
+        p.add_argument(
+            f"--{kind}-scale",
+            type=fraction,
+            default=1.0,
+            metavar="S",
+            help=f"time the motion with this fraction (0, 1] of the {kind} limits (default 1)",
+        )
 
 
 def comma_list(text: str) -> list[str]:
@@ -172,6 +195,51 @@ def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
         if real in seen:
             raise UserError(f"{seen[real]} and {path} are the same file; give each output its own path")
         seen[real] = path
+
+
+# A command that runs longer than this shows its progress (on a terminal): shorter ones stay quiet.
+PROGRESS_AFTER = 1.5
+PROGRESS_EVERY = 0.25  # seconds between updates of the progress line
+
+
+@contextlib.contextmanager
+def progress(args, oracle, what: str):
+    """While the block runs longer than PROGRESS_AFTER s: one line on stderr, rewritten in place, with the time so far
+    and the collision checks the oracle answered since the block began, cleared when the block ends. Only on a
+    terminal, and never with --json (a program reads that answer)."""
+    if getattr(args, "json", False) or not sys.stderr.isatty():
+        yield
+        return
+    from tqdm import tqdm
+
+    done, answered = threading.Event(), oracle.answered
+
+    def show() -> None:
+        if done.wait(PROGRESS_AFTER):
+            return
+        started = time.monotonic() - PROGRESS_AFTER
+        with tqdm(file=sys.stderr, leave=False, bar_format="{desc}", dynamic_ncols=True) as line:
+            while True:
+                line.set_description_str(
+                    f"{what}: {time.monotonic() - started:.0f} s, {oracle.answered - answered:,} collision checks", refresh=True
+                )
+                if done.wait(PROGRESS_EVERY):
+                    return
+
+    shower = threading.Thread(target=show, name="progress", daemon=True)
+    shower.start()
+    try:
+        yield
+    finally:
+        done.set()
+        shower.join()
+
+
+def announce(*files: str | None) -> None:
+    """Name each file a command wrote on stderr, one line each (stdout may carry its JSON answer); None: not asked."""
+    for file in files:
+        if file:
+            print(f"wrote {file}", file=sys.stderr)
 
 
 def print_json(obj: dict) -> None:

@@ -3,7 +3,7 @@ an app.scene.custom.CustomSpec, from which app.scene.custom.build_scene makes th
 
 import argparse
 
-from app.commands.common import float_list, non_negative_float
+from app.commands.common import float_list, non_negative_float, positive_float_list
 from app.errors import UserError
 from app.scene import meshes
 from app.scene.custom import CustomScene, CustomSpec, build_scene, load_scene
@@ -67,6 +67,15 @@ def add_arguments(parser) -> None:
         metavar="STEP",
         help="edge-check step (default: a quarter of the robot's thickness, the median over its bodies)",
     )
+    for kind, unit in (("velocity", "/s"), ("acceleration", "/s^2")):
+        group.add_argument(
+            f"--{kind}-limits",
+            metavar="L,...",
+            type=positive_float_list,
+            default=[],
+            help=f"{kind} limit per coordinate (m{unit} or rad{unit}; default: "
+            + ("the model's, 1 where it has none)" if kind == "velocity" else "twice the velocity limits)"),
+        )
     group.add_argument(
         "--self-collision",
         action=argparse.BooleanOptionalAction,
@@ -92,6 +101,8 @@ ROBOT_ONLY = {
     "resolution": "--resolution",
     "self_collision": "--no-self-collision",
     "srdf": "--srdf",
+    "velocity_limits": "--velocity-limits",
+    "acceleration_limits": "--acceleration-limits",
 }
 
 
@@ -125,6 +136,8 @@ def spec_from_args(args) -> CustomSpec | None:
         resolution=args.resolution,
         mesh_method=args.mesh_method,
         mesh_tolerance=args.mesh_tolerance,
+        velocity_limits=list(args.velocity_limits),
+        acceleration_limits=list(args.acceleration_limits),
     )
 
 

@@ -11,7 +11,7 @@ import sys
 
 from app.checking.oracle import CollisionOracle
 from app.commands import custom, plan
-from app.commands.common import check_outputs, non_negative_float, print_json, whole_number
+from app.commands.common import announce, check_outputs, non_negative_float, print_json, whole_number
 from app.panel import Panel
 from app.viewer import check_meshcat_allowed
 
@@ -60,8 +60,7 @@ def run(args) -> int:
         answer = {"html": args.html, **panel.state()}
     finally:
         panel.close()
+    announce(args.state, args.html)
     if args.json:
         print_json(answer)
-    elif args.html:
-        print(args.html)
     return 0

@@ -6,11 +6,13 @@ import argparse
 from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
 from app.commands.common import (
+    add_scaling_arguments,
     float_list,
     neighbours,
     parse_budget,
     positive_float,
     print_json,
+    progress,
     sample_count,
     sampler_name,
     seed,
@@ -18,11 +20,9 @@ from app.commands.common import (
     shortcut_rounds,
 )
 from app.errors import UserError
-from app.io import all_or_nothing
 from app.planning.cell import CellRoadmap
 from app.planning.ik import pose_goal
 from app.planning.planner import PlanSettings, plan
-from app.viewer import ViewData
 
 DEFAULTS = PlanSettings()
 
@@ -75,7 +75,9 @@ def register(subparsers) -> None:
 
 
 def add_settings_arguments(p) -> None:
-    """The PlanSettings flags (sampler, counts, step, seed, budget, k, smoothing, dt), for any command that plans."""
+    """The PlanSettings flags (sampler, counts, step, seed, budget, k, smoothing, dt, limit scaling), for any command
+    that plans."""
+    add_scaling_arguments(p)
     p.add_argument(
         "--sampler",
         type=sampler_name,
@@ -158,6 +160,8 @@ def settings_from_args(args) -> PlanSettings:
         dt=args.dt,
         full_roadmap=args.full_roadmap,
         workspace=args.workspace,
+        velocity_scale=args.velocity_scale,
+        acceleration_scale=args.acceleration_scale,
     )
 
 
@@ -177,21 +181,15 @@ def run(args) -> int:
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
     start, goal = args.start, args.goal
-    if args.start_pose is not None:
-        start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
-    if args.goal_pose is not None:
-        goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed, every=True)
-    if cell is None:
-        result = plan(oracle, settings, start=start, goal=goal)
-    else:
-        result = cell.solve(start, goal, settings)
+    with progress(args, oracle, f"plan {oracle.scene.name}"):
+        if args.start_pose is not None:
+            start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
+        if args.goal_pose is not None:
+            goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed, every=True)
+        result = plan(oracle, settings, start=start, goal=goal) if cell is None else cell.solve(start, goal, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-    with all_or_nothing():
-        viewer = view.publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
-        if args.out:
-            result.trajectory_file().write(args.out)
-        if args.update:
-            cell.save(args.roadmap)
+    saved = (cell, args.roadmap) if args.update else None
+    viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
     if args.json:
         print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
     else:

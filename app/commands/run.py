@@ -4,20 +4,20 @@ from dataclasses import replace
 
 from app.checking.oracle import CollisionOracle
 from app.commands.common import (
+    add_scaling_arguments,
     parse_budget,
     positive_float,
     print_json,
+    progress,
     sample_count,
     sampler_name,
     seed,
 )
-from app.commands.view import add_arguments, check_from_args, publish_from_args, wait
+from app.commands.view import add_arguments, check_from_args, wait, write_outputs
 from app.errors import UserError
-from app.io import all_or_nothing
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
 from app.planning.cell import CellRoadmap
 from app.scene.model import Scene
-from app.viewer import ViewData
 
 
 def register(subparsers) -> None:
@@ -42,6 +42,7 @@ def register(subparsers) -> None:
     p.add_argument("--update", action="store_true", help="write back to --roadmap what the job's legs learned")
     p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
     p.add_argument("--json", action="store_true")
+    add_scaling_arguments(p)
     add_arguments(p)
     p.set_defaults(func=run)
 
@@ -58,6 +59,8 @@ def run(args) -> int:
         step=args.step,
         budget=args.budget,
         full_roadmap=args.full_roadmap,
+        velocity_scale=args.velocity_scale,
+        acceleration_scale=args.acceleration_scale,
     )
     if args.update and not args.roadmap:
         raise UserError("--update writes back to a roadmap: give --roadmap FILE")
@@ -66,14 +69,11 @@ def run(args) -> int:
     check_from_args(args, args.out)
     oracle = CollisionOracle(Scene(args.job))
     cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
-    result = run_job(oracle, args.job, settings, cell)
+    with progress(args, oracle, f"run {args.job}"):
+        result = run_job(oracle, args.job, settings, cell)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-    with all_or_nothing():
-        viewer = publish_from_args(args, oracle.scene, ViewData.of(result.trajectory_file()))
-        if args.out:
-            result.trajectory_file().write(args.out)
-        if args.update:
-            cell.save(args.roadmap)
+    saved = (cell, args.roadmap) if args.update else None
+    viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
     if args.json:
         print_json(result.to_json())
     else:

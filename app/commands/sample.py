@@ -3,6 +3,7 @@
 from app.bench.sampling import run_trial
 from app.checking.oracle import CollisionOracle
 from app.commands.common import (
+    announce,
     check_outputs,
     positive_float,
     print_json,
@@ -12,6 +13,7 @@ from app.commands.common import (
     seed,
 )
 from app.errors import SamplerBudgetExceeded
+from app.planning.planner import default_step
 from app.scene.custom import load_scene
 
 
@@ -25,8 +27,9 @@ def register(subparsers) -> None:
     p.add_argument(
         "--step",
         type=positive_float,
-        default=10.0,
-        help="step a / bridge length / Gaussian sigma, weighted workspace units (default 10)",
+        default=None,
+        help="step a / bridge length / Gaussian sigma, weighted workspace units (default: the scene file's step, "
+        "else a tenth of the scene's extent, as `plan`)",
     )
     p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--threads", type=processes, default=None, help="oracle threads (default: up to 2)")
@@ -38,7 +41,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     check_outputs(args.png)
     oracle = CollisionOracle(load_scene(args.scene), threads=args.threads)
-    result = run_trial(oracle, args.sampler, args.step, args.seed, k=args.k, keep_samples=True)
+    step = args.step or default_step(oracle.scene)
+    result = run_trial(oracle, args.sampler, step, args.seed, k=args.k, keep_samples=True)
     if not result["ok"]:
         raise SamplerBudgetExceeded(
             f"{args.sampler}: no {args.k} samples within {result['collision_checks']} collision checks"
@@ -51,13 +55,14 @@ def run(args) -> int:
             oracle,
             samples,
             args.png,
-            title=f"{oracle.scene.name}: {args.sampler}, k={args.k}, step {args.step:g}, seed {args.seed}",
+            title=f"{oracle.scene.name}: {args.sampler}, k={args.k}, step {step:g}, seed {args.seed}",
         )
+        announce(args.png)
     out = {
         "scene": oracle.scene.name,
         "sampler": args.sampler,
         "k": args.k,
-        "step": args.step,
+        "step": step,
         "seed": args.seed,
         "samples": samples.tolist(),
         "collision_checks": result["collision_checks"],
@@ -81,6 +86,4 @@ def run(args) -> int:
             f"{out['scene']} {out['sampler']}: {args.k} samples in {out['seconds']:.3f} s, "
             f"{out['collision_checks']} collision checks, {passage}, {out['gave_up']} gave up"
         )
-        if args.png:
-            print(args.png)
     return 0

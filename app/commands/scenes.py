@@ -1,7 +1,7 @@
 """`scenes` lists the shipped scenes; `show` draws one to a PNG."""
 
 from app.checking.oracle import CollisionOracle
-from app.commands.common import check_outputs, print_json
+from app.commands.common import announce, check_outputs, print_json
 from app.scene.custom import load_scene
 from app.scene.model import Scene, scene_names
 
@@ -35,8 +35,7 @@ def run_show(args) -> int:
     check_outputs(args.png)
     oracle = CollisionOracle(load_scene(args.scene))
     draw_scene(oracle, args.png)
+    announce(args.png)
     if args.json:
         print_json({"scene": oracle.scene.name, "png": args.png})
-    else:
-        print(args.png)
     return 0

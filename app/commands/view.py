@@ -1,7 +1,7 @@
 """`view` shows a trajectory in Meshcat and/or exports it as a standalone HTML page.
 
-`add_arguments`, `check_from_args`, `publish_from_args` and `wait` give any command (plan, run) the same
---html / --meshcat / --wait / --frame flags.
+`add_arguments`, `check_from_args`, `write_outputs` and `wait` give any command (plan, run) the same
+--html / --bag / --meshcat / --wait / --frame flags.
 
 How long --meshcat serves: `--wait SECONDS` if given (0: not at all); else, with a terminal, until Enter or Ctrl-C;
 else (Docker without -t, an IDE, a notebook, a pipe) until Ctrl-C or SIGTERM (`docker stop`). Ending the wait is the
@@ -9,12 +9,15 @@ normal end of the command, exit code 0: its work is done and its answer (with --
 already printed. What the wait says goes to stderr.
 """
 
+import os
 import signal
 import sys
 import threading
 
-from app.commands.common import check_outputs, non_negative_float, print_json
+from app.commands.common import announce, check_outputs, non_negative_float, print_json
 from app.errors import UserError
+from app.io import all_or_nothing
+from app.motion.rosbag import write_bag
 from app.motion.trajectory import TrajectoryFile
 from app.scene.custom import load_scene
 from app.viewer import ViewData, check_meshcat_allowed, publish
@@ -23,6 +26,12 @@ from app.viewer import ViewData, check_meshcat_allowed, publish
 def add_arguments(p) -> None:
     """The viewer flags, for any command that has a scene and a trajectory to show."""
     p.add_argument("--html", metavar="FILE", help="write a standalone Meshcat page (robot animation, samples, path)")
+    p.add_argument(
+        "--bag",
+        metavar="DIR",
+        help="write the trajectory as a new ROS 2 bag folder: one trajectory_msgs/msg/JointTrajectory on "
+        "/joint_trajectory (refused if DIR exists)",
+    )
     p.add_argument(
         "--meshcat",
         action="store_true",
@@ -45,17 +54,29 @@ def check_from_args(args, *outputs: str | None) -> None:
     and Meshcat, which --html and --meshcat need, is allowed."""
     if args.wait is not None and not args.meshcat:
         raise UserError("--wait needs --meshcat (it says how long the Meshcat server stays up)")
-    check_outputs(*outputs, args.html)
+    if args.bag and os.path.lexists(args.bag):  # a bag is a new folder: never merged into or replaced
+        raise UserError(f"cannot write {args.bag}: it exists already; give a new folder name")
+    check_outputs(*outputs, args.html, args.bag)
     if args.html or args.meshcat:
         check_meshcat_allowed()
 
 
-def publish_from_args(args, scene, data):
-    """Show/export `data` (an app.viewer.ViewData) as the flags of `add_arguments` ask; None when none was given.
-    With --meshcat the URL goes to stderr (stdout may carry a command's JSON); `wait` then keeps it served."""
-    if not args.meshcat and not args.html:
-        return None
-    viewer = publish(scene, data, html=args.html, frame=args.frame, collision=args.collision)
+def write_outputs(args, scene, file: TrajectoryFile, out: str | None = None, roadmap=None):
+    """The trajectory `file` written and shown as the flags ask: `out` (its JSON file), --bag, --html, --meshcat,
+    and `roadmap` (a cell roadmap and its path: written back); the files appear together or not at all, each named
+    on stderr. Returns the Meshcat viewer (None without --meshcat/--html). The Meshcat URL also goes to stderr
+    (stdout may carry a command's JSON); `wait` then keeps it served."""
+    viewer = None
+    with all_or_nothing():
+        if args.meshcat or args.html:
+            viewer = publish(scene, ViewData.of(file), html=args.html, frame=args.frame, collision=args.collision)
+        if out:
+            file.write(out)
+        if args.bag:
+            write_bag(args.bag, file.trajectory)
+        if roadmap is not None:
+            roadmap[0].save(roadmap[1])
+    announce(out, args.bag, args.html, roadmap and roadmap[1])
     if args.meshcat:
         print(f"meshcat: {viewer.url()}", file=sys.stderr, flush=True)
     return viewer
@@ -98,16 +119,21 @@ def register(subparsers) -> None:
 
 
 def run_view(args) -> int:
-    if not args.html and not args.meshcat:
-        raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
+    if not args.html and not args.meshcat and not args.bag:
+        raise UserError("view: nothing to do; give --html FILE, --bag DIR and/or --meshcat")
     check_outputs(args.html)
     scene = load_scene(args.scene)
-    data = ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim))
+    file = TrajectoryFile.read(args.trajectory, scene.dim)
     check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
-    viewer = publish_from_args(args, scene, data)
+    viewer = write_outputs(args, scene, file)
     if args.json:
-        print_json({"scene": scene.name, "html": args.html, "meshcat": viewer.url() if args.meshcat else None})
-    elif args.html:
-        print(args.html)
+        print_json(
+            {
+                "scene": scene.name,
+                "html": args.html,
+                "bag": args.bag,
+                "meshcat": viewer.url() if args.meshcat else None,
+            }
+        )
     wait(args, viewer)
     return 0

@@ -27,6 +27,7 @@ import numpy as np
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 from app.checking.certify import Certifier
+from app.errors import UserError
 from app.motion.path import dedupe
 from app.motion.trajectory import Trajectory
 
@@ -301,14 +302,32 @@ def parameterize(
     return _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified=False)
 
 
-def time_path(oracle, path: np.ndarray, dt: float, *, certifier=None, edges_proved: bool = False) -> Trajectory:
-    """A path of the oracle's scene (wrapped waypoints) timed under the scene's limits by parameterize_smooth."""
-    scene = oracle.scene
+def scaled_limits(scene, velocity_scale: float = 1.0, acceleration_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's velocity and acceleration limits times these fractions of them, each in (0, 1] (MoveIt's
+    max_velocity_scaling_factor and max_acceleration_scaling_factor)."""
+    for name, scale in (("velocity_scale", velocity_scale), ("acceleration_scale", acceleration_scale)):
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale <= 1:
+            raise UserError(f"{name} must be a fraction in (0, 1], got {scale!r}")
+    v, a = np.asarray(scene.velocity_limits, float), np.asarray(scene.acceleration_limits, float)
+    return v * velocity_scale, a * acceleration_scale
+
+
+def time_path(
+    oracle,
+    path: np.ndarray,
+    dt: float,
+    *,
+    certifier=None,
+    edges_proved: bool = False,
+    velocity_scale: float = 1.0,
+    acceleration_scale: float = 1.0,
+) -> Trajectory:
+    """A path of the oracle's scene (wrapped waypoints) timed by parameterize_smooth under the scene's limits, scaled
+    by velocity_scale and acceleration_scale (see scaled_limits)."""
     return parameterize_smooth(
         oracle,
         oracle.space.unwrap(path),
-        scene.velocity_limits,
-        scene.acceleration_limits,
+        *scaled_limits(oracle.scene, velocity_scale, acceleration_scale),
         dt,
         oracle.space.names,
         certifier=certifier,

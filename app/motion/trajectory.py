@@ -16,7 +16,8 @@ start, positions, velocities, accelerations), stored by columns:
     narrow_samples    optional (M, dim): the planner's narrow-passage samples
     narrow_on_path    optional (M,) booleans: which of them the roadmap path used
 
-Anything else in the file is an error, so a misspelt key is found rather than ignored.
+Anything else in the file is an error, so a misspelt key is found rather than ignored. docs/schemas/trajectory.json
+describes the file as a JSON Schema; app.motion.rosbag writes the same Trajectory as a ROS 2 bag.
 """
 
 from __future__ import annotations

@@ -72,7 +72,9 @@ class PlanSettings:
     full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query); workspace: the
     share of a query's narrow-passage samples placed in narrow gaps of the workspace (app.samplers.workspace; 0: the
     sampler alone; a full roadmap draws none); timing: time the path with Toppra (False: the result's trajectory is
-    None, for a caller that times several paths as one motion, as a job does through its pass-through poses)."""
+    None, for a caller that times several paths as one motion, as a job does through its pass-through poses).
+    velocity_scale, acceleration_scale: fractions in (0, 1] of the scene's velocity and acceleration limits that the
+    trajectory keeps to (MoveIt's scaling factors)."""
 
     sampler: str = "lfbs"
     narrow: int = 200
@@ -88,6 +90,8 @@ class PlanSettings:
     full_roadmap: bool = False
     workspace: float = 0.75
     timing: bool = True
+    velocity_scale: float = 1.0
+    acceleration_scale: float = 1.0
 
     def __post_init__(self):
         from app.samplers import check_name
@@ -117,6 +121,10 @@ class PlanSettings:
             raise UserError(f"workspace must be a share from 0 to 1, got {self.workspace!r}")
         if not isinstance(self.budget, Budget):
             raise UserError(f"budget must be a Budget, got {self.budget!r}")
+        for name in ("velocity_scale", "acceleration_scale"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 1:
+                raise UserError(f"{name} must be a fraction in (0, 1], got {value!r}")
 
 
 @dataclass
@@ -648,6 +656,8 @@ class Query:
                 self.settings.dt,
                 certifier=self.certifier,
                 edges_proved=proved,
+                velocity_scale=self.settings.velocity_scale,
+                acceleration_scale=self.settings.acceleration_scale,
             )
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
             raise NoPath(

@@ -15,6 +15,8 @@ Inputs (the keys of a custom scene file, see `CustomSpec`; `plan` takes the same
 - collisions / srdf: self-collision counts unless `collisions: environment`; an SRDF's <disable_collisions> pairs
   (adjacent links, pairs that cannot touch) are left out. Mesh links are decomposed like environment meshes, so
   self-collision is judged on the validated pieces, not on Drake's convex hull of each link.
+- velocity_limits / acceleration_limits: one positive number per coordinate (default: the model's velocity limits,
+  1 where it has none; accelerations twice the velocity limits, as for a shipped scene).
 - bounds: per coordinate `lo..hi`, comma separated: either one per coordinate, or, for a floating robot, three for
   x, y, z only (the angles then wrap on [-pi, pi); further joints keep their model limits). Default for a floating
   robot: the environment's bounding box, grown by the robot's radius, and stretched to include start and goal;
@@ -67,6 +69,8 @@ class CustomSpec:
     resolution: float = 0.0  # edge-check step in the weighted metric; 0: default_resolution (the robot's size)
     mesh_method: str = "auto"  # auto | convex | coacd | faces
     mesh_tolerance: float = 0.0  # 0: half the edge-check step (environment), 0.2 % of its size (robot mesh)
+    velocity_limits: list[float] = field(default_factory=list)  # per coordinate; empty: the model's (else 1)
+    acceleration_limits: list[float] = field(default_factory=list)  # per coordinate; empty: 2x the velocity limits
 
 
 class CustomScene(Scene):
@@ -701,6 +705,15 @@ def _problem(
     lever = max(coords["reach"], 1e-6)
     weights = np.where(angular, lever, 1.0)
     env_names = ", ".join(p.name for p in inputs.env_paths) or "-"
+    # A joint without a velocity limit gets 1 (m/s or rad/s), so the trajectory has a sensible duration.
+    model_velocity = np.where(np.isfinite(coords["velocity"]) & (coords["velocity"] > 0), coords["velocity"], 1.0)
+    limits = {}
+    for key, given in (("velocity_limits", spec.velocity_limits), ("acceleration_limits", spec.acceleration_limits)):
+        if given:
+            limits[key] = _vector(given, nq, key, coords["names"])
+            if not np.all(limits[key] > 0):
+                raise UserError(f"{key} must be positive numbers")
+            limits[key] = limits[key].tolist()
     return {
         "description": spec.description or f"{inputs.robot_path.name} among {env_names}",
         "directives": "scene.dmd.yaml",
@@ -714,10 +727,8 @@ def _problem(
         "weights": weights.tolist(),
         "resolution": float(resolution),
         "view": "3d",
-        # A joint without a velocity limit gets 1 (m/s or rad/s), so the trajectory has a sensible duration.
-        "velocity_limits": np.where(
-            np.isfinite(coords["velocity"]) & (coords["velocity"] > 0), coords["velocity"], 1.0
-        ).tolist(),
+        "velocity_limits": model_velocity.tolist(),
+        **limits,  # the Scene's default accelerations: twice its velocity limits
     }
 
 

@@ -239,6 +239,9 @@ class Scene:
         self.acceleration_limits = self._vector(
             "acceleration_limits", problem.acceleration_limits, 2.0 * self.velocity_limits
         )
+        for key in ("velocity_limits", "acceleration_limits"):
+            if not np.all(getattr(self, key) > 0):  # Toppra needs a positive limit on every joint
+                raise UserError(f"bad scene file {self.path.name}: '{key}' must be positive")
         self.self_collisions = problem.collisions == "all"
 
         spec = problem.passage

@@ -26,7 +26,7 @@ def run(args) -> int:
     table, reuse = measure(
         args.scenes, args.problems, args.seed, args.budget, args.store, workers=args.workers, fresh=args.fresh
     )
-    results.say_reused(reuse)
+    results.say_reused(reuse, args.store)
     if args.json:
         print_json(
             {

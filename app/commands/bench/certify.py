@@ -25,7 +25,7 @@ def register(kinds) -> None:
 def run(args) -> int:
     check_outputs(creating_folders=(args.store,))
     table, reuse = measure(args.scenes, args.jobs, args.seeds, args.store, args.fresh)
-    results.say_reused(reuse)
+    results.say_reused(reuse, args.store)
     if args.json:
         print_json({"certify": table, "seeds": args.seeds, "reused": reuse.to_json()})
         return 0

@@ -41,7 +41,7 @@ def run(args) -> int:
     result, reuse = measure(
         args.jobs, args.samplers, args.seeds, modes, args.narrow, args.uniform, args.budget, args.store, args.fresh
     )
-    results.say_reused(reuse)
+    results.say_reused(reuse, args.store)
     if args.json:
         print_json({"jobs": result, "seeds": args.seeds, "reused": reuse.to_json()})
         return 0

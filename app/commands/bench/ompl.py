@@ -5,7 +5,15 @@ import argparse
 
 from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure, parse_method
 from app.commands.bench import results
-from app.commands.common import check_outputs, comma_list, positive_float, print_json, processes, repetitions
+from app.commands.common import (
+    announce,
+    check_outputs,
+    comma_list,
+    positive_float,
+    print_json,
+    processes,
+    repetitions,
+)
 from app.errors import UserError
 from app.scene.model import scene_names
 
@@ -70,9 +78,10 @@ def run(args) -> int:
         workers=args.workers,
         fresh=args.fresh,
     )
-    results.say_reused(reuse)
+    results.say_reused(reuse, args.store)
     if args.png:
         figure(report, args.png)
+        announce(args.png)
     if args.json:
         print_json({**report, "reused": reuse.to_json()})
         return 0
@@ -128,6 +137,4 @@ def run(args) -> int:
                 f"  {OURS} / best OMPL ({c['best_ompl']}) median checks to the first solution: "
                 f"{c['checks_ratio']:.3g}x  (best: most successes, ties broken by fewer median checks)"
             )
-    if args.png:
-        print(f"\nfigure: {args.png}")
     return 0

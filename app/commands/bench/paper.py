@@ -24,6 +24,7 @@ from app.bench.store import ResultStore
 from app.commands.bench import results
 from app.commands.common import (
     MAX_PROCESSES,
+    announce,
     check_count,
     check_outputs,
     comma_list,
@@ -130,6 +131,7 @@ def config_from_args(args) -> Config:
 
 def run(args) -> int:
     config = config_from_args(args)
+    began = time.time()  # figures written from here on are this run's
     folder = Path(args.out)
     outputs = (folder / "results.sqlite", folder / "report.md", folder / TRIALS_CSV)
     check_outputs(creating_folders=outputs + ((Path(args.ompl_db),) if args.ompl_db else ()))
@@ -159,6 +161,8 @@ def run(args) -> int:
     if args.ompl_db:
         Path(args.ompl_db).parent.mkdir(parents=True, exist_ok=True)
         database = str(ompl_db.write(store.rows(), args.ompl_db))
+    figures = sorted(str(p) for p in folder.glob("*.png") if p.stat().st_mtime >= began)
+    announce(str(store.path), str(path), *figures, str(trials_csv), database)
     if args.json:
         print_json(
             {
@@ -172,8 +176,4 @@ def run(args) -> int:
         )
     else:
         print(f"{ran} trials run; {store.count()} in {store.path}")
-        print(path)
-        print(trials_csv)
-        if database:
-            print(database)
     return 0

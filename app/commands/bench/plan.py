@@ -89,7 +89,7 @@ def run(args) -> int:
         workers=args.workers,
         fresh=args.fresh,
     )
-    results.say_reused(reuse)
+    results.say_reused(reuse, args.store)
     if args.json:
         print_json({"plan": table, "seeds": args.seeds, "params": params, "reused": reuse.to_json()})
         return 0

@@ -3,6 +3,8 @@ trials they reused instead of running (app.bench.store's docstring has the rule)
 
 import sys
 
+from app.commands.common import announce
+
 
 def add_arguments(p, default: str) -> None:
     p.add_argument(
@@ -23,12 +25,12 @@ def add_fresh_argument(p) -> None:
     )
 
 
-def say_reused(reuse) -> None:
+def say_reused(reuse, store: str | None = None) -> None:
     """On stderr (stdout may carry the one JSON answer): how many trials came from the store and which code versions
-    wrote them; a warning when that is not the current code."""
-    if not reuse.reused:
-        return
-    print(reuse.message(), file=sys.stderr)
-    warning = reuse.warning()
-    if warning:
-        print(f"warning: {warning}", file=sys.stderr)
+    wrote them; a warning when that is not the current code; then the store written, if given."""
+    if reuse.reused:
+        print(reuse.message(), file=sys.stderr)
+        warning = reuse.warning()
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
+    announce(store)

@@ -2,6 +2,7 @@
 
 from app.bench.sampling import STEPS, figure, measure, summarise
 from app.commands.common import (
+    announce,
     check_count,
     check_outputs,
     comma_list,
@@ -58,12 +59,11 @@ def run(args) -> int:
     summary = summarise(rows)
     if args.png:
         figure(summary, args.png)
+        announce(args.png)
     if args.json:
         print_json({"rows": rows, "summary": summary})
     else:
         print_table(summary)
-        if args.png:
-            print(args.png)
     return 0
 
 

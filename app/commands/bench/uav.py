@@ -17,7 +17,7 @@ def register(kinds) -> None:
 def run(args) -> int:
     check_outputs(creating_folders=(args.store,))
     result, reuse = measure(args.seeds, args.store, workers=args.workers, fresh=args.fresh)
-    results.say_reused(reuse)
+    results.say_reused(reuse, args.store)
     if args.json:
         print_json({"uav": result, "seeds": args.seeds, "reused": reuse.to_json()})
         return 0

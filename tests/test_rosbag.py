@@ -1,0 +1,91 @@
+"""`--bag DIR`: a planned trajectory as a ROS 2 bag, read back with rosbags as a ROS tool would."""
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+rosbags = pytest.importorskip("rosbags")
+
+from app.motion.rosbag import MESSAGE_TYPE, TOPIC  # noqa: E402
+
+
+def read_bag(folder) -> list:
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(folder) as reader:
+        return [
+            (connection.topic, connection.msgtype, store.deserialize_cdr(data, connection.msgtype))
+            for connection, _, data in reader.messages()
+        ]
+
+
+def seconds(duration) -> float:
+    return duration.sec + 1e-9 * duration.nanosec
+
+
+def test_a_planned_trajectory_reads_back_as_one_joint_trajectory(cli, tmp_path):
+    bag, out = tmp_path / "bag", tmp_path / "t.json"
+    result = cli("plan", "bar-3link", "--out", out, "--bag", bag)
+    assert result.returncode == 0, result.stderr
+    assert f"wrote {bag}" in result.stderr.splitlines() and f"wrote {out}" in result.stderr.splitlines()
+    file = json.loads(out.read_text())
+    (topic, msgtype, message), *others = read_bag(bag)
+    assert not others and topic == TOPIC and msgtype == MESSAGE_TYPE == message.__msgtype__
+    assert message.joint_names == file["joint_names"]
+    assert len(message.points) == len(file["time_from_start"]) > 2
+    times = np.array([seconds(p.time_from_start) for p in message.points])
+    assert np.all(np.diff(times) > 0) and times[0] == 0
+    assert np.allclose(times, file["time_from_start"], atol=1e-9)
+    for key in ("positions", "velocities", "accelerations"):
+        assert np.array_equal(np.array([getattr(p, key) for p in message.points]), np.array(file[key])), key
+    assert not list(tmp_path.glob(".*"))  # no temporary folder left beside it
+    assert sorted(p.name for p in bag.iterdir()) == ["bag.db3", "metadata.yaml"]  # named as ros2 bag names them
+
+
+def test_view_writes_the_bag_of_a_trajectory_file(cli, tmp_path):
+    out = tmp_path / "t.json"
+    assert cli("plan", "bar", "--out", out).returncode == 0
+    result = cli("view", "bar", "--trajectory", out, "--bag", tmp_path / "bag", "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["bag"] == str(tmp_path / "bag")
+    (_, _, message), *_ = read_bag(tmp_path / "bag")
+    assert np.array_equal(np.array([p.positions for p in message.points]), json.loads(out.read_text())["positions"])
+
+
+def test_an_existing_folder_is_refused_before_planning_and_nothing_is_written(cli, tmp_path):
+    (tmp_path / "bag").mkdir()
+    result = cli("plan", "bar", "--out", tmp_path / "t.json", "--bag", tmp_path / "bag")
+    assert result.returncode == 2 and "exists already" in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"] and not list((tmp_path / "bag").iterdir())
+
+
+def test_a_failed_write_leaves_no_half_bag(tmp_path, monkeypatch):
+    from app.motion import rosbag
+    from app.motion.trajectory import Trajectory
+
+    trajectory = Trajectory(["a"], np.array([0.0, 1.0]), np.zeros((2, 1)), np.zeros((2, 1)), np.zeros((2, 1)),
+                            np.zeros((2, 1)), np.array([0.0, 1.0]))  # fmt: skip
+    from rosbags.rosbag2 import Writer
+
+    def fail(*args):
+        assert list(tmp_path.iterdir()), "the bag's folder was started"
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(Writer, "write", fail)
+    with pytest.raises(RuntimeError, match="disk full"):
+        rosbag.write_bag(tmp_path / "bag", trajectory)
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_ur3_joints_are_named_as_in_ur_description(oracles):
+    from app.scene.model import PACKAGES
+
+    urdf = ET.parse(PACKAGES["npp_robots"] / "ur3_on_cart.urdf")
+    moving = [j.get("name") for j in urdf.getroot().iter("joint") if j.get("type") != "fixed"]
+    expected = [f"{name}_joint" for name in ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")]
+    assert moving == expected
+    assert oracles("welding").space.names == expected
