@@ -221,7 +221,8 @@ def progress(args, oracle, what: str):
         with tqdm(file=sys.stderr, leave=False, bar_format="{desc}", dynamic_ncols=True) as line:
             while True:
                 line.set_description_str(
-                    f"{what}: {time.monotonic() - started:.0f} s, {oracle.answered - answered:,} collision checks", refresh=True
+                    f"{what}: {time.monotonic() - started:.0f} s, {oracle.answered - answered:,} collision checks",
+                    refresh=True,
                 )
                 if done.wait(PROGRESS_EVERY):
                     return
