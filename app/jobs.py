@@ -21,7 +21,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from app.checking.budget import Budget
 from app.errors import NoPath, UserError
 from app.motion.path import dedupe
 from app.motion.timing import time_path
@@ -32,7 +31,7 @@ from app.planning.planner import PlanSettings, plan
 
 HOME = "home"
 # A leg of a job is short: smaller roadmap rounds and fewer shortcut rounds than a scene's default query.
-JOB_SETTINGS = PlanSettings(narrow=40, uniform=40, smooth_rounds=10, budget=Budget(seconds=30.0))
+JOB_SETTINGS = PlanSettings(narrow=40, uniform=40, smooth_rounds=10)
 ROUTES = {
     "welding": lambda scene: [HOME] + list(scene.poses),
     "window": lambda scene: [HOME, "window", "reach", "window", "place", HOME],

@@ -28,7 +28,13 @@ def register(subparsers) -> None:
     p.add_argument("--narrow", type=sample_count, default=40, help="narrow-passage samples per planned leg")
     p.add_argument("--uniform", type=sample_count, default=40, help="uniform samples per planned leg")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
-    p.add_argument("--budget", type=parse_budget, default="30s", help="per planned leg, e.g. 30s or 500kchecks")
+    p.add_argument(
+        "--budget",
+        type=parse_budget,
+        default=JOB_SETTINGS.budget,
+        help=f"per planned leg, e.g. 500kchecks or 30s (default {JOB_SETTINGS.budget}: checks decide, the seconds "
+        "are a safety net)",
+    )
     p.add_argument(
         "--full-roadmap",
         action="store_true",

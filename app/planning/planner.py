@@ -30,8 +30,10 @@ if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when plan
     from app.planning.roadmap import Roadmap
 
 PHASES = ("sampling", "roadmap", "search", "smoothing", "certify", "timing")
-# What a query may spend unless told otherwise: every query ends, and says so when this is why.
-DEFAULT_BUDGET = Budget(seconds=30.0)
+# What a query may spend unless told otherwise: every query ends, and says so when this is why. Collision checks
+# decide, so the same seed gives the same answer on any machine at any load; the seconds are a safety net for a
+# machine so slow that the checks would take hours, and a query they stop says that its answer depends on the machine.
+DEFAULT_BUDGET = Budget(seconds=600.0, checks=300_000)
 # Smoothing may spend this share of the checks that finding the path took (at least SMOOTHING_MIN), and all its passes
 # together (a path the certificate refused is shortened again, fine-only) SMOOTHING_CAP.
 SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
@@ -65,8 +67,10 @@ class PlanSettings:
 
     sampler: the narrow-passage sampler's registered name; narrow / uniform: the sample counts that size a
     query's rounds (see Query) or, with full_roadmap, the whole roadmap; step: the sampler's base step a (None:
-    the scene's default); budget: what the query may spend (seconds and/or collision checks; Budget() has no
-    limit); k: neighbours per node (None: k-PRM*'s);
+    the scene's default); budget: what the search for a path may spend (seconds and/or collision checks; Budget()
+    has no limit; the default, DEFAULT_BUDGET, stops on checks). What runs past it: once a path is found, proving it
+    (the certificate) and timing it run whole, so a query that finds its path just before a time limit ends later
+    by that much (the `certify` and `timing` seconds of its answer); k: neighbours per node (None: k-PRM*'s);
     smooth_rounds: random shortcut rounds; dt: trajectory sample period (s); sampler_params: extra keyword
     arguments of the sampler (e.g. alpha_angle); skip_connected: Kavraki's rule for a full roadmap;
     full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query); workspace: the
@@ -737,6 +741,11 @@ class Query:
         seconds, spent = self.elapsed()
         if self.stopped == "cancelled":
             ending = ", cancelled"
+        elif self.stopped == "time" and s.budget.checks is not None:
+            ending = (
+                f", stopped by the budget's {s.budget.seconds:g} s before its {s.budget.checks} checks were spent: "
+                "on a faster or less loaded machine the same seed may get further"
+            )
         elif self.stopped:
             ending = f", budget {s.budget} spent ({self.stopped})"
         else:
