@@ -663,3 +663,26 @@ def test_plan_scales_the_limits_it_times_with(cli, tmp_path, oracles):
 @pytest.mark.parametrize("flag, value", [("--velocity-scale", "0"), ("--acceleration-scale", "1.5")])
 def test_a_scale_outside_zero_to_one_is_bad_input(cli, one_line_error, flag, value):
     assert "must be a fraction in (0, 1]" in one_line_error(cli("plan", "bar", flag, value), 2)
+
+
+def test_a_start_touching_an_obstacle_is_refused_naming_the_bodies(oracles):
+    """maze's x bound 0.35 puts the hull against the outer wall (signed distance 0): the collision check calls that
+    free, but no motion out of it can be certified, so it is refused at once instead of spending the budget."""
+    oracle = oracles("maze")
+    touching = oracle.scene.start.copy()
+    touching[0] = oracle.space.lower[0]
+    assert oracle.context().is_free(touching)
+    with pytest.raises(InvalidEndpoint, match="start touches .*quadrotor::body") as refused:
+        plan(oracle, PlanSettings(seed=0), start=touching)
+    assert refused.value.code == "START_STATE_IN_COLLISION"
+    clear = touching.copy()
+    clear[0] += 0.01
+    assert plan(oracle, PlanSettings(seed=0, budget=Budget(checks=200_000)), start=clear).trajectory.certified
+
+
+def test_the_default_budget_is_counted_in_checks_so_answers_do_not_depend_on_the_machine():
+    from app.planning.planner import DEFAULT_BUDGET
+
+    assert PlanSettings().budget == DEFAULT_BUDGET and DEFAULT_BUDGET.checks is not None
+    # its seconds are a safety net far beyond what the checks take on this project's 2-core machines
+    assert DEFAULT_BUDGET.seconds is None or DEFAULT_BUDGET.seconds >= DEFAULT_BUDGET.checks / 1000
