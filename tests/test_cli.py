@@ -240,10 +240,10 @@ PROGRESS_CHILD = """
 import sys, time, types
 import app.commands.common as common
 common.PROGRESS_AFTER = 0.1
-oracle = types.SimpleNamespace(checks=0)
+oracle = types.SimpleNamespace(answered=0)
 with common.progress(types.SimpleNamespace(json={json}), oracle, "plan bar"):
     for _ in range(40):
-        oracle.checks += 1000
+        oracle.answered += 1000
         time.sleep(0.02)
 print("after", file=sys.stderr)
 """

@@ -53,7 +53,7 @@ def test_a_plan_is_free_certified_and_within_the_limits(oracles, planned, case):
     for a, b in zip(path[:-1], path[1:]):
         points = fine_points(oracle, np.array([a, b]), oracle.space.resolution / 4)
         assert all(raw_free(oracle, q) for q in points), f"edge {a} -> {b} collides"
-    ok, stats = certify_path(oracle, path)
+    ok, stats = certify_path(oracle.context(), path)
     assert ok and stats["failed"] == []
     motion = result.trajectory
     assert motion.certified and np.all(np.diff(motion.times) > 0)

@@ -215,10 +215,10 @@ def test_a_toppra_solution_holding_nans_is_not_used(checkers, monkeypatch):
     _check_motion(oracle, smooth, W)
 
 
-def test_scaling_slows_the_motion_within_the_scaled_limits(oracles):
+def test_scaling_slows_the_motion_within_the_scaled_limits(checkers):
     from app.motion.timing import time_path
 
-    oracle = oracles("bar")
+    oracle = checkers("bar")
     W = ZIGZAGS["bar"]
     full = time_path(oracle, W, 0.01, edges_proved=True)
     half = time_path(oracle, W, 0.01, edges_proved=True, velocity_scale=0.5, acceleration_scale=0.25)
@@ -237,4 +237,4 @@ def test_a_scale_outside_zero_to_one_is_refused(oracles, scale):
     from app.motion.timing import time_path
 
     with pytest.raises(UserError, match="velocity_scale must be a fraction in"):
-        time_path(oracles("bar"), ZIGZAGS["bar"], 0.01, velocity_scale=scale)
+        time_path(oracles("bar").context(), ZIGZAGS["bar"], 0.01, velocity_scale=scale)
