@@ -52,7 +52,7 @@ def run_trial(
     """
     if max_checks is not None:
         params["max_checks"] = max_checks
-    sampler = make_sampler(sampler_name, oracle, step=step, **params)
+    sampler = make_sampler(sampler_name, oracle, step=oracle.space.check_step(step), **params)
     rng = np.random.default_rng(seed)
     before = oracle.checks
     start = time.perf_counter()

@@ -102,7 +102,7 @@ def run_view(args) -> int:
         raise UserError("view: nothing to do; give --html FILE and/or --meshcat")
     check_outputs(args.html)
     scene = load_scene(args.scene)
-    data = ViewData.of(TrajectoryFile.read(args.trajectory, scene.dim))
+    data = ViewData.of(TrajectoryFile.read_for(args.trajectory, scene))
     check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
     viewer = publish_from_args(args, scene, data)
     if args.json:

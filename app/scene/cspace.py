@@ -85,6 +85,15 @@ class ConfigurationSpace:
             raise UserError(f"{what} has a value that is not a finite number")
         return q
 
+    def check_step(self, step: float) -> float:
+        """A sampler's base step, or a UserError: positive, finite and no longer than the bounds' weighted diagonal
+        (a walk of longer steps leaves the bounds at every step and never ends)."""
+        step = float(step)
+        diagonal = float(np.linalg.norm((self.upper - self.lower) * self.weights))
+        if not 0 < step <= diagonal:
+            raise UserError(f"step {step:g} is not within (0, {diagonal:g}], the scene's diagonal")
+        return step
+
     # ---- metric -----------------------------------------------------------------------------------------------
     def difference(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
         """q2 - q1, taking the short way round on continuous angles (broadcasts)."""
