@@ -12,6 +12,7 @@ from app.commands.common import (
     positive_float,
     print_json,
     sample_count,
+    sample_period,
     sampler_name,
     seed,
     share,
@@ -124,7 +125,7 @@ def add_settings_arguments(p) -> None:
     )
     p.add_argument(
         "--dt",
-        type=positive_float,
+        type=sample_period,
         default=DEFAULTS.dt,
         help=f"trajectory sample period in seconds (default {DEFAULTS.dt})",
     )

@@ -90,8 +90,10 @@ class ConfigurationSpace:
         (a walk of longer steps leaves the bounds at every step and never ends)."""
         step = float(step)
         diagonal = float(np.linalg.norm((self.upper - self.lower) * self.weights))
-        if not 0 < step <= diagonal:
-            raise UserError(f"step {step:g} is not within (0, {diagonal:g}], the scene's diagonal")
+        if not step > 0:
+            raise UserError(f"step must be a positive number, got {step:g}")
+        if step > diagonal:
+            raise UserError(f"step {step:g} is longer than the scene's diagonal ({diagonal:g})")
         return step
 
     # ---- metric -----------------------------------------------------------------------------------------------
