@@ -70,7 +70,19 @@ CHEAP = [
     ),
     (
         "bench-audit",
-        ["bench", "audit", "--scenes", "bar-3link", "--problems", "1", "--budget", "5", "--store", "{tmp}/a.sqlite"],
+        [
+            "bench",
+            "audit",
+            "--scenes",
+            "bar-3link",
+            "--problems",
+            "1",
+            "--checks",
+            "20000",
+            "--no-bad-input",
+            "--store",
+            "{tmp}/a.sqlite",
+        ],  # fmt: skip
     ),
     (
         "bench-paper",

@@ -18,6 +18,7 @@ the tests run as root in CI, where a write-protected folder stays writable.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
@@ -301,16 +302,48 @@ def files(folder: Path) -> dict[str, int]:
     return {str(p.relative_to(folder)): p.stat().st_size for p in Path(folder).rglob("*")}
 
 
+def offline_drake_cache(cache: Path) -> Path:
+    """`cache` made a download cache (XDG_CACHE_HOME) in which Drake, with DRAKE_ALLOW_NETWORK=none, starts offline.
+
+    Drake 1.51 registers the remote package `drake_models` in every PackageMap and, with networking off, refuses to
+    construct one unless the download cache already holds it. Nothing here uses drake_models, so an empty stand-in
+    serves: a stray package://drake_models/... then fails with "file not found", at once, instead of downloading."""
+    import pydrake
+
+    manifest = Path(pydrake.__file__).parent / "share/drake/multibody/parsing/drake_models.json"
+    remote = json.loads(manifest.read_text())
+    # Drake 1.51 names a cached package "<archive sha256>-<sha256 of strip_prefix>".
+    key = f"{remote['sha256']}-{hashlib.sha256(remote['strip_prefix'].encode()).hexdigest()}"
+    package = Path(cache) / "drake" / "package_map" / key
+    package.mkdir(parents=True, exist_ok=True)
+    (package / "package.xml").write_text(
+        '<?xml version="1.0"?><package format="2"><name>drake_models</name><version>0</version>'
+        "<description>offline stand-in</description><maintainer email='x@example.com'>x</maintainer>"
+        "<license>none</license></package>"
+    )
+    return Path(cache)
+
+
 def run_case(argv: list[str], timeout: float = 60.0) -> dict:
-    """One row as `python -m app`, in a fresh folder made by `prepare` (its working directory): the exit code (None
-    when it ran past `timeout` seconds and was killed), the first stderr line, whether stderr held a traceback, the
-    seconds it took, and the files it wrote, changed or removed there."""
+    """One row as `python -m app`, in a fresh folder made by `prepare` (its working directory), offline as the tests
+    run (DRAKE_ALLOW_NETWORK=none, caches of its own): the exit code (None when it ran past `timeout` seconds and was
+    killed), the first stderr line, whether stderr held a traceback, the seconds it took, and the files it wrote,
+    changed or removed in its folder."""
     with tempfile.TemporaryDirectory(prefix="npp-bad-input-") as tmp:
-        folder = Path(tmp)
+        folder = Path(tmp) / "work"
+        folder.mkdir()
         values = prepare(folder)
+        cache = offline_drake_cache(Path(tmp) / "cache")
         before = files(folder)
         started = time.perf_counter()
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+        env = {
+            **os.environ,
+            "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+            "DRAKE_ALLOW_NETWORK": "none",
+            "XDG_CACHE_HOME": str(cache),
+            "NPP_CACHE_DIR": str(cache / "npp"),
+            "MPLBACKEND": "Agg",
+        }
         try:
             done = subprocess.run(
                 [sys.executable, "-m", "app", *arguments(argv, values)],
