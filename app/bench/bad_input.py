@@ -167,7 +167,9 @@ ROWS = [
     (["bench", "sampling", "--png", "{long}"], 2, TOO_LONG),
     (["bench", "paper", "--out", "{long}"], 2, TOO_LONG),
     (["bench", "paper", "--out", "{out}/paper", "--ompl-db", "{long}"], 2, TOO_LONG),
-    (["plan", "bar", "--out", ""], 2, "an output path is empty"),
+    (["plan", "bar", "--out", ""], 2, "empty argument after --out"),
+    (["plan", "bar", "--robot="], 2, "argument --robot: empty value"),
+    (["bench", "audit", "--store", " "], 2, "empty argument after --store"),
     # -- steps and sample periods that would never end or say nothing -------------------------------------------------
     (["sample", "bar", "--sampler", "lfbs", "--step", "1e308"], 2, "step 1e+308 is longer than the scene's diagonal"),
     (["plan", "bar", "--step", "1e308"], 2, "step 1e+308 is longer than the scene's diagonal"),

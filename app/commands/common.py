@@ -176,12 +176,10 @@ def parse_budget(text: str) -> Budget:
 def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
     """Every output path a command was given, checked before any work starts: each writable (app.io.check_output;
     the missing folders of those in `creating_folders` may still be created) and no two the same file. None stands
-    for a flag not given; an empty path (`--out ""`) is refused, not taken for one."""
-    paths = [(f, False) for f in files if f is not None] + [(f, True) for f in creating_folders]
+    for a flag not given."""
+    paths = [(f, False) for f in files if f] + [(f, True) for f in creating_folders]
     seen = {}
     for path, make_folders in paths:
-        if not str(path).strip():
-            raise UserError("an output path is empty; name a file")
         real = os.path.realpath(check_output(path, make_folders=make_folders))
         if real in seen:
             raise UserError(f"{seen[real]} and {path} are the same file; give each output its own path")
