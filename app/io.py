@@ -109,7 +109,8 @@ def check_input(path: str | os.PathLike, kind: str) -> Path:
         raise UserError(f"{kind} {path} is not a file")
     limit = INPUT_LIMITS[kind]
     if size > limit:
-        raise UserError(f"{kind} {file.name} is too large: {_size(size)}; the limit is {_size(limit)}")
+        said = _size(size) if _size(size) != _size(limit) else f"{size:,} bytes"  # (just over: the bytes tell)
+        raise UserError(f"{kind} {file.name} is too large: {said}; the limit is {_size(limit)}")
     return file
 
 
