@@ -124,6 +124,8 @@ ROWS = [
     (["plan", "window", "--goal-pose", "0.3,0,0.3"], 2, "--goal-pose"),
     (["plan", "window", "--goal-pose", "5,0,0.3,0,90,0"], 3, "cannot be reached"),
     (["plan", "bar", "--wait", "2"], 2, "--wait needs --meshcat"),
+    (["plan", "bar", "--frame", "base"], 2, "--frame needs --html or --meshcat"),
+    (["run", "window", "--frame", "tool0"], 2, "--frame needs --html or --meshcat"),
     (["plan", "bar", "--meshcat", "--wait", "-1"], 2, "argument --wait"),
     (["bench", "certify", "--seeds", "0"], 2, "argument --seeds: must be from 1 to 10000"),
     (["bench", "certify", "--scenes", "nowhere"], 2, "argument --scenes"),
@@ -169,6 +171,8 @@ ROWS = [
     (["bench", "paper", "--out", "{out}/paper", "--ompl-db", "{long}"], 2, TOO_LONG),
     (["plan", "bar", "--out", ""], 2, "empty argument after --out"),
     (["plan", "bar", "--robot="], 2, "argument --robot: empty value"),
+    (["gui", "--robot", "{out}/none.urdf"], 2, "robot file not found"),
+    (["gui", "--robot", "{stl}"], 2, "cannot read mesh garbage.stl"),
     (["bench", "audit", "--store", " "], 2, "empty argument after --store"),
     # -- steps and sample periods that would never end or say nothing -------------------------------------------------
     (["sample", "bar", "--sampler", "lfbs", "--step", "1e308"], 2, "step 1e+308 is longer than the scene's diagonal"),

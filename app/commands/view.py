@@ -45,6 +45,8 @@ def check_from_args(args, *outputs: str | None) -> None:
     and Meshcat, which --html and --meshcat need, is allowed."""
     if args.wait is not None and not args.meshcat:
         raise UserError("--wait needs --meshcat (it says how long the Meshcat server stays up)")
+    if args.frame is not None and not (args.html or args.meshcat):
+        raise UserError("--frame needs --html or --meshcat (it says which frame draws the samples and path)")
     check_outputs(*outputs, args.html)
     if args.html or args.meshcat:
         check_meshcat_allowed()
