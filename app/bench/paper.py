@@ -34,6 +34,7 @@ import numpy as np
 
 from app.bench import jobs, sampling, uav
 from app.bench.claims import ALPHA, RULES, detectable_drop, judge, success_ci
+from app.bench.plan import scene_step
 from app.bench.runner import run_sweep
 from app.bench.store import ResultStore, TrialSpec, is_results_store
 from app.checking.oracle import CollisionOracle
@@ -151,6 +152,15 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
     if "ur3" in config.parts:
         out.append(("ur3", ur3_specs(config.ur3_runs)))
     return out
+
+
+def check_steps(config: Config) -> None:
+    """Before any trial: every sampling scene is known and takes every step (a UserError names the first that is
+    not or does not), so a typo fails at once instead of in a worker after the store is made."""
+    scenes = (config.scenes if "sampling" in config.parts else []) + (TABLE1_SCENES if "table1" in config.parts else [])
+    for scene in dict.fromkeys(scenes):
+        for step in config.steps:
+            scene_step(scene, step)
 
 
 # ------------------------------------------------------------------------------------------ the committed trials

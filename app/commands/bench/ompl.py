@@ -5,7 +5,15 @@ import argparse
 
 from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure, parse_method
 from app.commands.bench import results
-from app.commands.common import check_outputs, comma_list, positive_float, print_json, processes, repetitions
+from app.commands.common import (
+    budget_seconds,
+    check_outputs,
+    comma_list,
+    positive_float,
+    print_json,
+    processes,
+    repetitions,
+)
 from app.errors import UserError
 from app.scene.model import scene_names
 
@@ -35,7 +43,7 @@ def register(kinds) -> None:
         help=f"comma-separated; also ours:SAMPLER[:full] and {', '.join(MORE_METHODS)}",
     )
     p.add_argument("--seeds", type=repetitions, default=20, help="runs 0..N-1 per scene and method")
-    p.add_argument("--budget", type=positive_float, default=10.0, help="seconds per run to the first solution")
+    p.add_argument("--budget", type=budget_seconds, default=10.0, help="seconds per run to the first solution")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument(
         "--workers",

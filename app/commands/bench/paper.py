@@ -17,6 +17,7 @@ from app.bench.paper import (
     Config,
     build_report,
     check_folder,
+    check_steps,
     export_trials,
     import_trials,
     run_sweeps,
@@ -142,6 +143,8 @@ def run(args) -> int:
     outputs = (folder / STORE, folder / "report.md", folder / TRIALS_CSV)
     check_outputs(creating_folders=outputs + ((Path(args.ompl_db),) if args.ompl_db else ()))
     check_folder(folder, args.report_only)
+    if not args.report_only:
+        check_steps(config)
     scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder.mkdir(parents=True, exist_ok=True)
     store = ResultStore(folder / STORE)
