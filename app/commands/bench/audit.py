@@ -29,7 +29,9 @@ def register(kinds) -> None:
     p = kinds.add_parser(
         "audit", help="the soak: random problems re-checked by an independent checker, and the bad-input table"
     )
-    p.add_argument("--problems", type=repetitions, default=2000, help="problems in all, shared out over the scenes")
+    p.add_argument(
+        "--problems", type=repetitions, default=2000, help="problems in all, shared out over the scenes (default 2000)"
+    )
     p.add_argument("--seed", type=seed, default=0, help="seeds the problems' starts and goals")
     p.add_argument(
         "--scenes", type=names_from(scene_names(), "scene"), default=",".join(scene_names()), help="comma-separated"
