@@ -101,10 +101,10 @@ def check_input(path: str | os.PathLike, kind: str) -> Path:
     file = Path(path)
     try:
         size = file.stat().st_size
-    except OSError as exc:
-        if exc.errno == errno.ENAMETOOLONG:
-            raise UserError(f"{kind} not found: {_shortened(path)}: {exc.strerror}") from None
-        raise UserError(f"{kind} not found: {path}") from None
+    except (FileNotFoundError, NotADirectoryError):
+        raise UserError(f"{kind} not found: {_shortened(path)}") from None
+    except OSError as exc:  # a name too long, no permission, ...
+        raise UserError(f"cannot read {kind} {_shortened(path)}: {exc.strerror or exc}") from None
     if not file.is_file():
         raise UserError(f"{kind} {path} is not a file")
     limit = INPUT_LIMITS[kind]

@@ -197,6 +197,7 @@ ROWS = [
     (["plan", "--robot", "{huge_mesh}", *MESH_ROBOT], 2, "huge.obj: coordinates up to 1e+30; the limit is 1e+06"),
     (["plan", "--robot", "{cube_mesh}", "--env", "{nan_mesh}", *MESH_ROBOT], 2, "nan.obj: vertex 8 has a coordinate"),
     (["view", "bar", "--trajectory", "{dir}", "--html", "{out}/x.html"], 2, "is not a file"),
+    (["view", "bar", "--trajectory", "{long}", "--html", "{out}/x.html"], 2, "cannot read trajectory file"),
     (["view", "tunnel", "--trajectory", "{maze_motion}", "--html", "{out}/x.html"], 2, "scene 'maze', not of 'tunnel'"),
     (["view", "maze", "--trajectory", "{renamed_motion}", "--html", "{out}/x.html"], 2, "joint 4 is 'heading'"),
 ]
