@@ -7,10 +7,10 @@ Rows hold placeholders for files `prepare` makes in a folder, which is the worki
 output path (bench --store out/...) written by mistake is seen too: {file} an existing file, {dir} an existing
 folder, {out} an empty folder, {long} a path in {out} whose file name is longer than a filesystem allows, {foreign} a
 folder of someone else's files, {other_db} another program's SQLite database; scene files {nan_weights} (a NaN
-weight), {inverted_box} (a passage box with lo > hi), {negative_velocity}, {zero_acceleration} (limits) and
-{big_scene} (a list past the size limit); meshes {stl} (garbage), {cube_mesh} (a cube), {nan_mesh} (a NaN vertex),
-{flat_mesh} (collinear vertices) and {huge_mesh} (1e30 coordinates); trajectories {maze_motion} (of scene maze) and
-{renamed_motion} (its last joint renamed).
+weight), {inverted_box} (a passage box with lo > hi), {negative_velocity}, {zero_acceleration} (limits), {huge_step}
+(a step longer than the diagonal) and {big_scene} (a list past the size limit); meshes {stl} (garbage), {cube_mesh}
+(a cube), {nan_mesh} (a NaN vertex), {flat_mesh} (collinear vertices) and {huge_mesh} (1e30 coordinates);
+trajectories {maze_motion} (of scene maze) and {renamed_motion} (its last joint renamed).
 
 Paths that cannot be written are a file used as a folder, a folder used as a file, /proc and /sys and over-long names:
 the tests run as root in CI, where a write-protected folder stays writable.
@@ -193,6 +193,7 @@ ROWS = [
     (["plan", "{inverted_box}"], 2, "passage box 1 needs finite lo <= hi"),
     (["plan", "{negative_velocity}"], 2, "'velocity_limits' must be positive, item 9"),
     (["plan", "{zero_acceleration}"], 2, "'acceleration_limits' must be positive, item 9"),
+    (["sample", "{huge_step}", "--sampler", "rws"], 2, "huge_step.yaml: step 1e+300 is longer than the scene's"),
     (["plan", "--robot", "{flat_mesh}", *MESH_ROBOT], 2, "flat.obj: every triangle has zero area"),
     (["plan", "--robot", "{huge_mesh}", *MESH_ROBOT], 2, "huge.obj: coordinates up to 1e+30; the limit is 1e+06"),
     (["plan", "--robot", "{cube_mesh}", "--env", "{nan_mesh}", *MESH_ROBOT], 2, "nan.obj: vertex 8 has a coordinate"),
@@ -258,6 +259,7 @@ def prepare(folder: Path) -> dict[str, Path]:
         "inverted_box": bar.replace("{lo: [45, 46, -1], hi: [55, 54, 1]}", "{lo: [55, 46, -1], hi: [45, 54, 1]}"),
         "negative_velocity": bar + "velocity_limits: [1, 1, 1, 1, 1, 1, 1, 1, -1]\n",
         "zero_acceleration": bar + "acceleration_limits: [1, 1, 1, 1, 1, 1, 1, 1, 0]\n",
+        "huge_step": bar + "step: 1e300\n",
     }
     for name, text in scenes.items():
         assert text != bar, name  # the shipped file still has what the edit changes
@@ -291,6 +293,7 @@ _FILES = {
     "inverted_box": "inverted_box.yaml",
     "negative_velocity": "negative_velocity.yaml",
     "zero_acceleration": "zero_acceleration.yaml",
+    "huge_step": "huge_step.yaml",
     "big_scene": "big.yaml",
     "cube_mesh": "cube.obj",
     "nan_mesh": "nan.obj",

@@ -14,6 +14,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import check_input
+from app.scene.cspace import ConfigurationSpace
 
 # pydrake is imported inside the functions that use it, so that importing the package (as the command line does)
 # does not load Drake.
@@ -230,6 +231,11 @@ class Scene:
         if not (problem.step >= 0 and math.isfinite(problem.step)):
             raise UserError(f"bad scene file {self.path.name}: step must be a non-negative number")
         self.step = float(problem.step) or None
+        if self.step:
+            try:
+                ConfigurationSpace.of(self).check_step(self.step)
+            except UserError as exc:
+                raise UserError(f"bad scene file {self.path.name}: {exc}") from None
         model_velocity = self.plant.GetVelocityUpperLimits()
         self.velocity_limits = self._vector("velocity_limits", problem.velocity_limits, model_velocity)
         self.acceleration_limits = self._vector(
