@@ -195,6 +195,7 @@ ROWS = [
     (["plan", "{zero_acceleration}"], 2, "'acceleration_limits' must be positive, item 9"),
     (["sample", "{huge_step}", "--sampler", "rws"], 2, "huge_step.yaml: step 1e+300 is longer than the scene's"),
     (["plan", "--robot", "{flat_mesh}", *MESH_ROBOT], 2, "flat.obj: every triangle has zero area"),
+    (["plan", "--robot", "{cube_mesh}", *MESH_ROBOT, "--resolution", "1e9"], 2, "to the diagonal (25.6), got 1e+09"),
     (["plan", "--robot", "{huge_mesh}", *MESH_ROBOT], 2, "huge.obj: coordinates up to 1e+30; the limit is 1e+06"),
     (["plan", "--robot", "{cube_mesh}", "--env", "{nan_mesh}", *MESH_ROBOT], 2, "nan.obj: vertex 8 has a coordinate"),
     (["view", "bar", "--trajectory", "{dir}", "--html", "{out}/x.html"], 2, "is not a file"),

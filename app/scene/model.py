@@ -221,11 +221,12 @@ class Scene:
         self.start = self._vector("start", problem.start, None)
         self.goal = self._vector("goal", problem.goal, None)
         diagonal = float(np.linalg.norm((self.upper - self.lower) * self.weights))
-        if not (math.isfinite(problem.resolution) and problem.resolution >= MIN_RESOLUTION * diagonal):
-            # Edges are checked at points this far apart: a finer step makes an edge check of millions of points.
+        # Edges are checked at points this far apart: a finer step makes an edge check of millions of points, one
+        # longer than the diagonal checks every edge at its two ends only.
+        if not (math.isfinite(problem.resolution) and MIN_RESOLUTION * diagonal <= problem.resolution <= diagonal):
             raise UserError(
-                f"bad scene file {self.path.name}: resolution must be a finite number of at least "
-                f"{MIN_RESOLUTION:g} x the bounds' diagonal ({MIN_RESOLUTION * diagonal:.3g})"
+                f"bad scene file {self.path.name}: resolution must be from {MIN_RESOLUTION:g} x the bounds' diagonal "
+                f"({MIN_RESOLUTION * diagonal:.3g}) to the diagonal ({diagonal:.3g}), got {problem.resolution:g}"
             )
         self.resolution = float(problem.resolution)
         if not (problem.step >= 0 and math.isfinite(problem.step)):
