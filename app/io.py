@@ -23,15 +23,16 @@ from app.errors import UserError
 # Kernel pseudo-filesystems: a write there is never a file a user gets back (and may change the running system).
 _SYSTEM_FOLDERS = (Path("/proc"), Path("/sys"), Path("/dev"))
 
-# The largest file of each kind a reader takes (bytes): far above any real one (the shipped scene files are a few
-# kB, the UR3's meshes 2 MB, a 60 s trajectory sampled every 4 ms 20 MB), far below what would take minutes to parse.
+# The largest file of each kind a reader takes (bytes): far above any real one (the shipped scene and robot files are
+# a few kB, the committed paper trials 3.6 MB, a 60 s trajectory of 9 joints sampled every 4 ms about 8 MB), far
+# below what would take minutes and gigabytes to parse.
 INPUT_LIMITS = {
     "scene file": 1 << 20,  # problem files and custom scene files (YAML)
     "model directives": 1 << 20,
     "SRDF file": 16 << 20,
     "model file": 64 << 20,  # URDF, SDF
-    "mesh file": 256 << 20,
-    "trajectory file": 256 << 20,
+    "mesh file": 64 << 20,
+    "trajectory file": 64 << 20,
     "results store": 8 << 30,  # SQLite: read row by row, never whole
     "trials file": 256 << 20,  # trials.csv.gz (compressed)
 }
