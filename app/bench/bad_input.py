@@ -317,9 +317,13 @@ def arguments(argv: list[str], places: dict) -> list[str]:
     return [a.format(**places) for a in argv]
 
 
-def files(folder: Path) -> dict[str, int]:
-    """Every file and folder under `folder` (relative path -> size), to see what a run wrote."""
-    return {str(p.relative_to(folder)): p.stat().st_size for p in Path(folder).rglob("*")}
+def files(folder: Path) -> dict[str, tuple[int, int] | None]:
+    """Every file and folder under `folder`: relative path -> a file's size and modification time (None for a
+    folder, whose time changes with its files), to see what a run wrote, changed or removed."""
+    return {
+        str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns) if p.is_file() else None
+        for p in Path(folder).rglob("*")
+    }
 
 
 def offline_drake_cache(cache: Path) -> Path:
@@ -379,7 +383,7 @@ def run_case(argv: list[str], timeout: float = 60.0) -> dict:
             code, stderr = None, exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else ""
         seconds = time.perf_counter() - started
         after = files(folder)
-    written = sorted(name for name in after.keys() | before.keys() if after.get(name) != before.get(name))
+    written = sorted(name for name in after.keys() ^ before.keys() | {n for n in after if after[n] != before.get(n)})
     lines = stderr.strip().splitlines()
     return {
         "exit_code": code,
