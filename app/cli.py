@@ -64,6 +64,17 @@ def join_negative_values(argv: list[str]) -> list[str]:
     return joined
 
 
+def refuse_empty_values(argv: list[str]) -> None:
+    """An empty argument ("--out ''", "--robot=", a blank scene) is a slip (an unset shell variable), never a value
+    of ours: refused, where argparse would take it and the command would quietly act as if the flag were not given."""
+    for i, token in enumerate(argv):
+        flag, equals, value = token.partition("=") if token.startswith("--") else ("", "", token)
+        if equals and not value.strip():
+            raise UserError(f"argument {flag}: empty value")
+        if not flag and not token.strip():
+            raise UserError(f"empty argument after {argv[i - 1]}" if i else "empty first argument")
+
+
 def exit_code(exc: BaseException) -> int:
     """The exit code of a failure: that of the nearest class of `exc` in EXIT_CODES."""
     return next(EXIT_CODES[cls] for cls in type(exc).__mro__ if cls in EXIT_CODES)
@@ -74,6 +85,7 @@ def main(argv=None) -> int:
     stdout: {"success": false, "error": {"code", "message"}, "exit_code"}."""
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
+        refuse_empty_values(argv)
         args = build_parser().parse_args(join_negative_values(argv))
         code = int(args.func(args) or 0)
         sys.stdout.flush()  # here, so that a closed pipe is met inside this try, not at the interpreter's exit

@@ -1,10 +1,17 @@
-"""The one way the project writes a file: checked before any work, written through a temporary file beside it and
-renamed into place, so a reader (or a failed run) never leaves half a file. Inside `all_or_nothing()` the renames
-wait for the end of the block, so a command's outputs appear together, or none of them when it fails."""
+"""The one way the project writes a file, and the one check on a file it reads.
+
+Writing: checked before any work, written through a temporary file beside it and renamed into place, so a reader
+(or a failed run) never leaves half a file. Inside `all_or_nothing()` the renames wait for the end of the block, so a
+command's outputs appear together, or none of them when it fails.
+
+Reading: `check_input` refuses a file larger than its kind's limit (INPUT_LIMITS) before any parser sees it, so a
+huge file is one line at once instead of minutes of parsing and gigabytes of memory.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
 import tempfile
@@ -16,6 +23,20 @@ from app.errors import UserError
 
 # Kernel pseudo-filesystems: a write there is never a file a user gets back (and may change the running system).
 _SYSTEM_FOLDERS = (Path("/proc"), Path("/sys"), Path("/dev"))
+
+# The largest file of each kind a reader takes (bytes): far above any real one (the shipped scene and robot files are
+# a few kB, the committed paper trials 3.6 MB, a 60 s trajectory of 9 joints sampled every 4 ms about 8 MB), far
+# below what would take minutes and gigabytes to parse.
+INPUT_LIMITS = {
+    "scene file": 1 << 20,  # problem files and custom scene files (YAML)
+    "model directives": 1 << 20,
+    "SRDF file": 16 << 20,
+    "model file": 64 << 20,  # URDF, SDF
+    "mesh file": 64 << 20,
+    "trajectory file": 64 << 20,
+    "results store": 8 << 30,  # SQLite: read row by row, never whole
+    "trials file": 256 << 20,  # trials.csv.gz (compressed)
+}
 
 # A folder is written inside a temporary folder of its own, named with this ending, under its own name (a ROS 2 bag
 # names its files after its folder).
@@ -32,6 +53,7 @@ def check_output(path: str | os.PathLike, *, make_folders: bool = False) -> Path
     for system in _SYSTEM_FOLDERS:
         if absolute == system or system in absolute.parents:
             raise UserError(f"cannot write {path}: {system} is a system folder, not a place for output files")
+    _check_name_length(path, absolute)
     if target.is_dir():
         raise UserError(f"cannot write {path}: it is a folder")
     folder = target.parent
@@ -45,6 +67,63 @@ def check_output(path: str | os.PathLike, *, make_folders: bool = False) -> Path
     if not os.access(folder, os.W_OK) or (target.exists() and not os.access(target, os.W_OK)):
         raise UserError(f"cannot write {path}: permission denied")
     return target
+
+
+def _check_name_length(path, absolute: Path) -> None:
+    """A path the filesystem cannot name (ENAMETOOLONG), refused up front: a folder name longer than NAME_MAX, a
+    file name whose temporary name (write_atomically's) would be, or the whole longer than PATH_MAX (as the nearest
+    existing folder's filesystem says)."""
+    existing = absolute
+    while not os.path.exists(existing) and existing != existing.parent:  # (os.path.exists: False on ENAMETOOLONG)
+        existing = existing.parent
+    name_max, path_max = 255, 4096
+    with contextlib.suppress(OSError, ValueError):
+        name_max = os.pathconf(existing, "PC_NAME_MAX")
+        path_max = os.pathconf(existing, "PC_PATH_MAX")
+    # mkstemp puts 8 random characters between the temporary name's prefix and suffix.
+    file_max = name_max - 8 - len(os.fsencode("".join(_temporary_affixes(absolute)))) + len(os.fsencode(absolute.name))
+    folders = max((len(os.fsencode(part)) for part in absolute.parent.parts), default=0)
+    if folders > name_max or len(os.fsencode(absolute.name)) > file_max or len(os.fsencode(str(absolute))) >= path_max:
+        raise UserError(
+            f"cannot write {_shortened(path)}: {os.strerror(errno.ENAMETOOLONG)} (here at most {name_max} bytes per "
+            f"folder name, {file_max} for the file name, {path_max - 1} in all)"
+        )
+
+
+def _temporary_affixes(target: Path) -> tuple[str, str]:
+    """The prefix and suffix of write_atomically's temporary file for `target` (hidden, beside it)."""
+    return f".{target.name}.", f".tmp{target.suffix}"
+
+
+def _shortened(path) -> str:
+    text = str(path)
+    return text if len(text) <= 80 else f"{text[:40]}...{text[-30:]}"
+
+
+def check_input(path: str | os.PathLike, kind: str) -> Path:
+    """An input file of `kind` (a key of INPUT_LIMITS), before it is parsed: it exists, is a file and is no larger
+    than its kind's limit; else one UserError naming the file and the limit."""
+    file = Path(path)
+    try:
+        size = file.stat().st_size
+    except (FileNotFoundError, NotADirectoryError):
+        raise UserError(f"{kind} not found: {_shortened(path)}") from None
+    except OSError as exc:  # a name too long, no permission, ...
+        raise UserError(f"cannot read {kind} {_shortened(path)}: {exc.strerror or exc}") from None
+    if not file.is_file():
+        raise UserError(f"{kind} {path} is not a file")
+    limit = INPUT_LIMITS[kind]
+    if size > limit:
+        said = _size(size) if _size(size) != _size(limit) else f"{size:,} bytes"  # (just over: the bytes tell)
+        raise UserError(f"{kind} {file.name} is too large: {said}; the limit is {_size(limit)}")
+    return file
+
+
+def _size(n: int) -> str:
+    for unit, scale in (("GB", 1 << 30), ("MB", 1 << 20), ("kB", 1 << 10)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n} bytes"
 
 
 @contextlib.contextmanager
@@ -74,7 +153,8 @@ def write_atomically(path: str | os.PathLike, content: str | bytes | Callable[[P
     all_or_nothing() it appears when the block ends."""
     target = check_output(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}", dir=target.parent)
+        prefix, suffix = _temporary_affixes(target)
+        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=target.parent)
     except OSError as exc:
         raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:

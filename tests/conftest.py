@@ -2,13 +2,11 @@
 
 Drake 1.51 registers the remote package `drake_models` in every PackageMap and, with networking off, refuses to
 construct one unless the download cache already holds it. We never use drake_models, so the tests give Drake a
-private cache with an empty stand-in: a stray package://drake_models/... then fails with "file not found",
-immediately and offline, instead of downloading.
+private cache with an empty stand-in (app.bench.bad_input.offline_drake_cache, which `bench audit` also uses): a
+stray package://drake_models/... then fails with "file not found", immediately and offline, instead of downloading.
 """
 
 import atexit
-import hashlib
-import json
 import os
 import subprocess
 import sys
@@ -18,29 +16,11 @@ from pathlib import Path
 import pytest
 
 import app  # noqa: F401  (before pydrake: it sets OpenMP's wait policy, see app/__init__.py)
+from app.bench.bad_input import offline_drake_cache
 from app.cli import main
 
-
-def _offline_drake_cache() -> Path:
-    import pydrake
-
-    manifest = Path(pydrake.__file__).parent / "share/drake/multibody/parsing/drake_models.json"
-    remote = json.loads(manifest.read_text())
-    # Drake 1.51 names a cached package "<archive sha256>-<sha256 of strip_prefix>".
-    key = f"{remote['sha256']}-{hashlib.sha256(remote['strip_prefix'].encode()).hexdigest()}"
-    cache = Path(tempfile.mkdtemp(prefix="npp-drake-cache-"))
-    package = cache / "drake" / "package_map" / key
-    package.mkdir(parents=True)
-    (package / "package.xml").write_text(
-        '<?xml version="1.0"?><package format="2"><name>drake_models</name><version>0</version>'
-        "<description>offline stand-in</description><maintainer email='x@example.com'>x</maintainer>"
-        "<license>none</license></package>"
-    )
-    return cache
-
-
 os.environ["DRAKE_ALLOW_NETWORK"] = "none"
-os.environ["XDG_CACHE_HOME"] = str(_offline_drake_cache())
+os.environ["XDG_CACHE_HOME"] = str(offline_drake_cache(Path(tempfile.mkdtemp(prefix="npp-drake-cache-"))))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 

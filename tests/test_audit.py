@@ -1,9 +1,21 @@
 """The audit (app.bench.audit): its re-check counts a trajectory through an obstacle, its densified states follow
 the motion, and a short run's table has every field, with no colliding state among the planner's trajectories."""
 
-import numpy as np
+import json
 
-from app.bench.audit import DIVISOR, Recheck, audit_trajectory, measure, states
+import numpy as np
+import pytest
+
+from app.bench.audit import (
+    CHECKS,
+    DIVISOR,
+    Recheck,
+    audit_trajectory,
+    bad_input_counts,
+    measure,
+    measure_bad_input,
+    states,
+)
 from app.motion.timing import parameterize
 
 
@@ -42,7 +54,7 @@ def test_the_states_follow_the_motion_finely(oracles):
 
 def test_a_short_audit_has_every_field_and_no_colliding_state(tmp_path):
     scenes = ["maze", "joint3d"]
-    table, _ = measure(scenes, 2, seed=1, budget=5.0, store=tmp_path / "audit.sqlite")
+    table, _ = measure(scenes, 2, seed=1, checks=CHECKS, store=tmp_path / "audit.sqlite")
     assert [row["scene"] for row in table] == [*scenes, "total"]
     fields = {
         "problems",
@@ -62,3 +74,42 @@ def test_a_short_audit_has_every_field_and_no_colliding_state(tmp_path):
     assert total["colliding_states"] == 0 and total["inexact_endpoints"] == 0
     # Toppra's limits are checked at its grid points (and app.motion.timing's between them): 1e-4 covers what is left.
     assert 0.5 < total["worst_limit_ratio"] <= 1 + 1e-4
+
+
+def test_a_soak_run_again_reuses_its_problems(cli, tmp_path):
+    """Problems are rows of the store: the same soak again plans nothing and answers the same table."""
+    argv = ["bench", "audit", "--scenes", "bar-3link,maze", "--problems", "2", "--no-bad-input", "--json"]
+    argv += ["--store", tmp_path / "audit.sqlite"]
+    first = json.loads(cli(*argv).stdout)
+    assert first["checks"] == CHECKS and first["bad_input"] is None
+    assert [row["problems"] for row in first["audit"]] == [1, 1, 2] and first["reused"]["reused"] == 0
+    again = json.loads(cli(*argv).stdout)
+    assert again["reused"]["reused"] == 2 and again["audit"] == first["audit"]
+
+
+def test_the_bad_input_audit_tells_a_behaved_case_from_one_that_wrote_a_file(tmp_path):
+    """Each case runs as its own process; one that succeeds and writes a picture where a refusal was expected is
+    counted as such, and a second audit reuses the stored cases."""
+    rows = [
+        (["plan", "bar", "--step", "1e308"], 2, "longer than the scene's diagonal"),
+        (["show", "bar", "--png", "{out}/bar.png"], 2, "a refusal that does not come"),
+    ]
+    table, reuse = measure_bad_input(tmp_path / "audit.sqlite", rows=rows)
+    assert reuse.reused == 0
+    refused, drawn = table
+    assert refused["exit_code"] == 2 and refused["stderr_lines"] == 1 and "diagonal" in refused["first_line"]
+    assert refused["written"] == [] and not refused["traceback"]  # (behaved also asks for an answer within 10 s)
+    assert drawn["exit_code"] == 0 and drawn["written"] == ["out/bar.png"] and not drawn["behaved"]
+    counts = bad_input_counts(table)
+    assert (counts["cases"], counts["wrong_exit_code"], counts["wrote_files"]) == (2, 1, 1)
+    assert counts["tracebacks"] == counts["hangs"] == 0
+    again, reuse = measure_bad_input(tmp_path / "audit.sqlite", rows=rows)
+    assert reuse.reused == 2 and again == table
+
+
+@pytest.mark.slow
+def test_every_bad_input_case_behaves_as_its_own_process(tmp_path):
+    """The whole table as `bench audit` runs it: every case answered in one line, with its exit code, nothing
+    written, no traceback, no hang."""
+    table, _ = measure_bad_input(tmp_path / "audit.sqlite", workers=2)
+    assert [case["command"] for case in table if not case["behaved"]] == []

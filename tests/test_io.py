@@ -1,9 +1,11 @@
 """app.io: output paths refused before any work, and a command's files written together or not at all."""
 
+import re
+
 import pytest
 
 from app.errors import UserError
-from app.io import all_or_nothing, check_output, write_atomically
+from app.io import INPUT_LIMITS, all_or_nothing, check_input, check_output, write_atomically
 
 
 def test_outputs_appear_together_when_the_block_ends(tmp_path):
@@ -50,3 +52,29 @@ def test_missing_folders_may_be_made_under_a_writable_one(tmp_path):
     with pytest.raises(UserError, match="is a file, not a folder"):
         check_output(tmp_path / "file" / "b" / "store.sqlite", make_folders=True)
     assert not (tmp_path / "a").exists()  # checking makes nothing
+
+
+def test_the_longest_file_name_that_fits_is_written_and_one_more_byte_is_refused(tmp_path):
+    """The name limit leaves room for the temporary file write_atomically renames into place: the longest name
+    allowed is written (so its temporary name fit too), one byte more is refused before anything is written."""
+    with pytest.raises(UserError, match=r"File name too long \(here at most 255 bytes per folder name") as refused:
+        check_output(tmp_path / ("a" * 250 + ".json"))
+    allowed = int(re.search(r", (\d+) for the file name", str(refused.value))[1])
+    longest = tmp_path / ("b" * (allowed - len(".json")) + ".json")
+    assert write_atomically(longest, "x").read_text() == "x"
+    with pytest.raises(UserError, match="File name too long"):
+        write_atomically(tmp_path / ("c" * (allowed + 1 - len(".json")) + ".json"), "x")
+    assert [p.name for p in tmp_path.iterdir()] == [longest.name]
+
+
+def test_an_input_over_its_limit_is_refused_before_it_is_read(tmp_path):
+    scene = tmp_path / "big.yaml"
+    scene.write_bytes(b"#" * (INPUT_LIMITS["scene file"] + 1))
+    with pytest.raises(UserError, match=r"scene file big.yaml is too large: 1,048,577 bytes; the limit is 1 MB"):
+        check_input(scene, "scene file")
+    scene.write_bytes(b"#" * INPUT_LIMITS["scene file"])
+    assert check_input(scene, "scene file") == scene
+    with pytest.raises(UserError, match="trajectory file not found"):
+        check_input(tmp_path / "none.json", "trajectory file")
+    with pytest.raises(UserError, match="is not a file"):
+        check_input(tmp_path, "trajectory file")

@@ -123,6 +123,30 @@ def test_tiny_paper_run_writes_the_report_and_resumes(tmp_path, capsys):
     assert runs == 4  # one OMPL run per stored trial
 
 
+def test_report_only_runs_no_trial_and_links_the_pictures_an_earlier_run_drew(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "paper"
+    assert main([*TINY, "--out", str(out)]) == 0
+    (out / "samples-bar-3link-rbbs.png").unlink()
+    before = {p.name for p in out.iterdir()}
+    store = ResultStore(out / "results.sqlite")
+    stored = store.count()
+    store.close()
+
+    def no_trials(*args, **kwargs):
+        raise AssertionError("--report-only ran a sampling trial")
+
+    monkeypatch.setattr(paper.sampling, "run_trial", no_trials)
+    monkeypatch.setattr(paper, "run_sweep", no_trials)
+    capsys.readouterr()
+    assert main([*TINY, "--out", str(out), "--report-only"]) == 0
+    assert "0 trials run" in capsys.readouterr().out
+    assert {p.name for p in out.iterdir()} == before  # the missing picture is not drawn again
+    assert ResultStore(out / "results.sqlite").count() == stored
+    report = (out / "report.md").read_text()
+    assert "](samples-bar-3link-lfbs.png)" in report and "samples-bar-3link-rbbs.png" not in report
+    assert "1 of 2 pictures as an earlier run drew them; 1 not drawn" in report
+
+
 def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
     from app.bench.sampling import run_trial_spec
 

@@ -36,16 +36,17 @@ def straight_trajectory(oracle, duration=2.0):
     return np.linspace(0.0, duration, len(Q)), Q
 
 
-def trajectory_doc(times, positions, narrow=None, on_path=None, path=None) -> dict:
-    """A trajectory file's object (app/motion/trajectory.py's schema) for a motion through `positions`."""
+def trajectory_doc(times, positions, narrow=None, on_path=None, path=None, scene=None) -> dict:
+    """A trajectory file's object (app/motion/trajectory.py's schema) for a motion through `positions`; of `scene`
+    (a Scene: its name and coordinate names), which `view` asks for, else of a made-up one."""
     from app.motion.trajectory import SCHEMA
 
     times, positions = np.asarray(times, float), np.asarray(positions, float)
     waypoints = positions[[0, -1]] if path is None else np.asarray(path, float)
     doc = {
         "schema": SCHEMA,
-        "scene": "test",
-        "joint_names": [f"j{i}" for i in range(positions.shape[1])],
+        "scene": scene.name if scene else "test",
+        "joint_names": list(scene.coordinate_names) if scene else [f"j{i}" for i in range(positions.shape[1])],
         "time_from_start": times.tolist(),
         "positions": positions.tolist(),
         "velocities": np.zeros_like(positions).tolist(),
@@ -69,7 +70,9 @@ def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, ora
     times, Q = straight_trajectory(oracle, duration=2.0)
     narrow = Q[::3]
     on_path = [bool(i % 2) for i in range(len(narrow))]
-    trajectory = write_trajectory(tmp_path / "t.json", times, Q, narrow=narrow, on_path=on_path, path=Q[[0, -1]])
+    trajectory = write_trajectory(
+        tmp_path / "t.json", times, Q, narrow=narrow, on_path=on_path, path=Q[[0, -1]], scene=oracle.scene
+    )
     page = tmp_path / "bar.html"
 
     result = cli("view", "bar", "--trajectory", trajectory, "--html", page)
@@ -198,7 +201,7 @@ def test_meshcat_disabled_by_the_environment_is_a_clear_error(tmp_path, oracles,
     """conftest sets DRAKE_ALLOW_NETWORK=none: the viewer says how to allow Meshcat rather than overriding it."""
     assert os.environ["DRAKE_ALLOW_NETWORK"] == "none"
     times, Q = straight_trajectory(oracles("bar"))
-    trajectory = write_trajectory(tmp_path / "t.json", times, Q)
+    trajectory = write_trajectory(tmp_path / "t.json", times, Q, scene=oracles("bar").scene)
     page = tmp_path / "out.html"
     line = one_line_error(cli("view", "bar", "--trajectory", trajectory, "--html", page), 2)
     assert "DRAKE_ALLOW_NETWORK" in line and "meshcat" in line

@@ -12,16 +12,25 @@ micrometres or microradians at h = SAMPLE_PERIOD. No shape is padded.
 Start and goal must be met exactly, at rest, and velocities and accelerations stay within the scene's limits.
 
 Problems are trials of experiment "audit" in the results store (a killed run resumes); problem i of a scene draws
-its start and goal, free and within bounds, from numpy's generator seeded with (seed, scene's index, i).
+its start and goal, free and within bounds, from numpy's generator seeded with (seed, scene's index, i). Each plans
+under a budget of collision checks, not seconds, so the same problem gets the same answer on any machine at any
+load.
+
+With it, the bad-input table (app.bench.bad_input.ROWS): each row run as `python -m app` in a fresh folder, with its
+exit code, first stderr line, files written and seconds, and whether it behaved (`behaved`). Its rows are trials of
+experiment "bad-input" in the same store.
 """
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from tqdm import tqdm
 
+from app.bench import bad_input
 from app.bench.runner import sweep
-from app.bench.store import Reuse, TrialSpec
+from app.bench.store import ResultStore, Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath
 from app.planning.planner import PlanSettings, default_step, plan
@@ -38,6 +47,12 @@ LIMIT_SLACK = 1e-6
 ENDPOINT_TOLERANCE = 1e-9
 # Tries at drawing a free start or goal before a problem is given up as undrawable.
 DRAWS = 1000
+# Collision checks a problem may spend (the default of --checks).
+CHECKS = 100_000
+# A bad-input case must be answered within this many seconds (the issue's "hang" is > 10 s before the first line);
+# one still running after CASE_TIMEOUT is killed and counted as a hang.
+ANSWER_SECONDS = 10.0
+CASE_TIMEOUT = 60.0
 
 
 class Recheck:
@@ -175,18 +190,23 @@ def problem(oracle, seed: int, index: int) -> tuple[np.ndarray, np.ndarray] | No
 
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
-    """One audit problem (experiment "audit", seed = problem index; params: base seed and budget in seconds)."""
+    """One audit problem (experiment "audit", seed = problem index; params: base seed and the check budget)."""
     p = spec.params
     endpoints = problem(oracle, int(p["seed"]), spec.seed)
     if endpoints is None:
         return {"drawn": False, "solved": False}
     start, goal = endpoints
-    settings = PlanSettings(seed=spec.seed, budget=Budget(seconds=float(p["budget"])), dt=SAMPLE_PERIOD, step=spec.step)
-    clock = time.perf_counter()
+    settings = PlanSettings(seed=spec.seed, budget=Budget(checks=int(p["checks"])), dt=SAMPLE_PERIOD, step=spec.step)
+    clock, checks = time.perf_counter(), oracle.checks
     try:
         result = plan(oracle, settings, start=start, goal=goal)
     except NoPath:
-        return {"drawn": True, "solved": False, "seconds": time.perf_counter() - clock}
+        return {
+            "drawn": True,
+            "solved": False,
+            "seconds": time.perf_counter() - clock,
+            "checks": oracle.checks - checks,
+        }
     seconds = time.perf_counter() - clock
     trajectory = result.trajectory
     check = audit_trajectory(_recheck(spec.scene), oracle.space, trajectory, start, goal, oracle.scene)
@@ -195,16 +215,17 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         "solved": True,
         "certified": bool(trajectory.certified),
         "seconds": seconds,
+        "checks": result.collision_checks,
         "duration": trajectory.duration,
         **check,
     }
 
 
-def specs(scenes: list[str], problems: int, seed: int, budget: float) -> list[TrialSpec]:
+def specs(scenes: list[str], problems: int, seed: int, checks: int) -> list[TrialSpec]:
     """`problems` in all, shared out over the scenes as evenly as can be, taking the scenes in turn (so a run cut
-    short has audited every scene alike)."""
+    short has audited every scene alike); each may spend `checks` collision checks."""
     steps = {scene: default_step(Scene(scene)) for scene in scenes}
-    params = {"seed": seed, "budget": budget}
+    params = {"seed": seed, "checks": checks}
     order = [(i, scene) for i in range(math.ceil(problems / len(scenes))) for scene in scenes][:problems]
     return [TrialSpec("audit", scene, "default", steps[scene], i, params) for i, scene in order]
 
@@ -240,9 +261,78 @@ def summarise(rows: list[dict], scenes: list[str]) -> list[dict]:
 
 
 def measure(
-    scenes: list[str], problems: int, seed: int, budget: float, store, workers: int = 1, fresh: bool = False
+    scenes: list[str], problems: int, seed: int, checks: int, store, workers: int = 1, fresh: bool = False
 ) -> tuple[list[dict], Reuse]:
     """Run the audit problems `store` has no reusable row for and summarise all of them (see `summarise`); and what
     was reused."""
-    rows, reuse = sweep(specs(scenes, problems, seed, budget), store, workers=workers, desc="bench audit", fresh=fresh)
+    rows, reuse = sweep(specs(scenes, problems, seed, checks), store, workers=workers, desc="bench audit", fresh=fresh)
     return summarise(rows, scenes), reuse
+
+
+# ---- the bad-input table ------------------------------------------------------------------------------------------
+def bad_input_specs(rows=bad_input.ROWS) -> list[TrialSpec]:
+    """One trial of experiment "bad-input" per row of the table: what it runs and what it must answer."""
+    return [
+        TrialSpec("bad-input", "-", " ".join(argv), 0.0, 0, {"argv": argv, "exit_code": code, "fragment": fragment})
+        for argv, code, fragment in rows
+    ]
+
+
+def behaved(case: dict, expected: dict) -> bool:
+    """A case behaved: the expected exit code, one line on stderr holding the expected fragment, no traceback, an
+    answer within ANSWER_SECONDS, nothing written."""
+    return (
+        case["exit_code"] == expected["exit_code"]
+        and case["stderr_lines"] == 1
+        and expected["fragment"] in case["first_line"]
+        and not case["traceback"]
+        and case["seconds"] <= ANSWER_SECONDS
+        and not case["written"]
+    )
+
+
+def measure_bad_input(store, workers: int = 1, fresh: bool = False, rows=bad_input.ROWS) -> tuple[list[dict], Reuse]:
+    """Run the table's cases `store` has no reusable row for (`workers` at a time, each its own process), and every
+    case's answer: command, expected and actual exit code, first stderr line, files written, seconds, behaved."""
+    cases = bad_input_specs(rows)
+    results = ResultStore(store)
+    try:
+        reuse = results.reuse(cases, fresh=fresh)
+        pending = results.pending(cases, fresh=fresh)
+        if pending:
+            with (
+                ThreadPoolExecutor(max_workers=workers) as pool,
+                tqdm(total=len(pending), desc="bad input", unit="case", dynamic_ncols=True) as progress,
+            ):
+                runs = pool.map(lambda spec: (spec, bad_input.run_case(spec.params["argv"], CASE_TIMEOUT)), pending)
+                for spec, case in runs:
+                    results.add(spec, case)
+                    progress.update()
+        order = {spec.method: i for i, spec in enumerate(cases)}
+        stored = sorted(results.rows_for(cases), key=lambda r: order[r["method"]])
+    finally:
+        results.close()
+    table = [
+        {
+            "command": r["method"],
+            "expected_exit_code": r["params"]["exit_code"],
+            **r["metrics"],
+            "behaved": behaved(r["metrics"], r["params"]),
+        }
+        for r in stored
+    ]
+    return table, reuse
+
+
+def bad_input_counts(table: list[dict]) -> dict:
+    """The table's totals: cases, behaved, tracebacks, hangs (killed after CASE_TIMEOUT), slow answers (over
+    ANSWER_SECONDS), wrong exit codes, cases that wrote files."""
+    return {
+        "cases": len(table),
+        "behaved": sum(c["behaved"] for c in table),
+        "tracebacks": sum(c["traceback"] for c in table),
+        "hangs": sum(c["exit_code"] is None for c in table),
+        "slow": sum(c["seconds"] > ANSWER_SECONDS for c in table),
+        "wrong_exit_code": sum(c["exit_code"] != c["expected_exit_code"] for c in table),
+        "wrote_files": sum(bool(c["written"]) for c in table),
+    }

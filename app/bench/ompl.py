@@ -24,12 +24,13 @@ import time
 
 import numpy as np
 
+from app.bench.plan import scene_step
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath, UserError
 from app.motion.path import FINE, path_length
-from app.planning.planner import PlanSettings, default_step, plan
+from app.planning.planner import PlanSettings, plan
 from app.samplers import check_name
 from app.scene.model import Scene
 
@@ -163,7 +164,7 @@ def _ompl(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
 def specs(scenes, methods, seeds, budget, step) -> list[TrialSpec]:
     out = []
     for scene in scenes:
-        a = step or default_step(Scene(scene))
+        a = scene_step(scene, step)
         params = {"budget": budget, "protocol": PROTOCOL}
         out.extend(
             TrialSpec("ompl", scene, method, a, seed, dict(params)) for method in methods for seed in range(seeds)

@@ -34,10 +34,12 @@ import numpy as np
 
 from app.bench import jobs, sampling, uav
 from app.bench.claims import ALPHA, RULES, detectable_drop, judge, success_ci
+from app.bench.plan import scene_step
 from app.bench.runner import run_sweep
-from app.bench.store import ResultStore, TrialSpec
+from app.bench.store import ResultStore, TrialSpec, is_results_store
 from app.checking.oracle import CollisionOracle
-from app.io import write_atomically
+from app.errors import UserError
+from app.io import check_input, write_atomically
 from app.planning.planner import default_step
 from app.samplers import SAMPLERS
 from app.scene.model import Scene
@@ -152,10 +154,52 @@ def sweeps(config: Config) -> list[tuple[str, list[TrialSpec]]]:
     return out
 
 
+def check_steps(config: Config) -> None:
+    """Before any trial: every sampling scene is known and takes every step (a UserError names the first that is
+    not or does not), so a typo fails at once instead of in a worker after the store is made."""
+    scenes = (config.scenes if "sampling" in config.parts else []) + (TABLE1_SCENES if "table1" in config.parts else [])
+    for scene in dict.fromkeys(scenes):
+        for step in config.steps:
+            scene_step(scene, step)
+
+
 # ------------------------------------------------------------------------------------------ the committed trials
 
 TRIALS_CSV = "trials.csv.gz"
 CSV_COLUMNS = ["experiment", "scene", "method", "step", "seed", "params", "metrics", "code_version"]
+
+
+STORE = "results.sqlite"
+
+
+def results_in(folder: Path) -> bool:
+    """Whether `folder` holds results of `bench paper`: a results store, or a trials file with this CSV header."""
+    folder = Path(folder)
+    if is_results_store(folder / STORE):
+        return True
+    trials = folder / TRIALS_CSV
+    try:
+        with gzip.open(trials, "rt", newline="") as f:
+            return next(csv.reader([f.readline()]), None) == CSV_COLUMNS
+    except (OSError, EOFError, UnicodeDecodeError):
+        return False
+
+
+def check_folder(folder: Path, report_only: bool) -> None:
+    """Before any work: `folder` may receive a report. A new or empty folder, or one of bench paper's own (see
+    `results_in`); never another folder, whose files a report would overwrite. --report-only needs results there."""
+    folder = Path(folder)
+    has_results = folder.is_dir() and results_in(folder)
+    if report_only and not has_results:
+        raise UserError(
+            f"--report-only: {folder} holds no results of bench paper ({STORE} or {TRIALS_CSV}); it runs nothing, "
+            "so there is nothing to report"
+        )
+    if folder.is_dir() and not has_results and any(folder.iterdir()):
+        raise UserError(
+            f"--out {folder} is a folder of other files (no {STORE} or {TRIALS_CSV} of bench paper in it), which the "
+            "report would overwrite; name a new or empty folder"
+        )
 
 
 def export_trials(store: ResultStore, path: Path) -> Path:
@@ -183,7 +227,7 @@ def export_trials(store: ResultStore, path: Path) -> Path:
 def import_trials(store: ResultStore, path: Path) -> int:
     """Add the trials of an `export_trials` file that `store` lacks (a run resumed from committed results runs only
     the rest); returns how many were added."""
-    with gzip.open(path, "rt", newline="") as f:
+    with gzip.open(check_input(path, "trials file"), "rt", newline="") as f:
         rows = [
             {
                 **r,
@@ -305,7 +349,7 @@ def _figure_sample_pictures(scenes, samplers, max_checks, folder: Path) -> list[
         pictures = []
         for sampler in samplers:
             r = sampling.run_trial(oracle, sampler, step, 0, k=30, max_checks=max_checks, keep_samples=True)
-            name = f"samples-{scene}-{sampler}.png"
+            name = _picture_name(scene, sampler)
             note = "" if r["ok"] else f" — over the {max_checks}-check budget with {len(r['samples'])} of 30 samples"
             draw_samples(
                 oracle, r["samples"], str(folder / name), title=f"{scene}: {sampler}, step {step:g}, seed 0{note}"
@@ -351,8 +395,11 @@ def build_report(
     config: Config | None = None,
     pictures: bool = True,
     wall_seconds: float | None = None,
+    run_nothing: bool = False,
 ) -> Path:
-    """report.md and its figures from what the store holds (every row of every experiment in it)."""
+    """report.md and its figures from what the store holds (every row of every experiment in it). The sample
+    pictures (with `pictures` and a `config`) are drawn from new trials, or with `run_nothing` (--report-only)
+    linked as earlier runs left them in `folder`."""
     folder = Path(folder)
     stored = store.rows()
     rows = reading_rows(stored, "default")
@@ -366,7 +413,7 @@ def build_report(
     lines += _sampling_section(srows, summary, folder)
     lines += _table1_section(summary)
     if pictures and config is not None:
-        lines += _pictures_section(config, folder)
+        lines += _pictures_section(config, folder, run_nothing)
     lines += _prm_section(rows, folder)
     lines += _ur3_section(rows)
     return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
@@ -558,19 +605,42 @@ def _table1_section(summary: list[dict]) -> list[str]:
     return lines
 
 
-def _pictures_section(config: Config, folder: Path) -> list[str]:
-    """One seed's samples per scene and sampler of this invocation, drawn into `folder` (not read from the store)."""
+def _pictures_section(config: Config, folder: Path, run_nothing: bool) -> list[str]:
+    """One seed's samples per scene and sampler of this invocation, drawn into `folder` (not read from the store);
+    with `run_nothing`, the pictures earlier runs drew there, and a note for those missing."""
     lines = [
         "## Sample pictures (Figs. 3, 5, 6)",
         "",
         "Seed 0, K_c = 30 samples (red: in the passage). bar at step 2, the others at step 10.",
         "",
     ]
-    for title, items in _figure_sample_pictures(config.scenes, config.samplers, config.max_checks, folder):
-        lines += [f"### {title}", ""]
-        lines += [f"![{label}]({name})" for label, name in items]
-        lines.append("")
+    if run_nothing:
+        wanted = [
+            (scene, sampler, _picture_name(scene, sampler)) for scene in config.scenes for sampler in config.samplers
+        ]
+        found = [w for w in wanted if (folder / w[2]).is_file()]
+        missing = len(wanted) - len(found)
+        lines += [
+            f"Rebuilt with `--report-only`, which runs no trial: {len(found)} of {len(wanted)} pictures as an earlier "
+            "run drew them" + (f"; {missing} not drawn (a run without --report-only draws them)." if missing else "."),
+            "",
+        ]
+        sections = [
+            (f"{scene} (step {PICTURE_STEPS.get(scene, 10.0):g})", [(s, n) for sc, s, n in found if sc == scene])
+            for scene in config.scenes
+        ]
+    else:
+        sections = _figure_sample_pictures(config.scenes, config.samplers, config.max_checks, folder)
+    for title, items in sections:
+        if items:
+            lines += [f"### {title}", ""]
+            lines += [f"![{label}]({name})" for label, name in items]
+            lines.append("")
     return lines
+
+
+def _picture_name(scene: str, sampler: str) -> str:
+    return f"samples-{scene}-{sampler}.png"
 
 
 def _prm_section(rows, folder: Path) -> list[str]:

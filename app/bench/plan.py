@@ -16,6 +16,7 @@ from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath
 from app.planning.planner import DEFAULT_BUDGET, PlanSettings, default_step, plan
+from app.scene.cspace import ConfigurationSpace
 from app.scene.model import Scene
 
 COMPARED_SAMPLERS = ["uniform", "gaussian", "rbbs", "lfbs"]  # the default of `bench plan --samplers`
@@ -90,10 +91,17 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     }
 
 
+def scene_step(scene: str, step: float | None) -> float:
+    """The sampler step a benchmark uses in `scene`: `step` if given, checked against the scene before any trial
+    runs (a step longer than its diagonal never ends a walk), else the scene's default."""
+    model = Scene(scene)
+    return ConfigurationSpace.of(model).check_step(step) if step else default_step(model)
+
+
 def specs(scenes, samplers, seeds, params, step) -> list[TrialSpec]:
     out = []
     for scene in scenes:
-        a = step or default_step(Scene(scene))
+        a = scene_step(scene, step)
         out.extend(TrialSpec("prm", scene, m, a, seed, dict(params)) for m in samplers for seed in range(seeds))
     return out
 

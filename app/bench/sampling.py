@@ -53,7 +53,7 @@ def run_trial(
     if max_checks is not None:
         params["max_checks"] = max_checks
     checker = oracle.context()
-    sampler = make_sampler(sampler_name, checker, step=step, **params)
+    sampler = make_sampler(sampler_name, checker, step=oracle.space.check_step(step), **params)
     rng = np.random.default_rng(seed)
     start = time.perf_counter()
     try:

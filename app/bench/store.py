@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from app.errors import UserError
+from app.io import check_input
 from app.scene.model import ROOT
 
 # 1: stores from before the version was recorded (user_version 0); "prm" and "ur3" rows may lack full_roadmap.
@@ -144,16 +145,34 @@ def _is_sqlite(path: Path) -> bool:
         return f.read(16) == b"SQLite format 3\x00"
 
 
+def is_results_store(path: Path) -> bool:
+    """Whether `path` is a results store (a SQLite file with the trials table), asked read-only."""
+    path = Path(path)
+    if not path.is_file() or not _is_sqlite(path):
+        return False
+    try:
+        db = sqlite3.connect(f"{path.absolute().as_uri()}?mode=ro", uri=True)
+        try:
+            return bool(db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'trials'").fetchone())
+        finally:
+            db.close()
+    except sqlite3.Error:
+        return False
+
+
 class ResultStore:
     def __init__(self, path: Path):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         # SQLite takes a short file of any content for an empty database, and would overwrite it.
-        if self.path.is_file() and self.path.stat().st_size and not _is_sqlite(self.path):
+        if self.path.exists() and check_input(self.path, "results store").stat().st_size and not _is_sqlite(self.path):
             raise UserError(f"cannot use {self.path} as a results store: it is not a SQLite file; name another")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._db = sqlite3.connect(self.path)
         try:
             self._check_schema()
+        except sqlite3.DatabaseError as exc:  # a damaged file, or one SQLite cannot lock
+            self._db.close()
+            raise UserError(f"cannot use {self.path} as a results store: {exc}") from None
         except BaseException:
             self._db.close()
             raise
@@ -162,12 +181,15 @@ class ResultStore:
     def _check_schema(self) -> None:
         # One statement, so both facts come from one snapshot: another process may be creating the store (the
         # table and the version are written in one transaction).
-        version, has_trials = self._db.execute(
+        version, has_trials, tables = self._db.execute(
             "SELECT (SELECT user_version FROM pragma_user_version), "
-            "EXISTS (SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'trials')"
+            "EXISTS (SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'trials'), "
+            "(SELECT count(*) FROM sqlite_master WHERE type = 'table')"
         ).fetchone()
-        if not has_trials and version == 0:  # a new store
-            self._db.executescript(SCHEMA)
+        if not has_trials and version == 0:
+            if tables:  # another program's database: adding our table to it would change the user's file
+                raise UserError(f"cannot use {self.path} as a results store: it is another program's SQLite database")
+            self._db.executescript(SCHEMA)  # a new store
             return
         found = version or 1
         if found != SCHEMA_VERSION:

@@ -45,7 +45,11 @@ shortcut_rounds = whole_number(0, 10_000)
 repetitions = whole_number(1, 10_000)  # seeds, trials, runs, repeats per measured cell
 MAX_PROCESSES = 256
 processes = whole_number(1, MAX_PROCESSES)  # workers, threads
-check_count = whole_number(1, 10**9)  # collision checks of a budget, configurations of a measurement
+MAX_CHECKS = 10**9
+check_count = whole_number(1, MAX_CHECKS)  # collision checks of a budget, configurations of a measurement
+# The longest time budget taken: a day. A longer one (1e308 s) is no limit at all, and a query that cannot be solved
+# would then run until killed.
+MAX_SECONDS = 86_400.0
 
 
 def _finite_float(text: str) -> float:
@@ -65,10 +69,30 @@ def positive_float(text: str) -> float:
     return value
 
 
+def budget_seconds(text: str) -> float:
+    """A time budget in seconds: positive, at most MAX_SECONDS."""
+    value = positive_float(text)
+    if value > MAX_SECONDS:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_SECONDS:g} s (a day), got {text}")
+    return value
+
+
 def non_negative_float(text: str) -> float:
     value = _finite_float(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"must not be negative: {text}")
+    return value
+
+
+# A longer period samples a motion of a few seconds at its ends only: the samples no longer describe the motion.
+MAX_SAMPLE_PERIOD = 1.0
+
+
+def sample_period(text: str) -> float:
+    """A trajectory's sample period in seconds: positive, at most MAX_SAMPLE_PERIOD."""
+    value = positive_float(text)
+    if value > MAX_SAMPLE_PERIOD:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_SAMPLE_PERIOD:g} s, got {text}")
     return value
 
 
@@ -174,13 +198,15 @@ def parse_budget(text: str) -> Budget:
             if seconds is not None:
                 raise argparse.ArgumentTypeError(f"bad budget {text!r}: two time limits")
             seconds = number * (60.0 if unit == "min" else 1.0)
+            if seconds > MAX_SECONDS:
+                raise argparse.ArgumentTypeError(f"bad budget {part!r}: at most {MAX_SECONDS:g} s (a day)")
         else:
             if checks is not None:
                 raise argparse.ArgumentTypeError(f"bad budget {text!r}: two check limits")
             scale = {"k": 1_000, "M": 1_000_000}.get(unit[0], 1)
             checks = int(round(number * scale))
-            if checks <= 0:
-                raise argparse.ArgumentTypeError(f"bad budget {part!r}: must be at least one check")
+            if not 0 < checks <= MAX_CHECKS:
+                raise argparse.ArgumentTypeError(f"bad budget {part!r}: from 1 to {MAX_CHECKS} checks")
     return Budget(seconds=seconds, checks=checks)
 
 

@@ -113,7 +113,8 @@ def _defaults() -> argparse.Namespace:
 
 
 def spec_from_args(args) -> CustomSpec | None:
-    """A CustomSpec from parsed flags, or None when no --robot was given. `args.start`/`args.goal` are lists."""
+    """A CustomSpec from parsed flags, or None when no --robot was given. `args.start`/`args.goal` are lists, where
+    the command has them (gui has not: its start and goal are set on the page, from the robot's home)."""
     if not args.robot:
         # A flag of a shipped scene's own (its resolution, its collisions) must not be silently ignored.
         defaults = vars(_defaults())
@@ -128,8 +129,8 @@ def spec_from_args(args) -> CustomSpec | None:
         floating=args.floating,
         env=list(args.env),
         env_pose=[v for pose in args.env_pose for v in pose],
-        start=list(args.start or []),
-        goal=list(args.goal or []),
+        start=list(getattr(args, "start", None) or []),
+        goal=list(getattr(args, "goal", None) or []),
         bounds=[args.bounds] if args.bounds else [],
         collisions="all" if args.self_collision else "environment",
         srdf=args.srdf or "",

@@ -14,6 +14,7 @@ from app.commands.common import (
     print_json,
     progress,
     sample_count,
+    sample_period,
     sampler_name,
     seed,
     share,
@@ -141,7 +142,7 @@ def add_settings_arguments(p) -> None:
     )
     p.add_argument(
         "--dt",
-        type=positive_float,
+        type=sample_period,
         default=DEFAULTS.dt,
         help=f"trajectory sample period in seconds (default {DEFAULTS.dt})",
     )

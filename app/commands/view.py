@@ -54,6 +54,8 @@ def check_from_args(args, *outputs: str | None) -> None:
     and Meshcat, which --html and --meshcat need, is allowed."""
     if args.wait is not None and not args.meshcat:
         raise UserError("--wait needs --meshcat (it says how long the Meshcat server stays up)")
+    if args.frame is not None and not (args.html or args.meshcat):
+        raise UserError("--frame needs --html or --meshcat (it says which frame draws the samples and path)")
     if args.bag and os.path.lexists(args.bag):  # a bag is a new folder: never merged into or replaced
         raise UserError(f"cannot write {args.bag}: it exists already; give a new folder name")
     check_outputs(*outputs, args.html, args.bag)
@@ -123,7 +125,7 @@ def run_view(args) -> int:
         raise UserError("view: nothing to do; give --html FILE, --bag DIR and/or --meshcat")
     check_outputs(args.html)
     scene = load_scene(args.scene)
-    file = TrajectoryFile.read(args.trajectory, scene.dim)
+    file = TrajectoryFile.read_for(args.trajectory, scene)
     check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
     viewer = write_outputs(args, scene, file)
     if args.json:

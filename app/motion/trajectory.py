@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import UserError
-from app.io import write_atomically
+from app.io import check_input, write_atomically
 
 SCHEMA = "npp-trajectory/1"
 
@@ -85,14 +85,28 @@ class TrajectoryFile:
     @classmethod
     def read(cls, path: str | os.PathLike, dim: int) -> TrajectoryFile:
         """A trajectory file checked against a scene of `dim` coordinates; every fault is one UserError."""
-        file = Path(path)
-        if not file.is_file():
-            raise UserError(f"trajectory file not found: {path}")
+        file = check_input(path, "trajectory file")
         try:
             obj = json.loads(file.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise UserError(f"cannot read trajectory {file.name}: {' '.join(str(exc).split())[:200]}") from None
         return cls.from_json(obj, dim, source=file.name)
+
+    @classmethod
+    def read_for(cls, path: str | os.PathLike, scene) -> TrajectoryFile:
+        """A trajectory file of `scene` (app.scene.model.Scene): written for a scene of its name, with its
+        coordinates' names in order; every fault is one UserError."""
+        file = cls.read(path, scene.dim)
+        source = Path(path).name
+        if file.scene != scene.name:
+            raise UserError(f"{source} is a trajectory of scene '{file.scene}', not of '{scene.name}'")
+        names = list(file.trajectory.joint_names)
+        if names != list(scene.coordinate_names):
+            k = next(i for i, (a, b) in enumerate(zip(names, scene.coordinate_names)) if a != b)
+            raise UserError(
+                f"{source}: joint {k + 1} is '{names[k]}', but scene '{scene.name}' has '{scene.coordinate_names[k]}'"
+            )
+        return file
 
     @classmethod
     def from_json(cls, obj, dim: int, source: str = "trajectory") -> TrajectoryFile:

@@ -129,7 +129,7 @@ class CellRoadmap:
             graph.k = settings.k
         checker = oracle.context()
         graph.checker = checker
-        step = default_step(oracle.scene) if settings.step is None else float(settings.step)
+        step = oracle.space.check_step(default_step(oracle.scene) if settings.step is None else settings.step)
         seeds = np.random.SeedSequence(settings.seed, spawn_key=(len(graph),) if len(graph) else ()).spawn(4)
         samples = Samples(checker, settings.sampler, step, seeds, settings.workspace, settings.sampler_params)
         clock, ended = time.perf_counter(), "nodes"
@@ -208,7 +208,7 @@ class CellRoadmap:
         if changed:
             raise UserError(
                 f"roadmap {path} was built for another cell than {oracle.scene.name}: its {', '.join(changed)} "
-                f"differ; build it again for this cell (roadmap build)"
+                f"{'differs' if len(changed) == 1 else 'differ'}; build it again for this cell (roadmap build)"
             )
         from app.planning.roadmap import Roadmap
 

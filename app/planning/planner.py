@@ -401,10 +401,7 @@ class Query:
         # The query's own counters and budget on the shared oracle (its stop is set when solve() runs).
         self.oracle, self.settings, self._cancel = oracle, settings, cancel
         self.checker = checker = oracle.context()
-        self.step = default_step(oracle.scene) if settings.step is None else float(settings.step)
-        diagonal = float(np.linalg.norm((oracle.space.upper - oracle.space.lower) * oracle.space.weights))
-        if self.step > diagonal:  # a walk of such steps leaves the bounds at every step and never ends
-            raise UserError(f"step {self.step:g} is longer than the scene's diagonal ({diagonal:g})")
+        self.step = oracle.space.check_step(default_step(oracle.scene) if settings.step is None else settings.step)
         self._clock0, self._checks0 = time.perf_counter(), checker.checks
         self.seconds = dict.fromkeys(PHASES, 0.0)
         self.checks = dict.fromkeys(("endpoints",) + PHASES, 0)

@@ -85,6 +85,17 @@ class ConfigurationSpace:
             raise UserError(f"{what} has a value that is not a finite number")
         return q
 
+    def check_step(self, step: float) -> float:
+        """A sampler's base step, or a UserError: positive, finite and no longer than the bounds' weighted diagonal
+        (a walk of longer steps leaves the bounds at every step and never ends)."""
+        step = float(step)
+        diagonal = float(np.linalg.norm((self.upper - self.lower) * self.weights))
+        if not step > 0:
+            raise UserError(f"step must be a positive number, got {step:g}")
+        if step > diagonal:
+            raise UserError(f"step {step:g} is longer than the scene's diagonal ({diagonal:g})")
+        return step
+
     # ---- metric -----------------------------------------------------------------------------------------------
     def difference(self, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
         """q2 - q1, taking the short way round on continuous angles (broadcasts)."""

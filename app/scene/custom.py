@@ -34,7 +34,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from app.errors import UserError
-from app.io import write_atomically
+from app.io import check_input, write_atomically
 from app.scene import meshes
 from app.scene.model import PACKAGES, Scene, robot_diagram_builder
 
@@ -141,8 +141,10 @@ def _kind(path: Path, what: str) -> str:
         raise UserError(f"{what} file not found: {path}")
     suffix = path.suffix.lower()
     if suffix in ROBOT_SUFFIXES:
+        check_input(path, "model file")
         return "model"
     if suffix in meshes.MESH_SUFFIXES:
+        check_input(path, "mesh file")
         return "mesh"
     raise UserError(
         f"{what} file {path.name}: unsupported type '{suffix}' (use .urdf, .sdf or a mesh: "
@@ -558,8 +560,8 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
     if spec.env_pose and not env_paths:
         raise UserError("an env pose needs an environment file")
     srdf_path = resolve(spec.srdf) if spec.srdf else None
-    if srdf_path is not None and not srdf_path.is_file():
-        raise UserError(f"SRDF file not found: {spec.srdf}")
+    if srdf_path is not None:
+        check_input(srdf_path, "SRDF file")
     bounds = parse_bounds(spec.bounds)
     return _Inputs(
         packages,
@@ -873,6 +875,7 @@ def is_custom_scene_file(path: Path) -> bool:
 def read_spec(path: Path) -> CustomSpec:
     from pydrake.common.yaml import yaml_load_typed
 
+    check_input(path, "scene file")
     try:
         return yaml_load_typed(schema=CustomSpec, filename=str(path))
     except Exception as exc:
@@ -882,6 +885,6 @@ def read_spec(path: Path) -> CustomSpec:
 def load_scene(name_or_path: str, cache_dir: Path | None = None) -> Scene:
     """A shipped scene, a problem file, or a custom scene file (robot/env keys): the one loader commands need."""
     path = Path(name_or_path)
-    if path.suffix == ".yaml" and path.is_file() and is_custom_scene_file(path):
+    if path.suffix == ".yaml" and is_custom_scene_file(check_input(path, "scene file")):
         return build_scene(read_spec(path), base=path.resolve().parent, cache_dir=cache_dir)
     return Scene(name_or_path)

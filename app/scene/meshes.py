@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import UserError
-from app.io import write_atomically
+from app.io import check_input, write_atomically
 
 # trimesh and coacd (optional, slow to import) are imported inside the functions that use them.
 
@@ -66,6 +66,9 @@ METHODS = ("auto", "convex", "shell", "coacd", "faces")
 # How far a shell piece may stand proud of the surface, as a fraction of the tolerance: validation rejects pieces
 # holding points 0.9 tolerance from the surface, and a shell piece's hull has no extra thickness (a face piece has).
 SHELL_REACH = 0.6
+# The largest mesh coordinate taken (metres, after COLLADA's unit): far beyond any robot or building, far below where
+# doubles lose the millimetres (at 1e6 m their spacing is 1e-10 m) and trimesh's vertex merging overflows.
+MAX_COORDINATE = 1e6
 
 
 def cache_root() -> Path:
@@ -89,10 +92,10 @@ def _progress(**kwargs):
 def load_mesh(path: str | Path):
     """A trimesh.Trimesh from any format trimesh reads (DAE via pycollada); scenes are flattened with their transforms.
 
-    Raises UserError (one line) for a missing, unreadable or empty mesh."""
-    path = Path(path)
-    if not path.is_file():
-        raise UserError(f"mesh file not found: {path}")
+    Raises UserError (one line) for a missing, oversized, unreadable or empty mesh, a non-finite or huge coordinate
+    (checked before trimesh's processing, which would drop a NaN vertex's faces without a word), or triangles that
+    all have no area (collinear or coincident vertices)."""
+    path = check_input(path, "mesh file")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise UserError(
             f"unsupported mesh format '{path.suffix}' ({path.name}); use one of {', '.join(sorted(MESH_SUFFIXES))}"
@@ -102,7 +105,7 @@ def load_mesh(path: str | Path):
     except ImportError:
         raise UserError("mesh support needs the 'meshes' extra: pip install -e '.[meshes]'") from None
     try:
-        loaded = trimesh.load(str(path), force="mesh", process=True)
+        loaded = trimesh.load(str(path), force="mesh", process=False)
     except ImportError:  # trimesh guesses the text encoding of bytes no format explains with an optional module
         raise UserError(f"cannot read mesh {path.name}: not a valid {path.suffix} file") from None
     except Exception as exc:  # trimesh raises many types (ValueError, KeyError, collada errors, ...)
@@ -116,12 +119,22 @@ def load_mesh(path: str | Path):
         scale = _collada_unit(path)
         if scale != 1.0:  # trimesh ignores COLLADA's <unit meter="..."/>; Drake works in metres
             mesh.apply_scale(scale)
+    vertices = np.asarray(mesh.vertices)
+    if not np.all(np.isfinite(vertices)):
+        row = int(np.flatnonzero(~np.isfinite(vertices).all(axis=1))[0])
+        raise UserError(f"cannot read mesh {path.name}: vertex {row + 1} has a coordinate that is not a finite number")
+    if np.abs(vertices).max(initial=0.0) > MAX_COORDINATE:
+        raise UserError(
+            f"cannot read mesh {path.name}: coordinates up to {np.abs(vertices).max():.3g}; the limit is "
+            f"{MAX_COORDINATE:g} (metres)"
+        )
+    mesh.process()
     mesh.remove_unreferenced_vertices()
     mask = mesh.nondegenerate_faces()
     if not mask.all():
         mesh.update_faces(mask)
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise UserError(f"cannot read mesh {path.name}: non-finite vertex coordinates")
+    if len(mesh.faces) == 0 or mesh.extents is None or not np.linalg.norm(mesh.extents) > 0:
+        raise UserError(f"cannot read mesh {path.name}: every triangle has zero area (collinear vertices)")
     return mesh
 
 
@@ -802,9 +815,7 @@ def decompose(
     path = Path(path)
     if method not in METHODS:
         raise UserError(f"unknown decomposition method '{method}' (known: {', '.join(METHODS)})")
-    if not path.is_file():
-        raise UserError(f"mesh file not found: {path}")
-    digest = file_sha256(path)
+    digest = file_sha256(check_input(path, "mesh file"))
     params = {
         "method": method,
         "tolerance": tolerance,
@@ -904,9 +915,7 @@ def _read_entry(entry: Path, key: str) -> Decomposition | None:
 def converted_obj(path: str | Path, cache_dir: Path | None = None) -> Path:
     """A mesh Drake cannot read (.stl, .dae, ...) as an .obj in the cache (keyed by content): the shape unchanged,
     so as a collision shape Drake uses its convex hull (conservative, as usual for robot links)."""
-    path = Path(path)
-    if not path.is_file():
-        raise UserError(f"mesh file not found: {path}")
+    path = check_input(path, "mesh file")
     key = hashlib.sha256((file_sha256(path) + "convert" + DECOMPOSER_VERSION).encode()).hexdigest()[:32]
     target = (cache_dir or cache_root()) / "converted" / f"{key}.obj"
     if target.is_file():

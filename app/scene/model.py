@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from app.errors import UserError
+from app.io import check_input
+from app.scene.cspace import ConfigurationSpace
 
 # pydrake is imported inside the functions that use it, so that importing the package (as the command line does)
 # does not load Drake.
@@ -104,9 +106,7 @@ def scene_path(name_or_path: str) -> Path:
     """A shipped scene's name, or the path of a problem file."""
     candidate = Path(name_or_path)
     if candidate.suffix == ".yaml":
-        if not candidate.is_file():
-            raise UserError(f"scene file not found: {name_or_path}")
-        return candidate.resolve()
+        return check_input(candidate, "scene file").resolve()
     path = SCENES_DIR / f"{name_or_path}.yaml"
     if not path.is_file():
         raise UserError(f"unknown scene '{name_or_path}' (known: {', '.join(scene_names())})")
@@ -116,6 +116,7 @@ def scene_path(name_or_path: str) -> Path:
 def read_problem(path: Path) -> ProblemFile:
     from pydrake.common.yaml import yaml_load_typed
 
+    check_input(path, "scene file")
     try:
         problem = yaml_load_typed(schema=ProblemFile, filename=str(path))
     except Exception as exc:  # the loader raises RuntimeError, ValueError or yaml errors; all mean a bad file
@@ -134,8 +135,7 @@ def read_srdf(path: Path) -> list[tuple[str, str]]:
     """The (link1, link2) pairs of an SRDF's <disable_collisions> elements."""
     import xml.etree.ElementTree as ET
 
-    if not path.is_file():
-        raise UserError(f"SRDF file not found: {path}")
+    check_input(path, "SRDF file")
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:
@@ -224,24 +224,35 @@ class Scene:
         self.start = self._vector("start", problem.start, None)
         self.goal = self._vector("goal", problem.goal, None)
         diagonal = float(np.linalg.norm((self.upper - self.lower) * self.weights))
-        if not (math.isfinite(problem.resolution) and problem.resolution >= MIN_RESOLUTION * diagonal):
-            # Edges are checked at points this far apart: a finer step makes an edge check of millions of points.
+        # Edges are checked at points this far apart: a finer step makes an edge check of millions of points, one
+        # longer than the diagonal checks every edge at its two ends only.
+        if not (math.isfinite(problem.resolution) and MIN_RESOLUTION * diagonal <= problem.resolution <= diagonal):
             raise UserError(
-                f"bad scene file {self.path.name}: resolution must be a finite number of at least "
-                f"{MIN_RESOLUTION:g} x the bounds' diagonal ({MIN_RESOLUTION * diagonal:.3g})"
+                f"bad scene file {self.path.name}: resolution must be from {MIN_RESOLUTION:g} x the bounds' diagonal "
+                f"({MIN_RESOLUTION * diagonal:.3g}) to the diagonal ({diagonal:.3g}), got {problem.resolution:g}"
             )
         self.resolution = float(problem.resolution)
         if not (problem.step >= 0 and math.isfinite(problem.step)):
             raise UserError(f"bad scene file {self.path.name}: step must be a non-negative number")
         self.step = float(problem.step) or None
+        if self.step:
+            try:
+                ConfigurationSpace.of(self).check_step(self.step)
+            except UserError as exc:
+                raise UserError(f"bad scene file {self.path.name}: {exc}") from None
         model_velocity = self.plant.GetVelocityUpperLimits()
         self.velocity_limits = self._vector("velocity_limits", problem.velocity_limits, model_velocity)
         self.acceleration_limits = self._vector(
             "acceleration_limits", problem.acceleration_limits, 2.0 * self.velocity_limits
         )
-        for key in ("velocity_limits", "acceleration_limits"):
-            if not np.all(getattr(self, key) > 0):  # Toppra needs a positive limit on every joint
-                raise UserError(f"bad scene file {self.path.name}: '{key}' must be positive")
+        for key in ("velocity_limits", "acceleration_limits"):  # refused now, not after a plan has been found
+            limits = getattr(self, key)
+            if np.any(limits <= 0):
+                bad = int(np.flatnonzero(limits <= 0)[0])
+                raise UserError(
+                    f"bad scene file {self.path.name}: '{key}' must be positive, item {bad + 1} "
+                    f"({self.coordinate_names[bad]}) is {limits[bad]:g}"
+                )
         self.self_collisions = problem.collisions == "all"
 
         spec = problem.passage
@@ -254,6 +265,12 @@ class Scene:
             ]
         except ValueError:
             raise UserError(f"bad scene file {self.path.name}: passage boxes need 3-vectors lo and hi") from None
+        for k, (lo, hi) in enumerate(self.passage_boxes):
+            if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo <= hi)):
+                raise UserError(
+                    f"bad scene file {self.path.name}: passage box {k + 1} needs finite lo <= hi, got lo {lo.tolist()}"
+                    f" and hi {hi.tolist()}"
+                )
         self._read_poses(problem)
 
     def _read_poses(self, problem: ProblemFile) -> None:
@@ -284,6 +301,7 @@ class Scene:
         directives_path = self.path.parent / self.problem.directives
         if not directives_path.is_file():
             raise UserError(f"bad scene file {self.path.name}: directives file not found: {self.problem.directives}")
+        check_input(directives_path, "model directives")
         for package, directory in PACKAGES.items():
             if not parser.package_map().Contains(package):
                 parser.package_map().Add(package, str(directory))

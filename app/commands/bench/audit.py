@@ -1,21 +1,55 @@
-"""`bench audit`: random problems in every shipped scene, every returned trajectory re-checked by an independent
-Drake checker at 1/64 of the scene's resolution, with its limits and endpoints (app.bench.audit)."""
+"""`bench audit`: the soak. Random problems in every shipped scene, each planned under a budget of collision checks,
+every returned trajectory re-checked by an independent Drake checker at 1/64 of the scene's resolution, with its
+limits and endpoints; and the bad-input table, each case run as its own process (app.bench.audit)."""
 
-from app.bench.audit import DIVISOR, measure
+import argparse
+
+from app.bench.audit import (
+    ANSWER_SECONDS,
+    CHECKS,
+    DIVISOR,
+    bad_input_counts,
+    measure,
+    measure_bad_input,
+)
 from app.commands.bench import results
-from app.commands.common import check_outputs, names_from, positive_float, print_json, processes, repetitions, seed
+from app.commands.common import (
+    check_count,
+    check_outputs,
+    names_from,
+    print_json,
+    processes,
+    repetitions,
+    seed,
+)
 from app.scene.model import scene_names
 
 
 def register(kinds) -> None:
-    p = kinds.add_parser("audit", help="random problems per scene; trajectories re-checked by an independent checker")
-    p.add_argument("--problems", type=repetitions, default=200, help="problems in all, shared out over the scenes")
+    p = kinds.add_parser(
+        "audit", help="the soak: random problems re-checked by an independent checker, and the bad-input table"
+    )
+    p.add_argument(
+        "--problems", type=repetitions, default=2000, help="problems in all, shared out over the scenes (default 2000)"
+    )
     p.add_argument("--seed", type=seed, default=0, help="seeds the problems' starts and goals")
     p.add_argument(
         "--scenes", type=names_from(scene_names(), "scene"), default=",".join(scene_names()), help="comma-separated"
     )
-    p.add_argument("--budget", type=positive_float, default=5.0, metavar="SECONDS", help="planning budget per problem")
+    p.add_argument(
+        "--checks",
+        type=check_count,
+        default=CHECKS,
+        help=f"collision checks each problem may spend planning (default {CHECKS}); checks, not seconds, so the "
+        "answers do not depend on the machine or its load",
+    )
     p.add_argument("--workers", type=processes, default=1, help="parallel processes (one thread each when > 1)")
+    p.add_argument(
+        "--bad-input",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also run the bad-input table, each case as its own process (default: yes)",
+    )
     results.add_arguments(p, "out/bench-audit.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
@@ -24,22 +58,28 @@ def register(kinds) -> None:
 def run(args) -> int:
     check_outputs(creating_folders=(args.store,))
     table, reuse = measure(
-        args.scenes, args.problems, args.seed, args.budget, args.store, workers=args.workers, fresh=args.fresh
+        args.scenes, args.problems, args.seed, args.checks, args.store, workers=args.workers, fresh=args.fresh
     )
     results.say_reused(reuse, args.store)
+    cases = None
+    if args.bad_input:
+        cases, case_reuse = measure_bad_input(args.store, workers=args.workers, fresh=args.fresh)
+        results.say_reused(case_reuse)
     if args.json:
         print_json(
             {
                 "audit": table,
                 "problems": args.problems,
                 "seed": args.seed,
-                "budget": args.budget,
+                "checks": args.checks,
                 "reused": reuse.to_json(),
+                "bad_input": cases,
+                "bad_input_counts": None if cases is None else bad_input_counts(cases),
             }
         )
         return 0
     print(
-        f"{args.problems} problems (seed {args.seed}), {args.budget:g} s planning budget each; every solved "
+        f"{args.problems} problems (seed {args.seed}), at most {args.checks} collision checks each; every solved "
         f"trajectory re-checked at 1/{DIVISOR} of the scene's resolution by a Drake checker of its own"
     )
     print(
@@ -55,4 +95,20 @@ def run(args) -> int:
             f"{r['limit_violations']:>11} {worst:>9} {r['inexact_endpoints']:>8} "
             f"{r['states_checked']:>10} {seconds:>8}"
         )
+    if cases is not None:
+        counts = bad_input_counts(cases)
+        print(
+            f"\nbad input: {counts['behaved']} of {counts['cases']} cases behaved (expected exit code, one line on "
+            f"stderr, answered within {ANSWER_SECONDS:g} s, nothing written); {counts['tracebacks']} tracebacks, "
+            f"{counts['hangs']} hangs, {counts['slow']} slow, {counts['wrong_exit_code']} wrong exit codes, "
+            f"{counts['wrote_files']} wrote files"
+        )
+        print(f"{'ok':<3} {'exit':>4} {'s':>5}  command  ->  first stderr line [files written]")
+        for c in cases:
+            code = "hung" if c["exit_code"] is None else c["exit_code"]
+            written = f" [{', '.join(c['written'])}]" if c["written"] else ""
+            print(
+                f"{'ok' if c['behaved'] else 'BAD':<3} {code:>4} {c['seconds']:>5.1f}  {c['command']}  ->  "
+                f"{c['first_line']}{written}"
+            )
     return 0

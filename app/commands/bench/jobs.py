@@ -4,9 +4,9 @@ from app.bench.jobs import JOBS, measure
 from app.bench.plan import MODES
 from app.commands.bench import results
 from app.commands.common import (
+    budget_seconds,
     check_outputs,
     names_from,
-    positive_float,
     print_json,
     repetitions,
     sample_count,
@@ -29,7 +29,7 @@ def register(kinds) -> None:
     )
     p.add_argument("--narrow", type=sample_count, default=40, help="narrow-passage samples per planned leg")
     p.add_argument("--uniform", type=sample_count, default=40, help="uniform samples per planned leg")
-    p.add_argument("--budget", type=positive_float, default=30.0, metavar="SECONDS", help="per planned leg")
+    p.add_argument("--budget", type=budget_seconds, default=30.0, metavar="SECONDS", help="per planned leg")
     results.add_arguments(p, "out/bench-jobs.sqlite")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)

@@ -7,6 +7,7 @@ from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure,
 from app.commands.bench import results
 from app.commands.common import (
     announce,
+    budget_seconds,
     check_outputs,
     comma_list,
     positive_float,
@@ -43,7 +44,7 @@ def register(kinds) -> None:
         help=f"comma-separated; also ours:SAMPLER[:full] and {', '.join(MORE_METHODS)}",
     )
     p.add_argument("--seeds", type=repetitions, default=20, help="runs 0..N-1 per scene and method")
-    p.add_argument("--budget", type=positive_float, default=10.0, help="seconds per run to the first solution")
+    p.add_argument("--budget", type=budget_seconds, default=10.0, help="seconds per run to the first solution")
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument(
         "--workers",

@@ -11,10 +11,13 @@ from app.bench.paper import (
     QUICK_STEPS,
     SAMPLING_SCENES,
     STEPS,
+    STORE,
     TARGET_TRIALS,
     TRIALS_CSV,
     Config,
     build_report,
+    check_folder,
+    check_steps,
     export_trials,
     import_trials,
     run_sweeps,
@@ -63,10 +66,16 @@ def register(kinds) -> None:
         default="out/paper",
         help="report folder, with the results store results.sqlite and every trial as trials.csv.gz (default "
         "out/paper, relative to the working directory); trials already in the store, or in trials.csv.gz, are "
-        "reused, not run (a killed run resumes; committed results are continued)",
+        "reused, not run (a killed run resumes; committed results are continued). A new or empty folder, or one "
+        "of bench paper's own: a folder of other files is refused",
     )
     results.add_fresh_argument(p)
-    p.add_argument("--report-only", action="store_true", help="rebuild report.md from the store; run nothing")
+    p.add_argument(
+        "--report-only",
+        action="store_true",
+        help="rebuild report.md from the stored trials of DIR; run nothing (the sample pictures are those an earlier "
+        "run drew)",
+    )
     p.add_argument(
         "--parts",
         type=names_from(PARTS, "part"),
@@ -133,11 +142,14 @@ def run(args) -> int:
     config = config_from_args(args)
     began = time.time()  # figures written from here on are this run's
     folder = Path(args.out)
-    outputs = (folder / "results.sqlite", folder / "report.md", folder / TRIALS_CSV)
+    outputs = (folder / STORE, folder / "report.md", folder / TRIALS_CSV)
     check_outputs(creating_folders=outputs + ((Path(args.ompl_db),) if args.ompl_db else ()))
+    check_folder(folder, args.report_only)
+    if not args.report_only:
+        check_steps(config)
     scheduler = connect(args.scheduler) if args.scheduler and not args.report_only else None
     folder.mkdir(parents=True, exist_ok=True)
-    store = ResultStore(folder / "results.sqlite")
+    store = ResultStore(folder / STORE)
     trials_csv = folder / TRIALS_CSV
     if trials_csv.is_file():  # committed results: the store starts from them, so only missing trials run
         seeded = import_trials(store, trials_csv)
@@ -155,7 +167,7 @@ def run(args) -> int:
             results.say_reused(reuse)
             ran += now
         wall = time.perf_counter() - start
-    path = build_report(store, folder, config, wall_seconds=wall)
+    path = build_report(store, folder, config, wall_seconds=wall, run_nothing=args.report_only)
     export_trials(store, trials_csv)
     database = None
     if args.ompl_db:

@@ -3,6 +3,7 @@
 from app.bench.plan import COMPARED_SAMPLERS, MODES, SIZE, measure, trial_params
 from app.commands.bench import results
 from app.commands.common import (
+    budget_seconds,
     check_outputs,
     comma_list,
     neighbours,
@@ -42,7 +43,7 @@ def register(kinds) -> None:
     p.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
     p.add_argument(
         "--budget",
-        type=positive_float,
+        type=budget_seconds,
         default=None,
         metavar="SECONDS",
         help="instead of one round, add samples in rounds until connected or this many seconds pass",
