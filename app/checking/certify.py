@@ -48,6 +48,7 @@ from typing import NamedTuple
 import numpy as np
 
 from app.checking.kinematics import TreeKinematics
+from app.checking.protocol import Checker
 
 # A piece is bisected until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
 FLOOR_DIVISOR = 256
@@ -379,7 +380,7 @@ class Certifier:
     # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
     BATCH_ROWS = 1 << 17
 
-    def __init__(self, checker, floor: float | None = None):
+    def __init__(self, checker: Checker, floor: float | None = None):
         from pydrake.geometry import Role
 
         oracle = checker.oracle

@@ -399,8 +399,10 @@ class Query:
         from app.planning.roadmap import GOAL, START, Roadmap
 
         # The query's own counters and budget on the shared oracle (its stop is set when solve() runs).
-        self.oracle, self.settings, self._cancel = oracle, settings, cancel
+        self.oracle, self.settings = oracle, settings
         self.checker = checker = oracle.context()
+        # Made now, so the budget counts the whole query, endpoint checks included; it bounds from solve() on.
+        self._stop = Stop(settings.budget, checker, cancel)
         self.step = oracle.space.check_step(default_step(oracle.scene) if settings.step is None else settings.step)
         self._clock0, self._checks0 = time.perf_counter(), checker.checks
         self.seconds = dict.fromkeys(PHASES, 0.0)
@@ -669,7 +671,7 @@ class Query:
         """The easy route (straight, or through `via`) if it is free and proved; else grow round by round until start
         and goal connect, then smooth, certify and time the path. The budget bounds everything but the certificate
         and timing."""
-        self.checker.stop = Stop(self.settings.budget, self.checker, self._cancel)
+        self.checker.stop = self._stop
         try:
             if self.straight():
                 path = self.route

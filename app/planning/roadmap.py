@@ -28,6 +28,8 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
+from app.checking.protocol import Checker
+
 START, GOAL, UNIFORM, NARROW, WORKSPACE = "start", "goal", "uniform", "narrow", "workspace"
 
 # Candidate paths a lazy search tries per pair of shortest-path trees (see Roadmap.shortest_path).
@@ -46,7 +48,7 @@ class Roadmap:
 
     def __init__(
         self,
-        checker,
+        checker: Checker,
         k: int | None = 10,
         resolution: float | None = None,
         skip_connected: bool = True,

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.checking.protocol import Checker
 from app.errors import SamplerBudgetExceeded, UserError
 
 
@@ -30,7 +31,12 @@ class Sampler:
     has_bridges = False
 
     def __init__(
-        self, oracle, step: float = 10.0, max_checks: int = 2_000_000, max_rounds: int = 100_000, redraws: int = 20
+        self,
+        oracle: Checker,
+        step: float = 10.0,
+        max_checks: int = 2_000_000,
+        max_rounds: int = 100_000,
+        redraws: int = 20,
     ):
         if not np.isfinite(step) or step <= 0:
             raise UserError(f"step must be a positive finite number, got {step}")

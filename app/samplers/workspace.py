@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from app.checking.protocol import Checker
 from app.errors import SamplerBudgetExceeded
 from app.samplers.base import Sampler
 
@@ -41,7 +42,7 @@ IDLE_ROUNDS = 16
 class WorkspaceGaps:
     """Points in the narrow gaps of a scene's environment, found on demand, and placements of the robot there."""
 
-    def __init__(self, oracle, rng: np.random.Generator):
+    def __init__(self, oracle: Checker, rng: np.random.Generator):
         self.oracle, self.space = oracle, oracle.space
         Q = self.space.uniform(rng, 64)
         C = oracle.robot_geometry_centres(Q)
