@@ -36,14 +36,16 @@ def _queries(oracle, n: int, seed: int) -> list:
     return [(Q[2 * i], Q[2 * i + 1]) for i in range(n)]
 
 
-def test_a_loaded_roadmap_answers_as_the_one_in_memory(oracles, bar_file):
+def test_a_loaded_roadmap_answers_as_the_one_in_memory(oracles, tmp_path):
     oracle = oracles("bar")
-    kept, loaded = CellRoadmap.load(bar_file, oracle), CellRoadmap.load(bar_file, oracle)
+    kept = CellRoadmap.build(oracle, SMALL)  # never saved before its queries
+    kept.save(tmp_path / "bar.npz")
+    loaded = CellRoadmap.load(tmp_path / "bar.npz", oracle)
     for start, goal in _queries(oracle, 3, seed=1):
         a, b = kept.solve(start, goal, QUERY), loaded.solve(start, goal, QUERY)
         assert np.array_equal(a.path, b.path) and a.collision_checks == b.collision_checks
     # what the queries learned survives a save and a load too
-    again = bar_file.parent / "again.npz"
+    again = tmp_path / "again.npz"
     kept.save(again)
     kept_info, again_info = kept.info(), CellRoadmap.load(again, oracle).info()
     assert kept_info["edges"] == again_info["edges"] and kept_info["nodes"] == again_info["nodes"]

@@ -33,7 +33,7 @@ PHASES = ("sampling", "roadmap", "search", "smoothing", "certify", "timing")
 # What a query may spend unless told otherwise: every query ends, and says so when this is why. Collision checks
 # decide, so the same seed gives the same answer on any machine at any load; the seconds are a safety net for a
 # machine so slow that the checks would take hours, and a query they stop says that its answer depends on the machine.
-DEFAULT_BUDGET = Budget(seconds=600.0, checks=300_000)
+DEFAULT_BUDGET = Budget(seconds=600.0, checks=200_000)
 # Smoothing may spend this share of the checks that finding the path took (at least SMOOTHING_MIN), and all its passes
 # together (a path the certificate refused is shortened again, fine-only) SMOOTHING_CAP.
 SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
