@@ -75,16 +75,44 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def add_settings_arguments(p) -> None:
-    """The PlanSettings flags (sampler, counts, step, seed, budget, k, smoothing, dt, limit scaling), for any command
-    that plans."""
-    add_scaling_arguments(p)
+def add_sampling_arguments(p) -> None:
+    """The flags of where samples come from (sampler, step, seed, workspace share, k), for `plan` and `roadmap
+    build` alike (their defaults are the same)."""
     p.add_argument(
         "--sampler",
         type=sampler_name,
         default=DEFAULTS.sampler,
         help=f"narrow-passage sampler (default {DEFAULTS.sampler})",
     )
+    p.add_argument(
+        "--step",
+        type=positive_float,
+        default=None,
+        help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
+        "of the scene's extent)",
+    )
+    p.add_argument("--seed", type=seed, default=DEFAULTS.seed)
+    p.add_argument(
+        "--workspace",
+        type=share,
+        default=DEFAULTS.workspace,
+        help="share of the narrow-passage samples placed with a piece of the robot in a narrow gap of the "
+        f"workspace (0: the sampler alone; default {DEFAULTS.workspace})",
+    )
+    p.add_argument(
+        "-k",
+        "--neighbours",
+        type=neighbours,
+        default=DEFAULTS.k,
+        help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d dimensions)",
+    )
+
+
+def add_settings_arguments(p) -> None:
+    """The PlanSettings flags (sampler, counts, step, seed, budget, k, smoothing, dt, limit scaling), for any command
+    that plans."""
+    add_sampling_arguments(p)
+    add_scaling_arguments(p)
     p.add_argument(
         "--narrow",
         type=sample_count,
@@ -99,14 +127,6 @@ def add_settings_arguments(p) -> None:
         help=f"uniform free samples: uniform/4 per round; with --full-roadmap all of them (default {DEFAULTS.uniform})",
     )
     p.add_argument(
-        "--step",
-        type=positive_float,
-        default=None,
-        help="sampler base step a in the weighted metric (default: the scene file's step, else a tenth "
-        "of the scene's extent)",
-    )
-    p.add_argument("--seed", type=seed, default=DEFAULTS.seed)
-    p.add_argument(
         "--budget",
         type=parse_budget,
         default=DEFAULTS.budget,
@@ -119,20 +139,6 @@ def add_settings_arguments(p) -> None:
         help="build the whole roadmap (all --narrow + --uniform samples, every edge checked) before the "
         "query, as in the paper; default: add samples a quarter at a time, check edges lazily, and "
         "stop as soon as start and goal connect",
-    )
-    p.add_argument(
-        "--workspace",
-        type=share,
-        default=DEFAULTS.workspace,
-        help="share of the narrow-passage samples placed with a piece of the robot in a narrow gap of the "
-        f"workspace (0: the sampler alone; default {DEFAULTS.workspace})",
-    )
-    p.add_argument(
-        "-k",
-        "--neighbours",
-        type=neighbours,
-        default=DEFAULTS.k,
-        help="k nearest neighbours per node (default: k-PRM*'s e(1 + 1/d) ln n, for n nodes in d dimensions)",
     )
     p.add_argument(
         "--smooth",

@@ -4,16 +4,12 @@
 import sys
 
 from app.checking.oracle import CollisionOracle
-from app.commands import custom
+from app.commands import custom, plan
 from app.commands.common import (
     check_outputs,
-    neighbours,
     parse_budget,
-    positive_float,
     print_json,
     processes,
-    sampler_name,
-    seed,
     share,
     whole_number,
 )
@@ -41,16 +37,7 @@ def register(subparsers) -> None:
         default=DEFAULTS.narrow,
         help=f"share of the samples from the narrow-passage sampler and workspace gaps (default {DEFAULTS.narrow})",
     )
-    b.add_argument(
-        "--sampler",
-        type=sampler_name,
-        default=DEFAULTS.sampler,
-        help=f"narrow-passage sampler (default {DEFAULTS.sampler})",
-    )
-    b.add_argument("--step", type=positive_float, default=None, help="sampler step (default: the scene's)")
-    b.add_argument("--workspace", type=share, default=DEFAULTS.workspace, help="share placed in workspace gaps")
-    b.add_argument("-k", "--neighbours", type=neighbours, default=None, help="neighbours per node (default k-PRM*'s)")
-    b.add_argument("--seed", type=seed, default=0)
+    plan.add_sampling_arguments(b)
     b.add_argument(
         "--budget",
         type=parse_budget,
