@@ -197,15 +197,15 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         return {"drawn": False, "solved": False}
     start, goal = endpoints
     settings = PlanSettings(seed=spec.seed, budget=Budget(checks=int(p["checks"])), dt=SAMPLE_PERIOD, step=spec.step)
-    clock, checks = time.perf_counter(), oracle.checks
+    clock = time.perf_counter()
     try:
         result = plan(oracle, settings, start=start, goal=goal)
-    except NoPath:
+    except NoPath as failure:
         return {
             "drawn": True,
             "solved": False,
             "seconds": time.perf_counter() - clock,
-            "checks": oracle.checks - checks,
+            "checks": getattr(failure, "details", {}).get("collision_checks"),
         }
     seconds = time.perf_counter() - clock
     trajectory = result.trajectory

@@ -36,22 +36,22 @@ class BudgetSpent(Exception):
 
 
 class Stop:
-    """A Budget running against the clock and an oracle's check counter, from the moment it is made.
+    """A Budget running against the clock and a query context's check counter, from the moment it is made.
 
-    Like OMPL's PlannerTerminationCondition it travels down to where the work is: the oracle polls it before every
-    collision batch (`allow`), so sampling, edge checks and smoothing all stop within one batch of the limit, and a
+    Like OMPL's PlannerTerminationCondition it travels down to where the work is: the query's context
+    (app.checking.context) polls it before every collision batch (`allow`), so sampling, edge checks and smoothing all stop within one batch of the limit, and a
     check limit is never overrun. `cancel` (a threading.Event, or anything with `is_set()`) stops it from outside:
     another thread that no longer wants the answer (a newer request, a shutdown)."""
 
-    def __init__(self, budget: Budget, oracle, cancel=None):
-        self.budget, self._oracle, self._cancel = budget, oracle, cancel
-        self._t0, self._c0 = time.perf_counter(), oracle.checks
+    def __init__(self, budget: Budget, checker, cancel=None):
+        self.budget, self._checker, self._cancel = budget, checker, cancel
+        self._t0, self._c0 = time.perf_counter(), checker.checks
 
     def seconds(self) -> float:
         return time.perf_counter() - self._t0
 
     def checks(self) -> int:
-        return self._oracle.checks - self._c0
+        return self._checker.checks - self._c0
 
     def reason(self) -> str | None:
         """'cancelled', 'time' or 'checks' once the query must stop, else None."""
@@ -79,4 +79,4 @@ class Stop:
         left = None if self.budget.checks is None else max(0, self.budget.checks - self.checks())
         seconds = None if self.budget.seconds is None else max(0.0, self.budget.seconds - self.seconds())
         budget = Budget(seconds=seconds, checks=checks if left is None else min(left, checks))
-        return Stop(budget, self._oracle, self._cancel)
+        return Stop(budget, self._checker, self._cancel)
