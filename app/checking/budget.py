@@ -28,7 +28,7 @@ class Budget:
 
 
 class BudgetSpent(Exception):
-    """Raised by the oracle when a Stop it was given runs out; the query that set the stop catches it."""
+    """Raised by a query context when its Stop runs out; the query that set the stop catches it."""
 
     def __init__(self, reason: str):
         super().__init__(reason)
@@ -39,9 +39,10 @@ class Stop:
     """A Budget running against the clock and a query context's check counter, from the moment it is made.
 
     Like OMPL's PlannerTerminationCondition it travels down to where the work is: the query's context
-    (app.checking.context) polls it before every collision batch (`allow`), so sampling, edge checks and smoothing all stop within one batch of the limit, and a
-    check limit is never overrun. `cancel` (a threading.Event, or anything with `is_set()`) stops it from outside:
-    another thread that no longer wants the answer (a newer request, a shutdown)."""
+    (app.checking.context) polls it before every collision batch (`allow`), so sampling, edge checks and smoothing all
+    stop within one batch of the limit, and a check limit is never overrun. `cancel` (a threading.Event, or anything
+    with `is_set()`) stops it from outside: another thread that no longer wants the answer (a newer request, a
+    shutdown)."""
 
     def __init__(self, budget: Budget, checker, cancel=None):
         self.budget, self._checker, self._cancel = budget, checker, cancel
