@@ -132,7 +132,7 @@ ROWS = [
     (["bench", "audit", "--problems", "0"], 2, "argument --problems: must be from 1 to 10000"),
     (["bench", "audit", "--store", "{dir}"], 2, "it is a folder"),
     (["bench", "audit", "--workers", "1000"], 2, "argument --workers: must be from 1 to 256"),
-    (["plan", *ROBOT], 2, "cannot read mesh garbage.stl: no triangles in it"),
+    (["plan", *ROBOT], 2, "cannot read mesh garbage.stl: not a valid .stl file"),
     (["plan", "--robot", "{out}/none.urdf", "--start", "0", "--goal", "1"], 2, "robot file not found"),
     (["plan", "{nan_weights}"], 2, "'weights' needs finite numbers, item 2 is nan"),
     (["plan", "bar", "--mesh-method", "magic"], 2, "argument --mesh-method: invalid choice"),
