@@ -25,7 +25,7 @@ import math
 import networkx as nx
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from app.checking.protocol import Checker
@@ -230,14 +230,23 @@ class Roadmap:
                 self._components.union(int(a), int(b))
 
     # ---- queries ------------------------------------------------------------------------------------------------
+    def _labels(self) -> tuple[int, np.ndarray]:
+        """Connected components of the graph of edges not known to collide: (count, label per node), from the edge
+        arrays in C (a persistent roadmap asks this of tens of thousands of edges after every query)."""
+        alive = self._ends[self._alive]
+        graph = csr_matrix((np.ones(len(alive)), (alive[:, 0], alive[:, 1])), shape=(len(self), len(self)))
+        return connected_components(graph, directed=False)
+
     def connected(self, a: int, b: int) -> bool:
-        return nx.has_path(self.graph, a, b)
+        labels = self._labels()[1]
+        return bool(labels[a] == labels[b])
 
     def components(self) -> int:
-        return nx.number_connected_components(self.graph)
+        return int(self._labels()[0])
 
     def component_sizes(self, *nodes: int) -> list[int]:
-        return [len(nx.node_connected_component(self.graph, n)) for n in nodes]
+        labels = self._labels()[1]
+        return [int(np.sum(labels == labels[n])) for n in nodes]
 
     def shortest_path(self, a: int, b) -> list[int] | None:
         """Node indices of a short path by metric length from a to b (a node, or a list of nodes: to the nearest
