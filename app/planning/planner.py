@@ -567,10 +567,17 @@ class Query:
 
         if self.certifier is None:
             self.certifier = Certifier(self.checker)
+        # A segment that is a roadmap edge proved before (by this query, or by an earlier one on a persistent
+        # roadmap) is not proved again; one proved now is remembered as such.
+        pairs = self.roadmap.edge_pairs(path)
+        edges = [i for i in (range(len(path) - 1) if edges is None else edges) if pairs[i] not in self.roadmap.proved]
+        if not edges:
+            return True, {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0}
         position, variation = polyline(self.checker.space, path)
-        edges = list(range(len(path) - 1) if edges is None else edges)
         proved, stats = self._timed("certify", self.certifier.certify, position, variation, [(i, i + 1) for i in edges])
-        return proved, {**stats, "failed": [edges[k] for k in stats["failed"]]}
+        failed = [edges[k] for k in stats["failed"]]
+        self.roadmap.proved.update(pairs[i] for i in edges if pairs[i] is not None and i not in failed)
+        return proved, {**stats, "failed": failed}
 
     def smooth_and_prove(self, nodes: list[int], proof: dict | None = None) -> tuple[np.ndarray, dict, dict | None]:
         """(smoothed path, smoothing stats, its certificate or None when it could not be proved; `proof`: the roadmap
@@ -634,10 +641,8 @@ class Query:
         """The certificate of the roadmap path through `nodes` (its edges not proved before), or None when it cannot
         be proved; then its unprovable edges have left the roadmap."""
         edges = [(min(a, b), max(a, b)) for a, b in itertools.pairwise(nodes)]
-        new = [i for i, edge in enumerate(edges) if edge not in self.roadmap.proved]
         with self._unlimited():
-            proved, certificate = self.certify(self.roadmap.Q[nodes], new)
-        self.roadmap.proved.update(edges[i] for i in new if i not in certificate["failed"])
+            proved, certificate = self.certify(self.roadmap.Q[nodes])
         if proved:
             return certificate
         for i in certificate["failed"]:

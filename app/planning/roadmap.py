@@ -20,6 +20,7 @@ Shortcut smoothing (app/motion/path.py) then recovers the path quality a denser 
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import networkx as nx
@@ -332,6 +333,16 @@ class Roadmap:
             for u, v, checked in self.graph.edges(data="checked"):
                 if checked:
                     self._components.union(u, v)
+
+    def edge_pairs(self, P: np.ndarray) -> list[tuple[int, int] | None]:
+        """For each straight segment of the polyline P, the roadmap edge (node pair, smaller first) not known to
+        collide that joins the very same two configurations, or None."""
+        nodes = [self._nodes.get(np.asarray(q, float).tobytes()) for q in P]
+        pairs = []
+        for a, b in itertools.pairwise(nodes):
+            key = None if a is None or b is None else (min(a, b), max(a, b))
+            pairs.append(key if key in self._rows and self._alive[self._rows[key]] else None)
+        return pairs
 
     # ---- persistence ------------------------------------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:
