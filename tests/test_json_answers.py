@@ -65,6 +65,23 @@ CHEAP = [
         ["bench", "plan", "--scenes", "bar", "--samplers", "lfbs", "--seeds", "1", "--store", "{tmp}/plan.sqlite"],
     ),
     (
+        "bench-queries",
+        [
+            "bench",
+            "queries",
+            "--scenes",
+            "bar-3link",
+            "--queries",
+            "3",
+            "--methods",
+            "fresh,cell",
+            "--build-nodes",
+            "60",
+            "--store",
+            "{tmp}/q.sqlite",
+        ],
+    ),  # fmt: skip
+    (
         "bench-certify",
         ["bench", "certify", "--scenes", "bar-3link", "--jobs", "welding", "--seeds", "1", "--store", "{tmp}/c.sqlite"],
     ),
@@ -106,11 +123,18 @@ COSTLY = [
         ],
     ),
     ("bench-uav", ["bench", "uav", "--seeds", "1", "--store", "{tmp}/u.sqlite"]),
+    (
+        "bench-queries",
+        [
+            "bench", "queries", "--scenes", "bar-3link", "--queries", "3", "--build-nodes", "60", "--ompl-seconds",
+            "1", "--store", "{tmp}/q.sqlite",
+        ],
+    ),
 ]  # fmt: skip
 
 
 def _run(cli, tmp_path, name, argv):
-    if name == "bench-ompl":
+    if name == "bench-ompl" or any(a.startswith("--ompl") for a in argv):
         pytest.importorskip("ompl")
     return check(cli(*[a.format(tmp=tmp_path) for a in argv], "--json"), name)
 
@@ -167,6 +191,8 @@ FAILURES = [
     (["bench", "paper", "--out", "{tmp}/paper", "--ompl-db", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench", "certify", "--seeds", "0"], 2, "INVALID_INPUT"),
     (["bench", "audit", "--store", "{tmp}"], 2, "INVALID_INPUT"),
+    (["bench", "queries", "--methods", "fresh,ompl-prm"], 2, "INVALID_INPUT"),
+    (["bench", "queries", "--budget", "0checks"], 2, "INVALID_INPUT"),
     (["bench"], 2, "INVALID_INPUT"),
     (["no-such-command"], 2, "INVALID_INPUT"),
 ]

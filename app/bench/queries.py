@@ -379,8 +379,8 @@ def summarise(method: str, metrics: dict) -> dict:
         "total_checks": int(sum(c for c in checks if c is not None)),
         "total_seconds": float(sum(seconds)),
         "failed_fine_check": sum(1 for a in won if a.get("fine_check_passed") == 0.0),
-        "seconds_per_query": seconds,
-        "success_per_query": [bool(a["success"]) for a in answers],
+        "builds": metrics.get("builds"),
+        "answers": answers,
     }
 
 
@@ -495,8 +495,8 @@ def figure(report: dict, path: str) -> None:
     for ax, s in zip(axes.flat, scenes):
         labels = []
         for x, r in enumerate(s["methods"]):
-            seconds = np.maximum(np.array(r["seconds_per_query"], float), 1e-4)
-            won = np.array(r["success_per_query"], bool)
+            seconds = np.maximum(np.array([a["seconds"] for a in r["answers"]], float), 1e-4)
+            won = np.array([a["success"] for a in r["answers"]], bool)
             jitter = x + rng.uniform(-0.18, 0.18, len(seconds))
             ax.scatter(jitter[won], seconds[won], s=10, color=f"C{x}", alpha=0.6, linewidths=0)
             ax.scatter(jitter[~won], seconds[~won], s=18, color="black", marker="x", linewidths=1)
