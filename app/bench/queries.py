@@ -93,13 +93,17 @@ class QuerySet:
         }
 
 
-def make_queries(oracle, n: int, seed: int) -> QuerySet:
-    """`n` queries in the oracle's cell (see the module docstring), the same for the same seed."""
+def make_queries(oracle, n: int, seed: int, progress=None) -> QuerySet:
+    """`n` queries in the oracle's cell (see the module docstring), the same for the same seed. progress(), if
+    given, is called once per query made."""
     rng = np.random.default_rng(seed)
     scene = oracle.scene
+    progress = progress or (lambda: None)
     if scene.tool_frame is not None and scene.poses:
-        return _tool_queries(oracle, n, rng)
+        return _tool_queries(oracle, n, rng, progress)
     free = _free_configurations(oracle, 2 * n, rng)
+    for _ in range(n):
+        progress()
     return QuerySet("random free start/goal pairs", free[0::2], [g[None] for g in free[1::2]], np.zeros(n, bool))
 
 
@@ -113,7 +117,7 @@ def _free_configurations(oracle, n: int, rng, batch: int = 256, tries: int = 100
     raise UserError(f"scene {oracle.scene.name}: fewer than {n} free configurations in {tries * batch} samples")
 
 
-def _tool_queries(oracle, n: int, rng) -> QuerySet:
+def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
     from pydrake.math import RigidTransform, RotationMatrix
 
     from app.planning.ik import tool_pose
@@ -144,6 +148,7 @@ def _tool_queries(oracle, n: int, rng) -> QuerySet:
         goals.append(found)
         hard.append(in_hard)
         start = found[0]
+        progress()
     kind = (
         "tool poses, a work cell's sequence: each query from the previous query's first goal (home first) to every "
         f"IK solution found for a tool pose, alternately a named pose moved <= {HARD_SHIFT * 100:g} cm and turned "
@@ -384,6 +389,14 @@ def summarise(method: str, metrics: dict) -> dict:
     }
 
 
+def _with_build(row: dict, key: str) -> float:
+    return row[f"total_{key}"] + (row["build"][key] if row["build"] else 0)
+
+
+def _over(a, b):
+    return a / b if b else None
+
+
 def ratios(rows: list[dict]) -> list[dict]:
     """The cell's totals over fresh's and ompl-prm's, queries only and with each build added (None when a method
     is missing)."""
@@ -394,18 +407,14 @@ def ratios(rows: list[dict]) -> list[dict]:
         if cell is None or other not in by:
             continue
         o = by[other]
-
-        def with_build(row, key):
-            return row[f"total_{key}"] + (row["build"][key] if row["build"] else 0)
-
         out.append(
             {
                 "of": "cell",
                 "over": other,
-                "checks": cell["total_checks"] / o["total_checks"] if o["total_checks"] else None,
-                "seconds": cell["total_seconds"] / o["total_seconds"] if o["total_seconds"] else None,
-                "checks_with_builds": with_build(cell, "checks") / with_build(o, "checks"),
-                "seconds_with_builds": with_build(cell, "seconds") / with_build(o, "seconds"),
+                "checks": _over(cell["total_checks"], o["total_checks"]),
+                "seconds": _over(cell["total_seconds"], o["total_seconds"]),
+                "checks_with_builds": _over(_with_build(cell, "checks"), _with_build(o, "checks")),
+                "seconds_with_builds": _over(_with_build(cell, "seconds"), _with_build(o, "seconds")),
                 "goal_seconds": goal,
             }
         )
@@ -429,7 +438,8 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
         for name in scenes:
             oracle = CollisionOracle(Scene(name))
             step = default_step(oracle.scene)
-            queries = make_queries(oracle, settings.queries, settings.seed)
+            with tqdm(total=settings.queries, desc=f"{name} queries", unit="query", dynamic_ncols=True) as bar:
+                queries = make_queries(oracle, settings.queries, settings.seed, bar.update)
             specs = [
                 TrialSpec(EXPERIMENT, name, m, step, settings.seed, _params(m, settings, queries.digest()))
                 for m in methods
