@@ -123,18 +123,11 @@ COSTLY = [
         ],
     ),
     ("bench-uav", ["bench", "uav", "--seeds", "1", "--store", "{tmp}/u.sqlite"]),
-    (
-        "bench-queries",
-        [
-            "bench", "queries", "--scenes", "bar-3link", "--queries", "3", "--build-nodes", "60", "--ompl-seconds",
-            "1", "--store", "{tmp}/q.sqlite",
-        ],
-    ),
 ]  # fmt: skip
 
 
 def _run(cli, tmp_path, name, argv):
-    if name == "bench-ompl" or any(a.startswith("--ompl") for a in argv):
+    if name == "bench-ompl":
         pytest.importorskip("ompl")
     return check(cli(*[a.format(tmp=tmp_path) for a in argv], "--json"), name)
 
