@@ -296,6 +296,34 @@ class OmplProblem:
 
         self.si.setValidStateSamplerAllocator(allocate)
 
+    def set_query(self, start, goals) -> None:
+        """Make (start, goals) the problem's query, keeping what the planner has built: OMPL's `clearQuery()` forgets
+        the last start and goal (PRM keeps its roadmap, the last query's start and goal milestones among it; other
+        planners clear their trees), and the last solution is dropped so that `solve` reports this query's.
+        `goals`: one configuration or several (k, dim), any of which will do (an OMPL GoalStates)."""
+        self.planner.clearQuery()
+        self.setup.getProblemDefinition().clearSolutionPaths()
+        goal = self.ob.GoalStates(self.si)
+        for q in np.atleast_2d(goals):
+            goal.addState(self.to_state(q))  # copied into the goal
+        self.setup.clearStartStates()
+        self.setup.addStartState(self.to_state(start))
+        self.setup.setGoal(goal)
+        self._goal = goal  # the problem definition holds it by a shared pointer; keep the Python side alive too
+        if self.planner_name == "PRM":
+            # PRM adds one goal state per solve() before it starts its solution-checking thread, which adds the rest
+            # with validity checks of its own: our Python callback there waits for the GIL that the solve() call
+            # holds (the binding does not release it) while PRM's main thread waits for that thread's graph lock --
+            # a deadlock with two goals or more. Solves with no time add the others here, one each, on this thread.
+            for _ in range(len(np.atleast_2d(goals)) - 1):
+                self.setup.solve(0.0)
+
+    def grow(self, seconds: float) -> None:
+        """PRM only: grow the roadmap for `seconds` with no query (`PRM.growRoadmap`: sample valid states, connect
+        each to its nearest neighbours; no expand phase), after the planner is set up."""
+        self.setup.setup()
+        self.planner.growRoadmap(float(seconds))
+
     def solve(self, seconds: float) -> bool:
         """Run the planner for at most `seconds` (it returns at its first solution); whether it found an exact one."""
         self.setup.solve(float(seconds))

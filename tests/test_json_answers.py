@@ -65,6 +65,23 @@ CHEAP = [
         ["bench", "plan", "--scenes", "bar", "--samplers", "lfbs", "--seeds", "1", "--store", "{tmp}/plan.sqlite"],
     ),
     (
+        "bench-queries",
+        [
+            "bench",
+            "queries",
+            "--scenes",
+            "bar-3link",
+            "--queries",
+            "3",
+            "--methods",
+            "fresh,cell",
+            "--build-nodes",
+            "60",
+            "--store",
+            "{tmp}/q.sqlite",
+        ],
+    ),  # fmt: skip
+    (
         "bench-certify",
         ["bench", "certify", "--scenes", "bar-3link", "--jobs", "welding", "--seeds", "1", "--store", "{tmp}/c.sqlite"],
     ),
@@ -189,6 +206,8 @@ FAILURES = [
     (["bench", "paper", "--out", "{tmp}/paper", "--ompl-db", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench", "certify", "--seeds", "0"], 2, "INVALID_INPUT"),
     (["bench", "audit", "--store", "{tmp}"], 2, "INVALID_INPUT"),
+    (["bench", "queries", "--methods", "fresh,ompl-prm"], 2, "INVALID_INPUT"),
+    (["bench", "queries", "--budget", "0checks"], 2, "INVALID_INPUT"),
     (["bench"], 2, "INVALID_INPUT"),
     (["no-such-command"], 2, "INVALID_INPUT"),
 ]

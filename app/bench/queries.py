@@ -1,0 +1,535 @@
+"""`bench queries`: many queries in one cell, answered by fresh single queries, by one persistent cell roadmap, by
+OMPL's multi-query PRM and by OMPL's RRTConnect, all through the same collision oracle.
+
+The query set (`make_queries`), deterministic from the seed, is made once per scene and every method answers it:
+- a scene with a tool frame and named poses (the UR3 cells window, welding) is a work cell's sequence of tool poses:
+  query i goes from query i-1's goal (the first query from home, the scene's start) to a tool pose, alternately
+  one in the hard region -- a named pose of the scene (the hatch, the part behind it, the weld seam) moved by up to
+  HARD_SHIFT and turned by up to HARD_TURN -- and one outside it: the tool pose of a random free configuration.
+  Its goal is every distinct IK solution found for the pose (`ik_solutions`), any of which will do; the next query
+  starts from the first of them (the one nearest this query's start), whichever one a method reached.
+- any other scene: independent random free start/goal pairs (uniform samples the oracle finds free).
+
+Methods (`METHODS`), on a per-query budget (`--budget`: a CHECK budget, so ours are machine-independent; OMPL only
+stops on time, so its planners get `ompl_seconds` per query):
+- fresh: `app.plan` per query (a new roadmap each time);
+- cell: one `CellRoadmap.build` (its seconds, checks, nodes and edges reported apart), then `cell.solve` per query
+  in order, the roadmap keeping what each query learned;
+- ompl-prm: one OMPL PRM whose graph is kept across queries (`OmplProblem.set_query`: `clearQuery()`, new start and
+  goal states). Its build is `PRM.growRoadmap` for as many seconds as the cell's build took in this run (so
+  `cell` must be among the methods); after that, its own queries grow it further (PRM's solve keeps sampling);
+- ompl-rrtconnect: a fresh RRTConnect per query.
+An answer of ours is smoothed, certified and time-parameterised within the query's time. OMPL's is smoothed
+(`simplifySolution`, inside the query's time) but neither certified nor time-parameterised: its certified share is
+0 by construction, not by a failed proof. Each query's checks are its own (a QueryContext, or the OMPL problem's
+checker counted before and after); a path's start and end are compared with the query's start and goals
+(`from_start`, `reached`) so that a row shows which query it answered.
+
+One stored trial (`app.bench.store`) per scene and method holds all its queries: a killed run resumes at the next
+method. A trial's key holds a digest of its query set, so trials of other queries are never mixed in.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from app.bench.store import ResultStore, Reuse, TrialSpec
+from app.checking.budget import Budget
+from app.errors import InvalidEndpoint, NoPath, UserError
+from app.planning.planner import PlanSettings, default_step, plan
+
+# app.planning.cell and app.ompl_bridge (which loads OMPL, optional) are imported by the methods that use them.
+
+METHODS = ("fresh", "cell", "ompl-prm", "ompl-rrtconnect")
+EXPERIMENT, PROTOCOL = "queries", "query-set+answers"
+# The hard region of a UR3 cell: a named pose moved this far (m, per axis) and turned this much (rad) at most.
+HARD_SHIFT, HARD_TURN = 0.02, math.radians(10.0)
+# IK solutions looked for per tool pose: the one nearest the start, then one from each of this many random
+# references; solutions closer than DISTINCT (scene metric) to one already kept are the same solution.
+IK_REFERENCES, DISTINCT = 6, 0.05
+# Tool poses tried per query before the query set gives up (a moved named pose may have no free IK solution).
+POSE_ATTEMPTS = 50
+# How near (scene metric) a path's end must be to a goal to count as reaching it.
+REACHED = 1e-6
+GOALS = {"cell vs fresh": 0.1, "cell vs ompl-prm": 0.5}  # the issue's goals for the total time of the queries
+
+
+@dataclass
+class QuerySet:
+    """The queries of one scene: starts (n, dim), goals (each (k, dim): any will do), whether each is in the hard
+    region, and how they were made (`kind`)."""
+
+    kind: str
+    starts: np.ndarray
+    goals: list
+    hard: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def digest(self) -> str:
+        """A hash of the queries (to 1e-9): what a stored trial's key holds."""
+        h = hashlib.sha256(self.kind.encode())
+        for start, goals in zip(self.starts, self.goals):
+            h.update(np.round(np.concatenate([start[None], goals]), 9).tobytes())
+        return h.hexdigest()[:16]
+
+    def to_json(self) -> dict:
+        return {
+            "kind": self.kind,
+            "count": len(self),
+            "hard": int(self.hard.sum()),
+            "digest": self.digest(),
+            "queries": [
+                {"start": s.tolist(), "goals": g.tolist(), "hard": bool(h)}
+                for s, g, h in zip(self.starts, self.goals, self.hard)
+            ],
+        }
+
+
+def make_queries(oracle, n: int, seed: int, progress=None) -> QuerySet:
+    """`n` queries in the oracle's cell (see the module docstring), the same for the same seed. progress(), if
+    given, is called once per query made."""
+    rng = np.random.default_rng(seed)
+    scene = oracle.scene
+    progress = progress or (lambda: None)
+    if scene.tool_frame is not None and scene.poses:
+        return _tool_queries(oracle, n, rng, progress)
+    free = _free_configurations(oracle, 2 * n, rng)
+    for _ in range(n):
+        progress()
+    return QuerySet("random free start/goal pairs", free[0::2], [g[None] for g in free[1::2]], np.zeros(n, bool))
+
+
+def _free_configurations(oracle, n: int, rng, batch: int = 256, tries: int = 1000) -> np.ndarray:
+    checker, out = oracle.context(), []
+    for _ in range(tries):
+        Q = oracle.space.uniform(rng, batch)
+        out.extend(Q[checker.are_free(Q)])
+        if len(out) >= n:
+            return np.array(out[:n])
+    raise UserError(f"scene {oracle.scene.name}: fewer than {n} free configurations in {tries * batch} samples")
+
+
+def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    from app.planning.ik import tool_pose
+
+    names = list(oracle.scene.poses)
+    starts, goals, hard = [], [], []
+    start = np.asarray(oracle.scene.start, float)
+    for i in range(n):
+        in_hard = i % 2 == 0
+        for _ in range(POSE_ATTEMPTS):
+            known = []
+            if in_hard:
+                X = oracle.scene.poses[names[rng.integers(len(names))]]
+                axis = rng.normal(size=3)
+                turn = RotationMatrix.MakeFromOneVector(axis / np.linalg.norm(axis), 2)  # any frame with z = axis
+                spin = RotationMatrix.MakeZRotation(rng.uniform(-HARD_TURN, HARD_TURN))
+                turn = turn.multiply(spin).multiply(turn.inverse())  # a turn about `axis`
+                pose = RigidTransform(turn.multiply(X.rotation()), X.translation() + rng.uniform(-1, 1, 3) * HARD_SHIFT)
+            else:
+                q = _free_configurations(oracle, 1, rng)[0]
+                pose, known = tool_pose(oracle, q), [q]
+            found = ik_solutions(oracle, pose, rng, start, known)
+            if len(found):
+                break
+        else:
+            raise UserError(f"scene {oracle.scene.name}: no reachable tool pose in {POSE_ATTEMPTS} tries")
+        starts.append(start)
+        goals.append(found)
+        hard.append(in_hard)
+        start = found[0]
+        progress()
+    kind = (
+        "tool poses, a work cell's sequence: each query from the previous query's first goal (home first) to every "
+        f"IK solution found for a tool pose, alternately a named pose moved <= {HARD_SHIFT * 100:g} cm and turned "
+        f"<= {math.degrees(HARD_TURN):g} deg (hard) and the pose of a random free configuration"
+    )
+    return QuerySet(kind, np.array(starts), goals, np.array(hard))
+
+
+def ik_solutions(oracle, pose, rng, reference, known=()) -> np.ndarray:
+    """Distinct free IK solutions of `pose` (k, dim), the one nearest `reference` first: solve_pose from the
+    reference, then from IK_REFERENCES random references (solve_pose returns one solution per call, the nearest
+    its reference of those it found), plus `known` solutions. Empty when none is found."""
+    from app.planning.ik import solve_pose
+
+    found = [np.asarray(q, float) for q in known]
+    references = [reference] + list(oracle.space.uniform(rng, IK_REFERENCES))
+    for k, ref in enumerate(references):
+        try:
+            q = solve_pose(oracle, pose, rng, ref, seeds=16 if k == 0 else 2, keep=1 if k else 6)
+        except InvalidEndpoint:
+            if k == 0 and not found:
+                return np.empty((0, oracle.space.dim))  # not reachable from 16 seeds: not worth the others
+            continue
+        if all(oracle.space.distance(q, other) > DISTINCT for other in found):
+            found.append(q)
+    if not found:
+        return np.empty((0, oracle.space.dim))
+    found.sort(key=lambda q: float(oracle.space.distance(reference, q)))
+    return np.array(found)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What a run measures: queries per scene, the seed of the query set and of every planner, our per-query budget,
+    OMPL's seconds per query, the cell build's nodes, budget and worker processes."""
+
+    queries: int = 100
+    seed: int = 0
+    budget: Budget = Budget(checks=200_000)
+    ompl_seconds: float = 10.0
+    build_nodes: int = 1500
+    build_budget: Budget = Budget(checks=3_000_000)
+    workers: int = 1
+
+
+# ---- the methods --------------------------------------------------------------------------------------------------
+def _ends(oracle, path, start, goals) -> dict:
+    """Whether a path starts at the query's start and which of its goals it ends at (None: none)."""
+    if path is None or len(path) == 0:
+        return {"from_start": None, "reached": None}
+    d = oracle.space.distance(np.atleast_2d(goals), np.asarray(path[-1])[None])
+    reached = int(np.argmin(d)) if float(np.min(d)) <= REACHED else None
+    return {"from_start": bool(float(oracle.space.distance(path[0], start)) <= REACHED), "reached": reached}
+
+
+def _ours(oracle, solve, start, goals, seed: int, budget: Budget) -> dict:
+    """One query answered by our planner: solve(start, goals, PlanSettings) is app.plan or CellRoadmap.solve."""
+    clock = time.perf_counter()
+    try:
+        r = solve(start, goals, PlanSettings(budget=budget, seed=seed))
+    except NoPath as failure:
+        details = getattr(failure, "details", {}) or {}
+        return {
+            "success": False,
+            "seconds": time.perf_counter() - clock,
+            "checks": details.get("collision_checks"),
+            "certified": False,
+            "timed": False,
+            **_ends(oracle, None, start, goals),
+        }
+    return {
+        "success": bool(r.success),
+        "seconds": time.perf_counter() - clock,
+        "checks": int(r.collision_checks),
+        "distance_queries": int(r.distance_queries),
+        "certify_seconds": r.seconds.get("certify", 0.0),
+        "timing_seconds": r.seconds.get("timing", 0.0),
+        "certified": bool(r.trajectory is not None and r.trajectory.certified),
+        "timed": r.trajectory is not None,
+        **_ends(oracle, r.path, start, goals),
+    }
+
+
+def _fresh(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
+    def solve(start, goals, plan_settings):
+        return plan(oracle, plan_settings, start=start, goal=goals)
+
+    answers = []
+    for i, (start, goals) in enumerate(zip(queries.starts, queries.goals)):
+        answers.append(_ours(oracle, solve, start, goals, settings.seed + i, settings.budget))
+        progress()
+    return {"build": None, "answers": answers}
+
+
+def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
+    from app.planning.cell import BuildSettings, CellRoadmap
+
+    build_settings = BuildSettings(nodes=settings.build_nodes, budget=settings.build_budget, seed=settings.seed)
+    bar = tqdm(
+        total=build_settings.nodes, desc=f"  build {oracle.scene.name}", unit="node", leave=False, dynamic_ncols=True
+    )
+
+    def grown(nodes, target, checks):
+        bar.update(nodes - bar.n)
+        bar.set_postfix(checks=checks, refresh=False)
+
+    try:
+        clock = time.perf_counter()
+        cell = CellRoadmap.build(oracle, build_settings, workers=settings.workers, progress=grown)
+        seconds = time.perf_counter() - clock
+    finally:
+        bar.close()
+    record = cell.provenance["builds"][-1]
+    info = cell.info()
+    build = {
+        "seconds": seconds,
+        "checks": int(record["collision_checks"]),
+        "nodes": info["nodes"],
+        "edges": int(sum(info["edges"].values())),
+        "ended": record["ended"],
+        "workers": settings.workers,
+    }
+    answers = []
+    for i, (start, goals) in enumerate(zip(queries.starts, queries.goals)):
+        answers.append(_ours(oracle, cell.solve, start, goals, settings.seed + i, settings.budget))
+        answers[-1]["nodes"] = len(cell)  # the roadmap after this query: it keeps what the query added
+        progress()
+    return {"build": build, "answers": answers, "builds": len(cell.provenance["builds"])}
+
+
+def _ompl_answer(oracle, problem, start, goals, seconds: float) -> dict:
+    from app.bench.ompl import _fine_check
+
+    checks0, clock = problem.checker.checks, time.perf_counter()
+    problem.set_query(start, goals)
+    solved = problem.solve(seconds)
+    solve_seconds = time.perf_counter() - clock
+    out = {"success": solved, "certified": False, "timed": False}
+    path = None
+    if solved:
+        problem.simplify()
+        path = problem.solution_for_oracle()
+        out["smoothing_seconds"] = time.perf_counter() - clock - solve_seconds
+    out.update(seconds=time.perf_counter() - clock, checks=problem.checker.checks - checks0)
+    if solved:
+        out.update(_fine_check(oracle, path))  # ours, counted apart: whether OMPL's answer is free at our fine step
+    return {**out, **_ends(oracle, path, start, goals)}
+
+
+def _ompl_prm(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
+    from app.ompl_bridge import OmplProblem
+
+    problem = OmplProblem(oracle, seed=settings.seed, planner="PRM")
+    clock = time.perf_counter()
+    problem.grow(build_seconds)
+    build = {
+        "seconds": time.perf_counter() - clock,
+        "checks": int(problem.checker.checks),
+        "nodes": int(problem.planner.milestoneCount()),
+        "edges": int(problem.planner.edgeCount()),
+        "ended": "seconds (the cell build's)",
+        "workers": 1,
+    }
+    answers = []
+    for start, goals in zip(queries.starts, queries.goals):
+        answers.append(_ompl_answer(oracle, problem, start, goals, settings.ompl_seconds))
+        answers[-1]["nodes"] = int(problem.planner.milestoneCount())
+        progress()
+    return {"build": build, "answers": answers}
+
+
+def _ompl_rrtconnect(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
+    from app.ompl_bridge import OmplProblem
+
+    answers = []
+    for i, (start, goals) in enumerate(zip(queries.starts, queries.goals)):
+        problem = OmplProblem(oracle, seed=settings.seed + i, planner="RRTConnect")  # a fresh tree per query
+        answers.append(_ompl_answer(oracle, problem, start, goals, settings.ompl_seconds))
+        progress()
+    return {"build": None, "answers": answers}
+
+
+RUNNERS = {"fresh": _fresh, "cell": _cell, "ompl-prm": _ompl_prm, "ompl-rrtconnect": _ompl_rrtconnect}
+
+
+# ---- the benchmark ------------------------------------------------------------------------------------------------
+def check_methods(methods) -> list[str]:
+    """The methods in METHODS order (the cell before ompl-prm, whose build lasts as long as the cell's); UserError
+    for an unknown one, or ompl-prm without cell."""
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise UserError(f"unknown method {', '.join(unknown)} (known: {', '.join(METHODS)})")
+    if "ompl-prm" in methods and "cell" not in methods:
+        raise UserError("ompl-prm grows its roadmap for as long as the cell build took: add cell to --methods")
+    return [m for m in METHODS if m in methods]
+
+
+def _params(method: str, settings: Settings, digest: str) -> dict:
+    """What a trial's key holds: the query set and the settings the method's answers depend on."""
+    out = {"protocol": PROTOCOL, "queries": settings.queries, "query_set": digest}
+    if method in ("fresh", "cell"):
+        out["budget"] = str(settings.budget)
+    if method in ("cell", "ompl-prm"):
+        out.update(build_nodes=settings.build_nodes, build_budget=str(settings.build_budget), workers=settings.workers)
+    if method.startswith("ompl-"):
+        out["ompl_seconds"] = settings.ompl_seconds
+    return out
+
+
+def _quantile(values, q: float):
+    values = [v for v in values if v is not None]
+    return float(np.quantile(values, q)) if values else None
+
+
+def summarise(method: str, metrics: dict) -> dict:
+    """One method's row: its build, and over all its queries (failures included: they spent their budget) the
+    median and p95 checks and seconds, success rate, certified share (of the successes) and totals."""
+    answers = metrics["answers"]
+    won = [a for a in answers if a["success"]]
+    checks = [a["checks"] for a in answers]
+    seconds = [a["seconds"] for a in answers]
+    return {
+        "method": method,
+        "queries": len(answers),
+        "build": metrics["build"],
+        "successes": len(won),
+        "success_rate": len(won) / len(answers) if answers else None,
+        "certified_share": sum(a["certified"] for a in won) / len(won) if won else None,
+        "timed_share": sum(a["timed"] for a in won) / len(won) if won else None,
+        "median_checks": _quantile(checks, 0.5),
+        "p95_checks": _quantile(checks, 0.95),
+        "median_seconds": _quantile(seconds, 0.5),
+        # ours: the part of a query's seconds spent proving and timing its path (OMPL does neither: None)
+        "median_certify_timing_seconds": _quantile(
+            [a["certify_seconds"] + a["timing_seconds"] for a in answers if "certify_seconds" in a], 0.5
+        ),
+        "p95_seconds": _quantile(seconds, 0.95),
+        "total_checks": int(sum(c for c in checks if c is not None)),
+        "total_seconds": float(sum(seconds)),
+        "failed_fine_check": sum(1 for a in won if a.get("fine_check_passed") == 0.0),
+        "builds": metrics.get("builds"),
+        "answers": answers,
+    }
+
+
+def _with_build(row: dict, key: str) -> float:
+    return row[f"total_{key}"] + (row["build"][key] if row["build"] else 0)
+
+
+def _over(a, b):
+    return a / b if b else None
+
+
+def ratios(rows: list[dict]) -> list[dict]:
+    """The cell's totals over fresh's and ompl-prm's, queries only and with each build added (None when a method
+    is missing)."""
+    by = {r["method"]: r for r in rows}
+    cell = by.get("cell")
+    out = []
+    for other, goal in (("fresh", GOALS["cell vs fresh"]), ("ompl-prm", GOALS["cell vs ompl-prm"])):
+        if cell is None or other not in by:
+            continue
+        o = by[other]
+        out.append(
+            {
+                "of": "cell",
+                "over": other,
+                "checks": _over(cell["total_checks"], o["total_checks"]),
+                "seconds": _over(cell["total_seconds"], o["total_seconds"]),
+                "checks_with_builds": _over(_with_build(cell, "checks"), _with_build(o, "checks")),
+                "seconds_with_builds": _over(_with_build(cell, "seconds"), _with_build(o, "seconds")),
+                "goal_seconds": goal,
+            }
+        )
+    return out
+
+
+def measure(scenes: list[str], methods: list[str], settings: Settings, store_path, fresh: bool = False):
+    """Every scene's query set answered by every method (trials the store holds are reused). Returns (report,
+    Reuse): {"scenes": [{"scene", "query_set", "methods": summarise rows, "ratios"}], settings...}."""
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
+
+    methods = check_methods(methods)
+    if any(m.startswith("ompl-") for m in methods):
+        from app.ompl_bridge import ompl_modules
+
+        ompl_modules()
+    store = ResultStore(store_path)
+    out, reused = [], []
+    try:
+        for name in scenes:
+            oracle = CollisionOracle(Scene(name))
+            step = default_step(oracle.scene)
+            with tqdm(total=settings.queries, desc=f"{name} queries", unit="query", dynamic_ncols=True) as bar:
+                queries = make_queries(oracle, settings.queries, settings.seed, bar.update)
+            specs = [
+                TrialSpec(EXPERIMENT, name, m, step, settings.seed, _params(m, settings, queries.digest()))
+                for m in methods
+            ]
+            reused.append(store.reuse(specs, fresh=fresh))
+            pending = {s.key for s in store.pending(specs, fresh=fresh)}
+            rows = {}
+            for spec in specs:
+                if spec.key in pending:
+                    # ompl-prm's build lasts as long as the cell's (run or reused just before: METHODS order)
+                    build_seconds = rows["cell"]["build"]["seconds"] if spec.method == "ompl-prm" else None
+                    bar = tqdm(total=len(queries), desc=f"{name} {spec.method}", unit="query", dynamic_ncols=True)
+                    try:
+                        metrics = RUNNERS[spec.method](oracle, queries, settings, bar.update, build_seconds)
+                    finally:
+                        bar.close()
+                    store.add(spec, {**metrics, "query_set": queries.digest()})
+                rows[spec.method] = store.rows_for([spec])[0]["metrics"]
+            table = [summarise(m, rows[m]) for m in methods]
+            out.append({"scene": name, "query_set": queries.to_json(), "methods": table, "ratios": ratios(table)})
+        reuse = _merged(reused)
+    finally:
+        store.close()
+    report = {
+        "scenes": out,
+        "queries": settings.queries,
+        "seed": settings.seed,
+        "budget": str(settings.budget),
+        "ompl_seconds": settings.ompl_seconds,
+        "build_nodes": settings.build_nodes,
+        "build_budget": str(settings.build_budget),
+        "workers": settings.workers,
+        "goals": GOALS,
+    }
+    return report, reuse
+
+
+def _merged(parts: list[Reuse]) -> Reuse:
+    """What was reused over several scenes (each looked at before its trials ran)."""
+    return Reuse(
+        store=parts[0].store,
+        trials=sum(p.trials for p in parts),
+        reused=sum(p.reused for p in parts),
+        versions=tuple(sorted({v for p in parts for v in p.versions})),
+        current=parts[0].current,
+    )
+
+
+def figure(report: dict, path: str) -> None:
+    """Per-query seconds of every method, one panel per scene (log y): each query a dot (a cross when it failed),
+    with the median and p95 marked; the build seconds written under the method's name."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from app.draw import save
+
+    scenes = report["scenes"]
+    width = 1.0 + 1.6 * max(len(s["methods"]) for s in scenes)
+    fig, axes = plt.subplots(1, len(scenes), figsize=(width * len(scenes), 4.2), squeeze=False)
+    rng = np.random.default_rng(0)  # the dots' horizontal jitter
+    for ax, s in zip(axes.flat, scenes):
+        labels = []
+        for x, r in enumerate(s["methods"]):
+            seconds = np.maximum(np.array([a["seconds"] for a in r["answers"]], float), 1e-4)
+            won = np.array([a["success"] for a in r["answers"]], bool)
+            jitter = x + rng.uniform(-0.18, 0.18, len(seconds))
+            ax.scatter(jitter[won], seconds[won], s=10, color=f"C{x}", alpha=0.6, linewidths=0)
+            ax.scatter(jitter[~won], seconds[~won], s=18, color="black", marker="x", linewidths=1)
+            for q, style in ((r["median_seconds"], "-"), (r["p95_seconds"], ":")):
+                if q:
+                    ax.plot([x - 0.3, x + 0.3], [q, q], style, color="black", lw=1.5)
+            build = r["build"]
+            labels.append(r["method"] + (f"\nbuild {build['seconds']:.0f} s" if build else ""))
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(labels)), labels, fontsize=8)
+        ax.set_xlim(-0.6, len(labels) - 0.4)
+        ax.grid(alpha=0.3, which="both", axis="y")
+        ax.set_title(f"{s['scene']}: {s['query_set']['count']} queries", fontsize=10)
+        ax.set_ylabel("seconds per query", fontsize=9)
+    fig.suptitle(
+        f"every query a dot (x: failed); line: median, dotted: p95\nours: {report['budget']} per query, certified "
+        f"and timed; OMPL: {report['ompl_seconds']:g} s per query, smoothed, neither certified nor timed",
+        fontsize=8,
+    )
+    fig.tight_layout(rect=(0, 0, 1, 0.9))
+    save(fig, path)
