@@ -216,6 +216,18 @@ def test_a_new_plan_replaces_the_one_under_way(make_panel):
     assert {"/path", "/roadmap"} <= objects and any(p.startswith("/samples/") for p in objects)
 
 
+def test_the_panel_keeps_its_roadmap_between_plan_presses(make_panel):
+    panel = make_panel(SCENE)
+    panel.press("Plan")
+    first = settle(panel)
+    nodes = len(panel.cell)
+    panel.press("Plan")  # the same start and goal again: answered on what the first press built
+    second = settle(panel)
+    assert first["last"]["success"] and second["last"]["success"]
+    assert panel.result.rounds == 0 and len(panel.cell) == nodes
+    assert second["last"]["collision_checks"] < first["last"]["collision_checks"]
+
+
 def test_buttons_cycle_the_sampler_and_toggle_what_is_shown(make_panel):
     from app.samplers import SAMPLERS
 
