@@ -1,0 +1,255 @@
+"""`bench ablation`: what each source of our planner's narrow-passage samples adds.
+
+The planner's narrow rounds draw from two sources: workspace-gap placements (`PlanSettings.workspace` of them) and
+the narrow-passage sampler (the Lévy bridge walkers by default). Each variant below removes or swaps one source and
+plans the scene's own query with everything else as `plan` runs it, on a collision-check budget (so success and
+checks do not depend on the machine or on what else runs on it). Per run: success within the budget, checks to the
+first solution (all checks but smoothing's and timing's) and how many of the roadmap path's nodes each source
+supplied.
+"""
+
+import numpy as np
+
+from app.bench.runner import sweep
+from app.bench.store import Reuse, TrialSpec
+from app.checking.budget import Budget
+from app.errors import NoPath
+from app.planning.planner import PlanSettings, default_step, plan
+from app.scene.model import Scene
+
+# variant -> (narrow-passage sampler, share of the narrow samples placed in workspace gaps)
+VARIANTS = {
+    "default": ("lfbs", PlanSettings.workspace),
+    "lfbs-alone": ("lfbs", 0.0),
+    "placements+uniform": ("uniform", PlanSettings.workspace),
+    "uniform-alone": ("uniform", 0.0),
+    "rbbs+placements": ("rbbs", PlanSettings.workspace),
+}
+DEFAULT_CHECKS = 100_000
+
+
+def run_trial_spec(oracle, spec: TrialSpec) -> dict:
+    """One query of variant `spec.method` on `spec.params["checks"]` collision checks."""
+    sampler, workspace = VARIANTS[spec.method]
+    checks0 = oracle.checks
+    try:
+        r = plan(
+            oracle,
+            PlanSettings(
+                sampler=sampler,
+                step=spec.step,
+                seed=spec.seed,
+                budget=Budget(checks=int(spec.params["checks"])),
+                workspace=workspace,
+            ),
+        )
+    except NoPath as exc:
+        return {"success": 0.0, "checks": oracle.checks - checks0, "code": getattr(exc, "code", None)}
+    after = r.checks["smoothing"] + r.checks.get("timing", 0)
+    path_nodes = len(r.path_nodes)
+    return {
+        "success": 1.0,
+        "checks": r.collision_checks - after,
+        "checks_total": r.collision_checks,
+        "rounds": r.rounds,
+        "path_nodes": path_nodes,
+        "narrow_on_path": r.narrow_on_path,
+        "workspace_on_path": r.workspace_on_path,
+        # start and goal are on every path and come from no sampler
+        "uniform_on_path": path_nodes - 2 - r.narrow_on_path - r.workspace_on_path,
+    }
+
+
+def specs(scenes: list[str], variants: list[str], seeds: int, checks: int) -> list[TrialSpec]:
+    """Seed-major, so a sweep stopped part way holds the same seeds of every cell."""
+    steps = {scene: default_step(Scene(scene)) for scene in scenes}
+    return [
+        TrialSpec("ablation", scene, variant, steps[scene], seed, {"checks": checks})
+        for seed in range(seeds)
+        for scene in scenes
+        for variant in variants
+    ]
+
+
+def _bootstrap_median(values: np.ndarray, seed: int = 0) -> tuple[float, float] | None:
+    """95 % percentile-bootstrap interval of the median (None for fewer than two values)."""
+    from scipy.stats import bootstrap
+
+    if len(values) < 2 or np.all(values == values[0]):
+        return (float(values[0]), float(values[0])) if len(values) else None
+    res = bootstrap((values,), np.median, confidence_level=0.95, method="percentile", random_state=seed)
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def summarise(rows: list[dict], scenes: list[str], variants: list[str]) -> list[dict]:
+    """One row per scene x variant (in that order, cells with no trial left out): success with its 95 % binomial
+    interval; median checks to the first solution over successful runs with a bootstrap interval; and, summed over
+    the successful runs, the path nodes each source supplied. `vs_default`: a two-sided Fisher test of success against
+    the default's, and a Mann-Whitney test of checks with every unsolved run counted as the budget (a censored value
+    no solved run exceeds), so a variant that fails more is not flattered by its medians over fewer runs."""
+    from scipy.stats import binomtest, fisher_exact, mannwhitneyu
+
+    cells = {}
+    for r in rows:
+        cells.setdefault((r["scene"], r["method"]), []).append(r)
+    table = []
+    for scene in scenes:
+        base = cells.get((scene, "default"), [])
+        for variant in variants:
+            runs = cells.get((scene, variant))
+            if not runs:
+                continue
+            metrics = [r["metrics"] for r in runs]
+            budget = runs[0]["params"]["checks"]
+            won = [m for m in metrics if m["success"]]
+            n, k = len(metrics), len(won)
+            ci = binomtest(k, n).proportion_ci(confidence_level=0.95)
+            checks = np.array([m["checks"] for m in won], float)
+            row = {
+                "scene": scene,
+                "variant": variant,
+                "runs": n,
+                "successes": k,
+                "success_ci": [float(ci.low), float(ci.high)],
+                "median_checks": float(np.median(checks)) if k else None,
+                "median_checks_ci": _bootstrap_median(checks) if k else None,
+                "budget_checks": budget,
+                "path_nodes_from": {
+                    source: int(sum(m[f"{source}_on_path"] for m in won))
+                    for source in ("workspace", "narrow", "uniform")
+                },
+                "vs_default": None,
+            }
+            if variant != "default" and base:
+                b = [m["success"] for m in (r["metrics"] for r in base)]
+                table_2x2 = [[k, n - k], [int(sum(b)), len(b) - int(sum(b))]]
+                censored = [m["checks"] if m["success"] else budget for m in metrics]
+                censored_base = [m["checks"] if m["success"] else budget for m in (r["metrics"] for r in base)]
+                row["vs_default"] = {
+                    "success_fisher_p": float(fisher_exact(table_2x2).pvalue),
+                    "checks_mannwhitney_p": float(mannwhitneyu(censored, censored_base).pvalue),
+                    "checks_ratio": (
+                        row["median_checks"] / _median_of(base) if k and _median_of(base) is not None else None
+                    ),
+                }
+            table.append(row)
+    return table
+
+
+def _median_of(runs: list[dict]) -> float | None:
+    won = [r["metrics"]["checks"] for r in runs if r["metrics"]["success"]]
+    return float(np.median(won)) if won else None
+
+
+def measure(
+    scenes: list[str], variants: list[str], seeds: int, checks: int, store, workers: int = 1, run: bool = True
+) -> tuple[list[dict], Reuse, int]:
+    """Run what `store` has no row for (none with run=False), then the summary of the stored trials; what was
+    reused, and how many of the trials the store holds."""
+    from app.bench.store import ResultStore
+
+    todo = specs(scenes, variants, seeds, checks)
+    if run:
+        rows, reuse = sweep(todo, store, workers=workers, desc="bench ablation")
+    else:
+        s = ResultStore(store)
+        try:
+            reuse, rows = s.reuse(todo), s.rows_for(todo)
+        finally:
+            s.close()
+    return summarise(rows, scenes, variants), reuse, len(rows)
+
+
+def _fmt_checks(value) -> str:
+    if value is None:
+        return "-"
+    return f"{value / 1000:.1f}k" if value >= 1000 else f"{value:.0f}"
+
+
+def markdown(table: list[dict], held: int, planned: int, checks: int, seeds: int) -> str:
+    """The ablation's table and what each source put on the paths, as markdown."""
+    lines = [
+        "# Ablation: what each source of narrow-passage samples adds",
+        "",
+        f"{held} of {planned} trials ({seeds} seeds per scene and variant), each the scene's own query planned as "
+        f"`plan` does, on a budget of {checks:,} collision checks (machine-independent). Variants: "
+        + "; ".join(f"`{v}` = sampler {s}, workspace share {w:g}" for v, (s, w) in VARIANTS.items())
+        + ".",
+        "",
+        "success: solved within the budget, with its 95 % Clopper-Pearson interval. checks: median checks to the "
+        "first solution over the solved runs, with a 95 % bootstrap interval. p (success): two-sided Fisher test "
+        "against `default`; p (checks): Mann-Whitney test against `default`, unsolved runs counted at the budget. "
+        "path nodes: the roadmap path's nodes (start and goal left out) over all solved runs, by the source that "
+        "drew them: workspace-gap placements / the narrow-passage sampler / uniform samples.",
+        "",
+        "| scene | variant | success | 95 % CI | checks | 95 % CI | p (success) | p (checks) | path nodes "
+        "placed / sampler / uniform |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in table:
+        lo, hi = r["success_ci"]
+        cci = r["median_checks_ci"]
+        vs = r["vs_default"]
+        src = r["path_nodes_from"]
+        lines.append(
+            f"| {r['scene']} | {r['variant']} | {r['successes']}/{r['runs']} | {lo:.2f}-{hi:.2f} | "
+            f"{_fmt_checks(r['median_checks'])} | "
+            + (f"{_fmt_checks(cci[0])}-{_fmt_checks(cci[1])}" if cci else "-")
+            + " | "
+            + (f"{vs['success_fisher_p']:.2g} | {vs['checks_mannwhitney_p']:.2g}" if vs else "- | -")
+            + f" | {src['workspace']} / {src['narrow']} / {src['uniform']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def figure(table: list[dict], path: str, checks: int) -> None:
+    """Per scene, one bar per variant: median checks to the first solution (log scale) with its bootstrap interval;
+    the success count written over each bar; a variant with no solved run drawn hollow and hatched at the budget."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    from app.draw import save
+
+    scenes = list(dict.fromkeys(r["scene"] for r in table))
+    variants = list(dict.fromkeys(r["variant"] for r in table))
+    colours = {v: f"C{i}" for i, v in enumerate(variants)}
+    width = 0.8 / len(variants)
+    fig, ax = plt.subplots(figsize=(max(8.0, 1.25 * len(scenes)), 4.6))
+    cells = {(r["scene"], r["variant"]): r for r in table}
+    for i, scene in enumerate(scenes):
+        for j, variant in enumerate(variants):
+            r = cells.get((scene, variant))
+            if r is None:
+                continue
+            x = i - 0.4 + width * (j + 0.5)
+            c = colours[variant]
+            if r["median_checks"] is None:
+                ax.bar(x, checks, width, facecolor="none", edgecolor=c, hatch="///", linewidth=0.8)
+            else:
+                lo, hi = r["median_checks_ci"]
+                m = r["median_checks"]
+                ax.bar(x, m, width, color=c, alpha=0.85 if r["successes"] == r["runs"] else 0.45, edgecolor=c)
+                ax.errorbar(x, m, yerr=[[m - lo], [hi - m]], fmt="none", ecolor="black", capsize=2, lw=0.8)
+            ax.text(x, checks * 1.15, f"{r['successes']}", ha="center", va="bottom", fontsize=6.5, rotation=90)
+    ax.axhline(checks, color="grey", lw=0.8, ls="--")
+    ax.set_yscale("log")
+    ax.set_ylim(top=checks * 2.2)
+    ax.set_xticks(range(len(scenes)), scenes, rotation=20)
+    ax.set_ylabel("median collision checks to first solution")
+    ax.set_xlabel("scene")
+    ax.grid(axis="y", alpha=0.3, which="both")
+    runs = max((r["runs"] for r in table), default=0)
+    ax.set_title(
+        f"Ablation of the planner's narrow-passage sources ({runs} seeds, {checks:,}-check budget: dashed line)\n"
+        "bars: median over solved runs with 95 % bootstrap interval; faded: some runs unsolved; hatched: none solved; "
+        "numbers: successes",
+        fontsize=9,
+    )
+    handles = [Patch(color=colours[v], label=v) for v in variants]
+    handles.append(Patch(facecolor="none", edgecolor="grey", hatch="///", label="no run solved"))
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    save(fig, path)
