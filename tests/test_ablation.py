@@ -1,0 +1,47 @@
+"""The ablation's summary and pictures on small synthetic trial tables whose answers are known."""
+
+import pytest
+
+from app.bench.ablation import VARIANTS, figure, markdown, specs, summarise
+
+
+def row(variant: str, seed: int, success: bool, checks: int, placed: int = 0, walked: int = 0, uniform: int = 0):
+    metrics = {"success": float(success), "checks": checks}
+    if success:
+        metrics.update(workspace_on_path=placed, narrow_on_path=walked, uniform_on_path=uniform)
+    return {"scene": "bar", "method": variant, "seed": seed, "params": {"checks": 50_000}, "metrics": metrics}
+
+
+def test_specs_are_seed_major_so_a_stopped_sweep_covers_every_cell_alike():
+    todo = specs(["bar", "maze"], list(VARIANTS), 3, 50_000)
+    assert len(todo) == 2 * len(VARIANTS) * 3
+    first = todo[: 2 * len(VARIANTS)]
+    assert {s.seed for s in first} == {0}
+    assert {(s.scene, s.method) for s in first} == {(sc, v) for sc in ("bar", "maze") for v in VARIANTS}
+    assert len({s.key for s in todo}) == len(todo)
+
+
+def test_summary_counts_success_compares_with_the_default_and_names_the_path_sources(tmp_path):
+    rows = [row("default", s, True, 1000 + s, placed=2, walked=1) for s in range(20)]
+    rows += [row("uniform-alone", s, s < 4, 30_000 + s if s < 4 else 50_000, uniform=3) for s in range(20)]
+    table = {r["variant"]: r for r in summarise(rows, ["bar"], ["default", "uniform-alone"])}
+    base, alone = table["default"], table["uniform-alone"]
+    assert (base["successes"], alone["successes"]) == (20, 4)
+    assert base["vs_default"] is None
+    assert alone["vs_default"]["success_fisher_p"] < 1e-6
+    assert alone["vs_default"]["checks_mannwhitney_p"] < 1e-6
+    assert base["path_nodes_from"] == {"workspace": 40, "narrow": 20, "uniform": 0}
+    assert alone["path_nodes_from"] == {"workspace": 0, "narrow": 0, "uniform": 12}
+    assert base["median_checks_ci"][0] <= base["median_checks"] <= base["median_checks_ci"][1]
+    text = markdown(list(table.values()), 40, 40, 50_000, 20)
+    assert "| bar | uniform-alone | 4/20 |" in text
+    assert "| 40 / 20 / 0 |" in text
+
+
+@pytest.mark.parametrize("solved", [0, 3])
+def test_figure_draws_cells_with_and_without_a_solved_run(tmp_path, solved):
+    rows = [row("default", s, True, 1000 + 10 * s, placed=1) for s in range(5)]
+    rows += [row("lfbs-alone", s, s < solved, 9000 + s if s < solved else 50_000) for s in range(5)]
+    table = summarise(rows, ["bar"], ["default", "lfbs-alone"])
+    figure(table, str(tmp_path / "a.png"), 50_000)
+    assert (tmp_path / "a.png").stat().st_size > 10_000
