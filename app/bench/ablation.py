@@ -26,6 +26,11 @@ VARIANTS = {
     "rbbs+placements": ("rbbs", PlanSettings.workspace),
 }
 DEFAULT_CHECKS = 100_000
+# Run after every other variant's seeds: uniform samples alone cost one check each, so within a check budget the lazy
+# roadmap grows to tens of thousands of nodes, and its neighbour searches take minutes a query (joint: 6 min, on a
+# shared 2-core machine), where the other variants take seconds. A sweep stopped early then still holds the same
+# seeds of every other variant.
+RUN_LAST = ("uniform-alone",)
 
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
@@ -61,13 +66,16 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
 
 
 def specs(scenes: list[str], variants: list[str], seeds: int, checks: int) -> list[TrialSpec]:
-    """Seed-major, so a sweep stopped part way holds the same seeds of every cell."""
+    """Seed-major, so a sweep stopped part way holds the same seeds of every cell; the variants of RUN_LAST after all
+    the others."""
     steps = {scene: default_step(Scene(scene)) for scene in scenes}
+    groups = [[v for v in variants if v not in RUN_LAST], [v for v in variants if v in RUN_LAST]]
     return [
         TrialSpec("ablation", scene, variant, steps[scene], seed, {"checks": checks})
+        for group in groups
         for seed in range(seeds)
         for scene in scenes
-        for variant in variants
+        for variant in group
     ]
 
 
