@@ -49,3 +49,23 @@ def test_figure_draws_cells_with_and_without_a_solved_run(tmp_path, solved):
     table = summarise(rows, ["bar"], ["default", "lfbs-alone"])
     figure(table, str(tmp_path / "a.png"), 50_000)
     assert (tmp_path / "a.png").stat().st_size > 10_000
+
+
+def test_the_command_fills_its_store_and_rebuilds_the_table_from_it_alone(cli, tmp_path):
+    import json
+
+    argv = ["bench", "ablation", "--scenes", "bar-3link", "--variants", "default,lfbs-alone", "--seeds", "2"]
+    argv += ["--checks", "20000", "--store", tmp_path / "a.sqlite", "--out", tmp_path / "out", "--json"]
+    first = cli(*argv)
+    assert first.returncode == 0, first.stderr
+    answer = json.loads(first.stdout)
+    assert (answer["trials"], answer["planned"], answer["reused"]["reused"]) == (4, 4, 0)
+    table = (tmp_path / "out" / "table.md").read_text()
+    assert "4 of 4 trials" in table and "| bar-3link | lfbs-alone |" in table
+    assert (tmp_path / "out" / "ablation.png").is_file()
+    (tmp_path / "out" / "table.md").unlink()
+    # --report-only runs nothing: asked for 3 seeds, it reports the 4 stored trials of 6
+    again = cli(*[a if a != "2" else "3" for a in argv], "--report-only")
+    assert again.returncode == 0, again.stderr
+    assert json.loads(again.stdout)["trials"] == 4
+    assert "4 of 6 trials" in (tmp_path / "out" / "table.md").read_text()

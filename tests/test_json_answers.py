@@ -167,6 +167,8 @@ FAILURES = [
     (["bench", "paper", "--out", "{tmp}/paper", "--ompl-db", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench", "certify", "--seeds", "0"], 2, "INVALID_INPUT"),
     (["bench", "audit", "--store", "{tmp}"], 2, "INVALID_INPUT"),
+    (["bench", "ablation", "--variants", "default,nope"], 2, "INVALID_INPUT"),
+    (["bench", "ablation", "--store", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench"], 2, "INVALID_INPUT"),
     (["no-such-command"], 2, "INVALID_INPUT"),
 ]
