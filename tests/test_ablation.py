@@ -40,6 +40,9 @@ def test_summary_counts_success_compares_with_the_default_and_names_the_path_sou
     text = markdown(list(table.values()), 40, 40, 50_000, 20)
     assert "| bar | uniform-alone | 4/20 |" in text
     assert "| 40 / 20 / 0 |" in text
+    assert "`uniform-alone` against `default`: better in 0 scene(s); worse in 1: bar (4/20 vs 20/20" in text
+    assert "Best variant per scene (most successes, then fewest median checks): `default` in bar." in text
+    assert "40 narrow-passage nodes were workspace-gap placements and 20 came from the Lévy walkers (33%)" in text
 
 
 @pytest.mark.parametrize("solved", [0, 3])
