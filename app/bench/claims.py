@@ -1,8 +1,11 @@
-"""Judges the paper's claims from the results store: reproduced, partly, not reproduced, or no data — with numbers.
+"""Judges the paper's claims from the results store: reproduced, partly, not reproduced, reversed, or no data — with
+numbers.
 
-Each claim is a set of comparisons (one per scene or per scene x step); the verdict counts them: all hold ->
-reproduced, none -> not reproduced, some -> partly. The rules (`RULES`) and their constants are fixed here and
-printed in the report: no tuning toward the paper.
+Each claim is a set of comparisons (one per scene or per scene x step), each of which holds, fails, or is reversed
+(significant the other way, by the same kind of test); the verdict counts them: all hold -> reproduced, all reversed
+-> reversed, none holds -> not reproduced (saying how many are reversed), some -> partly. What a verdict leaves out
+(cells the check budget decided, scenes no sampler reaches, PRM runs the sampler's own cap ended) is listed with it.
+The rules (`RULES`) and their constants are fixed here and printed in the report: no tuning toward the paper.
 
 Censoring. A sampling trial that spends its collision-check budget is right-censored, never dropped (dropping them
 keeps only the lucky trials of a sampler that often runs out, and so favours it):
@@ -10,6 +13,8 @@ keeps only the lucky trials of a sampler that often runs out, and so favours it)
   right-censored values as such (scipy.stats.logrank), and a median that falls on a censored trial is a lower bound;
 - its quality counts the samples it drew before the budget ended: quality is the passage yield, the passage samples
   a trial delivered per K_c requested (the passage fraction when the trial finished, less when it ran out).
+A PRM run whose sampler spent its own per-call cap (`Sampler.max_checks`, SAMPLER_CAP) built no roadmap: it is
+censored too, and left out of C4 with its count.
 Intervals: medians get seeded percentile-bootstrap confidence intervals, success rates exact binomial ones.
 """
 

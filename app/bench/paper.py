@@ -551,8 +551,9 @@ def _claims_section(verdicts) -> list[str]:
     lines = [
         "## Claims",
         "",
-        "Each claim is a set of comparisons. All hold: reproduced; none: not reproduced; some: partly; no rows: "
-        "no data. The rules, fixed in `app/bench/claims.py`:",
+        "Each claim is a set of comparisons, each of which holds, fails (no significant difference either way) or "
+        "is reversed (significant the other way). All hold: reproduced; all reversed: reversed; none holds: not "
+        "reproduced; some: partly; no rows: no data. The rules, fixed in `app/bench/claims.py`:",
         "",
         *[f"- {rule}" for rule in RULES],
         "",
