@@ -278,3 +278,16 @@ def test_the_ur3_section_gives_success_intervals_and_what_more_runs_would_cost()
     assert "| window | lfbs | full | 4 | 3/4 [19%, 99%] |" in text  # Clopper-Pearson for 3 of 4
     assert f"Runs per job and sampler: 4, not {paper.TARGET_TRIALS}" in text
     assert "about 3 h of one core" in text  # 300 runs x 36 s, one cell
+
+
+def test_bench_uav_table_counts_the_runs_whose_sampler_gave_up():
+    from app.bench import uav
+
+    def row(seed, metrics):
+        return {"scene": "maze", "step": 0.5, "method": "rbbs", "seed": seed, "metrics": metrics}
+
+    rows = [row(s, {"success": 0.0, "seconds": 40.0, "collision_checks": 2_000_300, "nodes": 2}) for s in range(2)]
+    rows.append(row(2, {"success": 0.0, "seconds": 9.0, "collision_checks": 80_000, "nodes": 502}))
+    rows.append(row(3, {"success": 1.0, "seconds": 5.0, "collision_checks": 90_000, "nodes": 502}))
+    (cell,) = uav.table(rows)
+    assert (cell["runs"], cell["sampler_gave_up"], cell["success_rate"]) == (4, 2, 0.25)

@@ -10,6 +10,7 @@ run builds no roadmap (`nodes` 2) and the paper report counts it as censored (ap
 
 import numpy as np
 
+from app.bench.claims import sampler_gave_up
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
 
@@ -54,6 +55,8 @@ def table(rows) -> list[dict]:
                 "step": step,
                 "sampler": sampler,
                 "runs": len(metrics),
+                # runs whose sampler spent its own check cap and built no roadmap: censored, not PRM failures
+                "sampler_gave_up": sum(sampler_gave_up(m) for m in metrics),
                 "success_rate": float(ok.mean()),
                 "median_t_eps": float(np.median(sampling)) if sampling else None,
                 "median_t_prm": float(np.median([m["seconds"] for m in metrics])),
