@@ -182,7 +182,14 @@ def markdown(table: list[dict], held: int, planned: int, checks: int, seeds: int
         f"{held} of {planned} trials ({seeds} seeds per scene and variant), each the scene's own query planned as "
         f"`plan` does, on a budget of {checks:,} collision checks (machine-independent). Variants: "
         + "; ".join(f"`{v}` = sampler {s}, workspace share {w:g}" for v, (s, w) in VARIANTS.items())
-        + ".",
+        + "."
+        + (
+            f" The sweep stopped before its end: `python -m app bench ablation --seeds {seeds} --checks {checks}` "
+            "resumes it (stored trials are reused, not run again); the variants' seeds run in the order of "
+            "`app.bench.ablation.specs`, so the cells left short are those run last."
+            if held < planned
+            else ""
+        ),
         "",
         "success: solved within the budget, with its 95 % Clopper-Pearson interval. checks: median checks to the "
         "first solution over the solved runs, with a 95 % bootstrap interval. p (success): two-sided Fisher test "
