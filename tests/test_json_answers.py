@@ -208,6 +208,8 @@ FAILURES = [
     (["bench", "audit", "--store", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench", "queries", "--methods", "fresh,ompl-prm"], 2, "INVALID_INPUT"),
     (["bench", "queries", "--budget", "0checks"], 2, "INVALID_INPUT"),
+    (["bench", "ablation", "--variants", "default,nope"], 2, "INVALID_INPUT"),
+    (["bench", "ablation", "--store", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench"], 2, "INVALID_INPUT"),
     (["no-such-command"], 2, "INVALID_INPUT"),
 ]

@@ -231,12 +231,49 @@ def test_the_prm_section_says_what_its_runs_can_tell_apart(tmp_path, runs):
         for method in ("lfbs", "rbbs")
         for seed in range(runs)
     ]
-    text = "\n".join(paper._prm_section(rows, tmp_path))
+    text = "\n".join(paper._prm_section(rows, tmp_path)[0])
     assert f"Runs per cell: {runs}, not {paper.TARGET_TRIALS}" in text
     if runs == 30:
         assert f"flags LFBS at {paper.detectable_drop(30, 30)}/30 or fewer against RBBS's 30/30" in text
     else:  # one run against one cannot show anything
         assert "flags no LFBS count (too few runs) against RBBS's 1/1" in text
+    assert (tmp_path / "prm.png").exists()
+
+
+def test_prm_runs_whose_sampler_gave_up_are_marked_censored_in_the_table(tmp_path):
+    def row(method, seed, metrics):
+        return {
+            "experiment": "prm",
+            "scene": "tunnel",
+            "method": method,
+            "step": 0.2,
+            "seed": seed,
+            "params": {},
+            "metrics": metrics,
+            "code_version": "x",
+        }
+
+    rows = [
+        row(
+            "lfbs",
+            s,
+            {"success": 1.0, "seconds": 2.0 + s, "seconds_sampling": 1.0, "collision_checks": 1000, "nodes": 302},
+        )
+        for s in range(4)
+    ]
+    # three RBBS runs hit the sampler's cap (no roadmap), one planned and failed
+    rows += [
+        row("rbbs", s, {"success": 0.0, "seconds": 40.0 + s, "collision_checks": 2_000_100, "nodes": 2})
+        for s in range(3)
+    ]
+    rows.append(row("rbbs", 3, {"success": 0.0, "seconds": 9.0, "collision_checks": 90_000, "nodes": 302}))
+    lines, found = paper._prm_section(rows, tmp_path)
+    text = "\n".join(lines)
+    assert "| tunnel | 0.2 | rbbs | 4 | 3 | 0/4 [0%, 60%] | – (124.56) | 9.00 [9.00, 9.00] (253.09) |" in text
+    assert "| tunnel | 0.2 | lfbs | 4 | 0 |" in text
+    assert found[0].startswith("PRM: 3 of 8 runs (tunnel a=0.2 rbbs 3/4) built no roadmap")
+    cells = {c["sampler"]: c for c in paper.prm_cells(rows)}
+    assert cells["rbbs"]["gave_up"] == 3 and not cells["rbbs"]["gave_up_only"]
     assert (tmp_path / "prm.png").exists()
 
 
@@ -260,7 +297,25 @@ def test_the_ur3_section_gives_success_intervals_and_what_more_runs_would_cost()
         }
         for seed in range(4)
     ]
-    text = "\n".join(paper._ur3_section(rows))
+    lines, found = paper._ur3_section(rows)
+    text = "\n".join(lines)
+    assert found == [
+        "UR3 window under the paper's protocol (one full roadmap of 300 samples per leg): LFBS 3/4, median 36 s per "
+        "job (paper: 253 s average)."
+    ]
     assert "| window | lfbs | full | 4 | 3/4 [19%, 99%] |" in text  # Clopper-Pearson for 3 of 4
     assert f"Runs per job and sampler: 4, not {paper.TARGET_TRIALS}" in text
     assert "about 3 h of one core" in text  # 300 runs x 36 s, one cell
+
+
+def test_bench_uav_table_counts_the_runs_whose_sampler_gave_up():
+    from app.bench import uav
+
+    def row(seed, metrics):
+        return {"scene": "maze", "step": 0.5, "method": "rbbs", "seed": seed, "metrics": metrics}
+
+    rows = [row(s, {"success": 0.0, "seconds": 40.0, "collision_checks": 2_000_300, "nodes": 2}) for s in range(2)]
+    rows.append(row(2, {"success": 0.0, "seconds": 9.0, "collision_checks": 80_000, "nodes": 502}))
+    rows.append(row(3, {"success": 1.0, "seconds": 5.0, "collision_checks": 90_000, "nodes": 502}))
+    (cell,) = uav.table(rows)
+    assert (cell["runs"], cell["sampler_gave_up"], cell["success_rate"]) == (4, 2, 0.25)

@@ -1,7 +1,8 @@
 """`bench plan`: PRM success rate and time per narrow-passage sampler, at one fixed roadmap size, over many seeds.
 
-Each trial is one `app.planning.planner.plan` call (up to narrow + uniform samples, no budget; `--full-roadmap` for the
-paper's protocol of the whole roadmap first) on a per-process oracle;
+Each trial is one `app.planning.planner.plan` call (up to narrow + uniform samples; `--full-roadmap` for the paper's
+protocol of the whole roadmap first, with no budget of its own: only each sampler call's cap, `Sampler.max_checks`,
+2,000,000 checks, ends it early, and a run it ends has no roadmap: `nodes` 2) on a per-process oracle;
 rows go to the results store (`experiment` "prm"), so a killed run resumes and the claims report can read them.
 `run_trial_spec` also serves other benchmarks: params {"mode": "budget", "budget": seconds} plans in rounds until
 connected or out of time (as `plan --budget 30s`).

@@ -32,6 +32,7 @@ from app.scene.model import Scene
 EXPERIMENTS = {
     "sampling": "app.bench.sampling:run_trial_spec",
     "prm": "app.bench.plan:run_trial_spec",
+    "ablation": "app.bench.ablation:run_trial_spec",
     "ompl": "app.bench.ompl:run_trial_spec",
     "ur3": "app.bench.jobs:run_trial_spec",
     "audit": "app.bench.audit:run_trial_spec",

@@ -170,22 +170,33 @@ def figure(summary: list[dict], path: str) -> None:
                 ax.fill_between(
                     x, [s[key]["lo"] for s in cell], [s[key]["hi"] for s in cell], color=f"C{n}", alpha=0.12
                 )
-                censored = [(s["step"], s[key]["median"]) for s in cell if s["censored"] and key != "passage_fraction"]
-                if censored:  # some trials spent the whole budget: the median of their costs is a lower bound
-                    ax.scatter(*zip(*censored), marker="^", s=40, facecolors="none", edgecolors=f"C{n}")
+                if key == "passage_fraction":  # mostly censored: the budget, not the sampler, set the fraction
+                    censored = [(s["step"], s[key]["median"]) for s in cell if 2 * s["censored"] >= s["trials"]]
+                    marker = "s"
+                else:  # some trials spent the whole budget: the median of their costs is a lower bound
+                    censored = [(s["step"], s[key]["median"]) for s in cell if s["censored"]]
+                    marker = "^"
+                if censored:
+                    ax.scatter(*zip(*censored), marker=marker, s=45, facecolors="white", edgecolors=f"C{n}", zorder=3)
             if key != "passage_fraction":
                 ax.set_yscale("log")
+            steps = sorted({s["step"] for s in summary})
+            ax.set_xticks(steps, [f"{a:g}" for a in steps])
             ax.set(xlabel="step a", ylabel=label, title=f"{scene}: {label}")
             ax.grid(alpha=0.3)
-    axes[0][-1].legend(fontsize=7)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(samplers), fontsize=8, frameon=False)
+    height = fig.get_figheight()  # legend and note take a fixed strip of inches at the bottom, whatever the rows
     fig.text(
-        0.01,
-        0.0,
-        "bands: 95 % bootstrap confidence interval of the median; open triangles: some trials hit the check budget "
-        "(the median is a lower bound); in passage: of the samples drawn (a trial that hit the budget: before it)",
+        0.5,
+        0.4 / height,
+        "median per cell; bands: 95 % bootstrap confidence interval of the median; open triangles: some trials hit "
+        "the check budget (the median is a lower bound); open squares: at least half did (a budget artefact); in "
+        "passage: of the samples drawn (a trial that hit the budget: before it)",
         fontsize=7,
+        ha="center",
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.62 / height, 1, 1))
     save(fig, path)
 
 

@@ -24,11 +24,12 @@ def run(args) -> int:
     print(
         f"{args.seeds} seeds per cell; whole roadmap, every edge checked, k 10 (maze 200 + 300, tunnel 100 + 200 "
         "samples); t_eps = narrow+uniform sampling time of successful runs, T_PRM = whole plan; "
-        "paper's seconds in brackets"
+        "paper's seconds in brackets; gave up: runs whose sampler spent its own cap of checks and built no roadmap "
+        "(censored, not PRM failures)"
     )
     print(
-        f"{'scene':<7} {'step':>5} {'sampler':<8} {'success':>8} {'t_eps s':>9} {'T_PRM s':>9} {'checks':>9} "
-        f"{'paper t_eps':>12} {'paper T_PRM':>12}"
+        f"{'scene':<7} {'step':>5} {'sampler':<8} {'success':>8} {'gave up':>8} {'t_eps s':>9} {'T_PRM s':>9} "
+        f"{'checks':>9} {'paper t_eps':>12} {'paper T_PRM':>12}"
     )
     for r in result:
         paper = PAPER_SECONDS.get((r["scene"], r["step"]))
@@ -41,7 +42,8 @@ def run(args) -> int:
         )
         eps = f"{r['median_t_eps']:.2f}" if r["median_t_eps"] is not None else "-"
         print(
-            f"{r['scene']:<7} {r['step']:>5g} {r['sampler']:<8} {r['success_rate']:>8.0%} {eps:>9} "
+            f"{r['scene']:<7} {r['step']:>5g} {r['sampler']:<8} {r['success_rate']:>8.0%} {r['sampler_gave_up']:>8} "
+            f"{eps:>9} "
             f"{r['median_t_prm']:>9.2f} {r['median_checks']:>9.0f} {t_eps!s:>12} {t_prm!s:>12}"
         )
     return 0

@@ -1,0 +1,343 @@
+"""`bench ablation`: what each source of our planner's narrow-passage samples adds.
+
+The planner's narrow rounds draw from two sources: workspace-gap placements (`PlanSettings.workspace` of them) and
+the narrow-passage sampler (the Lévy bridge walkers by default). Each variant below removes or swaps one source and
+plans the scene's own query with everything else as `plan` runs it, on a collision-check budget (so success and
+checks do not depend on the machine or on what else runs on it). Per run: success within the budget, checks to the
+first solution (all checks but smoothing's and timing's) and how many of the roadmap path's nodes each source
+supplied.
+"""
+
+import numpy as np
+
+from app.bench.runner import sweep
+from app.bench.store import Reuse, TrialSpec
+from app.checking.budget import Budget
+from app.errors import NoPath
+from app.planning.planner import PlanSettings, default_step, plan
+from app.scene.model import Scene
+
+# variant -> (narrow-passage sampler, share of the narrow samples placed in workspace gaps)
+VARIANTS = {
+    "default": ("lfbs", PlanSettings.workspace),
+    "lfbs-alone": ("lfbs", 0.0),
+    "placements+uniform": ("uniform", PlanSettings.workspace),
+    "uniform-alone": ("uniform", 0.0),
+    "rbbs+placements": ("rbbs", PlanSettings.workspace),
+}
+DEFAULT_CHECKS = 100_000
+# Run after every other variant's seeds: uniform samples alone cost one check each, so within a check budget the lazy
+# roadmap grows to tens of thousands of nodes, and its neighbour searches take minutes a query (joint: 6 min, on a
+# shared 2-core machine), where the other variants take seconds. A sweep stopped early then still holds the same
+# seeds of every other variant.
+RUN_LAST = ("uniform-alone",)
+
+
+def run_trial_spec(oracle, spec: TrialSpec) -> dict:
+    """One query of variant `spec.method` on `spec.params["checks"]` collision checks."""
+    sampler, workspace = VARIANTS[spec.method]
+    try:
+        r = plan(
+            oracle,
+            PlanSettings(
+                sampler=sampler,
+                step=spec.step,
+                seed=spec.seed,
+                budget=Budget(checks=int(spec.params["checks"])),
+                workspace=workspace,
+            ),
+        )
+    except NoPath as exc:
+        checks = getattr(exc, "details", {}).get("collision_checks")
+        return {"success": 0.0, "checks": checks, "code": getattr(exc, "code", None)}
+    after = r.checks["smoothing"] + r.checks.get("timing", 0)
+    path_nodes = len(r.path_nodes)
+    return {
+        "success": 1.0,
+        "checks": r.collision_checks - after,
+        "checks_total": r.collision_checks,
+        "rounds": r.rounds,
+        "path_nodes": path_nodes,
+        "narrow_on_path": r.narrow_on_path,
+        "workspace_on_path": r.workspace_on_path,
+        # start and goal are on every path and come from no sampler
+        "uniform_on_path": path_nodes - 2 - r.narrow_on_path - r.workspace_on_path,
+    }
+
+
+def specs(scenes: list[str], variants: list[str], seeds: int, checks: int) -> list[TrialSpec]:
+    """Seed-major, so a sweep stopped part way holds the same seeds of every cell; the variants of RUN_LAST after all
+    the others."""
+    steps = {scene: default_step(Scene(scene)) for scene in scenes}
+    groups = [[v for v in variants if v not in RUN_LAST], [v for v in variants if v in RUN_LAST]]
+    return [
+        TrialSpec("ablation", scene, variant, steps[scene], seed, {"checks": checks})
+        for group in groups
+        for seed in range(seeds)
+        for scene in scenes
+        for variant in group
+    ]
+
+
+def _bootstrap_median(values: np.ndarray, seed: int = 0) -> tuple[float, float] | None:
+    """95 % percentile-bootstrap interval of the median (None for fewer than two values)."""
+    from scipy.stats import bootstrap
+
+    if len(values) < 2 or np.all(values == values[0]):
+        return (float(values[0]), float(values[0])) if len(values) else None
+    res = bootstrap((values,), np.median, confidence_level=0.95, method="percentile", random_state=seed)
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def summarise(rows: list[dict], scenes: list[str], variants: list[str]) -> list[dict]:
+    """One row per scene x variant (in that order, cells with no trial left out): success with its 95 % binomial
+    interval; median checks to the first solution over successful runs with a bootstrap interval; and, summed over
+    the successful runs, the path nodes each source supplied. `vs_default`: a two-sided Fisher test of success against
+    the default's, and a Mann-Whitney test of checks with every unsolved run counted as the budget (a censored value
+    no solved run exceeds), so a variant that fails more is not flattered by its medians over fewer runs."""
+    from scipy.stats import binomtest, fisher_exact, mannwhitneyu
+
+    cells = {}
+    for r in rows:
+        cells.setdefault((r["scene"], r["method"]), []).append(r)
+    table = []
+    for scene in scenes:
+        base = cells.get((scene, "default"), [])
+        for variant in variants:
+            runs = cells.get((scene, variant))
+            if not runs:
+                continue
+            metrics = [r["metrics"] for r in runs]
+            budget = runs[0]["params"]["checks"]
+            won = [m for m in metrics if m["success"]]
+            n, k = len(metrics), len(won)
+            ci = binomtest(k, n).proportion_ci(confidence_level=0.95)
+            checks = np.array([m["checks"] for m in won], float)
+            row = {
+                "scene": scene,
+                "variant": variant,
+                "runs": n,
+                "successes": k,
+                "success_ci": [float(ci.low), float(ci.high)],
+                "median_checks": float(np.median(checks)) if k else None,
+                "median_checks_ci": _bootstrap_median(checks) if k else None,
+                "budget_checks": budget,
+                "path_nodes_from": {
+                    source: int(sum(m[f"{source}_on_path"] for m in won))
+                    for source in ("workspace", "narrow", "uniform")
+                },
+                "vs_default": None,
+            }
+            if variant != "default" and base:
+                b = [m["success"] for m in (r["metrics"] for r in base)]
+                table_2x2 = [[k, n - k], [int(sum(b)), len(b) - int(sum(b))]]
+                censored = [m["checks"] if m["success"] else budget for m in metrics]
+                censored_base = [m["checks"] if m["success"] else budget for m in (r["metrics"] for r in base)]
+                row["vs_default"] = {
+                    "success_fisher_p": float(fisher_exact(table_2x2).pvalue),
+                    "checks_mannwhitney_p": float(mannwhitneyu(censored, censored_base).pvalue),
+                    "checks_ratio": (
+                        row["median_checks"] / _median_of(base) if k and _median_of(base) is not None else None
+                    ),
+                }
+            table.append(row)
+    return table
+
+
+def _median_of(runs: list[dict]) -> float | None:
+    won = [r["metrics"]["checks"] for r in runs if r["metrics"]["success"]]
+    return float(np.median(won)) if won else None
+
+
+def measure(
+    scenes: list[str], variants: list[str], seeds: int, checks: int, store, workers: int = 1, run: bool = True
+) -> tuple[list[dict], Reuse, int]:
+    """Run what `store` has no row for (none with run=False), then the summary of the stored trials; what was
+    reused, and how many of the trials the store holds."""
+    from app.bench.store import ResultStore
+
+    todo = specs(scenes, variants, seeds, checks)
+    if run:
+        rows, reuse = sweep(todo, store, workers=workers, desc="bench ablation")
+    else:
+        s = ResultStore(store)
+        try:
+            reuse, rows = s.reuse(todo), s.rows_for(todo)
+        finally:
+            s.close()
+    return summarise(rows, scenes, variants), reuse, len(rows)
+
+
+def _fmt_checks(value) -> str:
+    if value is None:
+        return "-"
+    return f"{value / 1000:.1f}k" if value >= 1000 else f"{value:.0f}"
+
+
+def markdown(table: list[dict], held: int, planned: int, checks: int, seeds: int) -> str:
+    """The ablation's table and what each source put on the paths, as markdown."""
+    lines = [
+        "# Ablation: what each source of narrow-passage samples adds",
+        "",
+        f"{held} of {planned} trials ({seeds} seeds per scene and variant), each the scene's own query planned as "
+        f"`plan` does, on a budget of {checks:,} collision checks (machine-independent). Variants: "
+        + "; ".join(f"`{v}` = sampler {s}, workspace share {w:g}" for v, (s, w) in VARIANTS.items())
+        + "."
+        + (
+            f" The sweep stopped before its end: `python -m app bench ablation --seeds {seeds} --checks {checks}` "
+            "resumes it (stored trials are reused, not run again); the variants' seeds run in the order of "
+            "`app.bench.ablation.specs`, so the cells left short are those run last."
+            if held < planned
+            else ""
+        ),
+        "",
+        "success: solved within the budget, with its 95 % Clopper-Pearson interval. checks: median checks to the "
+        "first solution over the solved runs, with a 95 % bootstrap interval. p (success): two-sided Fisher test "
+        "against `default`; p (checks): Mann-Whitney test against `default`, unsolved runs counted at the budget. "
+        "path nodes: the roadmap path's nodes (start and goal left out) over all solved runs, by the source that "
+        "drew them: workspace-gap placements / the narrow-passage sampler (for the uniform variants: the uniform "
+        "samples drawn in its place in the narrow rounds) / the uniform rounds.",
+        "",
+        *reading(table),
+        "",
+        "| scene | variant | success | 95 % CI | checks | 95 % CI | p (success) | p (checks) | path nodes "
+        "placed / sampler / uniform |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in table:
+        lo, hi = r["success_ci"]
+        cci = r["median_checks_ci"]
+        vs = r["vs_default"]
+        src = r["path_nodes_from"]
+        lines.append(
+            f"| {r['scene']} | {r['variant']} | {r['successes']}/{r['runs']} | {lo:.2f}-{hi:.2f} | "
+            f"{_fmt_checks(r['median_checks'])} | "
+            + (f"{_fmt_checks(cci[0])}-{_fmt_checks(cci[1])}" if cci else "-")
+            + " | "
+            + (f"{vs['success_fisher_p']:.2g} | {vs['checks_mannwhitney_p']:.2g}" if vs else "- | -")
+            + f" | {src['workspace']} / {src['narrow']} / {src['uniform']} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+ALPHA = 0.01  # a difference from the default is named when its test's p is below this
+
+
+def best(rows: list[dict]) -> dict:
+    """The variant with the most successes, ties broken by fewer median checks to the first solution."""
+    return min(rows, key=lambda r: (-r["successes"], r["median_checks"] if r["median_checks"] is not None else 1e18))
+
+
+def reading(table: list[dict]) -> list[str]:
+    """What the table says about the default: per scene the best variant, where a variant differs from the default
+    by the tests (p < ALPHA), and which source put the narrow nodes on the default's paths."""
+    scenes = list(dict.fromkeys(r["scene"] for r in table))
+    if not scenes:
+        return []
+    lines = ["## What the numbers say", ""]
+    wins = {}
+    for scene in scenes:
+        rows = [r for r in table if r["scene"] == scene]
+        wins.setdefault(best(rows)["variant"], []).append(scene)
+    lines.append(
+        "- Best variant per scene (most successes, then fewest median checks): "
+        + "; ".join(f"`{v}` in {', '.join(s)}" for v, s in wins.items())
+        + "."
+    )
+    for variant in dict.fromkeys(r["variant"] for r in table if r["variant"] != "default"):
+        better, worse = [], []
+        for r in table:
+            vs = r["vs_default"]
+            if r["variant"] != variant or vs is None:
+                continue
+            base = next(b for b in table if b["scene"] == r["scene"] and b["variant"] == "default")
+            if vs["success_fisher_p"] < ALPHA or vs["checks_mannwhitney_p"] < ALPHA:
+                ahead = (r["successes"], -(r["median_checks"] or 1e18)) > (
+                    base["successes"],
+                    -(base["median_checks"] or 1e18),
+                )
+                (better if ahead else worse).append(
+                    f"{r['scene']} ({r['successes']}/{r['runs']} vs {base['successes']}/{base['runs']}, "
+                    f"{_fmt_checks(r['median_checks'])} vs {_fmt_checks(base['median_checks'])} checks)"
+                )
+        same = len([r for r in table if r["variant"] == variant]) - len(better) - len(worse)
+        lines.append(
+            f"- `{variant}` against `default`: better in {len(better)} scene(s)"
+            + (": " + "; ".join(better) if better else "")
+            + f"; worse in {len(worse)}"
+            + (": " + "; ".join(worse) if worse else "")
+            + f"; no significant difference in {same}."
+        )
+    default = [r for r in table if r["variant"] == "default"]
+    placed = sum(r["path_nodes_from"]["workspace"] for r in default)
+    walked = sum(r["path_nodes_from"]["narrow"] for r in default)
+    if placed + walked:
+        lines.append(
+            f"- On the default's solved paths, {placed} narrow-passage nodes were workspace-gap placements and "
+            f"{walked} came from the Lévy walkers ({walked / (placed + walked):.0%}); scenes where the walkers "
+            "supplied any: "
+            + (", ".join(r["scene"] for r in default if r["path_nodes_from"]["narrow"]) or "none")
+            + "."
+        )
+    return lines
+
+
+def figure(table: list[dict], path: str, checks: int) -> None:
+    """Per scene, one bar per variant. Top: success within the budget with its 95 % interval. Bottom: median checks to
+    the first solution (log scale) with its bootstrap interval, faded where some runs went unsolved; a variant with
+    no solved run is drawn hollow and hatched up to the budget (censored: at least the budget)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    from app.draw import save
+
+    scenes = list(dict.fromkeys(r["scene"] for r in table))
+    variants = list(dict.fromkeys(r["variant"] for r in table))
+    colours = {v: f"C{i}" for i, v in enumerate(variants)}
+    width = 0.8 / len(variants)
+    fig, (top, bottom) = plt.subplots(
+        2, 1, figsize=(max(8.0, 1.25 * len(scenes)), 6.4), sharex=True, gridspec_kw={"height_ratios": [1, 1.6]}
+    )
+    cells = {(r["scene"], r["variant"]): r for r in table}
+    for i, scene in enumerate(scenes):
+        for j, variant in enumerate(variants):
+            r = cells.get((scene, variant))
+            if r is None:
+                continue
+            x = i - 0.4 + width * (j + 0.5)
+            c = colours[variant]
+            rate = r["successes"] / r["runs"]
+            lo, hi = r["success_ci"]
+            top.bar(x, rate, width, color=c)
+            top.errorbar(x, rate, yerr=[[rate - lo], [hi - rate]], fmt="none", ecolor="black", capsize=2, lw=0.8)
+            if r["median_checks"] is None:
+                bottom.bar(x, checks, width, facecolor="none", edgecolor=c, hatch="///", linewidth=0.8)
+                continue
+            lo, hi = r["median_checks_ci"]
+            m = r["median_checks"]
+            bottom.bar(x, m, width, color=c, alpha=0.9 if r["successes"] == r["runs"] else 0.4, edgecolor=c)
+            bottom.errorbar(x, m, yerr=[[m - lo], [hi - m]], fmt="none", ecolor="black", capsize=2, lw=0.8)
+    runs = max((r["runs"] for r in table), default=0)
+    top.set_ylim(0, 1.05)
+    top.set_ylabel(f"success within budget\n({runs} seeds, exact 95 % interval)")
+    top.grid(axis="y", alpha=0.3)
+    bottom.axhline(checks, color="grey", lw=0.8, ls="--")
+    bottom.set_yscale("log")
+    bottom.set_ylim(top=checks * 1.6)
+    bottom.set_xticks(range(len(scenes)), scenes, rotation=20)
+    bottom.set_ylabel("median checks to first solution\n(solved runs, 95 % bootstrap interval)")
+    bottom.set_xlabel("scene")
+    bottom.grid(axis="y", alpha=0.3, which="both")
+    top.set_title(
+        f"Ablation of the planner's narrow-passage sources, {checks:,}-check budget (dashed line). Faded: some runs "
+        "unsolved; hatched: none solved",
+        fontsize=9,
+    )
+    handles = [Patch(color=colours[v], label=v) for v in variants]
+    handles.append(Patch(facecolor="none", edgecolor="grey", hatch="///", label="no run solved (≥ budget)"))
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    save(fig, path)
