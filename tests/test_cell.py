@@ -1,6 +1,7 @@
 """The cell roadmap (app.planning.cell): built once, it answers many queries and keeps what they learn; saved, it
 loads back only into the cell it was built for and answers as the one in memory does."""
 
+import json
 import re
 
 import numpy as np
@@ -158,6 +159,13 @@ def test_a_truncated_or_damaged_file_is_refused(oracles, bar_file, tmp_path):
     flipped[len(data) // 3] ^= 0xFF
     damaged.write_bytes(bytes(flipped))
     np.savez(other, Q=np.zeros((3, 9)))
+    headless = tmp_path / "headless.npz"
+    header, arrays = read(bar_file)
+    np.savez(
+        headless, header=np.array(json.dumps({"format": header["format"], "version": header["version"]})), **arrays
+    )
+    with pytest.raises(UserError, match="lacks its fingerprint"):
+        read(headless)
     for path in (truncated, damaged):
         with pytest.raises(UserError, match="not a whole roadmap file"):
             CellRoadmap.load(path, oracles("bar"))

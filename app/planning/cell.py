@@ -249,6 +249,10 @@ def read(path) -> tuple[dict, dict]:
         raise UserError(
             f"roadmap {path} has format version {header.get('version')}, this planner reads {FORMAT_VERSION}"
         )
+    provenance = header.get("provenance")
+    whole = isinstance(provenance, dict) and isinstance(provenance.get("builds"), list)
+    if not isinstance(header.get("fingerprint"), dict) or not whole or not isinstance(provenance.get("queries"), int):
+        raise UserError(f"roadmap {path} lacks its fingerprint or provenance: not a whole roadmap file")
     _check_arrays(path, arrays)
     return header, arrays
 
