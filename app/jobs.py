@@ -134,7 +134,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
     stops = [k for k, name in enumerate(names) if k in (0, last) or name not in oracle.scene.pass_through]
     # Legs that pass through a pose are timed together (_through): timing each alone would be thrown away.
     joined = {i for a, b in zip(stops[:-1], stops[1:]) if b - a > 1 for i in range(a, b)}
-    from app.planning.roadmap import NARROW, WORKSPACE  # (scipy and networkx: loaded when a job runs)
+    from app.planning.roadmap import NARROW, WORKSPACE  # (scipy: loaded when a job runs)
 
     legs, planned_checks = [], 0
     narrow_seen = sum(kind in (NARROW, WORKSPACE) for kind in cell.graph.kinds)

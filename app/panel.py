@@ -280,7 +280,7 @@ class Panel:
         if len(narrow):
             self.viewer.show_samples(narrow, on_path)
             self.meshcat.SetProperty("/samples", "visible", self.samples_visible)
-        edges = list(result.graph.graph.edges()) if result.graph is not None else []
+        edges = result.graph.edges().tolist() if result.graph is not None else []
         if edges:
             self.viewer.show_roadmap(result.graph.Q, edges)
             self.meshcat.SetProperty("/roadmap", "visible", self.roadmap_visible)

@@ -43,7 +43,7 @@ from app.errors import SamplerBudgetExceeded, UserError
 from app.io import write_atomically
 from app.planning.planner import PlanResult, PlanSettings, Query, Samples, default_step
 
-# The roadmap graph pulls in scipy and networkx: imported when a cell roadmap is made, not when the package is.
+# The roadmap graph pulls in scipy: imported when a cell roadmap is made, not when the package is.
 
 FORMAT, FORMAT_VERSION = "narrow-passage-planner cell roadmap", 1
 # The largest roadmap file read: far above any roadmap a cell needs (10^6 nodes of 9 coordinates are 70 MB).

@@ -26,7 +26,7 @@ from app.motion.path import FINE, Shortcuts, path_length, shortcut, unwind, veri
 from app.motion.timing import time_path
 from app.motion.trajectory import Trajectory, TrajectoryFile
 
-if TYPE_CHECKING:  # the roadmap pulls in scipy and networkx: imported when planning, not when the CLI starts
+if TYPE_CHECKING:  # the roadmap pulls in scipy: imported when planning, not when the CLI starts
     from app.planning.roadmap import Roadmap
 
 PHASES = ("sampling", "roadmap", "search", "smoothing", "certify", "timing")
@@ -156,7 +156,7 @@ class PlanResult:
     distance_queries: int = 0  # signed-distance queries of the certificates (apart from collision_checks)
     workspace_on_path: int = 0  # roadmap path nodes placed in workspace gaps
     point_queries: int = 0  # workspace points asked for their distances to obstacles, finding gaps
-    # The roadmap itself (nodes `Q`, provenance `kinds`, networkx `graph`) and the roadmap path's node indices,
+    # The roadmap itself (nodes `Q`, provenance `kinds`, `edges()`) and the roadmap path's node indices,
     # for viewers; not part of the JSON.
     graph: Roadmap | None = field(default=None, repr=False)
     path_nodes: list = field(default_factory=list, repr=False)
@@ -395,7 +395,7 @@ class Query:
         roadmap=None,
         certifier=None,
     ):
-        # The roadmap and samplers pull in scipy and networkx: imported when a query is made, not at CLI start-up.
+        # The roadmap and samplers pull in scipy: imported when a query is made, not at CLI start-up.
         from app.planning.roadmap import GOAL, START, Roadmap
 
         # The query's own counters and budget on the shared oracle (its stop is set when solve() runs).

@@ -23,7 +23,6 @@ from __future__ import annotations
 import itertools
 import math
 
-import networkx as nx
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
@@ -72,9 +71,8 @@ class Roadmap:
         self.resolution = resolution or checker.space.resolution
         self.Q = np.empty((0, checker.space.dim))
         self.kinds: list[str] = []
-        self.graph = nx.Graph()
-        # The same edges as arrays, for the search, which builds its sparse matrix from them (iterating networkx's
-        # edge views for it is Python, per edge): rows in insertion order, (a, b) with a < b -> row.
+        # The edges, as arrays (the search builds its sparse matrix from them, in C): rows in insertion order, every
+        # pair ever decided or proposed, (a, b) with a < b -> row; a row stays when its edge is found to collide.
         self._rows: dict[tuple[int, int], int] = {}
         self._ends = np.empty((0, 2), int)
         self._lengths = np.empty(0)
@@ -130,8 +128,6 @@ class Roadmap:
         self._components.grow(len(self.Q))
         self._embedded = np.vstack([self._embedded, self.embed(Q)])
         self._tree = cKDTree(self._embedded, boxsize=self._box)
-        for i in new:
-            self.graph.add_node(int(i))
         if connect:
             self.connect(new)
         return new
@@ -217,9 +213,6 @@ class Roadmap:
     def _add_edges(self, P: np.ndarray, checked: bool) -> None:
         """Add edges (node index pairs, smaller index first) of the given state, to the graph and the arrays."""
         lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else np.empty(0)
-        self.graph.add_edges_from(
-            (int(a), int(b), {"weight": float(w), "checked": checked}) for (a, b), w in zip(P, lengths)
-        )
         first = len(self._ends)
         self._rows.update(zip(map(tuple, P.tolist()), range(first, first + len(P))))
         self._ends = np.vstack([self._ends, P])
@@ -231,6 +224,12 @@ class Roadmap:
                 self._components.union(int(a), int(b))
 
     # ---- queries ------------------------------------------------------------------------------------------------
+    def edges(self, checked: bool | None = None) -> np.ndarray:
+        """The edges not known to collide, (m, 2) node pairs (smaller first); with `checked`, only those decided free
+        (True) or only those not yet checked (False)."""
+        rows = self._alive if checked is None else self._alive & (self._checked if checked else ~self._checked)
+        return self._ends[rows]
+
     def _labels(self) -> tuple[int, np.ndarray]:
         """Connected components of the graph of edges not known to collide: (count, label per node), from the edge
         arrays in C (a persistent roadmap asks this of tens of thousands of edges after every query)."""
@@ -264,7 +263,7 @@ class Roadmap:
         removals (smoothing shortens it).
         """
         targets = [int(t) for t in np.atleast_1d(b)]
-        if a not in self.graph or not any(t in self.graph for t in targets):
+        if not 0 <= a < len(self) or not any(0 <= t < len(self) for t in targets):
             return None
         alive = np.flatnonzero(self._alive)
         U, V, W = self._ends[alive, 0], self._ends[alive, 1], self._lengths[alive]
@@ -312,10 +311,8 @@ class Roadmap:
         self.edges_tried += int(decided.sum())
         for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
             if ok:
-                self.graph[u][v]["checked"] = True
                 self._checked[row] = True
             else:
-                self.graph.remove_edge(u, v)
                 self._alive[row] = False
                 _drop(matrix, u, v)
                 _drop(matrix, v, u)
@@ -325,14 +322,13 @@ class Roadmap:
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
-        if self.graph.has_edge(a, b):
-            self.graph.remove_edge(a, b)
-            self._alive[self._rows[min(a, b), max(a, b)]] = False
+        row = self._rows.get((min(a, b), max(a, b)))
+        if row is not None and self._alive[row]:
+            self._alive[row] = False
             self._components = _UnionFind()
             self._components.grow(len(self.Q))
-            for u, v, checked in self.graph.edges(data="checked"):
-                if checked:
-                    self._components.union(u, v)
+            for u, v in self._ends[self._alive & self._checked].tolist():
+                self._components.union(u, v)
 
     def edge_pairs(self, P: np.ndarray) -> list[tuple[int, int] | None]:
         """For each straight segment of the polyline P, the roadmap edge (node pair, smaller first) not known to
@@ -378,15 +374,12 @@ class Roadmap:
         graph._components.grow(len(Q))
         graph._embedded = graph.embed(graph.Q) if len(Q) else np.empty((0, checker.space.dim))
         graph._tree = cKDTree(graph._embedded, boxsize=graph._box) if len(Q) else None
-        graph.graph.add_nodes_from(range(len(Q)))
         ends = np.asarray(data["ends"], int).reshape(-1, 2)
         alive, checked, proved = (np.asarray(data[key], bool) for key in ("alive", "checked", "proved"))
         graph._add_edges(ends[alive], checked=False)
         graph._checked[:] = checked[alive]
-        for (a, b), ok in zip(ends[alive].tolist(), checked[alive]):
-            graph.graph[a][b]["checked"] = bool(ok)
-            if ok:
-                graph._components.union(a, b)
+        for a, b in ends[alive & checked].tolist():
+            graph._components.union(a, b)
         graph._add_dead(ends[~alive])
         graph._tried = set(map(tuple, ends.tolist()))
         graph.proved = {tuple(edge) for edge in ends[proved].tolist()}
@@ -400,7 +393,7 @@ class Roadmap:
         unchecked = int((self._alive & ~self._checked).sum())
         return {
             "nodes": len(self),
-            "edges": self.graph.number_of_edges(),
+            "edges": int(self._alive.sum()),
             "edges_unchecked": unchecked,
             "components": self.components(),
             "edges_tried": self.edges_tried,
