@@ -20,8 +20,8 @@ reported as colliding. Each interval is bisected nearest to contact first, sever
 time with their ends bounded in one batch (see Certifier).
 
 Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
-mesh by GJK, whose answers can be too large -- unsafe here: up to 0.34 mm for the maze's hull near a pillar's corner,
-and 2.7 cm (0.064 for 0.037) for two nearly coaxial cylinders of the UR3's wrist and torch. So for every counted pair
+mesh by GJK, whose answers can be too large -- unsafe here (seen near a maze pillar's corner, and by centimetres for
+two nearly coaxial cylinders of the UR3's wrist and torch: benchmark pages). So for every counted pair
 of that kind, reported by Drake or not, the certificate uses a lower bound of its own: the largest gap between the
 two shapes along three directions -- Drake's separating direction, and the normals of each shape at the near points
 that a few alternating projections onto the two shapes find -- from the shapes' support functions (the gap along
@@ -368,8 +368,7 @@ class Certifier:
     by the least distance at its ends, the leftmost first among equals. Whether an interval is proved does not
     depend on the order (every piece of its bisection must pass), but a failing interval stops at its first
     failure, and this order dives to where the motion comes nearest an obstacle, where leftmost first would prove
-    everything before it: 97 distance queries against 641 on a welding edge that grazes a rail at 0.05 mm 58 % of
-    the way along.
+    everything before it (a factor of several in distance queries on a grazing edge: benchmark pages).
     WIDTH pieces of every interval are taken at a time and their ends bounded together: Drake is asked per
     configuration, but the gaps (numpy) run once over all those configurations and pairs, where one configuration
     at a time spent most of its time in numpy's call overhead."""

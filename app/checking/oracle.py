@@ -1,11 +1,11 @@
 """The collision oracle: the one object samplers and planners talk to. It owns every Drake query and counts them.
 
-Two Drake paths (measured on the 9-DOF planar arm, see `python -m app bench oracle`):
-- raw SceneGraph `QueryObject.HasCollisions` from a Python loop: about 16 us a configuration, free or not; always
-  used for one configuration (`CheckConfigCollisionFree` computes distances and costs several times more);
+Two Drake paths (their costs per configuration are measured by `python -m app bench oracle`):
+- raw SceneGraph `QueryObject.HasCollisions` from a Python loop: the same cost free or not; always used for one
+  configuration (`CheckConfigCollisionFree` computes distances and costs several times more);
 - `SceneGraphCollisionChecker.CheckConfigsCollisionFree`, whose C++ loop spreads a batch over threads (pydrake
-  holds the GIL in `HasCollisions`, so Python threads cannot parallelise the raw path). On 2 threads it costs about
-  6 us per *free* configuration but 25-35 us per *colliding* one (it computes signed distances of penetrating
+  holds the GIL in `HasCollisions`, so Python threads cannot parallelise the raw path). It is cheaper than the raw
+  loop per *free* configuration but dearer per *colliding* one (it computes signed distances of penetrating
   pairs), and it suffers most when other processes hold the cores.
 So no fixed choice fits both a walker's batches (mostly colliding proposals) and a roadmap's edge points (mostly
 free): `are_free` keeps a running cost per configuration for each path, takes the cheaper, and re-measures the

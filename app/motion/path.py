@@ -119,8 +119,8 @@ def shortcut(
     a colliding candidate costs a few checks (coarse to fine), so a round costs about one free edge, as OMPL's
     PathSimplifier does. Shortcuts are checked at `resolution` (default: the scene's); the pieces of the edges they
     cut are not checked again: they are parts of checked edges, and the planner certifies the result in the
-    continuous sense anyway (at the same check cap, dropping that re-check took the median path on joint from 454 to
-    367 and on teeth3d from 194 to 186, 8 seeds). So every edge of the result lies on an edge of P or on a shortcut
+    continuous sense anyway (and at the same check cap, dropping that re-check shortened the median paths: benchmark
+    pages). So every edge of the result lies on an edge of P or on a shortcut
     checked free. A budget that runs out (BudgetSpent from the oracle) ends smoothing with the path as it stands.
     `memo` remembers checks and bans across replays (see Shortcuts). Deterministic for a given rng state and memo.
     """
@@ -159,11 +159,10 @@ def unwind(oracle, P: np.ndarray, resolution: float, stats: dict, memo: Shortcut
     short way instead: spread over P's edges in proportion to their length, the other coordinates as they were
     (OMPL's partial shortcut, on one coordinate), kept if every new edge is free. Each edge takes the short way
     round, but several in a row need not, and a shortcut takes the short way between its ends even where the part of
-    the path it replaces turned the other way: a window job's path into the hatch came out of smoothing turning
-    wrist 3 by 4.71 rad where -1.57 would do (4 of 6 window jobs ended a whole turn off home, winding the torch's
-    cable), and the shortcuts that would undo it crossed the hatch. Done once the shortcuts are taken (done before
-    them as well, its checks came out of smoothing's share and left the maze's path longer: seed 1, 48.1 against
-    44.7); a budget that runs out leaves the path as it stands (stats["stopped"])."""
+    the path it replaces turned the other way (a window job's wrist came out a whole turn off home, winding the
+    torch's cable, and the shortcuts that would undo it crossed the hatch). Done once the shortcuts are taken (done
+    before them too, its checks came out of smoothing's share: benchmark pages); a budget that runs out leaves the
+    path as it stands (stats["stopped"])."""
     space = oracle.space
     try:
         for c in np.flatnonzero(space.continuous):

@@ -8,14 +8,13 @@ not (SNOPT converges about three times as often without those bounds), and a sol
 turns into the scene's bounds afterwards, which leaves the kinematics unchanged. SNOPT runs from several seeds: the
 reference first, then configurations drawn uniformly from the bounds with the caller's rng. A solution counts only if
 forward kinematics confirms the pose and the oracle says it is free; the first `keep` (6) such solutions are compared
-and the one nearest the reference (in the scene's weighted metric) wins. Comparing only 3, 4 of 20 seeds of the
-welding job took a backward-reaching arm posture for the slot (with 6: none of 40), and 2 of them then found no path.
-If every solution found collides, a second round adds Drake's minimum-distance constraint (every counted collision
-pair at least `clearance` apart), seeded with those colliding solutions, so the solver itself pushes them clear.
-Nothing free: `InvalidEndpoint` naming the pose.
+and the one nearest the reference (in the scene's weighted metric) wins (comparing fewer let an odd, backward-reaching
+posture through: benchmark pages, "Tuning notes"). If every solution found collides, a second round adds Drake's
+minimum-distance constraint (every counted collision pair at least `clearance` apart), seeded with those colliding
+solutions, so the solver itself pushes them clear. Nothing free: `InvalidEndpoint` naming the pose.
 
-Measured on the UR3 scenes: one pose takes 30-70 ms (about 5 ms per SNOPT solve); an unreachable pose fails in about
-0.2 s; a pose reachable only in collision costs a few seconds (the minimum-distance round).
+An unreachable pose fails fast; a pose reachable only in collision costs the minimum-distance round (timings on the
+benchmark pages).
 
 IK is set-up work, not planning: it takes the shared oracle and its collision answers are not counted in any query.
 """
@@ -221,8 +220,8 @@ def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **
     local solve: the solution SNOPT reaches from there; a full solve if that fails); a backward pass then solves each
     pose again from its successor's posture and keeps whichever of the two is nearer that successor, so an odd arm
     posture picked for the first pose does not survive when the rest of the sequence (a weld seam, say) settled on
-    another. Full solves (64 seeds, the nearest of 6) in place of the local ones gave the same postures in the
-    welding and window jobs (10 seeds each, within 0.01 rad) in three times the time (0.45 s against 0.15 s)."""
+    another. (Full solves in place of the local ones gave the same postures in three times the time: benchmark
+    pages.)"""
     names = list(oracle.scene.poses) if names is None else list(names)
     chain = []
     local = {**options, "seeds": 1, "keep": 1}

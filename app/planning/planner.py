@@ -38,9 +38,8 @@ DEFAULT_BUDGET = Budget(seconds=600.0, checks=200_000)
 # together (a path the certificate refused is shortened again, fine-only) SMOOTHING_CAP.
 SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
 # How many times a smoothed path the certificate refused is smoothed again without the shortcuts that carried the
-# refused edges, before the query goes careful. Each repair costs a certificate (1-2 s on the UR3 scenes, where a
-# refused edge is bisected deep). With three, 5 of 20 welding queries missed a 10 s budget (`bench ompl`, the other
-# core busy); with one, none on a quiet machine, and the median lengths on teeth3d and joint were the same.
+# refused edges, before the query goes careful: each repair costs a certificate, and a refused edge is bisected deep
+# (the measurements behind one are on the benchmark pages, "Tuning notes").
 SMOOTHING_REPAIRS = 1
 # The shortest trajectory sample period: a 1 kHz controller; finer would only make files of gigabytes.
 MIN_DT = 1e-3
@@ -358,24 +357,15 @@ class Query:
     start and goal are still apart after it, a passage uniform samples rarely hit is in the way, and the
     narrow-passage sampler joins every later round: narrow/NARROW_RAMP samples at first, doubling each round up to
     narrow/4, so a query that needs few pays for few and one that needs many spends at most twice what it needed.
-    Measured side by side (`python -m app bench ompl`, 8 seeds while tuning): waiting instead until start's and
-    goal's components stopped absorbing other components started the walkers rounds later and cost the maze 3x the
-    checks (42k against 14k median); drawing them from the first round cost the maze, bar and joint 20-80 % more;
-    starting walkers where candidate edges were found blocked (the boundary between the components) found the
-    maze's window in 3 of 6 seeds instead of 6 of 6.
+    (The alternatives measured against this schedule are on the benchmark pages, "Tuning notes".)
 
     Three quarters of every narrow round (`workspace`) are placed rather than walked to: configurations with a piece
     of the robot in a narrow gap of the workspace (app.samplers.workspace), found by point queries against the
     obstacles. The walkers find a passage wherever obstacles leave one, but in a passage narrow in many dimensions they
-    end on the obstacles' faces: joint3d's hole got 0.2-0.7 % of the Lévy bridge samples, and the sampler alone needed
-    about 400k checks for seed 0. Placements go straight to the gap, for a tenth of a walk's checks; the walkers still
-    cover passages with no workspace gap behind them. Median checks (`bench plan --samplers lfbs --seeds 20 --budget
-    30 --workspace S`, all 10 scenes, 20/20 each unless said) at share 0.5 / 0.75 / 0.9 / 1: welding (a 0.26 m
-    access hole) 36k / 20k / 15k / 13k, window 40k / 26k / 16k / 13k, joint 38k / 27k / 26k / 27k, joint3d 19k / 10k
-    / 10k / 6.1k, teeth3d 12k / 9.9k / 6.9k / 4.4k, bar 7.7k / 5.2k / 5.3k / 4.6k, tunnel 5.5k / 4.6k / 4.5k / 4.1k,
-    maze 22k / 23k / 31k / 32k and 17 of 20 solved at 1 (its gaps are mostly corridors, and the walkers find its
-    window); bar-3link and bar-5link as bar. Splitting each round's checks evenly between the two kinds instead (the
-    cheaper placements the more of them) left 2 of 20 maze queries unsolved. A scene whose workspace has no narrow
+    end on the obstacles' faces; placements go straight to the gap, for a tenth of a walk's checks, and the walkers
+    still cover passages with no workspace gap behind them (the maze's window). Why three quarters, and what each
+    source adds: the benchmark pages ("Workspace-gap placements: what share") and the ablation
+    (`bench ablation`, docs/paper.md). A scene whose workspace has no narrow
     gap leaves the whole round to the sampler after a bounded search (SEARCH_LIMIT points, a few tenths of a
     second). Every collision answer polls the query's budget (`Stop`), so sampling, edge checks and smoothing all
     end when it is spent.
@@ -584,8 +574,8 @@ class Query:
         path's, if it has one, so that an unshortened path is not proved twice). A refused edge
         that lies on a shortcut bans that shortcut, and smoothing is replayed from the roadmap path: the replay repeats
         the same shortcuts for free (Shortcuts remembers every check) up to the banned one and then spends what is
-        left of the smoothing cap; at most SMOOTHING_REPAIRS times. Undoing one grazing shortcut keeps the others:
-        falling back to the unsmoothed path instead left joint seed 5's path at 689 against 365 repaired."""
+        left of the smoothing cap; at most SMOOTHING_REPAIRS times. Undoing one grazing shortcut keeps the others,
+        where falling back to the unsmoothed path would lose them all."""
         memo, proved_edges, work = Shortcuts(), set(), {"pieces": 0, "distance_queries": 0, "seconds": 0.0}
         for repairs in itertools.count():
             path, stats = self.smooth(nodes, memo)
@@ -613,10 +603,8 @@ class Query:
         is treated as colliding, leaves the roadmap, and the search goes on (more rounds if need be). Proved edges are
         remembered, so the next candidate pays only for its new ones. The proved path is then shortened with
         shortcuts checked at the fine resolution, and if that cannot be proved either, the roadmap path is the answer.
-        Smoothing candidates before proving them cost 1-2 s per refused candidate at the window scene's hatch (then
-        in a 3 cm door), where most roadmap paths through the hatch graze its frame. Returning
-        unproved paths marked uncertified was tried: 3 of the 5 an audit of 2,000 problems met really collided
-        (`bench audit`). Certificates run whole even when the budget ran out."""
+        Paths are never returned unproved: the audit found that such paths can really collide (benchmark pages,
+        "Tuning notes"). Certificates run whole even when the budget ran out."""
         while True:
             nodes = self.search()
             if nodes is None:

@@ -10,7 +10,7 @@ length, which is not the metric the edges are checked and weighed in).
 Edges are checked by the checker's `edges_free`, coarse-to-fine and batched, at the scene's resolution, in one of two
 ways: - eager (a multi-query roadmap, the paper's PRM): every k-nearest edge is checked as nodes are connected (one call
   per chunk of 32 new nodes). A pair is tried at most once, and by default not at all when both nodes already share
-  a component (Kavraki's PRM rule: such an edge adds no connectivity; it cut the checks on `bar` about 3x).
+  a component (Kavraki's PRM rule: such an edge adds no connectivity, and skipping it saves most checks).
 - lazy (a single query; Bohlin and Kavraki's Lazy PRM, ICRA 2000): k-nearest edges go into the graph unchecked, and
   `shortest_path` checks only the edges of the current shortest candidate path, drops those that collide and
   searches again. Most edges of a roadmap are never on a candidate path (`bench plan --roadmap both` and

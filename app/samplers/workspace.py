@@ -5,9 +5,8 @@ hole in a wall, a hatch, a slot between beams. Such gaps are cheap to find -- a 
 costs a few microseconds, not a collision check of the whole robot -- and a configuration that puts a piece of the
 robot in one lies in the passage far more often than the end of a walk started anywhere on an obstacle (van den Berg
 and Overmars, "Using workspace information as a guide to non-uniform sampling in probabilistic roadmap planners",
-IJRR 2005). On joint3d, 4 % of such placements are free and a fifth of those have the body's corner in the hole
-(most of the others are at its mouths); the Lévy bridge walkers put 0.2-0.7 % of their samples there, at some 70
-checks each.
+IJRR 2005). On joint3d's hole placements land far more often than the Lévy bridge walkers' samples, at a fraction
+of their checks (benchmark pages, "Tuning notes").
 
 `WorkspaceGaps` finds points in gaps narrower than GAP_WIDTH times the robot's median piece: two obstacles on
 opposite sides of the point, closer together than that (`CollisionOracle.environment_gaps`). Half of its candidate
