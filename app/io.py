@@ -157,7 +157,7 @@ def write_atomically(path: str | os.PathLike, content: str | bytes | Callable[[P
         fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=target.parent)
     except OSError as exc:
         raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
-    try:
+    with _filling(path, tmp):
         if callable(content):
             os.close(fd)
             content(Path(tmp))
@@ -165,16 +165,7 @@ def write_atomically(path: str | os.PathLike, content: str | bytes | Callable[[P
             with os.fdopen(fd, "wb") as f:
                 f.write(content.encode("utf-8") if isinstance(content, str) else content)
         os.chmod(tmp, 0o666 & ~_umask())
-        pending = _pending.get()
-        if pending is None:
-            os.replace(tmp, target)
-        else:
-            pending.append((tmp, target))
-    except BaseException as exc:
-        _discard([tmp])
-        if isinstance(exc, OSError):
-            raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
-        raise
+        _place(tmp, target)
     return target
 
 
@@ -190,20 +181,33 @@ def write_folder_atomically(path: str | os.PathLike, fill: Callable[[Path], None
         tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=_FOLDER_WORK, dir=target.parent)) / target.name
     except OSError as exc:
         raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
-    try:
+    with _filling(path, tmp):
         fill(tmp)
-        pending = _pending.get()
-        if pending is None:
-            os.rename(tmp, target)
-            _discard_work(tmp)
-        else:
-            pending.append((str(tmp), target))
+        _place(tmp, target)
+    return target
+
+
+@contextlib.contextmanager
+def _filling(path, tmp) -> Iterator[None]:
+    """While `tmp` is filled and placed: on any failure it is discarded, and an OSError becomes one line naming
+    `path`."""
+    try:
+        yield
     except BaseException as exc:
         _discard([tmp])
         if isinstance(exc, OSError):
             raise UserError(f"cannot write {path}: {exc.strerror or exc}") from None
         raise
-    return target
+
+
+def _place(tmp, target: Path) -> None:
+    """The finished `tmp` renamed onto `target` now, or when the enclosing all_or_nothing() block ends."""
+    pending = _pending.get()
+    if pending is None:
+        os.replace(tmp, target)
+        _discard_work(tmp)
+    else:
+        pending.append((str(tmp), target))
 
 
 def _discard(paths) -> None:
