@@ -252,9 +252,12 @@ class _Gaps:
         # Cheap bounds first, to skip most pairs: bounding spheres; then from each centre to the other shape.
         near = np.flatnonzero(np.linalg.norm(pa - pb, axis=1) - self.radius[a] - self.radius[b] < limit[k])
         k, pair, a, b = k[near], pair[near], a[near], b[near]
-        A, B = self._posed(a, rotation(k, a), pa[near]), self._posed(b, rotation(k, b), pb[near])
-        rough = np.maximum(self._distance_to(B, A.p) - A.radius, self._distance_to(A, B.p) - B.radius)
-        keep = rough < limit[k]
+        # From a's centre to shape b, then the other way on the rows left: each pass prunes most of what reaches it.
+        B = self._posed(b, rotation(k, b), pb[near])
+        keep = np.flatnonzero(self._distance_to(B, pa[near]) - self.radius[a] < limit[k])
+        k, pair, a, B = k[keep], pair[keep], a[keep], _rows(B, keep)
+        A = self._posed(a, rotation(k, a), pa[near][keep])
+        keep = np.flatnonzero(self._distance_to(A, B.p) - B.radius < limit[k])
         k, pair = k[keep], pair[keep]
         bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[k, pair], limit[k])
         below = bounds < limit[k]
@@ -324,8 +327,8 @@ class _Gaps:
 
     def _distance_to(self, S: _Posed, x: np.ndarray) -> np.ndarray:
         """A lower bound on the distance from x to each posed shape: exact where _project is, else to its radius."""
-        exact = np.linalg.norm(self._project(S, x) - x, axis=1)
-        rough = np.maximum(np.linalg.norm(S.p - x, axis=1) - S.radius, 0.0)
+        exact = _norm(self._project(S, x) - x)
+        rough = np.maximum(_norm(S.p - x) - S.radius, 0.0)
         return np.where(self.is_special[S.g], rough, exact)
 
 
@@ -347,7 +350,12 @@ def _rows(S: _Posed, rows) -> _Posed:
 
 def _shrink(v: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Factors that bring vectors v (rows) within `radius` of the origin, (n, 1)."""
-    return np.minimum(1.0, radius / np.maximum(np.linalg.norm(v, axis=1), 1e-300))[:, None]
+    return np.minimum(1.0, radius / np.maximum(_norm(v), 1e-300))[:, None]
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Lengths of the rows of v (n, 3): np.linalg.norm's checks cost more than the sum on a few thousand rows."""
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
 _bounds: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -390,7 +398,8 @@ class Certifier:
         self._rounding = 1e-9 * oracle.space.resolution
         inspector = oracle.model.scene_graph().model_inspector()
         geometries = inspector.GetAllGeometryIds(Role.kProximity)
-        self._indices = {g: i for i, g in enumerate(geometries)}  # a small integer per geometry, for pair keys
+        # A small integer per geometry, for pair keys, by the GeometryId's value (cheaper to hash than the id).
+        self._index_of_value = {g.get_value(): i for i, g in enumerate(geometries)}
         self._ids = list(geometries)
         self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
@@ -435,10 +444,11 @@ class Certifier:
                 need[a], need[b] = max(need.get(a, 0.0), d), max(need.get(b, 0.0), d)
             ends = dict(zip(need, self._distances([position(s) for s in need], list(need.values()))))
             lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
-            for (i, (a, b)), pair_travel, length in zip(todo, travel, lengths):
+            clear = _clear([ends[a] for _, (a, b) in todo], [ends[b] for _, (a, b) in todo], travel)
+            for (i, (a, b)), passed, length in zip(todo, clear.tolist(), lengths.tolist()):
                 if i not in heaps:
                     continue
-                if ends[a] is not None and ends[b] is not None and _clear(ends[a], ends[b], pair_travel):
+                if passed:
                     pieces += 1
                 elif ends[a] is None or ends[b] is None or length <= self.floor:
                     failed.append(i)
@@ -485,20 +495,43 @@ class Certifier:
         """Into the cache: the certificate's distances at each (key, q, limit) of `todo` -- Drake's for the pairs it
         computes exactly, our lower bound for the others (a pair left out is at least `limit` apart); None where q
         is out of bounds or Drake finds a pair touching."""
-        drake = []
-        for key, q, limit in todo:
+        for key, _, _ in todo:
             self._cache[key] = None
-            if not self.checker.space.within_bounds(q)[0]:
-                continue
-            pairs = self.checker.signed_distances(q, limit)
-            distance = np.fromiter((p.distance for p in pairs), float, len(pairs))
-            if np.any(distance <= 0):
-                continue
-            drake.append((key, limit, pairs, distance, q))
-        if not drake:
+        inside = self.checker.space.within_bounds(np.array([q for _, q, _ in todo]))
+        todo = [item for item, keep in zip(todo, inside.tolist()) if keep]
+        # Drake's pairs of every configuration as rows (configuration, first, second geometry, distance); reading a
+        # GeometryId costs more than the distance, so each is read once and mapped through its integer value.
+        answers = [self.checker.signed_distances(q, limit) for _, q, limit in todo]
+        value = self._index_of_value
+        found = np.array(
+            [(value[p.id_A.get_value()], value[p.id_B.get_value()], p.distance) for pairs in answers for p in pairs],
+            float,
+        ).reshape(-1, 3)
+        config = np.repeat(np.arange(len(answers)), [len(pairs) for pairs in answers])
+        touching = np.unique(config[found[:, 2] <= 0])
+        kept = np.setdiff1d(np.arange(len(answers)), touching)
+        if not len(kept):
             return
+        # Renumber the configurations left, 0..len(kept)-1.
+        renumber = np.full(len(answers), -1)
+        renumber[kept] = np.arange(len(kept))
+        position = np.flatnonzero(renumber[config] >= 0)
+        config, found = renumber[config[position]], found[position]
+        index = found[:, :2].astype(np.int64)
+        swapped = index[:, 0] > index[:, 1]
+        index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
+        keys = index[:, 0] * _KEY + index[:, 1]
+        exact = self._exact[index[:, 0], index[:, 1]]
+        # Drake's separating directions, for the pairs of the gaps only.
+        flat = [p for pairs in answers for p in pairs]
+        directions = np.array([flat[j].nhat_BA_W for j in position[~exact].tolist()], float).reshape(-1, 3)
+        nhat = self._directions(len(kept), config[~exact], keys[~exact], swapped[~exact], directions)
+        drake = [todo[k] for k in kept.tolist()]
+        limits = np.array([limit for _, _, limit in drake])
+        Q = np.array([q for _, q, _ in drake])
+
         # One table of poses, the environment's then each configuration's robot geometries.
-        rotations, centres = self._robot_poses(np.array([q for *_, q in drake]))
+        rotations, centres = self._robot_poses(Q)
         rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
         centres = np.concatenate([self._p, centres.reshape(-1, 3)])
         slot, count, robots = self._slot, len(self._slot), len(self._robot)
@@ -512,19 +545,6 @@ class Certifier:
         def centre(k, g):
             return centres[row(k, g)]
 
-        exact_parts, reported = [], []
-        for _, _, pairs, distance, _ in drake:
-            ix = self._indices
-            index = np.array([(ix[p.id_A], ix[p.id_B]) for p in pairs], np.int64).reshape(-1, 2)
-            swapped = index[:, 0] > index[:, 1]
-            index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
-            keys = index[:, 0] * _KEY + index[:, 1]
-            exact = self._exact[index[:, 0], index[:, 1]]
-            directions = np.array([p.nhat_BA_W for p in pairs], float).reshape(-1, 3)
-            reported.append((keys[~exact], swapped[~exact], directions[~exact]))
-            exact_parts.append((index[exact], keys[exact], distance[exact]))
-        nhat = self._directions(reported)
-        limits = np.array([limit for _, limit, *_ in drake])
         near_k, near_pair, bounds = self._gaps.near(rotation, centre, nhat, limits)
         # A pair Drake's query left out is farther apart than the limit by Drake's reckoning, but without Drake's
         # direction our bound can fall far below that: alternating projections converge slowly between long shapes
@@ -534,24 +554,27 @@ class Certifier:
         if unaided.any():
             again = np.unique(near_k[unaided])
             for k in again.tolist():
-                query = self.checker.query_object(drake[k][-1])
+                query = self.checker.query_object(Q[k])
                 for pair in near_pair[unaided & (near_k == k)].tolist():
                     nhat[k, pair] = self._direction(query, pair)
             redone = self._gaps.near(
                 lambda k, g: rotation(again[k], g), lambda k, g: centre(again[k], g), nhat[again], limits[again]
             )
-            kept = ~np.isin(near_k, again)
-            near_k = np.concatenate([near_k[kept], again[redone[0]]])
-            near_pair = np.concatenate([near_pair[kept], redone[1]])
-            bounds = np.concatenate([bounds[kept], redone[2]])
-        for k, (key, limit, *_) in enumerate(drake):
-            mine = near_k == k
-            index = np.concatenate([exact_parts[k][0], self._gaps.pairs[near_pair[mine]]])
-            keys = np.concatenate([exact_parts[k][1], self._gaps.keys[near_pair[mine]]])
-            distance = np.concatenate([exact_parts[k][2], bounds[mine]]) - self._rounding
-            order = np.argsort(keys)
-            rows = self._rows[index[order]]
-            self._cache[key] = _End(limit, keys[order], distance[order], rows[:, 0], rows[:, 1])
+            kept_rows = ~np.isin(near_k, again)
+            near_k = np.concatenate([near_k[kept_rows], again[redone[0]]])
+            near_pair = np.concatenate([near_pair[kept_rows], redone[1]])
+            bounds = np.concatenate([bounds[kept_rows], redone[2]])
+        # Every configuration's distances -- Drake's exact ones and our bounds -- sorted by configuration, then key.
+        config = np.concatenate([config[exact], near_k])
+        index = np.concatenate([index[exact], self._gaps.pairs[near_pair]])
+        keys = np.concatenate([keys[exact], self._gaps.keys[near_pair]])
+        distance = np.concatenate([found[exact, 2], bounds]) - self._rounding
+        order = np.lexsort((keys, config))
+        rows = self._rows[index[order]]
+        split = np.cumsum(np.bincount(config, minlength=len(drake)))[:-1]
+        parts = zip(*(np.split(array, split) for array in (keys[order], distance[order], rows[:, 0], rows[:, 1])))
+        for (key, _, limit), part in zip(drake, parts):
+            self._cache[key] = _End(limit, *part)
 
     def _direction(self, query, pair: int) -> np.ndarray:
         """Drake's separating direction for one pair of the gaps, from its second geometry to its first."""
@@ -572,18 +595,16 @@ class Certifier:
             centres.append(np.array([X.translation() for X in poses]))
         return np.reshape(rotations, (len(Q), -1, 3, 3)), np.reshape(centres, (len(Q), -1, 3))
 
-    def _directions(self, reported: list) -> np.ndarray:
-        """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported -- per configuration, (keys,
-        whether Drake named the pair's geometries the other way round, directions) -- as (configurations, pairs of
-        the gaps, 3), turned to point from the pair's second geometry to its first in our order; NaN where not
-        reported."""
-        config = np.repeat(np.arange(len(reported)), [len(keys) for keys, _, _ in reported])
-        keys, swapped, directions = (np.concatenate(parts) for parts in zip(*reported))
+    def _directions(self, configurations: int, config, keys, swapped, directions) -> np.ndarray:
+        """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported -- rows of (configuration,
+        pair key, whether Drake named the pair's geometries the other way round, direction) -- as (configurations,
+        pairs of the gaps, 3), turned to point from the pair's second geometry to its first in our order; NaN where
+        not reported."""
         at = np.searchsorted(self._gaps.keys, keys)  # the gaps' keys are sorted (pairs in lexicographic order)
         if np.any(at >= len(self._gaps.keys)) or np.any(self._gaps.keys[at.clip(max=len(self._gaps.keys) - 1)] != keys):
             raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
-        nhat = np.full((len(reported), len(self._gaps.keys), 3), np.nan)
-        nhat[config, at] = np.where(swapped[:, None], -1.0, 1.0) * directions.reshape(-1, 3)
+        nhat = np.full((configurations, len(self._gaps.keys), 3), np.nan)
+        nhat[config, at] = np.where(swapped[:, None], -1.0, 1.0) * directions
         return nhat
 
 
@@ -601,20 +622,47 @@ class _End(NamedTuple):
         return min(float(self.distance.min()), self.limit) if len(self.distance) else self.limit
 
 
-def _clear(a: _End, b: _End, pair_travel: np.ndarray) -> bool:
-    """The certificate for one piece: every pair reported at either end is farther apart, summed over the two
-    ends, than its distance can change (a pair an end does not report is at least that end's limit apart)."""
-    return _pass(a, b, pair_travel) and _pass(b, a, pair_travel)
-
-
-def _pass(a: _End, b: _End, pair_travel: np.ndarray) -> bool:
-    """The certificate for the pairs `a` reports, with their distance at `b`, or b's limit where b has none."""
-    other = np.full(len(a.keys), b.limit)
-    if len(b.keys):
-        at = np.searchsorted(b.keys, a.keys).clip(max=len(b.keys) - 1)
-        found = b.keys[at] == a.keys
-        other[found] = b.distance[at[found]]
-    return bool(np.all(a.distance + other > pair_travel[a.row_a, a.row_b]))
+def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> np.ndarray:
+    """The certificate for pieces (ends a[p], b[p], pair bounds pair_travel[p]), all at once: whether every pair
+    reported at either end of a piece is farther apart, summed over the two ends, than its distance can change (a pair
+    an end does not report is at least that end's limit apart). False where an end is None (it collides)."""
+    ok = np.array([a is not None and b is not None for a, b in zip(ends_a, ends_b)], bool)
+    if not ok.any():
+        return ok
+    # The distinct ends, and per piece which of them it joins.
+    slots, table = {}, []
+    for end in itertools.chain(ends_a, ends_b):
+        if end is not None and id(end) not in slots:
+            slots[id(end)] = len(table)
+            table.append(end)
+    pieces = np.flatnonzero(ok)
+    a = np.array([slots[id(ends_a[p])] for p in pieces.tolist()], np.int64)
+    b = np.array([slots[id(ends_b[p])] for p in pieces.tolist()], np.int64)
+    counts = np.array([len(end.keys) for end in table], np.int64)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    keys = np.concatenate([end.keys for end in table])
+    distance = np.concatenate([end.distance for end in table])
+    row_a = np.concatenate([end.row_a for end in table])
+    row_b = np.concatenate([end.row_b for end in table])
+    limit = np.array([end.limit for end in table])
+    # Keys of every end in one sorted array: each end's keys are sorted, and ends follow in slot order.
+    span = int(keys.max()) + 1 if len(keys) else 1
+    tagged = np.repeat(np.arange(len(table), dtype=np.int64), counts) * span + keys
+    failures = np.zeros(len(pieces), np.int64)
+    for this, other in ((a, b), (b, a)):
+        # Every pair `this` end of each piece reports, with its distance at the `other` end (or that end's limit).
+        piece = np.repeat(np.arange(len(pieces)), counts[this])
+        row = (
+            first[this][piece] + np.arange(len(piece)) - np.repeat(np.cumsum(counts[this]) - counts[this], counts[this])
+        )
+        wanted = other[piece] * span + keys[row]
+        at = np.searchsorted(tagged, wanted).clip(max=max(len(tagged) - 1, 0))
+        found = tagged[at] == wanted if len(tagged) else np.zeros(len(wanted), bool)
+        there = np.where(found, distance[at], limit[other[piece]])
+        bound = pair_travel[pieces[piece], row_a[row], row_b[row]]
+        failures += np.bincount(piece[distance[row] + there <= bound], minlength=len(pieces))
+    ok[pieces] = failures == 0
+    return ok
 
 
 def certify_curve(oracle, position, variation, knots, floor: float | None = None) -> tuple[bool, dict]:

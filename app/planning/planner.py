@@ -40,7 +40,7 @@ SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
 # How many times a smoothed path the certificate refused is smoothed again without the shortcuts that carried the
 # refused edges, before the query goes careful: each repair costs a certificate, and a refused edge is bisected deep
 # (the measurements behind one are on the benchmark pages, "Tuning notes").
-SMOOTHING_REPAIRS = 1
+SMOOTHING_REPAIRS = 4
 # The shortest trajectory sample period: a 1 kHz controller; finer would only make files of gigabytes.
 MIN_DT = 1e-3
 # Narrow-passage samples per round once they are on: narrow/NARROW_RAMP at first, doubling every round up to
