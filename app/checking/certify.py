@@ -15,8 +15,9 @@ the upper arm). For a robot-environment pair, B_PQ = B_P.
 Certificate. Signed distance changes no faster than that, so if at the ends a, b of a piece of motion
 d_PQ(a) + d_PQ(b) > B_PQ for every pair the scene counts, P and Q never touch in between:
 d(t) >= d(a) - B_PQ(a..t) and d(t) >= d(b) - B_PQ(t..b), and the two add up to at most B_PQ. A piece that fails
-is bisected; one that still fails once its motion is shorter than the floor (in the space's weighted metric) is
-reported as colliding. Each interval is bisected nearest to contact first, several pieces of every interval at a
+is cut into parts (as many as its ends' distances fall short, 2 to 8); one that still fails once its motion is
+shorter than the floor (in the space's weighted metric) is reported as colliding. Each interval is cut nearest to
+contact first, several pieces of every interval at a
 time with their ends bounded in one batch (see Certifier).
 
 Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
@@ -50,7 +51,7 @@ import numpy as np
 from app.checking.kinematics import TreeKinematics
 from app.checking.protocol import Checker
 
-# A piece is bisected until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
+# A piece is cut until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
 FLOOR_DIVISOR = 256
 # max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
 _MARGIN = 1.0 + 1e-6
@@ -372,9 +373,9 @@ class Certifier:
     """Certifies pieces of motion on one checker's oracle, keeping the distances it has asked for across calls (and
     across queries: a caller may hand it another query's checker, whose `distance_queries` it then counts in).
 
-    Each interval's pieces are bisected nearest to contact first: the halves of a piece that failed its test go
+    Each interval's pieces are cut nearest to contact first: the parts of a piece that failed its test go
     by the least distance at its ends, the leftmost first among equals. Whether an interval is proved does not
-    depend on the order (every piece of its bisection must pass), but a failing interval stops at its first
+    depend on the order (every piece of its subdivision must pass), but a failing interval stops at its first
     failure, and this order dives to where the motion comes nearest an obstacle, where leftmost first would prove
     everything before it (a factor of several in distance queries on a grazing edge: benchmark pages).
     WIDTH pieces of every interval are taken at a time and their ends bounded together: Drake is asked per
@@ -383,6 +384,10 @@ class Certifier:
 
     # Pieces taken from each interval at a time: more batches more, but may do more work past a failure.
     WIDTH = 16
+    # A failing piece is cut into as many equal parts as its ends' distances fall short of its bound, at least 2 and
+    # at most SPLIT_MAX: the parts then pass if the distances in between are like those at its ends, in one round
+    # where halving would take several (fewer rounds and fewer queries than halving: benchmark pages).
+    SPLIT_MAX = 8
 
     # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
     BATCH_ROWS = 1 << 17
@@ -444,8 +449,9 @@ class Certifier:
                 need[a], need[b] = max(need.get(a, 0.0), d), max(need.get(b, 0.0), d)
             ends = dict(zip(need, self._distances([position(s) for s in need], list(need.values()))))
             lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
-            clear = _clear([ends[a] for _, (a, b) in todo], [ends[b] for _, (a, b) in todo], travel)
-            for (i, (a, b)), passed, length in zip(todo, clear.tolist(), lengths.tolist()):
+            clear, short = _clear([ends[a] for _, (a, b) in todo], [ends[b] for _, (a, b) in todo], travel)
+            parts = np.clip(np.ceil(short), 2, self.SPLIT_MAX).astype(int)
+            for (i, (a, b)), passed, length, n in zip(todo, clear.tolist(), lengths.tolist(), parts.tolist()):
                 if i not in heaps:
                     continue
                 if passed:
@@ -454,9 +460,10 @@ class Certifier:
                     failed.append(i)
                     del heaps[i]
                 else:
-                    m, nearest = 0.5 * (a + b), min(ends[a].nearest(), ends[b].nearest())
-                    heapq.heappush(heaps[i], (nearest, a, m))
-                    heapq.heappush(heaps[i], (nearest, m, b))
+                    nearest = min(ends[a].nearest(), ends[b].nearest())
+                    cuts = [a, *(a + (b - a) * j / n for j in range(1, n)), b]
+                    for s0, s1 in itertools.pairwise(cuts):
+                        heapq.heappush(heaps[i], (nearest, s0, s1))
             heaps = {i: heap for i, heap in heaps.items() if heap}
         stats = {
             "failed": sorted(failed),
@@ -622,13 +629,15 @@ class _End(NamedTuple):
         return min(float(self.distance.min()), self.limit) if len(self.distance) else self.limit
 
 
-def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> np.ndarray:
+def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The certificate for pieces (ends a[p], b[p], pair bounds pair_travel[p]), all at once: whether every pair
     reported at either end of a piece is farther apart, summed over the two ends, than its distance can change (a pair
-    an end does not report is at least that end's limit apart). False where an end is None (it collides)."""
+    an end does not report is at least that end's limit apart; False where an end is None: it collides), and by what
+    factor the worst pair's bound exceeds its two distances (1 where none does, or an end collides)."""
     ok = np.array([a is not None and b is not None for a, b in zip(ends_a, ends_b)], bool)
+    short = np.ones(len(ok))
     if not ok.any():
-        return ok
+        return ok, short
     # The distinct ends, and per piece which of them it joins.
     slots, table = {}, []
     for end in itertools.chain(ends_a, ends_b):
@@ -648,7 +657,7 @@ def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> np.ndarray:
     # Keys of every end in one sorted array: each end's keys are sorted, and ends follow in slot order.
     span = int(keys.max()) + 1 if len(keys) else 1
     tagged = np.repeat(np.arange(len(table), dtype=np.int64), counts) * span + keys
-    failures = np.zeros(len(pieces), np.int64)
+    failures, shortfall = np.zeros(len(pieces), np.int64), np.ones(len(pieces))
     for this, other in ((a, b), (b, a)):
         # Every pair `this` end of each piece reports, with its distance at the `other` end (or that end's limit).
         piece = np.repeat(np.arange(len(pieces)), counts[this])
@@ -661,8 +670,10 @@ def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> np.ndarray:
         there = np.where(found, distance[at], limit[other[piece]])
         bound = pair_travel[pieces[piece], row_a[row], row_b[row]]
         failures += np.bincount(piece[distance[row] + there <= bound], minlength=len(pieces))
+        np.maximum.at(shortfall, piece, bound / np.maximum(distance[row] + there, 1e-300))
     ok[pieces] = failures == 0
-    return ok
+    short[pieces] = shortfall
+    return ok, short
 
 
 def certify_curve(oracle, position, variation, knots, floor: float | None = None) -> tuple[bool, dict]:
