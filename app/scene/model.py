@@ -106,7 +106,7 @@ _HARMLESS = re.compile(
     r"^(.*?): warning: The tag '(" + "|".join(HARMLESS_URDF_TAGS) + r")' found as a child of '\w+' is currently "
     r"unsupported and will be ignored"
 )
-_harmless_seen: set[str] = set()  # the warnings already summarised (file:line and tag)
+_harmless_seen: set[str] = set()  # the warnings already summarised (file name:line and tag)
 _harmless_new: collections.Counter | None = None  # per tag, while a model_loading block runs
 
 
@@ -114,8 +114,10 @@ def _drop_harmless(record: logging.LogRecord) -> bool:
     found = _HARMLESS.match(record.getMessage())
     if found is None or _harmless_new is None:
         return True
-    if found.group(0) not in _harmless_seen:
-        _harmless_seen.add(found.group(0))
+    # By file name and line: the cached copies of a model (its mesh links rewritten) are the same elements.
+    key = f"{Path(found.group(1)).name} {found.group(2)}"
+    if key not in _harmless_seen:
+        _harmless_seen.add(key)
         _harmless_new[found.group(2)] += 1
     return False
 
