@@ -122,8 +122,9 @@ def test_the_two_fingers_distance_changes_with_their_one_coordinate(oracle):
 
 def test_a_plan_keeps_equal_fingers_equal_and_writes_every_joint(tmp_path, cli, monkeypatch):
     monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
-    out, bag, robot = tmp_path / "motion.json", tmp_path / "bag", tmp_path / "arm.urdf"
-    robot.write_text(URDF)  # a file this process has not parsed yet, so its parser warnings are new
+    # A file name this process has not parsed yet, so its parser warnings are new (they are summarised once).
+    out, bag, robot = tmp_path / "motion.json", tmp_path / "bag", tmp_path / "fingers_follow.urdf"
+    robot.write_text(URDF)
     args = ["--robot", robot, "--start", "0,0,0.02", "--goal", "1.5,0.5,0.02", "--seed", "1"]
     result = cli("plan", *args, "--json", "--out", out, "--bag", bag)
     assert result.returncode == 0, result.stderr
@@ -142,8 +143,8 @@ def test_a_plan_keeps_equal_fingers_equal_and_writes_every_joint(tmp_path, cli, 
     # refused.
     file = json.loads(out.read_text())
     assert all(len(row) == 4 for key in ("waypoints", "narrow_samples") for row in file.get(key, []))
-    (tmp_path / "arm.yaml").write_text("robot: arm.urdf\n")
-    shown = cli("view", tmp_path / "arm.yaml", "--trajectory", out, "--bag", tmp_path / "bag2")
+    (tmp_path / "scene.yaml").write_text(f"robot: {robot.name}\n")
+    shown = cli("view", tmp_path / "scene.yaml", "--trajectory", out, "--bag", tmp_path / "bag2")
     assert shown.returncode == 0, shown.stderr
     scene = build_scene(CustomSpec(robot=str(robot)), progress=False)
     read = TrajectoryFile.from_json(file, scene.dim, position_map=scene.position_map)
