@@ -355,7 +355,7 @@ def _skeleton(oracle, q) -> np.ndarray:
     context = plant.CreateDefaultContext()
     origins = []
     for configuration in (oracle.scene.start, q):
-        plant.SetPositions(context, configuration)
+        plant.SetPositions(context, oracle.scene.positions(configuration))
         origins.append(np.array([plant.EvalBodyPoseInWorld(context, body).translation() for body in bodies]))
     moved = np.flatnonzero(np.linalg.norm(origins[1] - origins[0], axis=1) > 1e-9)
     first = max(int(moved[0]) - 1, 0) if len(moved) else 0

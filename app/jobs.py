@@ -265,5 +265,6 @@ def join(trajectories: list[Trajectory], oracle) -> Trajectory:
     return Trajectory(
         joint_names=trajectories[0].joint_names,
         certified=all(t.certified for t in trajectories),
+        position_map=trajectories[0].position_map,
         **{key: np.concatenate(value) for key, value in parts.items()},
     )

@@ -114,7 +114,7 @@ class Panel:
 
         plant = self.oracle.plant
         context = plant.CreateDefaultContext()
-        plant.SetPositions(context, self.scene.goal)
+        plant.SetPositions(context, self.scene.positions(self.scene.goal))
         pose = robot_frame(self.oracle).CalcPoseInWorld(context)
         base = plant.get_body(plant.GetBodyIndices(self.scene.robot_instances[0])[0])
         reach = np.linalg.norm(pose.translation() - plant.EvalBodyPoseInWorld(context, base).translation())

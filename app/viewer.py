@@ -139,14 +139,14 @@ class Viewer:
             )
         self.diagram = builder.Build()
         self.plant = self.diagram.plant()
-        self.dim = self.plant.num_positions()
+        self.dim = self.scene.dim
         self._context = self.diagram.CreateDefaultContext()
         self._plant_context = self.plant.GetMyContextFromRoot(self._context)
         self.frame = self._find_frame(frame)
         self.frames_recorded = 0
         self._copy_contexts, self._copy_colours = {}, {}  # show_robot_copy's, by name
 
-        self.plant.SetPositions(self._plant_context, self.scene.start)
+        self.plant.SetPositions(self._plant_context, self.scene.positions(self.scene.start))
         self.diagram.ForcedPublish(self._context)  # sends the geometry and poses the robot at the start
         self._centre, self._radius = self._extent()
         self.marker_size = marker_size or 0.02 * self._radius
@@ -318,7 +318,7 @@ class Viewer:
         out = np.empty((len(Q), 3))
         context = self.plant.CreateDefaultContext()
         for i, q in enumerate(Q):
-            self.plant.SetPositions(context, q)
+            self.plant.SetPositions(context, self.scene.positions(q))
             out[i] = self.frame.CalcPoseInWorld(context).translation()
         return out
 
@@ -381,7 +381,7 @@ class Viewer:
         if name not in self._copy_contexts:
             self._copy_contexts[name] = self.plant.CreateDefaultContext()
         context = self._copy_contexts[name]
-        self.plant.SetPositions(context, q)
+        self.plant.SetPositions(context, self.scene.positions(q))
         inspector = self.diagram.scene_graph().model_inspector()
         redraw = self._copy_colours.get(name) != tuple(colour)
         self._copy_colours[name] = tuple(colour)
@@ -401,7 +401,7 @@ class Viewer:
     def set_configuration(self, q) -> None:
         """Pose the robot (live, not recorded)."""
         q = self._configurations(np.atleast_2d(q), "configuration")[0]
-        self.plant.SetPositions(self._plant_context, q)
+        self.plant.SetPositions(self._plant_context, self.scene.positions(q))
         self.diagram.ForcedPublish(self._context)
 
     def animate(self, times, positions) -> int:
@@ -422,7 +422,7 @@ class Viewer:
         try:
             for t, q in zip(times, positions):
                 self._context.SetTime(float(t))
-                self.plant.SetPositions(self._plant_context, q)
+                self.plant.SetPositions(self._plant_context, self.scene.positions(q))
                 self.diagram.ForcedPublish(self._context)
         finally:
             self._visualizer.StopRecording()

@@ -44,6 +44,7 @@ import heapq
 import itertools
 import time
 import weakref
+from types import SimpleNamespace
 from typing import NamedTuple
 
 import numpy as np
@@ -83,6 +84,11 @@ class MotionBound:
         for index in plant.GetJointIndices():
             joint = plant.get_joint(index)
             inboard[joint.child_body().index()] = joint
+        # Rates per plant position; with mimic joints there are more of them than coordinates (folded in below).
+        space, mimic = oracle.space, oracle.scene.position_map
+        if mimic is not None:
+            lower, upper = mimic.position_bounds(space.lower, space.upper)
+            space = SimpleNamespace(dim=len(lower), lower=lower, upper=upper)
         self.rows, rates, moved_by = {}, [], []
         for instance in oracle.scene.robot_instances:
             for body_index in plant.GetBodyIndices(instance):
@@ -90,14 +96,19 @@ class MotionBound:
                 for geometry in plant.GetCollisionGeometriesForBody(plant.get_body(body_index)):
                     self.rows[geometry] = len(rates)
                     pose = inspector.GetPoseInFrame(geometry)
-                    rates.append(_rates(chain, _radius(*_describe(inspector, geometry), pose), oracle.space))
-                    moved_by.append(_coordinates(chain, oracle.space.dim))
+                    rates.append(_rates(chain, _radius(*_describe(inspector, geometry), pose), space))
+                    moved_by.append(_coordinates(chain, space.dim))
         # The last row (zeros) stands for every environment geometry: it does not move.
-        self.rates = np.vstack(rates + [np.zeros(oracle.space.dim)])
+        self.rates = np.vstack(rates + [np.zeros(space.dim)])
         # pair_rates[P, Q]: how fast the distance of P and Q can change per unit of each coordinate.
-        moved_by = np.vstack(moved_by + [np.zeros(oracle.space.dim, bool)])
+        moved_by = np.vstack(moved_by + [np.zeros(space.dim, bool)])
         shared = moved_by[:, None, :] & moved_by[None, :, :]
         self.pair_rates = (self.rates[:, None, :] + self.rates[None, :, :]) * ~shared
+        if mimic is not None:
+            # A unit of a coordinate moves its joint by 1 and each joint mimicking it by |multiplier|. Shared joints
+            # are left out per position first: two fingers on one coordinate do not share their joints.
+            spread = np.abs(mimic.matrix)
+            self.rates, self.pair_rates = self.rates @ spread, self.pair_rates @ spread
         if not oracle.scene.self_collisions:  # robot-robot pairs do not count
             self.pair_rates[:-1, :-1] = 0.0
 
@@ -419,6 +430,7 @@ class Certifier:
         self._kinematics = TreeKinematics.of(
             plant,
             [(plant.GetBodyFromFrameId(inspector.GetFrameId(g)), inspector.GetPoseInFrame(g)) for g in self._robot],
+            oracle.scene.position_map,
         )
         query = oracle.query_object(oracle.scene.start)
         poses = [query.GetPoseInWorld(g) for g in geometries]

@@ -15,9 +15,11 @@ _KINDS = ("revolute", "prismatic", "weld")
 
 
 class TreeKinematics:
-    """World poses of fixed frames on a plant's bodies (each given as (body, X_BF)), for configurations (n, nq)."""
+    """World poses of fixed frames on a plant's bodies (each given as (body, X_BF)), for configurations (n, dim):
+    the plant's positions, or with a `position_map` (app.scene.cspace.PositionMap) the coordinates it maps to them,
+    each mimic joint's position being its multiplier times its coordinate plus its offset."""
 
-    def __init__(self, plant, frames: list):
+    def __init__(self, plant, frames: list, position_map=None):
         inboard = {}
         for index in plant.GetJointIndices():
             joint = plant.get_joint(index)
@@ -63,13 +65,13 @@ class TreeKinematics:
                 constants += [R_PF @ K @ R_MC, R_PF @ K @ p_MC, R_PF @ K @ K @ R_MC, R_PF @ K @ K @ p_MC]
             elif kind == "prismatic":
                 constants += [R_PF @ joint.translation_axis()]
-            self._bodies.append((parent, kind, joint.position_start() if kind != "weld" else -1, constants))
+            self._bodies.append((parent, kind, _coordinate(joint, position_map), constants))
 
     @classmethod
-    def of(cls, plant, frames: list) -> TreeKinematics | None:
+    def of(cls, plant, frames: list, position_map=None) -> TreeKinematics | None:
         """TreeKinematics of `frames`, or None if the plant has a joint that is not revolute, prismatic or weld."""
         kinds = {plant.get_joint(i).type_name() for i in plant.GetJointIndices()}
-        return cls(plant, frames) if kinds <= set(_KINDS) else None
+        return cls(plant, frames, position_map) if kinds <= set(_KINDS) else None
 
     def _body_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3)."""
@@ -80,15 +82,17 @@ class TreeKinematics:
                 R.append(np.broadcast_to(np.eye(3), (n, 3, 3)))
                 p.append(np.zeros((n, 3)))
                 continue
-            parent, kind, start, constants = body
+            parent, kind, (column, multiplier, offset), constants = body
+            if kind != "weld":
+                x = Q[:, column] if multiplier is None else multiplier * Q[:, column] + offset
             if kind == "revolute":
                 A0, b0, A1, b1, A2, b2 = constants
-                sin, versin = np.sin(Q[:, start]), 1.0 - np.cos(Q[:, start])
+                sin, versin = np.sin(x), 1.0 - np.cos(x)
                 R_PC = A0 + sin[:, None, None] * A1 + versin[:, None, None] * A2
                 p_PC = b0 + sin[:, None] * b1 + versin[:, None] * b2
             elif kind == "prismatic":
                 A0, b0, b1 = constants
-                R_PC, p_PC = A0, b0 + Q[:, start, None] * b1
+                R_PC, p_PC = A0, b0 + x[:, None] * b1
             else:
                 R_PC, p_PC = constants
             R.append(R[parent] @ R_PC)
@@ -106,6 +110,20 @@ class TreeKinematics:
         R, p = self._body_poses(np.atleast_2d(np.asarray(Q, float)))
         rows, body = np.arange(len(frames)), self._frame_body[frames]
         return p[rows, body] + _apply(R[rows, body], self._frame_p[frames])
+
+
+def _coordinate(joint, position_map) -> tuple:
+    """(column of the configuration, multiplier, offset) giving a joint's position: (its position index, None, None)
+    without a map; a weld has none."""
+    if joint.type_name() == "weld":
+        return (-1, None, None)
+    start = joint.position_start()
+    if position_map is None:
+        return (start, None, None)
+    for position, column, multiplier, offset in position_map.mimics:
+        if position == start:
+            return (column, multiplier, offset)
+    return (int(np.flatnonzero(position_map.planned == start)[0]), None, None)
 
 
 def _apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -63,6 +63,7 @@ class CollisionOracle:
         logging.getLogger("drake").setLevel(logging.WARNING)
         self.scene = scene
         self.space = ConfigurationSpace.of(scene)
+        self._positions = scene.positions  # configurations -> the plant's positions (mimic joints follow)
         self.threads = threads or default_threads()
         self._parallelism = Parallelism(self.threads)
         self._cost = {"batch": None, "raw": None}  # running seconds per configuration of each are_free path
@@ -135,7 +136,7 @@ class CollisionOracle:
 
     # ---- collision answers (uncounted: a QueryContext counts and bounds them) ---------------------------------
     def _raw_free(self, q: np.ndarray) -> bool:
-        self.plant.SetPositions(self._ctx, q)
+        self.plant.SetPositions(self._ctx, self._positions(q))
         return not self._query_port.Eval(self._ctx).HasCollisions()
 
     def free(self, q: np.ndarray) -> bool:
@@ -161,7 +162,9 @@ class CollisionOracle:
                 for i, q in enumerate(Q):
                     free[i] = self._raw_free(q)
             else:
-                free[:] = self.checker.CheckConfigsCollisionFree(list(Q), parallelize=self._parallelism)
+                free[:] = self.checker.CheckConfigsCollisionFree(
+                    list(self._positions(Q)), parallelize=self._parallelism
+                )
             if len(Q) >= _BATCH_MIN:
                 cost = (time.perf_counter() - start) / len(Q)
                 old = self._cost[path]
@@ -195,7 +198,7 @@ class CollisionOracle:
         Pairs farther apart than `max_distance` are not computed, so the answer is capped there.
         """
         with self._lock:
-            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
             pairs = self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
         return min((p.distance for p in pairs), default=float(max_distance))
 
@@ -203,7 +206,7 @@ class CollisionOracle:
         """What the robot touches (or comes within `margin` of) at q, environment and self, whether or not the scene
         counts self-collision (pairs Drake or the SRDF filter are never reported)."""
         with self._lock:
-            self.plant.SetPositions(self._diag, np.asarray(q, float))
+            self.plant.SetPositions(self._diag, self._positions(np.asarray(q, float)))
             pairs = self._query_port.Eval(self._diag).ComputeSignedDistancePairwiseClosestPoints(max(margin, 1e-9))
         touched = {"environment": False, "self": False}
         for p in pairs:
@@ -220,7 +223,7 @@ class CollisionOracle:
         """The body pairs (scoped names, sorted) in collision at q under the scene's policy; for error messages.
         Geometry anchored to the world (a custom scene's environment pieces) is named itself, not "world"."""
         with self._lock:
-            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
             query = self._query_port.Eval(self._ctx)
             try:
                 pairs = [(p.id_A, p.id_B) for p in query.ComputePointPairPenetration()]
@@ -255,7 +258,7 @@ class CollisionOracle:
         out = np.empty((len(Q), 3))
         with self._lock:
             for i, q in enumerate(Q):
-                self.plant.SetPositions(self._ctx, q)
+                self.plant.SetPositions(self._ctx, self._positions(q))
                 out[i] = self._tracked_frame.CalcPoseInWorld(self._ctx).translation()
         return out
 
@@ -272,7 +275,7 @@ class CollisionOracle:
         measurements that need Drake's own answers (not counted). Valid until the oracle's next query: one thread's
         use only."""
         with self._lock:
-            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
             return self._query_port.Eval(self._ctx)
 
     def is_robot_geometry(self, geometry_id) -> bool:
@@ -283,7 +286,7 @@ class CollisionOracle:
         """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
         `max_distance` (farther pairs are left out)."""
         with self._lock:
-            self.plant.SetPositions(self._ctx, np.asarray(q, float))
+            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
             return self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
 
     # ---- the workspace (not collision checks) --------------------------------------------------------------------
@@ -301,7 +304,9 @@ class CollisionOracle:
         (app.checking.kinematics), or None when a joint is not revolute, prismatic or weld."""
         from app.checking.kinematics import TreeKinematics
 
-        return TreeKinematics.of(self.plant, [(body, X_BG) for body, X_BG, _ in self._robot_shapes])
+        return TreeKinematics.of(
+            self.plant, [(body, X_BG) for body, X_BG, _ in self._robot_shapes], self.scene.position_map
+        )
 
     def robot_geometry_centres(self, Q: np.ndarray, pieces: np.ndarray | None = None) -> np.ndarray:
         """World position of the centre of each robot collision geometry for each configuration, (n, G, 3); with
@@ -316,7 +321,7 @@ class CollisionOracle:
         out = np.empty((len(Q), len(shapes), 3))
         with self._lock:
             for i, q in enumerate(Q):
-                self.plant.SetPositions(self._ctx, q)
+                self.plant.SetPositions(self._ctx, self._positions(q))
                 for j in every if pieces is None else (int(pieces[i]),):
                     body, X_BG, _ = shapes[j]
                     out[i, j] = self.plant.EvalBodyPoseInWorld(self._ctx, body).multiply(X_BG.translation())

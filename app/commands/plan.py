@@ -22,7 +22,7 @@ from app.commands.common import (
 )
 from app.errors import UserError
 from app.planning.cell import CellRoadmap
-from app.planning.ik import pose_goal
+from app.planning.ik import pose_goal, robot_frame
 from app.planning.planner import PlanSettings, plan
 
 DEFAULTS = PlanSettings()
@@ -186,6 +186,8 @@ def run(args) -> int:
         raise UserError("--full-roadmap builds a roadmap of its own: give it or --roadmap, not both")
     view.check_from_args(args, args.out)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
+    posed = args.start_pose is not None or args.goal_pose is not None
+    tool = tool_frame(oracle, args.tool) if posed else None  # the frame the poses place, named in the answer
     cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
     start, goal = args.start, args.goal
     with progress(args, oracle, f"plan {oracle.scene.name}"):
@@ -198,10 +200,12 @@ def run(args) -> int:
     saved = (cell, args.roadmap) if args.update else None
     viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
     if args.json:
-        print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
+        print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool})
     else:
         lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
-        print("\n".join([summary(result), *("  " + line for line in lines)]))
+        if tool is not None:
+            lines.append(f"tool      {tool['name']} placed by the pose(s) ({TOOL_CHOSEN[tool['chosen']]})")
+        print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
     view.wait(args, viewer)
     return 0
 
@@ -211,6 +215,30 @@ def pose(text: str) -> list[float]:
     if len(values) != 6:
         raise argparse.ArgumentTypeError(f"needs 6 numbers x,y,z,roll,pitch,yaw, got {len(values)}: {text!r}")
     return values
+
+
+TOOL_CHOSEN = {
+    "tool": "--tool",
+    "scene": "the scene's tool frame",
+    "last_body": "the robot's last body; --tool FRAME picks another",
+}
+
+
+def tool_frame(oracle, name: str | None) -> dict:
+    """The frame --start-pose/--goal-pose place, and how it was chosen (a key of TOOL_CHOSEN): {"name", "chosen"}."""
+    frame = robot_frame(oracle, name)
+    chosen = "tool" if name else "scene" if oracle.scene.tool_frame is not None else "last_body"
+    return {"name": frame.name(), "chosen": chosen}
+
+
+def certificate_scope(scene) -> dict:
+    """What `certified` covers, beside it in the JSON answer: self_collision (whether the robot's collisions with
+    itself were counted at all) and certified_collisions: "all" (robot vs environment and itself) or
+    "environment" (robot vs environment only: a motion through the arm itself may be certified)."""
+    return {
+        "self_collision": scene.self_collisions,
+        "certified_collisions": "all" if scene.self_collisions else "environment",
+    }
 
 
 def collisions(scene) -> str:
@@ -226,8 +254,9 @@ def collisions(scene) -> str:
     return text
 
 
-def summary(r) -> str:
+def summary(r, scene) -> str:
     m, s, t = r.roadmap, r.seconds, r.trajectory
+    scope = "" if scene.self_collisions else "; self-collision not checked"
     edges = (
         f"{m['edges']} candidate edges, {m['edges_tried']} checked when a search used them (lazy)"
         if m["lazy"]
@@ -242,7 +271,7 @@ def summary(r) -> str:
         f"{r.smoothing['raw_length']:.1f} -> {len(r.path)} waypoints, length {r.smoothing['length_after']:.1f} "
         f"after smoothing",
         f"  motion    {t.duration:.2f} s trajectory, {len(t.times)} samples, corners blended, "
-        + ("certified free (continuous)" if t.certified else "NOT certified: fine-checked only"),
+        + (f"certified free (continuous{scope})" if t.certified else f"NOT certified: fine-checked only{scope}"),
         f"  cost      {r.collision_checks} collision checks + {r.distance_queries} distance queries "
         f"+ {r.point_queries} point queries, "
         f"{s['total']:.2f} s (sampling {s['sampling']:.2f}, roadmap {s['roadmap']:.2f}, search {s['search']:.2f}, "

@@ -32,11 +32,12 @@ def write_bag(path: str | os.PathLike, trajectory: Trajectory, frame_id: str = "
     Duration, Time = types["builtin_interfaces/msg/Duration"], types["builtin_interfaces/msg/Time"]
     Point = types["trajectory_msgs/msg/JointTrajectoryPoint"]
     nanoseconds = np.round(np.asarray(trajectory.times, float) * 1e9).astype(np.int64)
+    names, positions, velocities, accelerations = trajectory.joints()  # mimic joints' included
     points = [
         Point(
-            positions=np.asarray(trajectory.positions[i], float),
-            velocities=np.asarray(trajectory.velocities[i], float),
-            accelerations=np.asarray(trajectory.accelerations[i], float),
+            positions=np.asarray(positions[i], float),
+            velocities=np.asarray(velocities[i], float),
+            accelerations=np.asarray(accelerations[i], float),
             effort=np.zeros(0),
             time_from_start=Duration(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000)),
         )
@@ -44,7 +45,7 @@ def write_bag(path: str | os.PathLike, trajectory: Trajectory, frame_id: str = "
     ]
     message = types[MESSAGE_TYPE](
         header=types["std_msgs/msg/Header"](stamp=Time(sec=0, nanosec=0), frame_id=frame_id),
-        joint_names=list(trajectory.joint_names),
+        joint_names=names,
         points=points,
     )
 

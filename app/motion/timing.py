@@ -18,6 +18,8 @@ Waypoints must be unwrapped first (`ConfigurationSpace.unwrap`), so that continu
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import itertools
 import logging
 import math
@@ -156,6 +158,8 @@ def _toppra(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
     other grids are tried then; Drake's error line for each failed try is kept quiet."""
     from pydrake.multibody.optimization import Toppra
 
+    if plant.num_positions() != leg.path.rows():  # mimic joints: fewer coordinates than the plant has positions
+        plant = _sliders(leg.path.rows())
     drake_log = logging.getLogger("drake")
     level = drake_log.level
     drake_log.setLevel(logging.CRITICAL)
@@ -171,6 +175,24 @@ def _toppra(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
     finally:
         drake_log.setLevel(level)
     raise RuntimeError("Toppra found no time parameterization for a path leg")
+
+
+@functools.cache
+def _sliders(dim: int):
+    """A plant of `dim` prismatic joints. Toppra demands a plant with as many positions as the path has rows, and
+    uses it only for torque and frame limits, which are not asked for here; a path in the coordinates of a scene with
+    mimic joints has fewer rows than its plant has positions, and this plant stands in."""
+    from pydrake.multibody.plant import MultibodyPlant
+    from pydrake.multibody.tree import PrismaticJoint, SpatialInertia
+
+    plant = MultibodyPlant(0.0)
+    parent = plant.world_body()
+    for i in range(dim):
+        body = plant.AddRigidBody(f"slider{i}", SpatialInertia.SolidSphereWithMass(1.0, 0.1))
+        plant.AddJoint(PrismaticJoint(f"slider{i}", parent.body_frame(), body.body_frame(), [1.0, 0.0, 0.0]))
+        parent = body
+    plant.Finalize()
+    return plant
 
 
 def _excess(leg: _Leg, s_of_t, v: np.ndarray, a: np.ndarray) -> float:
@@ -323,8 +345,8 @@ def time_path(
     acceleration_scale: float = 1.0,
 ) -> Trajectory:
     """A path of the oracle's scene (wrapped waypoints) timed by parameterize_smooth under the scene's limits, scaled
-    by velocity_scale and acceleration_scale (see scaled_limits)."""
-    return parameterize_smooth(
+    by velocity_scale and acceleration_scale (see scaled_limits); it carries the scene's mimic joints."""
+    trajectory = parameterize_smooth(
         oracle,
         oracle.space.unwrap(path),
         *scaled_limits(oracle.scene, velocity_scale, acceleration_scale),
@@ -333,6 +355,7 @@ def time_path(
         certifier=certifier,
         edges_proved=edges_proved,
     )
+    return dataclasses.replace(trajectory, position_map=oracle.scene.position_map)
 
 
 def parameterize_smooth(

@@ -5,16 +5,20 @@ start, positions, velocities, accelerations), stored by columns:
 
     schema            "npp-trajectory/1"
     scene             the scene's name
-    joint_names       one name per coordinate (the model's joint names; a floating body's as name[i])
+    joint_names       one name per joint position (the model's joint names; a floating body's as name[i])
     time_from_start   (N,) seconds, non-decreasing, from 0
-    positions         (N, dim) continuous angles unwrapped (no 2 pi jumps), so consecutive samples are close
-    velocities        (N, dim) per second
-    accelerations     (N, dim) per second squared
-    waypoints         (K, dim) the path the motion follows, unwrapped like positions
+    positions         (N, J) continuous angles unwrapped (no 2 pi jumps), so consecutive samples are close
+    velocities        (N, J) per second
+    accelerations     (N, J) per second squared
+    waypoints         (K, J) the path the motion follows, unwrapped like positions
     waypoint_times    (K,) when the motion passes each waypoint
     certified         whether the whole motion, not only its samples, was proved collision-free
-    narrow_samples    optional (M, dim): the planner's narrow-passage samples
+    narrow_samples    optional (M, J): the planner's narrow-passage samples
     narrow_on_path    optional (M,) booleans: which of them the roadmap path used
+
+J is the scene's number of coordinates, and more when mimic joints follow them (app.scene.cspace.PositionMap):
+the file carries every joint, a mimic joint's values computed from its coordinate's; in memory a Trajectory holds
+the coordinates alone, and a file whose mimic joints do not follow their coordinates is refused.
 
 Anything else in the file is an error, so a misspelt key is found rather than ignored. docs/schemas/trajectory.json
 describes the file as a JSON Schema; app.motion.rosbag writes the same Trajectory as a ROS 2 bag.
@@ -31,6 +35,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import check_input, write_atomically
+from app.scene.cspace import PositionMap
 
 SCHEMA = "npp-trajectory/1"
 
@@ -45,19 +50,29 @@ class Trajectory:
     waypoints: np.ndarray  # (K, dim) unwrapped
     waypoint_times: np.ndarray  # (K,)
     certified: bool = False
+    position_map: PositionMap | None = None  # the scene's mimic joints (None: every joint is a coordinate)
 
     @property
     def duration(self) -> float:
         return float(self.times[-1]) if len(self.times) else 0.0
 
+    def joints(self) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+        """Every joint's (names, positions, velocities, accelerations), mimic joints' included."""
+        m = self.position_map
+        if m is None:
+            return list(self.joint_names), self.positions, self.velocities, self.accelerations
+        return list(m.names), m.positions(self.positions), m.rates(self.velocities), m.rates(self.accelerations)
+
     def to_json(self) -> dict:
+        names, positions, velocities, accelerations = self.joints()
+        waypoints = self.waypoints if self.position_map is None else self.position_map.positions(self.waypoints)
         return {
-            "joint_names": list(self.joint_names),
+            "joint_names": names,
             "time_from_start": self.times.tolist(),
-            "positions": self.positions.tolist(),
-            "velocities": self.velocities.tolist(),
-            "accelerations": self.accelerations.tolist(),
-            "waypoints": self.waypoints.tolist(),
+            "positions": positions.tolist(),
+            "velocities": velocities.tolist(),
+            "accelerations": accelerations.tolist(),
+            "waypoints": waypoints.tolist(),
             "waypoint_times": self.waypoint_times.tolist(),
             "certified": bool(self.certified),
         }
@@ -75,7 +90,8 @@ class TrajectoryFile:
     def to_json(self) -> dict:
         out = {"schema": SCHEMA, "scene": self.scene, **self.trajectory.to_json()}
         if self.narrow is not None:
-            out["narrow_samples"] = np.asarray(self.narrow).tolist()
+            m = self.trajectory.position_map
+            out["narrow_samples"] = np.asarray(self.narrow if m is None else m.positions(self.narrow)).tolist()
             out["narrow_on_path"] = [bool(x) for x in self.on_path]
         return out
 
@@ -83,33 +99,36 @@ class TrajectoryFile:
         return write_atomically(path, json.dumps(self.to_json(), separators=(",", ":")))
 
     @classmethod
-    def read(cls, path: str | os.PathLike, dim: int) -> TrajectoryFile:
-        """A trajectory file checked against a scene of `dim` coordinates; every fault is one UserError."""
+    def read(cls, path: str | os.PathLike, dim: int, position_map: PositionMap | None = None) -> TrajectoryFile:
+        """A trajectory file checked against a scene of `dim` coordinates (and its mimic joints' `position_map`);
+        every fault is one UserError."""
         file = check_input(path, "trajectory file")
         try:
             obj = json.loads(file.read_text())
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise UserError(f"cannot read trajectory {file.name}: {' '.join(str(exc).split())[:200]}") from None
-        return cls.from_json(obj, dim, source=file.name)
+        return cls.from_json(obj, dim, source=file.name, position_map=position_map)
 
     @classmethod
     def read_for(cls, path: str | os.PathLike, scene) -> TrajectoryFile:
         """A trajectory file of `scene` (app.scene.model.Scene): written for a scene of its name, with its
-        coordinates' names in order; every fault is one UserError."""
-        file = cls.read(path, scene.dim)
+        joints' names in order; every fault is one UserError."""
+        file = cls.read(path, scene.dim, scene.position_map)
         source = Path(path).name
         if file.scene != scene.name:
             raise UserError(f"{source} is a trajectory of scene '{file.scene}', not of '{scene.name}'")
-        names = list(file.trajectory.joint_names)
-        if names != list(scene.coordinate_names):
-            k = next(i for i, (a, b) in enumerate(zip(names, scene.coordinate_names)) if a != b)
+        names = list(file.trajectory.joints()[0])
+        if names != list(scene.joint_names):
+            k = next(i for i, (a, b) in enumerate(zip(names, scene.joint_names)) if a != b)
             raise UserError(
-                f"{source}: joint {k + 1} is '{names[k]}', but scene '{scene.name}' has '{scene.coordinate_names[k]}'"
+                f"{source}: joint {k + 1} is '{names[k]}', but scene '{scene.name}' has '{scene.joint_names[k]}'"
             )
         return file
 
     @classmethod
-    def from_json(cls, obj, dim: int, source: str = "trajectory") -> TrajectoryFile:
+    def from_json(
+        cls, obj, dim: int, source: str = "trajectory", position_map: PositionMap | None = None
+    ) -> TrajectoryFile:
         if not isinstance(obj, dict):
             raise UserError(f"{source}: expected a JSON object (schema {SCHEMA})")
         if obj.get("schema") != SCHEMA:
@@ -137,18 +156,25 @@ class TrajectoryFile:
         names = obj["joint_names"]
         if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
             raise UserError(f"{source}: 'joint_names' must be a list of names")
-        if len(names) != dim:
-            raise UserError(f"{source}: {len(names)} 'joint_names' for a scene of {dim} coordinates")
+        joints = dim if position_map is None else len(position_map.names)
+        if len(names) != joints:
+            raise UserError(f"{source}: {len(names)} 'joint_names' for a scene of {joints} joints")
         times = _vector(obj["time_from_start"], "time_from_start", source)
         if len(times) == 0:
             raise UserError(f"{source}: the trajectory is empty")
         if np.any(np.diff(times) < 0):
             raise UserError(f"{source}: 'time_from_start' must be non-decreasing")
-        columns = {key: _matrix(obj[key], key, dim, source) for key in ("positions", "velocities", "accelerations")}
+        columns = {key: _matrix(obj[key], key, joints, source) for key in ("positions", "velocities", "accelerations")}
         for key, value in columns.items():
             if len(value) != len(times):
                 raise UserError(f"{source}: {len(value)} rows of '{key}' for {len(times)} times")
-        waypoints = _matrix(obj["waypoints"], "waypoints", dim, source)
+        columns = {
+            key: _coordinates(value, position_map, key, source, rates=key != "positions")
+            for key, value in columns.items()
+        }
+        waypoints = _coordinates(
+            _matrix(obj["waypoints"], "waypoints", joints, source), position_map, "waypoints", source
+        )
         waypoint_times = _vector(obj["waypoint_times"], "waypoint_times", source)
         if len(waypoint_times) != len(waypoints):
             raise UserError(f"{source}: {len(waypoint_times)} waypoint times for {len(waypoints)} waypoints")
@@ -163,12 +189,15 @@ class TrajectoryFile:
             waypoints,
             waypoint_times,
             obj["certified"],
+            position_map,
         )
         narrow = on_path = None
         if ("narrow_samples" in obj) != ("narrow_on_path" in obj):
             raise UserError(f"{source}: 'narrow_samples' and 'narrow_on_path' go together")
         if "narrow_samples" in obj:
-            narrow = _matrix(obj["narrow_samples"], "narrow_samples", dim, source)
+            narrow = _coordinates(
+                _matrix(obj["narrow_samples"], "narrow_samples", joints, source), position_map, "narrow_samples", source
+            )
             flags = obj["narrow_on_path"]
             if not isinstance(flags, list) or not all(isinstance(f, bool) for f in flags):
                 raise UserError(f"{source}: 'narrow_on_path' must be a list of true/false")
@@ -176,6 +205,20 @@ class TrajectoryFile:
                 raise UserError(f"{source}: {len(flags)} 'narrow_on_path' flags for {len(narrow)} narrow samples")
             on_path = np.array(flags, bool)
         return cls(scene=str(obj["scene"]), trajectory=trajectory, narrow=narrow, on_path=on_path)
+
+
+def _coordinates(P: np.ndarray, position_map: PositionMap | None, key: str, source: str, rates=False) -> np.ndarray:
+    """The planned coordinates of rows of every joint's values (positions, or with `rates` velocities or
+    accelerations); a mimic joint that does not follow its coordinate is refused."""
+    if position_map is None:
+        return P
+    Q = position_map.coordinates(P)
+    expected = position_map.rates(Q) if rates else position_map.positions(Q)
+    off = np.abs(expected - P) > 1e-9 * (1.0 + np.abs(P))
+    if off.any():
+        joint = position_map.names[int(np.flatnonzero(off.any(axis=0))[0])]
+        raise UserError(f"{source}: '{key}' of mimic joint '{joint}' do not follow the joint it mimics")
+    return Q
 
 
 def _vector(value, key: str, source: str) -> np.ndarray:

@@ -101,14 +101,17 @@ def solve_pose(
     if frame is None:
         raise UserError(f"scene {scene.name} names no tool frame, so it has no tool poses to reach")
     reference = scene.start if reference is None else oracle.space.check_configuration(reference, "reference")
-    plant = oracle.plant
+    plant, mimic = oracle.plant, scene.position_map
 
     def attempt(seed_list, with_clearance: bool, colliding: list) -> list[np.ndarray]:
         root = oracle.policy_context()
         context = plant.GetMyMutableContextFromRoot(root)
         ik = InverseKinematics(plant, context, with_joint_limits=False)
-        q = ik.q()
+        positions = ik.q()  # the plant's: mimic joints' positions are bound to their coordinates' below
+        q = positions if mimic is None else positions[mimic.planned]
         prog = ik.get_mutable_prog()
+        if mimic is not None:
+            prog.AddLinearEqualityConstraint(*mimic.equalities(), positions)
         p = X_WT.translation()
         # A box inside the tolerance ball and a tighter angle, leaving room for SNOPT's feasibility tolerance.
         half = 0.9 * position_tolerance / math.sqrt(3.0)
@@ -135,7 +138,7 @@ def solve_pose(
             ik.AddMinimumDistanceLowerBoundConstraint(clearance, 0.05)
         found = []
         for seed in seed_list:
-            result = Solve(prog, seed)
+            result = Solve(prog, scene.positions(seed))
             if not result.is_success():
                 continue
             candidate = _into_bounds(oracle, result.GetSolution(q))
@@ -179,7 +182,7 @@ def tool_pose(oracle, q, frame=None):
     """The pose (a RigidTransform) of `frame` (default: the scene's tool frame) in the world at configuration q."""
     plant = oracle.plant
     context = plant.CreateDefaultContext()
-    plant.SetPositions(context, np.asarray(q, float))
+    plant.SetPositions(context, oracle.scene.positions(np.asarray(q, float)))
     return (frame or oracle.scene.tool_frame).CalcPoseInWorld(context)
 
 

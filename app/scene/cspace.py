@@ -131,3 +131,95 @@ class ConfigurationSpace:
 
     def _name(self, i: int) -> str:
         return self.names[i] if i < len(self.names) and self.names[i] else f"q[{i}]"
+
+
+@dataclass(frozen=True, eq=False)
+class PositionMap:
+    """The plant's joint positions from the planned coordinates, positions = matrix @ q + offset: a mimic joint (URDF
+    <mimic joint= multiplier= offset=>) is no coordinate of its own but follows the joint it mimics. Every planned
+    joint is one coordinate (its row of `matrix` a unit vector); a mimic joint's row holds its multiplier in the
+    column of the coordinate it follows. A scene without mimic joints has no map (None): positions are q."""
+
+    matrix: np.ndarray  # (positions, coordinates)
+    offset: np.ndarray  # (positions,)
+    names: list[str]  # every position's name, the mimic joints' included, in the plant's order
+    planned: np.ndarray  # (coordinates,) the position index of each coordinate
+
+    @classmethod
+    def of(cls, names: list[str], mimics: list[tuple[str, str, float, float]]) -> PositionMap | None:
+        """The map for positions `names` whose mimics are (joint, followed joint, multiplier, offset); None without
+        any. A mimic of a mimic joint, of itself or of an unknown joint is a UserError."""
+        if not mimics:
+            return None
+        index = {name: i for i, name in enumerate(names)}
+        followed = {}
+        for joint, leader, multiplier, offset in mimics:
+            for name in (joint, leader):
+                if name not in index:
+                    raise UserError(f"mimic joint '{joint}': no joint named '{name}' among {', '.join(names)}")
+            if joint in followed:
+                raise UserError(f"joint '{joint}' mimics two joints")
+            if not (np.isfinite(multiplier) and np.isfinite(offset)) or multiplier == 0:
+                raise UserError(f"mimic joint '{joint}': multiplier must be finite and non-zero, offset finite")
+            followed[joint] = (leader, float(multiplier), float(offset))
+        for joint, (leader, _, _) in followed.items():
+            if leader in followed:
+                raise UserError(f"mimic joint '{joint}' follows '{leader}', which is itself a mimic joint")
+        planned = np.array([i for i, name in enumerate(names) if name not in followed], int)
+        column = {int(p): c for c, p in enumerate(planned)}
+        matrix, offset = np.zeros((len(names), len(planned))), np.zeros(len(names))
+        matrix[planned, np.arange(len(planned))] = 1.0
+        for joint, (leader, multiplier, shift) in followed.items():
+            matrix[index[joint], column[index[leader]]] = multiplier
+            offset[index[joint]] = shift
+        return cls(matrix, offset, list(names), planned)
+
+    @property
+    def mimics(self) -> list[tuple[int, int, float, float]]:
+        """(position, coordinate it follows, multiplier, offset) of each mimic joint."""
+        mimic = np.setdiff1d(np.arange(len(self.names)), self.planned)
+        columns = np.argmax(self.matrix[mimic] != 0, axis=1)
+        return [(int(p), int(c), float(self.matrix[p, c]), float(self.offset[p])) for p, c in zip(mimic, columns)]
+
+    def equalities(self) -> tuple[np.ndarray, np.ndarray]:
+        """(A, b): the mimic joints' relations as linear equalities A @ positions = b (one row per mimic joint),
+        for solvers whose variables are the plant's positions."""
+        mimic = np.array([p for p, *_ in self.mimics], int)
+        A = -self.matrix[mimic] @ np.eye(len(self.names))[self.planned]
+        A[np.arange(len(mimic)), mimic] += 1.0
+        return A, self.offset[mimic]
+
+    def positions(self, Q: np.ndarray) -> np.ndarray:
+        """Plant positions of configurations Q (..., coordinates)."""
+        return np.asarray(Q, float) @ self.matrix.T + self.offset
+
+    def rates(self, V: np.ndarray) -> np.ndarray:
+        """Joint velocities (or accelerations) of coordinate velocities V (..., coordinates)."""
+        return np.asarray(V, float) @ self.matrix.T
+
+    def coordinates(self, P: np.ndarray) -> np.ndarray:
+        """The planned coordinates of plant positions P (..., positions)."""
+        return np.asarray(P, float)[..., self.planned]
+
+    def coordinate_limits(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The limits (lo, hi) per coordinate that keep every mimic joint within its own position limits (lower,
+        upper per position); -inf, inf where no mimic joint limits a coordinate."""
+        lo, hi = np.full(len(self.planned), -np.inf), np.full(len(self.planned), np.inf)
+        for p, c, multiplier, shift in self.mimics:
+            ends = sorted(((lower[p] - shift) / multiplier, (upper[p] - shift) / multiplier))
+            lo[c], hi[c] = max(lo[c], ends[0]), min(hi[c], ends[1])
+        return lo, hi
+
+    def coordinate_speeds(self, limits: np.ndarray) -> np.ndarray:
+        """The speed (or acceleration) limit per coordinate that keeps every mimic joint within its own (`limits` per
+        position): a mimic joint moves |multiplier| times as fast as its coordinate; inf where none limits it."""
+        out = np.full(len(self.planned), np.inf)
+        for p, c, multiplier, _ in self.mimics:
+            if limits[p] > 0:  # (a model's 0 means no limit given)
+                out[c] = min(out[c], limits[p] / abs(multiplier))
+        return out
+
+    def position_bounds(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The range of each position over the coordinate box [lower, upper]."""
+        centre, half = self.positions(0.5 * (lower + upper)), np.abs(self.matrix) @ (0.5 * (upper - lower))
+        return centre - half, centre + half

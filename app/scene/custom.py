@@ -36,7 +36,8 @@ import numpy as np
 from app.errors import UserError
 from app.io import check_input, write_atomically
 from app.scene import meshes
-from app.scene.model import PACKAGES, Scene, robot_diagram_builder
+from app.scene.cspace import PositionMap
+from app.scene.model import PACKAGES, Scene, model_loading, robot_diagram_builder
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
@@ -193,8 +194,41 @@ def probe_model(path: Path, packages: dict[str, Path]) -> dict:
     }
 
 
-def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str]) -> dict:
-    """Load the robot part of the directives: coordinate names, limits, and the robot's size (for weights)."""
+def read_mimics(path: Path) -> list[dict]:
+    """The <mimic> elements of a URDF's joints, as the problem file's `mimic` entries: each such joint follows
+    another (multiplier 1 and offset 0 unless given). Drake's URDF parser ignores them in kinematics (a continuous
+    plant only records a coupler constraint that no query uses), so they are read here."""
+    import xml.etree.ElementTree as ET
+
+    if path.suffix.lower() != ".urdf":
+        return []
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise UserError(f"cannot load {path.name}: {exc}") from None
+    mimics = []
+    for joint in root.iter("joint"):
+        element = joint.find("mimic")
+        if element is None:
+            continue
+        try:
+            multiplier, offset = float(element.get("multiplier", 1.0)), float(element.get("offset", 0.0))
+        except ValueError:
+            raise UserError(f"{path.name}: joint '{joint.get('name')}': <mimic> needs numbers") from None
+        mimics.append(
+            {
+                "joint": joint.get("name", ""),
+                "follows": element.get("joint", ""),
+                "multiplier": multiplier,
+                "offset": offset,
+            }
+        )
+    return mimics
+
+
+def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str], mimics: list[dict]) -> dict:
+    """Load the robot part of the directives: coordinate names, limits, and the robot's size (for weights). A
+    joint in `mimics` is no coordinate; the limits of the one it follows keep it within its own."""
     from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
     from pydrake.multibody.tree import JointIndex
 
@@ -247,14 +281,33 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
         raise UserError("the robot has no collision geometry")
     reach = float(np.max(np.linalg.norm(np.vstack(corners) - root, axis=1)))
     thin = float(np.median(widths))
+    lower, upper, velocity = (
+        plant.GetPositionLowerLimits(),
+        plant.GetPositionUpperLimits(),
+        plant.GetVelocityUpperLimits(),
+    )
+    mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics])
+    if mimic is not None:
+        (mimic_lower, mimic_upper), mimic_velocity = (
+            mimic.coordinate_limits(lower, upper),
+            mimic.coordinate_speeds(velocity),
+        )
+        planned = mimic.planned
+        names, kinds = [names[i] for i in planned], [kinds[i] for i in planned]
+        lower, upper = np.maximum(lower[planned], mimic_lower), np.minimum(upper[planned], mimic_upper)
+        velocity = np.minimum(velocity[planned], mimic_velocity)
+        if np.any(lower >= upper):
+            bad = names[int(np.flatnonzero(lower >= upper)[0])]
+            raise UserError(f"joint '{bad}': no position keeps the joints that mimic it within their limits")
     return {
         "names": names,
         "kinds": kinds,
-        "lower": plant.GetPositionLowerLimits(),
-        "upper": plant.GetPositionUpperLimits(),
-        "velocity": plant.GetVelocityUpperLimits(),
+        "lower": lower,
+        "upper": upper,
+        "velocity": velocity,
         "reach": reach,
         "thin": thin,
+        "mimic": mimics,
     }
 
 
@@ -474,6 +527,7 @@ def _write(path: Path, text: str) -> None:
 
 
 # ---- the builder --------------------------------------------------------------------------------------------------
+@model_loading()
 def build_scene(
     spec: CustomSpec, base: Path | None = None, cache_dir: Path | None = None, progress: bool = True
 ) -> CustomScene:
@@ -496,7 +550,8 @@ def build_scene(
     # how closely the environment's pieces must follow its surfaces.
     root = cache_dir or meshes.cache_root()
     robot_dir = _write_scene_dir(models, robot_directives, inputs.packages, root)
-    coords = probe_robot(robot_dir / "robot.dmd.yaml", inputs.packages, robot_instances)
+    mimics = read_mimics(inputs.robot_path) if inputs.robot_kind == "model" else []
+    coords = probe_robot(robot_dir / "robot.dmd.yaml", inputs.packages, robot_instances, mimics)
     resolution = spec.resolution or default_resolution(coords)
     env_options = {**mesh_options, "tolerance": spec.mesh_tolerance or ENV_TOLERANCE_PER_STEP * resolution}
     env_boxes = _add_environment(models, inputs, env_options, cache_dir)
@@ -730,6 +785,7 @@ def _problem(
         "resolution": float(resolution),
         "view": "3d",
         "velocity_limits": model_velocity.tolist(),
+        "mimic": coords["mimic"],
         **limits,  # the Scene's default accelerations: twice its velocity limits
     }
 

@@ -5,9 +5,14 @@ silently ignored setting. Everything the rest of the pipeline needs about the ro
 coordinates are angles, which wrap, how to weigh them) is read here once.
 """
 
+import collections
+import contextlib
 import dataclasses
 import functools
+import logging
 import math
+import re
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,7 +20,7 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import check_input
-from app.scene.cspace import ConfigurationSpace
+from app.scene.cspace import ConfigurationSpace, PositionMap
 
 # pydrake is imported inside the functions that use it, so that importing the package (as the command line does)
 # does not load Drake.
@@ -55,6 +60,17 @@ class ToolPose:
 
 
 @dataclass
+class Mimic:
+    """A joint that follows another (URDF <mimic>): position = multiplier * the followed joint's + offset. It is no
+    coordinate of the configuration space (see app.scene.cspace.PositionMap)."""
+
+    joint: str = ""
+    follows: str = ""
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass
 class ProblemFile:
     description: str = ""
     directives: str = ""  # a *.dmd.yaml file beside the problem file
@@ -79,6 +95,52 @@ class ProblemFile:
     view: str = "2d"  # how `show` draws it: "2d" top view or "3d"
     tool_frame: str = ""  # the frame `poses` are poses of (arm scenes); required when poses are given
     poses: list[ToolPose] = field(default_factory=list)  # named tool poses, in file order (e.g. a weld seam)
+    mimic: list[Mimic] = field(default_factory=list)  # joints that follow others: not planned coordinates
+
+
+# Drake's URDF parser warns about each element it ignores, once per parse. These are ROS controller and calibration
+# settings a planner never reads; a load says in one line what it ignored (each element once per process: a custom
+# scene parses its robot several times) instead of a warning per element per parse.
+HARMLESS_URDF_TAGS = ("safety_controller", "calibration")
+_HARMLESS = re.compile(
+    r"^(.*?): warning: The tag '(" + "|".join(HARMLESS_URDF_TAGS) + r")' found as a child of '\w+' is currently "
+    r"unsupported and will be ignored"
+)
+_harmless_seen: set[str] = set()  # the warnings already summarised (file name:line and tag)
+_harmless_new: collections.Counter | None = None  # per tag, while a model_loading block runs
+
+
+def _drop_harmless(record: logging.LogRecord) -> bool:
+    found = _HARMLESS.match(record.getMessage())
+    if found is None or _harmless_new is None:
+        return True
+    # By file name and line: the cached copies of a model (its mesh links rewritten) are the same elements.
+    key = f"{Path(found.group(1)).name} {found.group(2)}"
+    if key not in _harmless_seen:
+        _harmless_seen.add(key)
+        _harmless_new[found.group(2)] += 1
+    return False
+
+
+@contextlib.contextmanager
+def model_loading():
+    """Drake's known-harmless URDF warnings (HARMLESS_URDF_TAGS) kept off stderr while models load, and summarised
+    in one line at the end of the outermost block (nothing if every one was summarised before)."""
+    global _harmless_new
+    if _harmless_new is not None:  # an enclosing block summarises
+        yield
+        return
+    logger = logging.getLogger("drake")
+    _harmless_new = collections.Counter()
+    logger.addFilter(_drop_harmless)
+    try:
+        yield
+    finally:
+        logger.removeFilter(_drop_harmless)
+        counts, _harmless_new = _harmless_new, None
+        if counts:
+            parts = ", ".join(f"{count} <{tag}>" for tag, count in sorted(counts.items()))
+            print(f"note: Drake ignored URDF elements a planner does not use: {parts}", file=sys.stderr)
 
 
 def robot_diagram_builder():
@@ -197,25 +259,42 @@ class Scene:
         self.diagram = builder.Build()
         self.plant = self.diagram.plant()
 
-        nq = self.plant.num_positions()
-        self.dim = nq
-        self.coordinate_names = [""] * nq
-        angular = np.zeros(nq, bool)
+        # Per plant position first; the planned coordinates are the positions of joints that mimic none.
+        positions = self.plant.num_positions()
+        names, angular = [""] * positions, np.zeros(positions, bool)
         for i in range(self.plant.num_joints()):
             joint = self.plant.get_joint(JointIndex(i))
             for k in range(joint.num_positions()):
                 index = joint.position_start() + k
-                self.coordinate_names[index] = joint.name() if joint.num_positions() == 1 else f"{joint.name()}[{k}]"
+                names[index] = joint.name() if joint.num_positions() == 1 else f"{joint.name()}[{k}]"
                 angular[index] = joint.type_name() == "revolute"
-        model_lower, model_upper = self.plant.GetPositionLowerLimits(), self.plant.GetPositionUpperLimits()
-        self.angular = angular
+        try:
+            self.position_map = PositionMap.of(
+                names, [(m.joint, m.follows, m.multiplier, m.offset) for m in problem.mimic]
+            )
+        except UserError as exc:
+            raise UserError(f"bad scene file {self.path.name}: {exc}") from None
+        planned = self.position_map.planned if self.position_map else np.arange(positions)
+        position_lower, position_upper = self.plant.GetPositionLowerLimits(), self.plant.GetPositionUpperLimits()
+        self.dim = nq = len(planned)
+        self.joint_names = names  # every position's, mimic joints' included: what a trajectory carries
+        self.coordinate_names = [names[i] for i in planned]
+        self.angular = angular = angular[planned]
+        model_lower, model_upper = position_lower[planned], position_upper[planned]
         # An angle with no joint limit wraps: it lives on a circle, and the metric takes the short way round.
         self.continuous = angular & ~np.isfinite(model_lower) & ~np.isfinite(model_upper)
         model_lower = np.where(self.continuous, -math.pi, model_lower)
         model_upper = np.where(self.continuous, math.pi, model_upper)
+        mimic_lower, mimic_upper = (
+            self.position_map.coordinate_limits(position_lower, position_upper)
+            if self.position_map
+            else (-np.inf, np.inf)
+        )
+        # A mimicked coordinate's bounds keep its mimic joints within their limits (a limited coordinate: no wrap).
+        self.continuous &= ~np.isfinite(mimic_lower) & ~np.isfinite(mimic_upper)
 
-        self.lower = self._vector("lower", problem.lower, model_lower)
-        self.upper = self._vector("upper", problem.upper, model_upper)
+        self.lower = np.maximum(self._vector("lower", problem.lower, model_lower), mimic_lower)
+        self.upper = np.minimum(self._vector("upper", problem.upper, model_upper), mimic_upper)
         if not np.all(np.isfinite(self.lower) & np.isfinite(self.upper)) or np.any(self.lower >= self.upper):
             raise UserError(f"bad scene file {self.path.name}: bounds must be finite with lower < upper")
         self.weights = self._vector("weights", problem.weights, np.ones(nq))
@@ -241,7 +320,9 @@ class Scene:
             except UserError as exc:
                 raise UserError(f"bad scene file {self.path.name}: {exc}") from None
         model_velocity = self.plant.GetVelocityUpperLimits()
-        self.velocity_limits = self._vector("velocity_limits", problem.velocity_limits, model_velocity)
+        self.velocity_limits = self._vector("velocity_limits", problem.velocity_limits, model_velocity[planned])
+        if self.position_map:  # a mimic joint moves |multiplier| times as fast as its coordinate
+            self.velocity_limits = np.minimum(self.velocity_limits, self.position_map.coordinate_speeds(model_velocity))
         self.acceleration_limits = self._vector(
             "acceleration_limits", problem.acceleration_limits, 2.0 * self.velocity_limits
         )
@@ -272,6 +353,10 @@ class Scene:
                     f" and hi {hi.tolist()}"
                 )
         self._read_poses(problem)
+
+    def positions(self, Q: np.ndarray) -> np.ndarray:
+        """The plant's positions at configurations Q (..., dim): Q itself unless mimic joints follow coordinates."""
+        return Q if self.position_map is None else self.position_map.positions(Q)
 
     def _read_poses(self, problem: ProblemFile) -> None:
         """`tool_frame` (a Frame or None), `poses` (name -> RigidTransform of the tool frame in the world) and
@@ -306,7 +391,8 @@ class Scene:
             if not parser.package_map().Contains(package):
                 parser.package_map().Add(package, str(directory))
         try:
-            ProcessModelDirectives(LoadModelDirectives(str(directives_path)), parser)
+            with model_loading():
+                ProcessModelDirectives(LoadModelDirectives(str(directives_path)), parser)
         except Exception as exc:
             raise UserError(f"cannot load {self.problem.directives}: {' '.join(str(exc).split())[:300]}") from None
 
@@ -351,4 +437,5 @@ class Scene:
             "passage_boxes": [dataclasses.asdict(b) for b in self.problem.passage.boxes],
             "tool_frame": self.problem.tool_frame,
             "poses": [p.name for p in self.problem.poses],
+            "mimic": [dataclasses.asdict(m) for m in self.problem.mimic],
         }
