@@ -561,7 +561,7 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
         raise UserError("an env pose needs an environment file")
     srdf_path = resolve(spec.srdf) if spec.srdf else None
     if srdf_path is not None:
-        check_input(srdf_path, "SRDF file")
+        _check_srdf_links(srdf_path, robot_path if robot_kind == "model" else None)
     bounds = parse_bounds(spec.bounds)
     return _Inputs(
         packages,
@@ -574,6 +574,24 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
         bounds,
         srdf_path,
     )
+
+
+def _check_srdf_links(srdf_path: Path, model_path: Path | None) -> None:
+    """The SRDF parses and names only links of the model (read from its XML: before any mesh work)."""
+    import xml.etree.ElementTree as ET
+
+    from app.scene.model import read_srdf
+
+    pairs = read_srdf(srdf_path)
+    if model_path is None:
+        return
+    try:
+        links = {link.get("name") for link in ET.parse(model_path).getroot().iter("link")}
+    except ET.ParseError:
+        return  # the model's own load reports it
+    unknown = sorted({name for pair in pairs for name in pair} - links)
+    if unknown:
+        raise UserError(f"SRDF {srdf_path.name}: unknown link(s) {', '.join(unknown)} (not bodies of the robot)")
 
 
 @dataclass
@@ -604,7 +622,10 @@ def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: 
         return ["robot"]
     before = len(models.decompositions)
     found = models.decompositions
-    robot_file = convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir, mesh_options, found)
+    # A link's mesh may be larger than the link, never smaller: CAD exports (open slivers, unstitched faces) become
+    # hulls in seconds instead of failing exact validation after minutes (app.scene.meshes.choose_method).
+    link_options = {**mesh_options, "conservative": True}
+    robot_file = convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir, link_options, found)
     if len(models.decompositions) > before:
         # The same robot with Drake's convex hull per mesh link, to measure what the decomposition changes.
         models.hull_robot_file = (robot_file, convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir))
@@ -798,6 +819,8 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
         "mesh": path.name,
         "method": d.method,
         "pieces": len(d.pieces),
+        "parts": d.parts,
+        "volume": d.volume,
         "from_cache": d.from_cache,
         "seconds": round(d.seconds, 3),
         "validation": {
