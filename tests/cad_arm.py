@@ -1,7 +1,8 @@
 """A UR-like six-joint arm written the way CAD tools export one (no files shipped): per link an STL with every
-triangle's corners stored anew (as STL does), several overlapping shells (housings, tubes, flanges), open 2-face
-slivers on their surfaces (fillet strips the exporter did not stitch), one shell with a missing end cap (open) and a
-closed, non-convex bracket. Joints as a UR3's (shoulder pan z, lift y, elbow y, wrist 1 y, wrist 2 z, wrist 3 y)."""
+triangle's corners stored anew (as STL does), several overlapping shells (housings, tubes, flanges) whose faces are
+tessellated apart and not stitched (open parts; the chamfers' facets are 2-face slivers: 99-318 parts per link),
+and on the upper arm a closed, non-convex bracket. Joints as a UR3's (shoulder pan z, lift y, elbow y, wrist 1 y,
+wrist 2 z, wrist 3 y)."""
 
 import numpy as np
 import trimesh
@@ -47,10 +48,8 @@ def _cylinder(radius, height, axis="z", at=(0, 0, 0), sections=48, chamfer=0.001
         for a, b in zip(angles, np.roll(angles, -1)):
             b = b if b > a else b + 2 * np.pi
             a, b = a + gap / r, b - gap / r  # unstitched from the neighbouring facets
-            quad = np.array([
-                [r * np.cos(a), r * np.sin(a), sign * (h - c)], [r * np.cos(b), r * np.sin(b), sign * (h - c)],
-                [(r - c) * np.cos(b), (r - c) * np.sin(b), sign * h], [(r - c) * np.cos(a), (r - c) * np.sin(a), sign * h],
-            ])  # fmt: skip
+            corners = [(r, a, h - c), (r, b, h - c), (r - c, b, h), (r - c, a, h)]
+            quad = np.array([(rho * np.cos(t), rho * np.sin(t), sign * z) for rho, t, z in corners])
             faces = [[0, 1, 2], [0, 2, 3]] if sign > 0 else [[0, 2, 1], [0, 3, 2]]
             parts.append(trimesh.Trimesh(quad, faces, process=False))
     mesh = trimesh.util.concatenate(parts)
@@ -69,32 +68,13 @@ def _bracket(at):
     return mesh
 
 
-def _open_cap(mesh):
-    """The shell without the faces of its top cap: open, as an exporter that lost a face leaves it."""
-    top = mesh.face_normals[:, 2] > 0.99
-    return trimesh.Trimesh(mesh.vertices, mesh.faces[~top], process=False)
-
-
-def _slivers(shells, count, rng):
-    """`count` open 2-face strips lying on the shells' faces: a thin quad inside a random triangle of a shell."""
-    surface = trimesh.util.concatenate(shells)
-    out = []
-    for face in rng.choice(len(surface.faces), count):
-        a, b, c = surface.triangles[face]
-        w = rng.uniform(0.05, 0.2)
-        p, q = a + w * (b - a) * 0.5, a + w * (c - a) * 0.5
-        quad = np.array([a + 0.3 * (b - a), b + 0.3 * (c - b), b + 0.3 * (c - b) + (q - p) * 0.2, a + 0.3 * (b - a)
-                         + (q - p) * 0.2])  # fmt: skip
-        out.append(trimesh.Trimesh(quad, [[0, 1, 2], [0, 2, 3]], process=False))
-    return out
-
-
 def link_shells(name: str) -> list[trimesh.Trimesh]:
-    """The solid shells of a link in its frame (before slivers): overlapping, each closed unless noted."""
+    """The shells of a link in its frame, overlapping: chamfered cylinders (open parts, see `_cylinder`) and, on the
+    upper arm, a closed bracket."""
     if name == "base":
         return [_cylinder(0.045, 0.08, at=(0, 0, 0.04)), _cylinder(0.06, 0.01, at=(0, 0, 0.005))]
     if name == "shoulder":
-        return [_cylinder(0.045, 0.09, at=(0, 0, 0.03)), _open_cap(_cylinder(0.045, 0.07, "y", at=(0, 0.035, 0.06)))]
+        return [_cylinder(0.045, 0.09, at=(0, 0, 0.03)), _cylinder(0.045, 0.07, "y", at=(0, 0.035, 0.06))]
     if name == "upper_arm":
         return [
             _cylinder(0.045, 0.1, "y", at=(0, 0.02, 0)),
@@ -111,11 +91,9 @@ def link_shells(name: str) -> list[trimesh.Trimesh]:
     return [_cylinder(0.03, 0.03, "y", at=(0, 0.015, 0))]
 
 
-def link_mesh(name: str, slivers: int = 20, seed: int = 0) -> trimesh.Trimesh:
-    """The link as a CAD STL holds it: its shells plus `slivers` open strips, as one triangle soup."""
-    rng = np.random.default_rng(seed + LINKS.index(name))
-    shells = link_shells(name)
-    return trimesh.util.concatenate(shells + _slivers(shells, slivers, rng))
+def link_mesh(name: str) -> trimesh.Trimesh:
+    """The link as a CAD STL holds it: its shells' faces as one triangle soup."""
+    return trimesh.util.concatenate(link_shells(name))
 
 
 def write_stl(mesh: trimesh.Trimesh, path) -> None:
@@ -148,10 +126,10 @@ def srdf(pairs) -> str:
     return "\n".join(lines + ["</robot>", ""])
 
 
-def write_arm(folder, slivers: int = 20) -> None:
+def write_arm(folder) -> None:
     """cad_arm.urdf, cad_arm.srdf (adjacent pairs) and meshes/<link>.stl in `folder`."""
     (folder / "meshes").mkdir(parents=True, exist_ok=True)
     for name in LINKS:
-        write_stl(link_mesh(name, slivers), folder / "meshes" / f"{name}.stl")
+        write_stl(link_mesh(name), folder / "meshes" / f"{name}.stl")
     (folder / "cad_arm.urdf").write_text(urdf())
     (folder / "cad_arm.srdf").write_text(srdf(ADJACENT))

@@ -198,7 +198,8 @@ def run(args) -> int:
     saved = (cell, args.roadmap) if args.update else None
     viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
     if args.json:
-        print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions})
+        meshes = {"meshes": oracle.scene.info["decompositions"]} if isinstance(oracle.scene, custom.CustomScene) else {}
+        print_json({**result.to_json(), "self_collision": oracle.scene.self_collisions, **meshes})
     else:
         lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
         print("\n".join([summary(result), *("  " + line for line in lines)]))
