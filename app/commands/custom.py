@@ -50,7 +50,8 @@ def add_arguments(parser) -> None:
         "--mesh-method",
         choices=meshes.METHODS,
         default="auto",
-        help="convex decomposition of meshes (default auto: per mesh, validated)",
+        help="convex decomposition of meshes (default auto: per part, validated; convex: every part's hull, "
+        "never smaller than the mesh)",
     )
     group.add_argument(
         "--mesh-tolerance",

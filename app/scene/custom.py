@@ -67,7 +67,7 @@ class CustomSpec:
     collisions: str = "all"  # "all": the robot against itself too; "environment": only against the obstacles
     srdf: str = ""  # MoveIt SRDF whose <disable_collisions> body pairs are not checked
     resolution: float = 0.0  # edge-check step in the weighted metric; 0: default_resolution (the robot's size)
-    mesh_method: str = "auto"  # auto | convex | coacd | faces
+    mesh_method: str = "auto"  # auto | convex | shell | coacd | faces
     mesh_tolerance: float = 0.0  # 0: half the edge-check step (environment), 0.2 % of its size (robot mesh)
     velocity_limits: list[float] = field(default_factory=list)  # per coordinate; empty: the model's (else 1)
     acceleration_limits: list[float] = field(default_factory=list)  # per coordinate; empty: 2x the velocity limits

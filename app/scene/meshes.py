@@ -22,8 +22,13 @@ edge) and a method is chosen per part (`choose_method`):
   tolerance/2 (+ thickness/2) of the original surface. Coplanar adjacent triangles are the exact special case.
   Each piece is that flat convex polygon extruded by `thickness` = tolerance/5 (a prism).
 
+Robot links (`conservative`, see `choose_method`) take no exact method that may cost minutes: open parts (CAD
+exports: unstitched faces, 2-face slivers) and closed parts whose shell pieces fail become convex hulls, merged by
+`hull_groups`; these contain their parts (never too small) and are exempt from the free-space test. `--mesh-method
+convex` forces hulls for every part. `volume_report` states what the pieces add.
+
 Every decomposition is validated against the original surface (`validate`); parts whose pieces hold free points
-move on to their next method. The result is cached on disk (`cache_root()`), keyed by the mesh file's content hash,
+move on to their next method. The result, or the failure, is cached on disk (`cache_root()`), keyed by the mesh file's content hash,
 the method request, the parameters, DECOMPOSER_VERSION and CoACD's version; a manifest with a sha256 of every file
 guards against truncated or corrupt entries (they are rebuilt, not trusted). Entries are built in a staging folder
 and renamed into place, so concurrent runs see a whole entry or none.
