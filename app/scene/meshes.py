@@ -28,10 +28,10 @@ exports: unstitched faces, 2-face slivers) and closed parts whose shell pieces f
 convex` forces hulls for every part. `volume_report` states what the pieces add.
 
 Every decomposition is validated against the original surface (`validate`); parts whose pieces hold free points
-move on to their next method. The result, or the failure, is cached on disk (`cache_root()`), keyed by the mesh file's content hash,
-the method request, the parameters, DECOMPOSER_VERSION and CoACD's version; a manifest with a sha256 of every file
-guards against truncated or corrupt entries (they are rebuilt, not trusted). Entries are built in a staging folder
-and renamed into place, so concurrent runs see a whole entry or none.
+move on to their next method. The result, or the failure, is cached on disk (`cache_root()`), keyed by the mesh
+file's content hash, the method request, the parameters, DECOMPOSER_VERSION and CoACD's version; a manifest with a
+sha256 of every file guards against truncated or corrupt entries (they are rebuilt, not trusted). Entries are built
+in a staging folder and renamed into place, so concurrent runs see a whole entry or none.
 
 Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (docs/benchmarks.md,
 "Mesh scenes"), so merging faces into few pieces matters as much as the decomposition.
