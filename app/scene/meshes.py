@@ -938,7 +938,7 @@ def decompose(
         method=_method_name(methods),
         methods=methods,
         parts=parts,
-        volume=volume_report(mesh, pieces),
+        volume=volume_report(mesh, pieces, facts["closed"]),
         tried=tried,
         facts=facts,
         bounds=mesh.bounds.tolist(),
@@ -1008,10 +1008,10 @@ def _read_entry(entry: Path, key: str) -> Decomposition | None:
         return None
 
 
-def volume_report(mesh, pieces: list[Piece], samples: int = 20000, seed: int = 0) -> dict:
+def volume_report(mesh, pieces: list[Piece], closed: bool, samples: int = 20000, seed: int = 0) -> dict:
     """How much the pieces add, estimated from `samples` uniform points (fixed seed) in the pieces' box. Relative to
-    the mesh when every part of it is closed (`added`: the volume inside a piece but outside the mesh, over the
-    mesh's), else to the mesh's convex hull (`added`: the pieces' volume over the hull's, minus 1; at most about 0,
+    the mesh when it is `closed` (`added`: the volume inside a piece but outside the mesh's closed parts, over
+    theirs), else to the mesh's convex hull (`added`: the pieces' volume over the hull's, minus 1; at most about 0,
     as every piece lies in the hull save a flat part's thickness)."""
     rng = np.random.default_rng(seed)
     corners = np.vstack([p.vertices for p in pieces])
@@ -1021,9 +1021,8 @@ def volume_report(mesh, pieces: list[Piece], samples: int = 20000, seed: int = 0
     in_pieces = _inside_any(points, pieces, margin=0.0)[0] >= 0
     hull = float(mesh.convex_hull.volume)
     report = {"samples": samples, "pieces": float(in_pieces.mean() * box), "hull": hull}
-    parts = [mesh.submesh([c], append=True) for c in _components(mesh)]
-    if all(len(p.faces) >= 4 and classify(p)["closed"] for p in parts):
-        in_mesh = _inside_solids(points, parts)
+    if closed:  # (each part apart: overlapping closed shells are common, and one ray-parity test would miscount)
+        in_mesh = _inside_solids(points, [mesh.submesh([c], append=True) for c in _components(mesh)])
         report.update(mesh=float(in_mesh.mean() * box), relative_to="mesh")
         report["added"] = float((in_pieces & ~in_mesh).mean() / max(in_mesh.mean(), 1 / samples))
     else:
