@@ -91,6 +91,13 @@ def test_an_unknown_srdf_link_is_reported_before_any_mesh_work(arm, tmp_path, mo
         build_scene(_spec(arm, srdf=str(tmp_path / "typo.srdf")), cache_dir=tmp_path, progress=False)
 
 
+def test_a_wrong_start_is_reported_before_the_environment_is_decomposed(arm, tmp_path, monkeypatch):
+    build_scene(_spec(arm, env=[]), cache_dir=tmp_path, progress=False)  # the links, cached
+    monkeypatch.setattr(meshes, "_decompose_parts", None)  # decomposing the post now fails: start must be refused first
+    with pytest.raises(UserError, match="start needs 6 numbers"):
+        build_scene(_spec(arm, start=[0.0, 0.0]), cache_dir=tmp_path, progress=False)
+
+
 @pytest.mark.slow
 def test_a_plan_round_the_post_is_free_against_the_original_meshes(arm, tmp_path, cli, monkeypatch):
     from app.checking.oracle import CollisionOracle

@@ -498,6 +498,7 @@ def build_scene(
     robot_dir = _write_scene_dir(models, robot_directives, inputs.packages, root)
     coords = probe_robot(robot_dir / "robot.dmd.yaml", inputs.packages, robot_instances)
     resolution = spec.resolution or default_resolution(coords)
+    _check_vectors(spec, coords)
     env_options = {**mesh_options, "tolerance": spec.mesh_tolerance or ENV_TOLERANCE_PER_STEP * resolution}
     env_boxes = _add_environment(models, inputs, env_options, cache_dir)
     scene_dir = _write_scene_dir(models, robot_directives, inputs.packages, root)
@@ -753,6 +754,20 @@ def _problem(
         "velocity_limits": model_velocity.tolist(),
         **limits,  # the Scene's default accelerations: twice its velocity limits
     }
+
+
+def _check_vectors(spec: CustomSpec, coords: dict) -> None:
+    """Start, goal and limits hold one finite number per coordinate: checked as soon as the robot is known, before
+    the environment's meshes are decomposed (which can take minutes)."""
+    given = {
+        "start": spec.start,
+        "goal": spec.goal,
+        "velocity_limits": spec.velocity_limits,
+        "acceleration_limits": spec.acceleration_limits,
+    }
+    for what, values in given.items():
+        if values:
+            _vector(values, len(coords["names"]), what, coords["names"])
 
 
 def default_resolution(coords: dict) -> float:
