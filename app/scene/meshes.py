@@ -904,7 +904,7 @@ def decompose(
         "tolerance": tolerance,
         "coacd_threshold": coacd_threshold,
         "version": DECOMPOSER_VERSION,
-        "coacd": _coacd_version() if method in ("auto", "coacd") and not conservative else None,
+        "coacd": _coacd_version() if method == "coacd" or (method == "auto" and not conservative) else None,
         "conservative": conservative,
     }
     key = hashlib.sha256((digest + json.dumps(params, sort_keys=True)).encode()).hexdigest()[:32]
@@ -929,6 +929,8 @@ def decompose(
         pieces, owner, tried, methods, parts = _decompose_parts(
             mesh, method, tolerance, coacd_threshold, coacd_timeout, progress, path.name, conservative
         )
+        if not pieces:
+            raise UserError(f"no valid convex decomposition for {path.name}: no piece has any volume")
     except UserError as exc:
         _store(root, entry, {**manifest, "error": str(exc), "files": {}}, lambda staging: None)
         raise
