@@ -94,11 +94,34 @@ def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path, monkeypat
     assert [p.read_bytes() for p in again.pieces] == [p.read_bytes() for p in first.pieces]
 
 
-def test_forced_convex_hull_is_refused(tmp_path):
+def test_forced_convex_hull_is_taken_and_the_slot_it_fills_is_stated(tmp_path):
     path = tmp_path / "u.obj"
     u_channel().export(path)
-    with pytest.raises(UserError, match="no valid convex decomposition"):
-        meshes.decompose(path, method="convex", cache_dir=tmp_path, progress=False)
+    hull = meshes.decompose(path, method="convex", cache_dir=tmp_path, progress=False)
+    assert len(hull.pieces) == 1 and hull.parts == {"convex": 1}
+    # The U's section is 3 m^2 and its slot 2 x 1.5 = 3 m^2: the hull adds the mesh's own volume again.
+    assert hull.volume["relative_to"] == "mesh" and hull.volume["added"] == pytest.approx(1.0, abs=0.05)
+
+
+def test_a_failed_decomposition_is_cached(tmp_path, monkeypatch):
+    path = tmp_path / "open.obj"
+    open_u().export(path)
+    with pytest.raises(UserError, match="shell needs a closed mesh"):
+        meshes.decompose(path, method="shell", cache_dir=tmp_path, progress=False)
+    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: the failure must come from the cache
+    with pytest.raises(UserError, match="shell needs a closed mesh.*cached"):
+        meshes.decompose(path, method="shell", cache_dir=tmp_path, progress=False)
+
+
+def test_conservative_hulls_merge_slivers_and_keep_an_l_two_hulls():
+    """Slivers lying on a box's faces join its hull; a second box at right angles (an L) stays apart."""
+    T = trimesh.transformations.translation_matrix
+    bar, leg = trimesh.creation.box([1, 0.1, 0.1]), trimesh.creation.box([0.1, 0.1, 1], T([0.45, 0, 0.55]))
+    sliver = np.array([[-0.3, -0.05, 0.05], [-0.2, -0.05, 0.05], [-0.2, 0.05, 0.05]])  # on the bar's top face
+    pieces, members = meshes.hull_groups([bar.vertices, leg.vertices, sliver, sliver + [0.4, 0, 0]], tolerance=0.002)
+    assert sorted(map(sorted, members)) == [[0, 2, 3], [1]]
+    merged = pieces[next(k for k, m in enumerate(members) if 2 in m)]
+    assert np.all(np.vstack([bar.vertices, sliver]) @ merged.equations[:, :3].T + merged.equations[:, 3] <= 1e-9)
 
 
 def test_damaged_cache_entry_is_rebuilt(tmp_path, capsys):
@@ -151,7 +174,7 @@ def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message)
 
 def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch):
     """As measured on thin-walled scenes: CoACD's pieces put free space in collision -> validation rejects them."""
-    monkeypatch.setattr(meshes, "choose_method", lambda facts: ["coacd", "faces"])
+    monkeypatch.setattr(meshes, "choose_method", lambda facts, conservative: ["coacd", "faces"])
 
     def hull_instead(parts, *args, **kwargs):
         return [[meshes.hull_piece(p.vertices)] for p in parts]
@@ -170,7 +193,7 @@ def test_a_crashing_coacd_falls_back_to_exact_faces(tmp_path, monkeypatch):
         raise meshes.MethodFailed("CoACD failed (exit code -11)")
 
     monkeypatch.setattr(meshes, "coacd_pieces", crash)
-    monkeypatch.setattr(meshes, "choose_method", lambda facts: ["coacd", "faces"])
+    monkeypatch.setattr(meshes, "choose_method", lambda facts, conservative: ["coacd", "faces"])
     path = tmp_path / "u.stl"
     u_channel().export(path)
     d = meshes.decompose(path, cache_dir=tmp_path, progress=False)

@@ -50,7 +50,8 @@ def add_arguments(parser) -> None:
         "--mesh-method",
         choices=meshes.METHODS,
         default="auto",
-        help="convex decomposition of meshes (default auto: per mesh, validated)",
+        help="convex decomposition of meshes (default auto: per part, validated; convex: every part's hull, "
+        "never smaller than the mesh)",
     )
     group.add_argument(
         "--mesh-tolerance",
@@ -155,15 +156,23 @@ def scene_from_args(args, scene: str | None = None) -> Scene:
 
 
 def describe(scene: Scene) -> list[str]:
-    """For a custom scene, one line per mesh decomposition (method, pieces, tolerance, time, cached or not) and one
-    for the edge-check step and Drake's load; nothing for another scene."""
+    """For a custom scene, one line per mesh decomposition (method, pieces, connected parts per method, the volume the
+    pieces add, tolerance, time, cached or not) and one for the edge-check step and Drake's load; nothing for another
+    scene."""
     if not isinstance(scene, CustomScene):
         return []
     lines = []
     for d in scene.info["decompositions"]:
         how = f"from the cache in {d['seconds']:.2f} s" if d["from_cache"] else f"built in {d['seconds']:.1f} s"
+        parts = ", ".join(f"{n} by {m}" for m, n in d["parts"].items())
+        volume = d["volume"]
+        added = (
+            f"{volume['added']:+.1%} volume outside the mesh"
+            if volume["relative_to"] == "mesh"
+            else f"{volume['pieces'] / volume['hull']:.0%} of the mesh's hull (the mesh is open)"
+        )
         lines.append(
-            f"mesh {d['mesh']}: {d['pieces']} convex piece(s) by {d['method']}, "
+            f"mesh {d['mesh']}: {d['pieces']} convex piece(s) by {d['method']} (parts: {parts}), {added}, "
             f"tolerance {d['validation']['tolerance']:.3g} m, {how}"
         )
     lines.append(

@@ -200,7 +200,8 @@ def run(args) -> int:
     saved = (cell, args.roadmap) if args.update else None
     viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
     if args.json:
-        print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool})
+        meshes = {"meshes": oracle.scene.info["decompositions"]} if isinstance(oracle.scene, custom.CustomScene) else {}
+        print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool, **meshes})
     else:
         lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
         if tool is not None:

@@ -68,7 +68,7 @@ class CustomSpec:
     collisions: str = "all"  # "all": the robot against itself too; "environment": only against the obstacles
     srdf: str = ""  # MoveIt SRDF whose <disable_collisions> body pairs are not checked
     resolution: float = 0.0  # edge-check step in the weighted metric; 0: default_resolution (the robot's size)
-    mesh_method: str = "auto"  # auto | convex | coacd | faces
+    mesh_method: str = "auto"  # auto | convex | shell | coacd | faces
     mesh_tolerance: float = 0.0  # 0: half the edge-check step (environment), 0.2 % of its size (robot mesh)
     velocity_limits: list[float] = field(default_factory=list)  # per coordinate; empty: the model's (else 1)
     acceleration_limits: list[float] = field(default_factory=list)  # per coordinate; empty: 2x the velocity limits
@@ -553,6 +553,7 @@ def build_scene(
     mimics = read_mimics(inputs.robot_path) if inputs.robot_kind == "model" else []
     coords = probe_robot(robot_dir / "robot.dmd.yaml", inputs.packages, robot_instances, mimics)
     resolution = spec.resolution or default_resolution(coords)
+    _check_vectors(spec, coords)
     env_options = {**mesh_options, "tolerance": spec.mesh_tolerance or ENV_TOLERANCE_PER_STEP * resolution}
     env_boxes = _add_environment(models, inputs, env_options, cache_dir)
     scene_dir = _write_scene_dir(models, robot_directives, inputs.packages, root)
@@ -616,7 +617,7 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
         raise UserError("an env pose needs an environment file")
     srdf_path = resolve(spec.srdf) if spec.srdf else None
     if srdf_path is not None:
-        check_input(srdf_path, "SRDF file")
+        _check_srdf_links(srdf_path, robot_path if robot_kind == "model" else None)
     bounds = parse_bounds(spec.bounds)
     return _Inputs(
         packages,
@@ -629,6 +630,24 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
         bounds,
         srdf_path,
     )
+
+
+def _check_srdf_links(srdf_path: Path, model_path: Path | None) -> None:
+    """The SRDF parses and names only links of the model (read from its XML: before any mesh work)."""
+    import xml.etree.ElementTree as ET
+
+    from app.scene.model import read_srdf
+
+    pairs = read_srdf(srdf_path)
+    if model_path is None:
+        return
+    try:
+        links = {link.get("name") for link in ET.parse(model_path).getroot().iter("link")}
+    except ET.ParseError:
+        return  # the model's own load reports it
+    unknown = sorted({name for pair in pairs for name in pair} - links)
+    if unknown:
+        raise UserError(f"SRDF {srdf_path.name}: unknown link(s) {', '.join(unknown)} (not bodies of the robot)")
 
 
 @dataclass
@@ -659,7 +678,10 @@ def _add_robot(models: _Models, inputs: _Inputs, mesh_options: dict, cache_dir: 
         return ["robot"]
     before = len(models.decompositions)
     found = models.decompositions
-    robot_file = convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir, mesh_options, found)
+    # A link's mesh may be larger than the link, never smaller: CAD exports (open slivers, unstitched faces) become
+    # hulls in seconds instead of failing exact validation after minutes (app.scene.meshes.choose_method).
+    link_options = {**mesh_options, "conservative": True}
+    robot_file = convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir, link_options, found)
     if len(models.decompositions) > before:
         # The same robot with Drake's convex hull per mesh link, to measure what the decomposition changes.
         models.hull_robot_file = (robot_file, convert_model_meshes(inputs.robot_path, inputs.packages, cache_dir))
@@ -790,6 +812,20 @@ def _problem(
     }
 
 
+def _check_vectors(spec: CustomSpec, coords: dict) -> None:
+    """Start, goal and limits hold one finite number per coordinate: checked as soon as the robot is known, before
+    the environment's meshes are decomposed (which can take minutes)."""
+    given = {
+        "start": spec.start,
+        "goal": spec.goal,
+        "velocity_limits": spec.velocity_limits,
+        "acceleration_limits": spec.acceleration_limits,
+    }
+    for what, values in given.items():
+        if values:
+            _vector(values, len(coords["names"]), what, coords["names"])
+
+
 def default_resolution(coords: dict) -> float:
     """The edge-check step: a quarter of the robot's thickness (median over its bodies of their smallest width), so a
     step cannot carry it across a wall as thick as itself; at least 1/1000 of its reach."""
@@ -854,6 +890,8 @@ def _describe(path: Path, d: meshes.Decomposition) -> dict:
         "mesh": path.name,
         "method": d.method,
         "pieces": len(d.pieces),
+        "parts": d.parts,
+        "volume": d.volume,
         "from_cache": d.from_cache,
         "seconds": round(d.seconds, 3),
         "validation": {

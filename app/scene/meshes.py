@@ -22,11 +22,16 @@ edge) and a method is chosen per part (`choose_method`):
   tolerance/2 (+ thickness/2) of the original surface. Coplanar adjacent triangles are the exact special case.
   Each piece is that flat convex polygon extruded by `thickness` = tolerance/5 (a prism).
 
+Robot links (`conservative`, see `choose_method`) take no exact method that may cost minutes: open parts (CAD
+exports: unstitched faces, 2-face slivers) and closed parts whose shell pieces fail become convex hulls, merged by
+`hull_groups`; these contain their parts (never too small) and are exempt from the free-space test. `--mesh-method
+convex` forces hulls for every part. `volume_report` states what the pieces add.
+
 Every decomposition is validated against the original surface (`validate`); parts whose pieces hold free points
-move on to their next method. The result is cached on disk (`cache_root()`), keyed by the mesh file's content hash,
-the method request, the parameters, DECOMPOSER_VERSION and CoACD's version; a manifest with a sha256 of every file
-guards against truncated or corrupt entries (they are rebuilt, not trusted). Entries are built in a staging folder
-and renamed into place, so concurrent runs see a whole entry or none.
+move on to their next method. The result, or the failure, is cached on disk (`cache_root()`), keyed by the mesh
+file's content hash, the method request, the parameters, DECOMPOSER_VERSION and CoACD's version; a manifest with a
+sha256 of every file guards against truncated or corrupt entries (they are rebuilt, not trusted). Entries are built
+in a staging folder and renamed into place, so concurrent runs see a whole entry or none.
 
 Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (docs/benchmarks.md,
 "Mesh scenes"), so merging faces into few pieces matters as much as the decomposition.
@@ -57,7 +62,7 @@ from app.io import check_input, write_atomically
 # trimesh and coacd (optional, slow to import) are imported inside the functions that use them.
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
-DECOMPOSER_VERSION = "3"
+DECOMPOSER_VERSION = "4"
 CACHE_ENV = "NPP_CACHE_DIR"
 DRAKE_MESH_SUFFIXES = {".obj", ".vtk", ".gltf"}
 CONVERTIBLE_SUFFIXES = {".stl", ".dae", ".ply", ".off", ".glb"}
@@ -175,14 +180,57 @@ def hull_piece(points: np.ndarray) -> Piece:
 
     hull = ConvexHull(np.asarray(points, float))
     verts = hull.points[hull.vertices]
-    remap = {old: new for new, old in enumerate(hull.vertices)}
-    faces = np.vectorize(remap.get)(hull.simplices)
+    remap = np.zeros(len(hull.points), int)
+    remap[hull.vertices] = np.arange(len(hull.vertices))
+    faces = remap[hull.simplices]
     # Orient every triangle outward (scipy's simplices are not consistently wound).
-    for k, (a, b, c) in enumerate(faces):
-        n = np.cross(verts[b] - verts[a], verts[c] - verts[a])
-        if np.dot(n, hull.equations[k, :3]) < 0:
-            faces[k] = (a, c, b)
+    a, b, c = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), hull.equations[:, :3]) < 0
+    faces[inward] = faces[inward][:, [0, 2, 1]]
     return Piece(verts, faces, hull.equations.copy())
+
+
+def thickened(points: np.ndarray, thickness: float) -> np.ndarray:
+    """`points`, doubled along each direction they have (nearly) no extent in, half `thickness` to each side: a flat
+    or straight point set (a planar cap, a 2-face sliver) then has a solid convex hull that still holds it."""
+    points = np.asarray(points, float)
+    centred = points - points.mean(axis=0)
+    axes = np.linalg.svd(centred)[2]  # (a part has a triangle at least: 3 points, 3 axes)
+    for axis in axes[np.ptp(centred @ axes.T, axis=0) < thickness]:
+        points = np.vstack([points + 0.5 * thickness * axis, points - 0.5 * thickness * axis])
+    return points
+
+
+def hull_groups(point_sets: list[np.ndarray], tolerance: float) -> tuple[list[Piece], list[list[int]]]:
+    """Conservative pieces for parts taken as their convex hulls: each part's hull, and parts merged into one hull
+    while that adds little. Largest first, a part joins the group whose hull grows least by it, if the merged hull's
+    volume exceeds the group's hull plus the part's by at most `tolerance` times the merged hull's area (a layer
+    `tolerance` thick on average): a CAD export's unstitched caps, fillet strips and 2-face slivers join the body
+    they lie on, whereas two shells at an angle (an L) stay two hulls. Flat parts are thickened by tolerance / 5 (as
+    a face piece is). Every hull contains its parts, so the pieces are never smaller than the mesh. Returns the
+    pieces and each one's parts (indices into point_sets)."""
+    from scipy.spatial import ConvexHull
+
+    hulls = [ConvexHull(thickened(p, tolerance / 5)) for p in point_sets]
+    groups = []  # [hull vertices, ConvexHull, member parts]
+    for i in np.argsort([-h.volume for h in hulls], kind="stable"):
+        hull = hulls[i]
+        points = hull.points[hull.vertices]
+        lo, hi = points.min(axis=0) - tolerance, points.max(axis=0) + tolerance
+        best, best_added = None, np.inf
+        for group in groups:
+            if np.any(group[0].min(axis=0) > hi) or np.any(group[0].max(axis=0) < lo):
+                continue
+            merged = ConvexHull(np.vstack([group[0], points]))
+            added = merged.volume - group[1].volume - hull.volume
+            if added <= tolerance * merged.area and added < best_added:
+                best, best_added, best_merged = group, added, merged
+        if best is None:
+            groups.append([points, hull, [int(i)]])
+        else:
+            best[0], best[1] = best_merged.points[best_merged.vertices], best_merged
+            best[2].append(int(i))
+    return [hull_piece(g[0]) for g in groups], [g[2] for g in groups]
 
 
 def prism_piece(
@@ -501,14 +549,16 @@ def classify(mesh) -> dict:
     }
 
 
-def choose_method(facts: dict) -> list[str]:
+def choose_method(facts: dict, conservative: bool = False) -> list[str]:
     """Methods to try in order: closed and convex -> one piece; closed -> shell pieces (seconds), then CoACD
-    (minutes), then exact faces; else exact faces."""
+    (minutes), then exact faces; else exact faces. `conservative` (a robot's links): a closed part that is not
+    convex -> shell pieces, else its hull; any other part -> its hull (merged, see `hull_groups`): never smaller
+    than the mesh, never minutes."""
     if facts["convex"]:
-        return ["convex", "faces"]
+        return ["convex"] if conservative else ["convex", "faces"]
     if facts["closed"]:
-        return ["shell", "coacd", "faces"]
-    return ["faces"]
+        return ["shell", "convex"] if conservative else ["shell", "coacd", "faces"]
+    return ["convex"] if conservative else ["faces"]
 
 
 # ---- validation ---------------------------------------------------------------------------------------------------
@@ -585,10 +635,13 @@ def validate(
     seed: int = 0,
     solids: list | None = None,
     progress: bool = False,
+    bounds: list[Piece] | None = None,
 ) -> Validation:
     """Does the decomposition keep every free point of the original mesh free, and cover its surface?
 
     `solids`: the mesh's closed parts (inside them is not free space); default: the whole mesh if it is closed.
+    `bounds`: pieces that hold their parts by design (convex hulls): inside them is not free space either, and they
+    count for coverage; `pieces` are the ones tested.
     Samples (fixed seed):
     - near-surface points: surface samples (area-weighted, plus face centroids, `samples` in all) moved a
       distance `tolerance` along the face normal, both ways, then kept only if their true distance to the surface
@@ -620,6 +673,8 @@ def validate(
     keep = ~_within(candidates, mesh, 0.9 * tolerance)
     bar.update(1)
     keep[keep] &= ~_inside_solids(candidates[keep], solids)
+    if bounds:
+        keep[keep] &= _inside_any(candidates[keep], bounds, margin=0.0)[0] < 0
     bar.update(1)
     kept = candidates[keep]
     n_near = int(keep[: len(near)].sum())
@@ -627,7 +682,7 @@ def validate(
     bar.update(1)
     bad = depth > 1e-9 * diag
     # Coverage: each surface sample inside or within tolerance of a piece (max plane distance <= tolerance).
-    reach, _ = _inside_any(surface, pieces, margin=tolerance)
+    reach, _ = _inside_any(surface, pieces + (bounds or []), margin=tolerance)
     bar.update(1)
     bar.close()
     missing = reach < -tolerance
@@ -668,10 +723,19 @@ def _components(mesh) -> list[np.ndarray]:
 
 
 def _decompose_parts(
-    mesh, method: str, tolerance: float, coacd_threshold: float, coacd_timeout: float, progress: bool, label: str
+    mesh,
+    method: str,
+    tolerance: float,
+    coacd_threshold: float,
+    coacd_timeout: float,
+    progress: bool,
+    label: str,
+    conservative: bool = False,
 ):
     """Choose a method per connected part, build, validate the whole; a part whose pieces fail moves on to its next
-    method. Returns (pieces, owner part per piece, the validation rounds, pieces per method)."""
+    method. With `conservative` (or method "convex") hulls stand for their parts as bounds, merged by `hull_groups`
+    and exempt from the free-space test (they are larger than their parts by design). Returns (pieces, owner part
+    per piece, the validation rounds, pieces per method, parts per method)."""
     groups = _components(mesh)
     part_of_face = np.empty(len(mesh.faces), int)
     for i, g in enumerate(groups):
@@ -681,7 +745,8 @@ def _decompose_parts(
     open_facts = {"faces": 0, "closed": False, "volume": 0.0, "hull_volume": 0.0, "convex": False}
     part_facts = [classify(p) if p is not None else open_facts for p in parts]
     solids = [p for p, f in zip(parts, part_facts) if f["closed"]]
-    orders = [[method] if method != "auto" else choose_method(f) for f in part_facts]
+    bounding = conservative or method == "convex"
+    orders = [[method] if method != "auto" else choose_method(f, conservative) for f in part_facts]
     level = [0] * len(parts)
     built: dict[int, list[Piece]] = {}
     shell_groups: dict[int, list] = {}  # a shell part's face groups, piece by piece
@@ -699,9 +764,15 @@ def _decompose_parts(
                         f"no valid convex decomposition for {label}: {orders[i][level[i]]} needs a closed mesh"
                     )
                 level[i] += 1
-        for i in todo:
-            if orders[i][level[i]] == "convex":
-                built[i] = [hull_piece(parts[i].vertices)]
+        hull_parts = [i for i in todo if orders[i][level[i]] == "convex"]
+        if bounding and hull_parts:
+            points = [mesh.vertices[np.unique(mesh.faces[groups[i]])] for i in hull_parts]
+            hulls, members = hull_groups(points, tolerance)
+            built.update({i: [] for i in hull_parts})
+            for piece, group in zip(hulls, members):
+                built[hull_parts[group[0]]].append(piece)
+        else:
+            built.update({i: [hull_piece(parts[i].vertices)] for i in hull_parts})
         for i in todo:
             if orders[i][level[i]] == "shell":
                 built[i], shell_groups[i] = shell_pieces(parts[i], tolerance, progress=progress)
@@ -735,16 +806,23 @@ def _decompose_parts(
         for i in range(len(parts)):
             pieces += built[i]
             owner += [i] * len(built[i])
-        methods = {
-            m: sum(len(built[i]) for i in range(len(parts)) if orders[i][level[i]] == m)
-            for m in ("convex", "shell", "coacd", "faces")
-        }
-        check = validate(mesh, pieces, tolerance, solids=solids, progress=progress)
+        final = [orders[i][level[i]] for i in range(len(parts))]
+        methods = {m: sum(len(built[i]) for i in range(len(parts)) if final[i] == m) for m in METHODS[1:]}
+        exempt = [bounding and final[i] == "convex" for i in owner]
+        checked = [k for k in range(len(pieces)) if not exempt[k]]
+        bounds = [pieces[k] for k in range(len(pieces)) if exempt[k]]
+        if checked:
+            check = validate(
+                mesh, [pieces[k] for k in checked], tolerance, solids=solids, progress=progress, bounds=bounds
+            )
+            check.bad_pieces = [checked[k] for k in check.bad_pieces]
+        else:
+            check = Validation(ok=True, tolerance=tolerance, message="convex hulls only: they contain their parts")
         record = asdict(check)
         record.pop("bad_pieces"), record.pop("uncovered_faces")
         tried.append({"methods": methods, "pieces": len(pieces), "notes": list(notes), **record})
         if check.ok:
-            return pieces, owner, tried, methods
+            return pieces, owner, tried, methods, {m: final.count(m) for m in METHODS[1:] if m in final}
         blamed = {owner[k] for k in check.bad_pieces} | {int(part_of_face[f]) for f in check.uncovered_faces}
         # A shell part's few bad pieces become face pieces (once) before the part moves on to its next method.
         mend = {i for i in blamed if orders[i][level[i]] == "shell" and i not in mended}
@@ -780,6 +858,8 @@ class Decomposition:
     visual: Path
     facts: dict = field(default_factory=dict)
     validation: dict = field(default_factory=dict)
+    parts: dict = field(default_factory=dict)  # connected parts per method
+    volume: dict = field(default_factory=dict)  # what the pieces add (`volume_report`)
     seconds: float = 0.0
     from_cache: bool = False
 
@@ -810,8 +890,11 @@ def decompose(
     coacd_timeout: float = 120.0,
     cache_dir: Path | None = None,
     progress: bool = True,
+    conservative: bool = False,
 ) -> Decomposition:
-    """Convex pieces for the mesh at `path`, from the cache when a valid entry exists, else built and cached."""
+    """Convex pieces for the mesh at `path`, from the cache when a valid entry exists, else built and cached. A mesh
+    with no valid decomposition is cached too: asking again raises the same UserError at once. `conservative`: see
+    `choose_method` (a robot's links)."""
     path = Path(path)
     if method not in METHODS:
         raise UserError(f"unknown decomposition method '{method}' (known: {', '.join(METHODS)})")
@@ -821,7 +904,8 @@ def decompose(
         "tolerance": tolerance,
         "coacd_threshold": coacd_threshold,
         "version": DECOMPOSER_VERSION,
-        "coacd": _coacd_version() if method in ("auto", "coacd") else None,
+        "coacd": _coacd_version() if method == "coacd" or (method == "auto" and not conservative) else None,
+        "conservative": conservative,
     }
     key = hashlib.sha256((digest + json.dumps(params, sort_keys=True)).encode()).hexdigest()[:32]
     root = (cache_dir or cache_root()) / "meshes"
@@ -840,45 +924,36 @@ def decompose(
     if not tolerance > 0:
         raise UserError("mesh tolerance must be positive")
     facts = classify(mesh)
-    pieces, owner, tried, methods = _decompose_parts(
-        mesh, method, tolerance, coacd_threshold, coacd_timeout, progress, path.name
-    )
-    facts["components"] = len(set(owner)) if owner else 0
-
+    manifest = {"key": key, "source": str(path.resolve()), "source_sha256": digest, "params": params}
     try:
-        root.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{key}-", dir=root))
+        pieces, owner, tried, methods, parts = _decompose_parts(
+            mesh, method, tolerance, coacd_threshold, coacd_timeout, progress, path.name, conservative
+        )
+        if not pieces:
+            raise UserError(f"no valid convex decomposition for {path.name}: no piece has any volume")
+    except UserError as exc:
+        _store(root, entry, {**manifest, "error": str(exc), "files": {}}, lambda staging: None)
+        raise
+    facts["components"] = len(set(owner)) if owner else 0
+    manifest.update(
+        tolerance=tolerance,
+        method=_method_name(methods),
+        methods=methods,
+        parts=parts,
+        volume=volume_report(mesh, pieces, facts["closed"]),
+        tried=tried,
+        facts=facts,
+        bounds=mesh.bounds.tolist(),
+        pieces=[f"pieces/{i:05d}.obj" for i in range(len(pieces))],
+    )
+
+    def write(staging: Path) -> None:
         (staging / "pieces").mkdir()
-        names, files = [], {}
-        for i, piece in enumerate(pieces):
-            name = f"pieces/{i:05d}.obj"
-            files[name] = _write_obj(staging / name, piece.vertices, piece.faces)
-            names.append(name)
+        files = {name: _write_obj(staging / name, p.vertices, p.faces) for name, p in zip(manifest["pieces"], pieces)}
         files["visual.obj"] = _write_obj(staging / "visual.obj", mesh.vertices, mesh.faces)
-        manifest = {
-            "key": key,
-            "source": str(path.resolve()),
-            "source_sha256": digest,
-            "params": params,
-            "tolerance": tolerance,
-            "method": _method_name(methods),
-            "methods": methods,
-            "tried": tried,
-            "facts": facts,
-            "bounds": mesh.bounds.tolist(),
-            "pieces": names,
-            "files": files,
-            "build_seconds": time.perf_counter() - started,
-        }
-        (staging / "manifest.json").write_text(json.dumps(manifest, indent=1))
-        try:
-            os.replace(staging, entry)  # atomic: a reader sees no entry or a whole one
-        except OSError:  # another process won the race; use theirs if it is whole
-            shutil.rmtree(staging, ignore_errors=True)
-    except OSError as exc:
-        raise UserError(
-            f"cannot write the mesh cache under {root}: {exc.strerror or exc} (set {CACHE_ENV} to a writable folder)"
-        ) from None
+        manifest.update(files=files, build_seconds=time.perf_counter() - started)
+
+    _store(root, entry, manifest, write)
     result = _read_entry(entry, key)
     if result is None:
         raise UserError(f"cannot write the mesh cache at {entry}")
@@ -887,12 +962,33 @@ def decompose(
     return result
 
 
+def _store(root: Path, entry: Path, manifest: dict, write) -> None:
+    """A cache entry: `write(staging)` fills a staging folder, then manifest.json, then the folder is renamed into
+    place (atomic: a reader sees no entry or a whole one)."""
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{entry.name}-", dir=root))
+        write(staging)
+        (staging / "manifest.json").write_text(json.dumps(manifest, indent=1))
+        try:
+            os.replace(staging, entry)
+        except OSError:  # another process won the race; use theirs if it is whole
+            shutil.rmtree(staging, ignore_errors=True)
+    except OSError as exc:
+        raise UserError(
+            f"cannot write the mesh cache under {root}: {exc.strerror or exc} (set {CACHE_ENV} to a writable folder)"
+        ) from None
+
+
 def _read_entry(entry: Path, key: str) -> Decomposition | None:
-    """The entry if its manifest parses and every file matches its checksum, else None."""
+    """The entry if its manifest parses and every file matches its checksum, else None. An entry that records a
+    failed decomposition raises its UserError again."""
     try:
         manifest = json.loads((entry / "manifest.json").read_text())
         if manifest.get("key") != key:
             return None
+        if "error" in manifest:
+            raise UserError(f"{manifest['error']} (cached; delete {entry} to try again)")
         for name, digest in manifest["files"].items():
             if hashlib.sha256((entry / name).read_bytes()).hexdigest() != digest:
                 return None
@@ -906,10 +1002,34 @@ def _read_entry(entry: Path, key: str) -> Decomposition | None:
             visual=entry / "visual.obj",
             facts=manifest["facts"],
             validation=manifest["tried"][-1],
+            parts=manifest["parts"],
+            volume=manifest["volume"],
             from_cache=True,
         )
     except (OSError, ValueError, KeyError, TypeError, IndexError):
         return None
+
+
+def volume_report(mesh, pieces: list[Piece], closed: bool, samples: int = 20000, seed: int = 0) -> dict:
+    """How much the pieces add, estimated from `samples` uniform points (fixed seed) in the pieces' box. Relative to
+    the mesh when it is `closed` (`added`: the volume inside a piece but outside the mesh's closed parts, over
+    theirs), else to the mesh's convex hull (`added`: the pieces' volume over the hull's, minus 1; at most about 0,
+    as every piece lies in the hull save a flat part's thickness)."""
+    rng = np.random.default_rng(seed)
+    corners = np.vstack([p.vertices for p in pieces])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    box = float(np.prod(hi - lo))
+    points = rng.uniform(lo, hi, (samples, 3))
+    in_pieces = _inside_any(points, pieces, margin=0.0)[0] >= 0
+    hull = float(mesh.convex_hull.volume)
+    report = {"samples": samples, "pieces": float(in_pieces.mean() * box), "hull": hull}
+    if closed:  # (each part apart: overlapping closed shells are common, and one ray-parity test would miscount)
+        in_mesh = _inside_solids(points, [mesh.submesh([c], append=True) for c in _components(mesh)])
+        report.update(mesh=float(in_mesh.mean() * box), relative_to="mesh")
+        report["added"] = float((in_pieces & ~in_mesh).mean() / max(in_mesh.mean(), 1 / samples))
+    else:
+        report.update(mesh=None, relative_to="hull", added=report["pieces"] / hull - 1 if hull > 0 else 0.0)
+    return report
 
 
 def converted_obj(path: str | Path, cache_dir: Path | None = None) -> Path:
