@@ -230,11 +230,16 @@ class _Gaps:
         self.keys = self.pairs[:, 0] * _KEY + self.pairs[:, 1]
         count = len(geometries)
         self.core, self.disc, self.ball = np.zeros((count, 3)), np.zeros(count), np.zeros(count)
-        self.radius = np.zeros(count)  # about the shape's own origin
-        self.special = {}  # geometry index -> ("ellipsoid", semi-axes) or ("vertices", (n, 3))
-        self.normals = {}  # geometry index of a mesh -> its hull's outward face normals (f, 3), in its frame
+        self.radius = np.zeros(count)  # about the shape's centre
+        # A mesh's centre in its own frame (the middle of its box), about which its vertices are kept: an obstacle
+        # piece is posed in the world frame, so about its frame's origin its bounding sphere would hold the world.
+        self.offset = np.zeros((count, 3))
+        self.special = {}  # geometry index -> ("ellipsoid", semi-axes) or ("vertices", (n, 3) about the centre)
         for i in np.unique(self.pairs):
             kind, data = _describe(inspector, geometries[i])
+            if kind == "vertices":
+                self.offset[i] = 0.5 * (data.min(axis=0) + data.max(axis=0))
+                data = data - self.offset[i]
             self.radius[i] = _radius(kind, data, RigidTransform())
             if kind == "box":
                 self.core[i] = data
@@ -245,12 +250,8 @@ class _Gaps:
                 (self.disc if kind == "cylinder" else self.ball)[i] = data[0]
             else:
                 self.special[i] = (kind, data)
-                if kind == "vertices":
-                    hull = inspector.GetShape(geometries[i]).GetConvexHull()
-                    normals = np.array([hull.face_normal(f) for f in range(hull.num_faces())]).reshape(-1, 3)
-                    self.normals[i] = np.unique(normals.round(12), axis=0)
         self.is_special = np.isin(np.arange(count), list(self.special))
-        self.mesh_ids = np.array(list(self.normals), int)
+        self.shifted = np.any(self.offset != 0, axis=1)
 
     def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray) -> tuple[np.ndarray, ...]:
         """(configurations, pairs, bounds): the rows (configuration k, pair) whose lower bound is below limit[k],
@@ -261,6 +262,10 @@ class _Gaps:
         pair = np.tile(np.arange(len(self.pairs)), len(limit))
         a, b = self.pairs[pair].T
         pa, pb = centre(k, a), centre(k, b)
+        for p, g in ((pa, a), (pb, b)):  # a mesh's centre from its frame's origin
+            rows = np.flatnonzero(self.shifted[g])
+            if len(rows):
+                p[rows] += np.einsum("mij,mj->mi", rotation(k[rows], g[rows]), self.offset[g[rows]])
         # Cheap bounds first, to skip most pairs: bounding spheres; then from each centre to the other shape.
         near = np.flatnonzero(np.linalg.norm(pa - pb, axis=1) - self.radius[a] - self.radius[b] < limit[k])
         k, pair, a, b = k[near], pair[near], a[near], b[near]
@@ -271,19 +276,20 @@ class _Gaps:
         A = self._posed(a, rotation(k, a), pa[near][keep])
         keep = np.flatnonzero(self._distance_to(A, B.p) - B.radius < limit[k])
         k, pair = k[keep], pair[keep]
-        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[k, pair], limit[k])
+        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[k, pair])
         below = bounds < limit[k]
         return k[below], pair[below], bounds[below]
 
     def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
         return _Posed(R, p, self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
 
-    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray) -> np.ndarray:
         """The largest gap between the shapes along three directions: Drake's where it has one, and the normals of
-        each shape at the near points that alternating projections onto the two shapes find; then, only for the
-        rows still below `limit` (the others are cleared already), along the face normals of their meshes (costly:
-        faces x vertices per row). Any direction's gap bounds the distance from below; a normal of a shape makes
-        that shape's side of the bound exact."""
+        each shape at the near points that alternating projections onto the two shapes find (for an ellipsoid or a
+        mesh, its centre). Any direction's gap bounds the distance from below; a normal of a shape makes that shape's
+        side of the bound exact. A pair left below its limit without Drake's direction is given it (Certifier._ends):
+        for a mesh, Drake's direction makes the bound nearly exact at the cost of one pair query, where the hull's
+        face normals cost faces x vertices per pair."""
         on_a = A.p
         for _ in range(PROJECTIONS):
             on_b = self._project(B, on_a)
@@ -296,27 +302,7 @@ class _Gaps:
             for k in range(n.shape[1])
         ]
         gaps = np.column_stack(gaps)
-        best = np.where(np.isnan(gaps), -np.inf, gaps).max(1)
-        low = np.flatnonzero(best < limit)
-        best[low] = np.maximum(best[low], self._face_gaps(_rows(A, low), _rows(B, low)))
-        return best
-
-    def _face_gaps(self, A: _Posed, B: _Posed) -> np.ndarray:
-        """The largest gap along the face normals of the pairs' meshes (-inf for a pair without one). A mesh's
-        frame origin, where _project leaves its points, can lie far from the mesh (an environment piece is posed
-        in the world frame), so the projections' directions can miss by far: a face normal of one of two separated
-        convex shapes nearly always separates them well (exactly, when the nearest feature is that face)."""
-        best = np.full(len(A.p), -np.inf)
-        for S, sign in ((A, -1.0), (B, 1.0)):  # directions from B to A: against A's outward normals, along B's
-            # Only the meshes these rows hold: an environment can have a thousand pieces, a call a few rows.
-            for i in np.unique(S.g[np.isin(S.g, self.mesh_ids)]):
-                m, normals = np.flatnonzero(S.g == i), self.normals[i]
-                n = sign * np.einsum("mij,fj->mfi", S.R[m], normals).reshape(-1, 3)
-                rows = np.repeat(m, len(normals))
-                Ar, Br = _rows(A, rows), _rows(B, rows)
-                gap = np.einsum("ij,ij->i", n, Ar.p - Br.p) - self._support(Ar, -n) - self._support(Br, n)
-                best[m] = np.maximum(best[m], gap.reshape(len(m), len(normals)).max(1))
-        return best
+        return np.where(np.isnan(gaps), -np.inf, gaps).max(1)
 
     def _support(self, S: _Posed, n: np.ndarray) -> np.ndarray:
         """max over each posed shape of n . (x - its centre), for world directions n (unit rows)."""
