@@ -35,6 +35,12 @@ def arm(tmp_path_factory):
     return d
 
 
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    """One mesh cache for the module: empty for the first test (which times the first load), warm after it."""
+    return tmp_path_factory.mktemp("cad_arm_cache")
+
+
 def _spec(arm, **keys) -> CustomSpec:
     spec = dict(robot=str(arm / "cad_arm.urdf"), env=[str(arm / "post.stl")], srdf=str(arm / "cad_arm.srdf"))
     return CustomSpec(**{**spec, **keys})
@@ -49,9 +55,9 @@ def _outside(points: np.ndarray, pieces: list) -> np.ndarray:
     return out
 
 
-def test_cad_links_load_with_defaults_in_seconds_and_contain_their_meshes(arm, tmp_path):
+def test_cad_links_load_with_defaults_in_seconds_and_contain_their_meshes(arm, cache):
     started = time.perf_counter()
-    scene = build_scene(_spec(arm), cache_dir=tmp_path, progress=False)
+    scene = build_scene(_spec(arm), cache_dir=cache, progress=False)
     first = time.perf_counter() - started
     links = {d["mesh"]: d for d in scene.info["decompositions"] if d["mesh"] != "post.stl"}
     assert sorted(links) == sorted(f"{name}.stl" for name in LINKS)
@@ -64,7 +70,7 @@ def test_cad_links_load_with_defaults_in_seconds_and_contain_their_meshes(arm, t
         assert d["volume"]["relative_to"] == "hull" and -0.6 < d["volume"]["added"] < 0.01
         # Conservative: every corner and 3,000 surface points of the original mesh lie in some piece.
         points = np.vstack([source.vertices, trimesh.sample.sample_surface(source, 3000, seed=0)[0]])
-        decomposition = meshes.decompose(arm / "meshes" / name, cache_dir=tmp_path, conservative=True, progress=False)
+        decomposition = meshes.decompose(arm / "meshes" / name, cache_dir=cache, conservative=True, progress=False)
         assert decomposition.from_cache and not _outside(points, decomposition.pieces).any()
     # The closed, non-convex bracket on the upper arm keeps its slot: shell pieces, validated.
     assert links["upper_arm.stl"]["parts"].get("shell") == 1
@@ -72,7 +78,7 @@ def test_cad_links_load_with_defaults_in_seconds_and_contain_their_meshes(arm, t
     assert any("upper_arm.stl" in line and "by convex" in line and "of the mesh's hull" in line for line in lines)
 
     started = time.perf_counter()
-    again = build_scene(_spec(arm), cache_dir=tmp_path, progress=False)
+    again = build_scene(_spec(arm), cache_dir=cache, progress=False)
     assert all(d["from_cache"] for d in again.info["decompositions"])
     assert sum(d["seconds"] for d in again.info["decompositions"]) < 1.0
     assert time.perf_counter() - started < first
@@ -91,11 +97,12 @@ def test_an_unknown_srdf_link_is_reported_before_any_mesh_work(arm, tmp_path, mo
         build_scene(_spec(arm, srdf=str(tmp_path / "typo.srdf")), cache_dir=tmp_path, progress=False)
 
 
-def test_a_wrong_start_is_reported_before_the_environment_is_decomposed(arm, tmp_path, monkeypatch):
-    build_scene(_spec(arm, env=[]), cache_dir=tmp_path, progress=False)  # the links, cached
-    monkeypatch.setattr(meshes, "_decompose_parts", None)  # decomposing the post now fails: start must be refused first
+def test_a_wrong_start_is_reported_before_the_environment_is_decomposed(arm, tmp_path, cache, monkeypatch):
+    (tmp_path / "box.stl").write_bytes(trimesh.creation.box([0.1, 0.1, 0.1]).export(file_type="stl"))
+    build_scene(_spec(arm, env=[]), cache_dir=cache, progress=False)  # the links cached (by the first test already)
+    monkeypatch.setattr(meshes, "_decompose_parts", None)  # decomposing the box now fails: start must be refused first
     with pytest.raises(UserError, match="start needs 6 numbers"):
-        build_scene(_spec(arm, start=[0.0, 0.0]), cache_dir=tmp_path, progress=False)
+        build_scene(_spec(arm, env=[str(tmp_path / "box.stl")], start=[0.0, 0.0]), cache_dir=cache, progress=False)
 
 
 @pytest.mark.slow

@@ -617,7 +617,7 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
         raise UserError("an env pose needs an environment file")
     srdf_path = resolve(spec.srdf) if spec.srdf else None
     if srdf_path is not None:
-        _check_srdf_links(srdf_path, robot_path if robot_kind == "model" else None)
+        _check_srdf_links(srdf_path, robot_path if robot_path.suffix.lower() == ".urdf" else None)
     bounds = parse_bounds(spec.bounds)
     return _Inputs(
         packages,
@@ -633,7 +633,8 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
 
 
 def _check_srdf_links(srdf_path: Path, model_path: Path | None) -> None:
-    """The SRDF parses and names only links of the model (read from its XML: before any mesh work)."""
+    """The SRDF parses and names only links of the URDF `model_path` (read from its XML: before any mesh work; an
+    SDF's nested models scope their names, so its links are checked when it is loaded)."""
     import xml.etree.ElementTree as ET
 
     from app.scene.model import read_srdf
