@@ -306,3 +306,57 @@ def test_a_failing_edge_stops_where_it_comes_nearest_not_after_proving_what_lies
     ok, before = certify_path(oracle, np.array([a, a + 0.555 * oracle.space.difference(a, b)]))
     assert ok
     assert failing["distance_queries"] < 0.5 * before["distance_queries"]
+
+
+def test_mesh_distances_are_never_larger_than_the_hulls_sampled_distance(tmp_path, monkeypatch):
+    """A free-flying L-shaped mesh robot among the convex pieces of a U channel (both posed away from their frames'
+    origins): every distance the certificate uses is at most the distance between dense surface samples of the two
+    convex pieces' hulls (an upper bound on their true distance), and a pair it leaves out is at least the limit
+    apart by the same samples."""
+    trimesh = pytest.importorskip("trimesh")
+    from pydrake.geometry import Role
+    from scipy.spatial import cKDTree
+
+    from app.checking.oracle import CollisionOracle
+    from app.scene.custom import CustomSpec, build_scene
+    from mesh_shapes import extrude_x, u_channel
+
+    monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
+    section = np.array([(0, 0), (3, 0), (3, 0.6), (0.6, 0.6), (0.6, 2), (0, 2)])
+    extrude_x(section, 0.6).apply_translation([0.5, 0.3, 0.2]).export(tmp_path / "l.obj")
+    u_channel(4.0).apply_translation([10.0, 6.0, 5.0]).export(tmp_path / "u.obj")
+    spec = CustomSpec(robot=str(tmp_path / "l.obj"), env=[str(tmp_path / "u.obj")], bounds=["7..13", "3..9", "3..9"])
+    oracle = CollisionOracle(build_scene(spec, progress=False))
+    certifier = Certifier(oracle.context())
+    inspector = oracle.model.scene_graph().model_inspector()
+    clouds = {}
+    for g in inspector.GetAllGeometryIds(Role.kProximity):
+        hull = inspector.GetShape(g).GetConvexHull()
+        vertices = np.array([hull.vertex(i) for i in range(hull.num_vertices())])
+        clouds[g] = np.vstack([vertices, trimesh.convex.convex_hull(vertices).sample(1500, seed=0)])
+    robot = [g for g in clouds if oracle.is_robot_geometry(g)]
+    environment = [g for g in clouds if not oracle.is_robot_geometry(g)]
+    rng, limit, reported, left_out = np.random.default_rng(3), 0.5, 0, 0
+    for q in oracle.space.uniform(rng, 300):
+        if not oracle.free(q):
+            continue
+        used = certifier.distances(q, limit)
+        query = oracle.query_object(q)
+        posed = {}
+        for g, cloud in clouds.items():
+            X = query.GetPoseInWorld(g)
+            posed[g] = cloud @ X.rotation().matrix().T + X.translation()
+        trees = {b: cKDTree(posed[b]) for b in environment}
+        for a in robot:
+            for b in environment:
+                sampled = float(trees[b].query(posed[a])[0].min())
+                d = used.get(frozenset((a, b)))
+                if d is None:
+                    assert sampled >= limit - 1e-9
+                    left_out += sampled < 2 * limit
+                else:
+                    assert d <= sampled + 1e-9
+                    reported += 1
+        if reported > 100 and left_out > 100:
+            break
+    assert reported > 100 and left_out > 100
