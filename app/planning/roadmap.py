@@ -292,12 +292,12 @@ class Roadmap:
                 for i, m in enumerate(order.tolist()):
                     nodes = trees[0].path(m)[::-1] + trees[1].path(m)[1:]
                     if len(set(nodes)) == len(nodes):  # else the two tree paths cross: a detour with a loop
+                        order = order[i + 1 :]
                         break
                 else:
                     break  # no candidate left on these trees: grow them again
                 candidates += 1
                 taken[nodes] = True
-                order = order[i + 1 :]
                 rows = np.array([self._rows[_key(u, v)] for u, v in itertools.pairwise(nodes)], int)
                 if self._check_path(matrix, rows, trees):
                     return nodes

@@ -32,6 +32,7 @@ def run(args) -> int:
         print(
             f"{r['scene']:<10} {r['raw_per_s'] / 1e3:>9.1f} {r['oracle_1_per_s'] / 1e3:>13.1f} "
             f"{r['ratio_1']:>6.2f} {r['oracle_2_per_s'] / 1e3:>14.1f} {r['ratio_2']:>6.2f} "
-            f"{r['us_per_check_1']:>13.1f} {r['drake_share_1']:>13.0%} {r['load_first_s']:>11.2f}/{r['load_cached_s']:.2f}"
+            f"{r['us_per_check_1']:>13.1f} {r['drake_share_1']:>13.0%} "
+            f"{r['load_first_s']:>11.2f}/{r['load_cached_s']:.2f}"
         )
     return 0
