@@ -138,8 +138,9 @@ class CollisionOracle:
 
     # ---- collision answers (uncounted: a QueryContext counts and bounds them) ---------------------------------
     def _raw_free(self, Q: np.ndarray) -> np.ndarray:
-        """Free flags of configurations (n, dim) by HasCollisions, one by one. The loop binds Drake's methods once:
-        looking them up per configuration cost a third as much as the query itself on the planar arms."""
+        """Free flags of configurations (n, dim) by HasCollisions, one by one. Drake's methods are bound once: this
+        loop is the oracle's only per-configuration cost outside Drake (benchmark pages, "Time outside the
+        checks")."""
         set_positions, evaluate, context = self.plant.SetPositions, self._query_port.Eval, self._ctx
         free = np.empty(len(Q), bool)
         for i, q in enumerate(Q):
@@ -376,8 +377,8 @@ class CollisionOracle:
         SceneGraph point queries, whose broad phase leaves out the pieces beyond their threshold: first within
         width/2, then, for a point that has a piece so near, within `width` less the nearest distance (the farthest
         the other obstacle may be); the pairs are compared at once in numpy. Among a thousand environment pieces a
-        point query within `width` costs milliseconds and a Python loop over the pairs as much again; the numbers
-        are on the benchmark pages ("Tuning notes")."""
+        point query within `width` costs milliseconds and a Python loop over the pairs as much again (benchmark
+        pages, "Time outside the checks")."""
         P = np.atleast_2d(np.asarray(P, float))
         gap = np.zeros(len(P), bool)
         robot = self._robot_geometries
