@@ -132,34 +132,26 @@ class QueryContext:
         Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
         D = space.difference(Q1, Q2)
         n = space.segments(Q1, Q2, resolution)
-        # Each edge's points in coarse-to-fine order, as one row per distinct segment count (edges come in few
-        # lengths), so that a round's points are gathered in numpy: a loop over the edges cost as much as the
-        # checks of short ones.
-        skip = 2 if ends_free else 0
-        sizes, row = np.unique(n, return_inverse=True)
-        orders = [_coarse_to_fine(k + 1)[skip:] for k in sizes.tolist()]
-        todo = np.array([len(o) for o in orders], int)[row]  # points each edge has to check
-        table = np.zeros((len(orders), todo.max(initial=0)), int)
-        for r, o in enumerate(orders):
-            table[r, : len(o)] = o
+        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0 :] for k in n.tolist()]
         free = np.ones(len(Q1), bool)
         cursor = np.zeros(len(Q1), int)
         chunk = 1
         while True:
-            live = np.flatnonzero(free & (cursor < todo))
-            if not len(live):
+            live = [i for i in np.flatnonzero(free).tolist() if cursor[i] < len(orders[i])]
+            if not live:
                 return free, np.ones(len(Q1), bool)
-            lengths = np.minimum(chunk, todo[live] - cursor[live])
-            owner = np.repeat(live, lengths)
-            step = cursor[owner] + np.arange(len(owner)) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+            takes = [orders[i][cursor[i] : cursor[i] + chunk] for i in live]
+            lengths = np.array([len(t) for t in takes])
             cursor[live] += lengths
-            t = table[row[owner], step] / n[owner]
+            owner = np.repeat(live, lengths)
+            t = np.concatenate(takes) / n[owner]
             points = space.wrap(Q1[owner] + t[:, None] * D[owner])
             ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
             hit_owners = np.unique(owner[~ok])
             free[hit_owners] = False
             if until_one_collides and len(hit_owners):
-                return free, ~free | (cursor >= todo)
+                decided = ~free | (cursor >= np.array([len(o) for o in orders]))
+                return free, decided
             chunk *= 2  # few points first (endpoints, midpoints), then ever finer
 
     def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
