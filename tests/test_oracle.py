@@ -1,5 +1,7 @@
 """The collision oracle against an independent SceneGraph reference, and its counters."""
 
+import time
+
 import numpy as np
 import pytest
 
@@ -247,3 +249,21 @@ def test_queries_from_two_threads_on_one_oracle_get_the_answers_of_one(oracles):
     for rows, flags, checks in answers.values():
         assert np.array_equal(flags, expected[rows])
         assert checks == len(rows)
+
+
+def test_the_seconds_in_drake_grow_with_each_kind_of_answer_and_stay_within_the_call(oracles):
+    oracle = oracles("joint3d")
+    Q = oracle.space.uniform(np.random.default_rng(2), 200)
+    context = oracle.context()
+    for kind, ask in [
+        ("checks", lambda: context.are_free(Q)),
+        ("distances", lambda: context.signed_distances(Q[0], 5.0)),
+        ("points", lambda: context.environment_gaps(np.array([[50.0, 50, 50]]), 20.0)),
+    ]:
+        before = dict(oracle.seconds)
+        clock = time.perf_counter()
+        ask()
+        elapsed = time.perf_counter() - clock
+        grown = {k: oracle.seconds[k] - before[k] for k in before}
+        assert 0 < grown[kind] <= elapsed, kind
+        assert all(grown[k] == 0 for k in grown if k != kind), kind

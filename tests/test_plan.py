@@ -64,6 +64,29 @@ def test_roadmap_neighbours_are_exact_under_the_wrapping_metric(oracles):
         assert np.allclose(truth[i], d)
 
 
+def test_the_search_graph_kept_between_searches_is_the_graph_of_the_edges_not_known_to_collide(oracles):
+    from scipy.sparse import csr_matrix
+
+    oracle = oracles("bar")
+    rng = np.random.default_rng(6)
+    roadmap = Roadmap(oracle.context(), k=8, lazy=True)
+    for _ in range(3):  # grow, search (which checks and drops edges), remove some edges, and again
+        roadmap.add(oracle.space.uniform(rng, 150), "uniform")
+        roadmap.shortest_path(0, len(roadmap) - 1)
+        for a, b in roadmap.edges()[rng.choice(len(roadmap.edges()), 20, replace=False)].tolist():
+            roadmap.remove_edge(a, b)
+        kept = roadmap._search_graph()
+        E = roadmap.edges()
+        lengths = oracle.space.distance(roadmap.Q[E[:, 0]], roadmap.Q[E[:, 1]])
+        fresh = csr_matrix(
+            (np.r_[lengths, lengths], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=kept.shape
+        )
+        fresh.sort_indices()
+        assert kept.has_sorted_indices and len(E) > 0
+        assert np.array_equal(kept.indptr, fresh.indptr) and np.array_equal(kept.indices, fresh.indices)
+        assert np.array_equal(kept.data, fresh.data)
+
+
 # ---- planned paths -------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["bar", "joint3d"])
 def test_path_is_collision_free_under_an_independent_fine_check(oracles, planned, name):

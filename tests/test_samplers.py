@@ -125,7 +125,7 @@ def test_reported_checks_are_the_configurations_drake_answered(oracles, monkeypa
     oracle = oracles("teeth3d")
     single = []
     raw = oracle._raw_free
-    monkeypatch.setattr(oracle, "_raw_free", lambda q: single.append(1) or raw(q))
+    monkeypatch.setattr(oracle, "_raw_free", lambda Q: single.extend([1] * len(Q)) or raw(Q))
     batch = _CountingChecker(oracle.checker)
     monkeypatch.setattr(oracle, "checker", batch)
     row = run_trial(oracle, name, 10.0, seed=2, k=5, keep_samples=True)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from app.checking.budget import Budget
+from app.checking.budget import Budget, BudgetSpent
 from app.errors import NoPath
 from app.planning.planner import PlanSettings, plan
 from app.samplers.workspace import SEARCH_LIMIT, WorkspaceGaps
@@ -91,3 +91,44 @@ def test_gaps_out_of_the_robots_reach_hand_the_rounds_back_to_the_sampler(oracle
     result = plan(oracles("bar"), PlanSettings(seed=0))
     assert result.roadmap["workspace_nodes"] == 0 and result.roadmap["narrow_nodes"] > 0
     assert result.trajectory.certified
+
+
+def exhaustive_gaps(oracle, P, width):
+    """The gap test by its definition: every pair of environment pieces within `width` of the point, one by one."""
+    query = oracle.query_object(oracle.scene.start)
+    out = []
+    for p in P:
+        near = [r for r in query.ComputeSignedDistanceToPoint(p, width) if not oracle.is_robot_geometry(r.id_G)]
+        free = bool(near) and min(r.distance for r in near) > 0
+        out.append(
+            free
+            and any(
+                a.distance + b.distance < width and float(np.dot(a.grad_W, b.grad_W)) < -0.5
+                for i, a in enumerate(near)
+                for b in near[i + 1 :]
+            )
+        )
+    return np.array(out)
+
+
+@pytest.mark.parametrize("scene", ["joint3d", "maze", "window"])
+def test_the_gap_search_finds_what_the_definition_finds(oracles, scene):
+    oracle = oracles(scene)
+    rng = np.random.default_rng(4)
+    gaps = WorkspaceGaps(oracle.context(), rng)
+    while len(gaps.points) < 20:
+        gaps.search(rng)
+    # Random points, and points about the gaps found (where the two-stage query and the pair test decide).
+    around = np.repeat(gaps.points[:20], 10, axis=0) + rng.normal(0, gaps.width / 3, (200, 3))
+    P = np.vstack([rng.uniform(gaps.lower, gaps.upper, (300, 3)), around])
+    found = oracle.environment_gaps(P, gaps.width)
+    assert np.array_equal(found, exhaustive_gaps(oracle, P, gaps.width))
+    assert 0 < found.sum() < len(P)
+
+
+def test_a_gap_search_ends_when_the_budget_is_spent(oracles):
+    oracle = oracles("maze").context(Budget(seconds=0.0))
+    P = np.random.default_rng(0).uniform(0, 20, (4096, 3))
+    with pytest.raises(BudgetSpent):
+        oracle.environment_gaps(P, 1.0)
+    assert oracle.point_queries == 0  # polled before the first batch of points

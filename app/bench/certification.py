@@ -16,6 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from app.bench.plan import drake_seconds
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
 from app.errors import NoPath, UserError
@@ -43,11 +44,14 @@ def _full_speed(oracle, path: np.ndarray) -> float:
 
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One default query on a scene: plan seconds with certification and smooth timing, and without (the phases
-    replaced by a fine re-check and rest-to-rest timing), and the smooth and rest-to-rest durations."""
+    replaced by a fine re-check and rest-to-rest timing), the seconds of the query in Drake's queries, and the
+    smooth and rest-to-rest durations."""
+    drake = drake_seconds(oracle)
     try:
         r = plan(oracle, PlanSettings(seed=spec.seed, step=spec.step))
     except NoPath:
         return {"success": False}
+    drake = drake_seconds(oracle) - drake
     duration, seconds = _rest_to_rest(oracle, r.path)
     clock = time.perf_counter()
     verify(oracle.context(), r.path)
@@ -56,6 +60,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     return {
         "success": True,
         "seconds": s["total"],
+        "seconds_drake": drake,
         "seconds_certify": s["certify"],
         "seconds_timing": s["timing"],
         "seconds_without": s["total"] - s["certify"] - s["timing"] + seconds,
@@ -107,6 +112,9 @@ def summarise(rows: list[dict], cells: list[tuple[str, str]]) -> list[dict]:
             row["median_seconds_timing"] = _median(metrics, "seconds_timing")
             row["overhead"] = row["median_seconds"] / row["median_seconds_without"] - 1
             row["certified"] = sum(m["certified"] for m in ok)
+            # rows stored before the time in Drake's queries was measured have none
+            shares = [m["seconds_drake"] / m["seconds"] for m in ok if "seconds_drake" in m and m["seconds"] > 0]
+            row["median_drake_share"] = float(np.median(shares)) if shares else None
         ratio_of = {"median_duration_ratio": "duration", "median_full_speed_ratio": "duration_full_speed"}
         for key, duration in ratio_of.items():
             # rows stored before the full-speed bound was measured have none

@@ -180,7 +180,8 @@ def _median(values):
 def summarise(rows) -> list[dict]:
     """One row per scene x method (in the order first seen): success rate with its 95 % binomial interval, and
     medians over the successful runs of checks and seconds to the first solution, smoothing checks and path
-    length. `checks_spent` is the median over all runs (what an unsuccessful method spent: the figure's x)."""
+    length, and of checks per second to the first solution. `checks_spent` is the median over all runs (what an
+    unsuccessful method spent: the figure's x)."""
     from scipy.stats import binomtest
 
     cells = {}
@@ -201,6 +202,8 @@ def summarise(rows) -> list[dict]:
                 "success_ci": [float(ci.low), float(ci.high)],
                 "median_checks": _median([m["checks"] for m in won]),
                 "median_seconds": _median([m["seconds"] for m in won]),
+                # throughput: checks per second of planning, everything included (the planners' own work too)
+                "median_checks_per_second": _median([m["checks"] / m["seconds"] for m in won if m["seconds"] > 0]),
                 "median_smoothing_checks": _median([m.get("smoothing_checks") for m in won]),
                 "median_path_length": _median([m.get("path_length") for m in won]),
                 "checks_spent": _median([m["checks"] for m in metrics]),

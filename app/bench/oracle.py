@@ -46,6 +46,7 @@ def _bench_scene(name: str, cache: Path, n: int, repeats: int, seed: int) -> dic
     load_cached, two = _timed(lambda: CollisionOracle(load_scene(name, cache_dir=cache), threads=2))
     Q = one.space.uniform(np.random.default_rng(seed), n)
     times = {"raw": [], "one": [], "two": []}
+    in_drake = one.seconds["checks"]
     for _ in tqdm(range(repeats), desc=f"bench oracle {name}", leave=False):
         t_raw, raw = _timed(_raw_loop, one, Q)
         t_one, free_one = _timed(one.context().are_free, Q)
@@ -55,6 +56,7 @@ def _bench_scene(name: str, cache: Path, n: int, repeats: int, seed: int) -> dic
         times["raw"].append(t_raw)
         times["one"].append(t_one)
         times["two"].append(t_two)
+    in_drake = one.seconds["checks"] - in_drake
     med = {k: float(np.median(v)) for k, v in times.items()}
     return {
         "scene": name,
@@ -69,4 +71,5 @@ def _bench_scene(name: str, cache: Path, n: int, repeats: int, seed: int) -> dic
         "oracle_2_per_s": n / med["two"],
         "ratio_1": med["raw"] / med["one"],
         "ratio_2": med["raw"] / med["two"],
+        "drake_share_1": in_drake / sum(times["one"]),
     }

@@ -31,8 +31,15 @@ SIZE = {
 }
 
 
+def drake_seconds(oracle) -> float:
+    """Seconds the oracle has spent in Drake's answers (collision checks, signed distances, point queries) since it
+    was made: the difference over a run is the part of the run's time that Drake's queries took."""
+    return sum(oracle.seconds.values())
+
+
 def run_trial_spec(oracle, spec: TrialSpec) -> dict:
-    """One plan: success, seconds (whole pipeline), seconds to a path, checks, roadmap and path facts."""
+    """One plan: success, seconds (whole pipeline; `seconds_drake` of them in Drake's queries), seconds to a path,
+    checks, roadmap and path facts."""
     p = spec.params
     # Without a budget of its own a trial has the planner's default; the paper's fixed roadmap is not cut short.
     full_roadmap = bool(p.get("full_roadmap", True))
@@ -47,7 +54,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     uniform = int(p.get("uniform", SIZE["uniform"]))
     if spec.method == "uniform":  # the same roadmap size, all of it uniform
         narrow, uniform = 0, narrow + uniform
-    start = time.perf_counter()
+    start, drake = time.perf_counter(), drake_seconds(oracle)
     try:
         r = plan(
             oracle,
@@ -69,6 +76,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         return {
             "success": 0.0,
             "seconds": time.perf_counter() - start,
+            "seconds_drake": drake_seconds(oracle) - drake,
             "seconds_to_path": None,
             "collision_checks": d.get("collision_checks"),
             "nodes": d.get("roadmap", {}).get("nodes"),
@@ -79,6 +87,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     return {
         "success": 1.0,
         "seconds": s["total"],
+        "seconds_drake": drake_seconds(oracle) - drake,
         "seconds_sampling": s["sampling"],
         "seconds_to_path": s["sampling"] + s["roadmap"] + s["search"],
         "collision_checks": r.collision_checks,
@@ -120,6 +129,8 @@ def summarise(rows) -> list[dict]:
         to_path = np.array([m["seconds_to_path"] for m in metrics if m["success"]])
         narrow = np.array([m["narrow_on_path"] for m in metrics if m["success"]])
         placed = [m["workspace_on_path"] for m in metrics if m["success"] and "workspace_on_path" in m]
+        # rows stored before the time in Drake's queries was measured have none
+        shares = [m["seconds_drake"] / m["seconds"] for m in metrics if "seconds_drake" in m and m["seconds"] > 0]
         table.append(
             {
                 "scene": scene,
@@ -133,6 +144,8 @@ def summarise(rows) -> list[dict]:
                 "median_checks": float(np.median(checks)),
                 "median_narrow_on_path": float(np.median(narrow)) if ok.any() else None,
                 "median_workspace_on_path": float(np.median(placed)) if placed else None,
+                "median_checks_per_second": float(np.median(checks / seconds)),
+                "median_drake_share": float(np.median(shares)) if shares else None,
             }
         )
     return table

@@ -24,6 +24,9 @@ from app.checking.budget import Budget, BudgetSpent, Stop
 
 # Most configurations one edge-check call hands Drake at once (a few tenths of a second), so a stop is polled often.
 _MAX_BATCH = 4096
+# Workspace points asked at once between polls of the stop: among hundreds of environment pieces a point costs up to
+# a millisecond, and a search of thousands of points must still end when the query must.
+_POINT_BATCH = 64
 # The oracle's uncounted measurements and model, which a context passes through (CollisionOracle documents each).
 _PASSED_THROUGH = frozenset(
     {
@@ -163,10 +166,16 @@ class QueryContext:
 
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`
-        (CollisionOracle.environment_gaps); counted in `point_queries`."""
+        (CollisionOracle.environment_gaps); counted in `point_queries`. Asked in batches, polling the stop before
+        each, so BudgetSpent may end it part way."""
         P = np.atleast_2d(np.asarray(P, float))
-        self.point_queries += len(P)
-        return self.oracle.environment_gaps(P, width)
+        gap = np.zeros(len(P), bool)
+        for b in range(0, len(P), _POINT_BATCH):
+            self.poll()
+            batch = P[b : b + _POINT_BATCH]
+            self.point_queries += len(batch)
+            gap[b : b + len(batch)] = self.oracle.environment_gaps(batch, width)
+        return gap
 
 
 @functools.lru_cache(maxsize=4096)

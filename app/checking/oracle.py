@@ -23,7 +23,6 @@ the GIL inside them anyway, so the lock costs no parallelism; the batch path spr
 from __future__ import annotations
 
 import functools
-import itertools
 import logging
 import os
 import threading
@@ -74,6 +73,10 @@ class CollisionOracle:
         # Configurations answered for every query since the oracle was made: for a progress display that watches
         # the oracle from another thread. A query's own count is its context's `checks`.
         self.answered = 0
+        # Seconds spent in Drake's answers since the oracle was made, by kind: collision checks, signed-distance
+        # queries, workspace point queries. A benchmark takes the difference over a run to tell the share of its
+        # time that Drake's queries took from the share that went to everything else.
+        self.seconds = {"checks": 0.0, "distances": 0.0, "points": 0.0}
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
         self.checker = SceneGraphCollisionChecker(
@@ -135,15 +138,25 @@ class CollisionOracle:
         return QueryContext(self, budget, cancel)
 
     # ---- collision answers (uncounted: a QueryContext counts and bounds them) ---------------------------------
-    def _raw_free(self, q: np.ndarray) -> bool:
-        self.plant.SetPositions(self._ctx, self._positions(q))
-        return not self._query_port.Eval(self._ctx).HasCollisions()
+    def _raw_free(self, Q: np.ndarray) -> np.ndarray:
+        """Free flags of configurations (n, dim) by HasCollisions, one by one. Drake's methods are bound once: this
+        loop is the oracle's only per-configuration cost outside Drake (benchmark pages, "Time outside the
+        checks")."""
+        set_positions, evaluate, context = self.plant.SetPositions, self._query_port.Eval, self._ctx
+        free = np.empty(len(Q), bool)
+        for i, q in enumerate(self._positions(Q)):
+            set_positions(context, q)
+            free[i] = not evaluate(context).HasCollisions()
+        return free
 
     def free(self, q: np.ndarray) -> bool:
         """Whether the configuration q (within bounds) is collision-free under the scene's policy."""
         with self._lock:
             self.answered += 1
-            return self._raw_free(np.asarray(q, float))
+            start = time.perf_counter()
+            free = bool(self._raw_free(np.asarray(q, float)[None])[0])
+            self.seconds["checks"] += time.perf_counter() - start
+            return free
 
     def free_batch(self, Q: np.ndarray) -> np.ndarray:
         """Free flags for configurations (n, dim), all within bounds, by the cheaper of the two Drake paths."""
@@ -159,14 +172,15 @@ class CollisionOracle:
                 path = self._choose_path()
             start = time.perf_counter()
             if path == "raw":
-                for i, q in enumerate(Q):
-                    free[i] = self._raw_free(q)
+                free = self._raw_free(Q)
             else:
                 free[:] = self.checker.CheckConfigsCollisionFree(
                     list(self._positions(Q)), parallelize=self._parallelism
                 )
+            spent = time.perf_counter() - start
+            self.seconds["checks"] += spent
             if len(Q) >= _BATCH_MIN:
-                cost = (time.perf_counter() - start) / len(Q)
+                cost = spent / len(Q)
                 old = self._cost[path]
                 self._cost[path] = cost if old is None else 0.7 * old + 0.3 * cost
                 if self._batch_calls == self._next_probe:
@@ -286,8 +300,11 @@ class CollisionOracle:
         """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
         `max_distance` (farther pairs are left out)."""
         with self._lock:
+            start = time.perf_counter()
             self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
-            return self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+            pairs = self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+            self.seconds["distances"] += time.perf_counter() - start
+            return pairs
 
     # ---- the workspace (not collision checks) --------------------------------------------------------------------
     @functools.cached_property
@@ -333,22 +350,57 @@ class CollisionOracle:
             [np.linalg.norm(half_extent(self._inspector.GetShape(g), np.eye(3))) for _, _, g in self._robot_shapes]
         )
 
+    @functools.cached_property
+    def _environment_spheres(self) -> tuple[np.ndarray, np.ndarray]:
+        """The environment pieces' bounding spheres: centres (their geometry frames' origins), (m, 3), and radii,
+        (m,); the environment does not move with the robot."""
+        from pydrake.geometry import Role
+
+        with self._lock:
+            query = self._query_port.Eval(self._ctx)
+            pieces = [g for g in self._inspector.GetAllGeometryIds(Role.kProximity) if g not in self._robot_geometries]
+            poses = [query.GetPoseInWorld(g) for g in pieces]
+        centres = np.array([X.translation() for X in poses]).reshape(-1, 3)
+        radii = np.array([np.linalg.norm(half_extent(self._inspector.GetShape(g), np.eye(3))) for g in pieces])
+        return centres, radii
+
+    def _near_environment(self, P: np.ndarray, distance: float) -> np.ndarray:
+        """Whether each point (n, 3) may lie within `distance` of an environment piece: its bounding sphere does
+        (False: surely not); in numpy, points by pieces at once (a thousand pieces cost microseconds a point)."""
+        centres, radii = self._environment_spheres
+        gaps = np.linalg.norm(P[:, None, :] - centres[None], axis=2) - radii
+        return np.any(gaps <= distance * (1 + 1e-9), axis=1)
+
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`: two
         obstacles on roughly opposite sides of it (their distance gradients more than 120 degrees apart) whose
-        distances add up to less than `width`. One SceneGraph point query each."""
+        distances add up to less than `width`.
+
+        One of a gap's two obstacles lies within width/2 of the point, and most points have none so near: the pieces'
+        bounding spheres rule those points out without asking Drake. The others get
+        SceneGraph point queries, whose broad phase leaves out the pieces beyond their threshold: first within
+        width/2, then, for a point that has a piece so near, within `width` less the nearest distance (the farthest
+        the other obstacle may be); the pairs are compared at once in numpy. Among a thousand environment pieces a
+        point query within `width` costs milliseconds and a Python loop over the pairs as much again (benchmark
+        pages, "Time outside the checks")."""
         P = np.atleast_2d(np.asarray(P, float))
         gap = np.zeros(len(P), bool)
+        robot = self._robot_geometries
+        near_any = self._near_environment(P, width / 2)
         with self._lock:
-            answers = [self._query_port.Eval(self._ctx).ComputeSignedDistanceToPoint(p, width) for p in P]
-        for i, answer in enumerate(answers):
-            near = [r for r in answer if r.id_G not in self._robot_geometries]
-            if not near or min(r.distance for r in near) <= 0:
-                continue
-            for a, b in itertools.combinations(near, 2):
-                if a.distance + b.distance < width and float(np.dot(a.grad_W, b.grad_W)) < -0.5:
-                    gap[i] = True
-                    break
+            start = time.perf_counter()
+            query = self._query_port.Eval(self._ctx)
+            for i in np.flatnonzero(near_any).tolist():
+                p = P[i]
+                near = [r.distance for r in query.ComputeSignedDistanceToPoint(p, width / 2) if r.id_G not in robot]
+                if not near or min(near) <= 0:
+                    continue
+                pieces = [r for r in query.ComputeSignedDistanceToPoint(p, width - min(near)) if r.id_G not in robot]
+                d = np.array([r.distance for r in pieces])
+                G = np.array([r.grad_W for r in pieces]).reshape(-1, 3)
+                cosine = G[:, None, 0] * G[None, :, 0] + G[:, None, 1] * G[None, :, 1] + G[:, None, 2] * G[None, :, 2]
+                gap[i] = bool(np.any((d[:, None] + d[None, :] < width) & (cosine < -0.5)))
+            self.seconds["points"] += time.perf_counter() - start
         return gap
 
 

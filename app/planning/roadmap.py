@@ -73,17 +73,23 @@ class Roadmap:
         self.kinds: list[str] = []
         # The edges, as arrays (the search builds its sparse matrix from them, in C): rows in insertion order, every
         # pair ever decided or proposed, (a, b) with a < b -> row; a row stays when its edge is found to collide.
-        self._rows: dict[tuple[int, int], int] = {}
+        self._rows: dict[int, int] = {}  # keyed by `_key(a, b)`
         self._ends = np.empty((0, 2), int)
         self._lengths = np.empty(0)
         self._alive = np.empty(0, bool)  # not known to collide
         self._checked = np.empty(0, bool)  # decided free
         self.edges_tried = 0  # decided: checked in full, or found to collide
         self.edges_proposed = 0  # lazy candidates ever added
-        self._tried: set[tuple[int, int]] = set()
+        self._tried: set[int] = set()  # `_key`s of the pairs ever proposed
         self.proved: set[tuple[int, int]] = set()  # edges the certificate proved free, (smaller, larger)
         self._nodes: dict[bytes, int] = {}  # a configuration's bytes -> its node, so a repeated one is not added twice
-        self._tree: cKDTree | None = None
+        self._tree: cKDTree | None = None  # built when next asked for neighbours (None: nodes added since)
+        # The search's graph, kept from one search to the next so that a search only merges in the edges added and
+        # drops those that died since (sorting every edge again cost more than the search on large roadmaps): each
+        # edge not known to collide in both directions, ordered by (from, to) as a sorted CSR matrix wants them.
+        # Per entry: from << 32 | to (the order), the edge's row, `to` (the matrix's column) and the edge's length.
+        self._search = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0))
+        self._search_synced = 0  # edge rows merged in so far
         # Periodic axes for continuous angles, flat (0) elsewhere; the scaled embedding lives in [0, box).
         w = checker.space.weights
         self._box = np.where(checker.space.continuous, 2 * np.pi * w, 0.0)
@@ -107,6 +113,8 @@ class Roadmap:
     def neighbours(self, Q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(distances, indices) of the k nearest roadmap nodes to each row of Q (fewer columns if the map is small)."""
         k = min(k, len(self))
+        if self._tree is None:
+            self._tree = cKDTree(self._embedded, boxsize=self._box)
         d, i = self._tree.query(self.embed(Q), k=k)
         return np.asarray(d).reshape(len(Q), k), np.asarray(i).reshape(len(Q), k)
 
@@ -127,7 +135,7 @@ class Roadmap:
         self._nodes.update((q.tobytes(), int(i)) for q, i in zip(wrapped, new))
         self._components.grow(len(self.Q))
         self._embedded = np.vstack([self._embedded, self.embed(Q)])
-        self._tree = cKDTree(self._embedded, boxsize=self._box)
+        self._tree = None
         if connect:
             self.connect(new)
         return new
@@ -157,19 +165,18 @@ class Roadmap:
         tried, now marked tried: each pair is decided at most once in the roadmap's life."""
         self.k_used = self.k or prm_star_k(len(self), self.space.dim)
         _, idx = self.neighbours(self.Q[nodes], self.k_used + 1)  # +1: a node is its own nearest neighbour
-        pairs = []
-        for a, row in zip(nodes, idx):
-            for b in row:
-                if a == b or b >= len(self):
-                    continue
-                key = (int(min(a, b)), int(max(a, b)))
-                if key in self._tried:
-                    continue
-                if self.skip_connected and not self.lazy and self._components.same(*key):
-                    continue
-                self._tried.add(key)
-                pairs.append(key)
-        return np.array(pairs, int).reshape(-1, 2)
+        a, b = np.repeat(np.asarray(nodes, np.int64), idx.shape[1]), idx.ravel().astype(np.int64)
+        real = (a != b) & (b < len(self))  # (a missing neighbour of a small map is numbered len(self))
+        P = np.column_stack([np.minimum(a, b), np.maximum(a, b)])[real]
+        keys = _key(P[:, 0], P[:, 1])
+        first = np.sort(np.unique(keys, return_index=True)[1])  # each pair once, where it first comes
+        P, keys = P[first], keys[first].tolist()
+        new = np.array([key not in self._tried for key in keys], bool)
+        if self.skip_connected and not self.lazy:
+            same = self._components.same
+            new &= np.array([not same(u, v) for u, v in P.tolist()], bool)
+        self._tried.update(itertools.compress(keys, new))
+        return P[new].reshape(-1, 2)
 
     def record(self, P: np.ndarray, free: np.ndarray) -> None:
         """Verdicts decided elsewhere (another process, for the same roadmap) for candidate edges P: the free ones
@@ -184,7 +191,7 @@ class Roadmap:
         if not len(P):
             return
         first = len(self._ends)
-        self._rows.update(zip(map(tuple, P.tolist()), range(first, first + len(P))))
+        self._rows.update(zip(_key(P[:, 0], P[:, 1]).tolist(), range(first, first + len(P))))
         self._ends = np.vstack([self._ends, P])
         self._lengths = np.concatenate([self._lengths, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]])])
         self._alive = np.concatenate([self._alive, np.zeros(len(P), bool)])
@@ -214,7 +221,7 @@ class Roadmap:
         """Add edges (node index pairs, smaller index first) of the given state, to the graph and the arrays."""
         lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else np.empty(0)
         first = len(self._ends)
-        self._rows.update(zip(map(tuple, P.tolist()), range(first, first + len(P))))
+        self._rows.update(zip(_key(P[:, 0], P[:, 1]).tolist(), range(first, first + len(P))))
         self._ends = np.vstack([self._ends, P])
         self._lengths = np.concatenate([self._lengths, lengths])
         self._alive = np.concatenate([self._alive, np.ones(len(P), bool)])
@@ -265,38 +272,60 @@ class Roadmap:
         targets = [int(t) for t in np.atleast_1d(b)]
         if not 0 <= a < len(self) or not any(0 <= t < len(self) for t in targets):
             return None
-        alive = np.flatnonzero(self._alive)
-        U, V, W = self._ends[alive, 0], self._ends[alive, 1], self._lengths[alive]
-        # Both directions, with the positions of each edge's two entries kept for removals.
-        matrix = csr_matrix(
-            (np.concatenate([W, W]), (np.concatenate([U, V]), np.concatenate([V, U]))), shape=(len(self), len(self))
-        )
-        matrix.sort_indices()
+        matrix = self._search_graph()
         while True:
-            # The tree from the targets is a forest, one tree per target (min_only: each node under its nearest).
             dist_a, pred_a = dijkstra(matrix, indices=a, return_predecessors=True)
-            dist_b, pred_b, _ = dijkstra(matrix, indices=targets, return_predecessors=True, min_only=True)
-            if not np.isfinite(dist_a[targets]).any():
+            if not np.isfinite(dist_a[targets]).any():  # apart: the second tree is not needed
                 return None
-            dist, pred = np.vstack([dist_a, dist_b]), np.vstack([pred_a, pred_b])
-            through = dist[0] + dist[1]
+            # The tree from the targets is a forest, one tree per target (min_only: each node under its nearest).
+            dist_b, pred_b, _ = dijkstra(matrix, indices=targets, return_predecessors=True, min_only=True)
+            through = dist_a + dist_b
             reachable = np.flatnonzero(np.isfinite(through))
-            trees = _Tree(pred[0]), _Tree(pred[1])
-            tried: set[int] = set()
+            order = reachable[np.argsort(through[reachable], kind="stable")]
+            trees = _Tree(pred_a), _Tree(pred_b)
+            taken = np.zeros(len(self), bool)  # nodes of the candidate paths tried on these trees
             candidates = 0
-            for m in reachable[np.argsort(through[reachable], kind="stable")].tolist():
-                if candidates == CANDIDATES:
-                    break
-                if m in tried or not (trees[0].alive(m) and trees[1].alive(m)):
-                    continue
-                nodes = trees[0].path(m)[::-1] + trees[1].path(m)[1:]
-                if len(set(nodes)) < len(nodes):  # the two tree paths cross: a detour with a loop
-                    continue
+            while candidates < CANDIDATES:
+                # The nodes still open, in order, found in C; only a change of `taken` or the trees (after a
+                # candidate is checked) makes the scan start again, from just past that candidate.
+                order = order[~(taken[order] | trees[0].dead[order] | trees[1].dead[order])]
+                for i, m in enumerate(order.tolist()):
+                    nodes = trees[0].path(m)[::-1] + trees[1].path(m)[1:]
+                    if len(set(nodes)) == len(nodes):  # else the two tree paths cross: a detour with a loop
+                        order = order[i + 1 :]
+                        break
+                else:
+                    break  # no candidate left on these trees: grow them again
                 candidates += 1
-                tried.update(nodes)
-                rows = np.array([self._rows[min(u, v), max(u, v)] for u, v in zip(nodes[:-1], nodes[1:])], int)
+                taken[nodes] = True
+                rows = np.array([self._rows[_key(u, v)] for u, v in itertools.pairwise(nodes)], int)
                 if self._check_path(matrix, rows, trees):
                     return nodes
+
+    def _search_graph(self) -> csr_matrix:
+        """The edges not known to collide as a symmetric CSR matrix of their lengths, with sorted indices (`_drop`
+        looks entries up by bisection): the kept graph with the edges added since merged in and those that died
+        since dropped, both in C."""
+        n, fresh = len(self), np.arange(self._search_synced, len(self._ends))
+        fresh = fresh[self._alive[fresh]]
+        search = self._search
+        keep = self._alive[search[1]]
+        if not keep.all():
+            search = tuple(column[keep] for column in search)
+        if len(fresh):
+            U, V = self._ends[fresh, 0].astype(np.int64), self._ends[fresh, 1].astype(np.int64)
+            keys = np.concatenate([U << 32 | V, V << 32 | U])
+            order = np.argsort(keys)
+            rows = np.concatenate([fresh, fresh])[order]
+            added = (keys[order], rows, (keys[order] & 0xFFFFFFFF).astype(np.int32), self._lengths[rows])
+            at = np.searchsorted(search[0], added[0])
+            search = tuple(np.insert(column, at, new) for column, new in zip(search, added))
+        self._search, self._search_synced = search, len(self._ends)
+        indptr = np.searchsorted(search[0], np.arange(n + 1, dtype=np.int64) << 32).astype(np.int32)
+        # The lengths are copied: the search marks the edges it finds colliding in its matrix (`_drop`).
+        matrix = csr_matrix((search[3].copy(), search[2], indptr), shape=(n, n))
+        matrix.has_sorted_indices = True
+        return matrix
 
     def _check_path(self, matrix: csr_matrix, rows: np.ndarray, trees) -> bool:
         """Check a candidate path's unchecked edges (rows) until one collides; whether all are free. A colliding
@@ -322,7 +351,7 @@ class Roadmap:
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
-        row = self._rows.get((min(a, b), max(a, b)))
+        row = self._rows.get(_key(a, b))
         if row is not None and self._alive[row]:
             self._alive[row] = False
             self._components = _UnionFind()
@@ -336,8 +365,8 @@ class Roadmap:
         nodes = [self._nodes.get(np.asarray(q, float).tobytes()) for q in P]
         pairs = []
         for a, b in itertools.pairwise(nodes):
-            key = None if a is None or b is None else (min(a, b), max(a, b))
-            pairs.append(key if key in self._rows and self._alive[self._rows[key]] else None)
+            row = None if a is None or b is None else self._rows.get(_key(a, b))
+            pairs.append((min(a, b), max(a, b)) if row is not None and self._alive[row] else None)
         return pairs
 
     # ---- persistence ------------------------------------------------------------------------------------------------
@@ -381,7 +410,7 @@ class Roadmap:
         for a, b in ends[alive & checked].tolist():
             graph._components.union(a, b)
         graph._add_dead(ends[~alive])
-        graph._tried = set(map(tuple, ends.tolist()))
+        graph._tried = set(_key(ends[:, 0], ends[:, 1]).tolist())
         graph.proved = {tuple(edge) for edge in ends[proved].tolist()}
         graph.edges_tried, graph.edges_proposed = (int(c) for c in data["counters"])
         return graph
@@ -414,11 +443,7 @@ class _Tree:
         self.pred = pred
         self._up = np.where(pred >= 0, pred, np.arange(len(pred)))  # the root (and nodes off the tree): themselves
         self._cut = np.zeros(len(pred), bool)  # the edge from a node to its parent is gone
-        self._dead = self._cut.copy()  # a node's tree path has lost an edge
-
-    def alive(self, m: int) -> bool:
-        """Whether m's tree path to the root has lost no edge."""
-        return not self._dead[m]
+        self.dead = self._cut.copy()  # a node's tree path to the root has lost an edge
 
     def path(self, m: int) -> list[int]:
         """Nodes from m up the tree to its root."""
@@ -441,7 +466,15 @@ class _Tree:
             if np.array_equal(higher, up):
                 break
             up = higher
-        self._dead = dead
+        self.dead = dead
+
+
+def _key(a, b):
+    """One integer for the unordered node pair (a, b), of ints or int arrays: the smaller in the high bits."""
+    if isinstance(a, np.ndarray):
+        return np.minimum(a, b).astype(np.int64) << 32 | np.maximum(a, b)
+    a, b = int(a), int(b)
+    return min(a, b) << 32 | max(a, b)
 
 
 def _drop(matrix: csr_matrix, u: int, v: int) -> None:

@@ -37,7 +37,7 @@ def run(args) -> int:
     )
     print(
         f"{'scene/job':<10} {'success':>8} {'plan s':>7} {'without s':>9} {'overhead':>8} {'certify s':>9} "
-        f"{'timing s':>8} {'certified':>9} {'duration ratio':>14} {'full-speed bound':>16}"
+        f"{'timing s':>8} {'certified':>9} {'duration ratio':>14} {'full-speed bound':>16} {'in Drake':>9}"
     )
 
     def cell(value, form):
@@ -49,6 +49,6 @@ def run(args) -> int:
             f"{cell(r.get('median_seconds_without'), '.2f'):>9} {cell(r.get('overhead'), '+.0%'):>8} "
             f"{cell(r.get('median_seconds_certify'), '.2f'):>9} {cell(r.get('median_seconds_timing'), '.2f'):>8} "
             f"{cell(r.get('certified'), 'd'):>9} {cell(r['median_duration_ratio'], '.2f'):>14} "
-            f"{cell(r['median_full_speed_ratio'], '.2f'):>16}"
+            f"{cell(r['median_full_speed_ratio'], '.2f'):>16} {cell(r.get('median_drake_share'), '.0%'):>9}"
         )
     return 0

@@ -109,8 +109,8 @@ def run(args) -> int:
                 f"of an exact r spacing"
             )
         print(
-            f"  {'method':<22} {'success':>7} {'95 % CI':>11} {'checks':>9} {'seconds':>8} {'smoothing':>10} "
-            f"{'length':>9}  notes"
+            f"  {'method':<22} {'success':>7} {'95 % CI':>11} {'checks':>9} {'seconds':>8} {'checks/s':>9} "
+            f"{'smoothing':>10} {'length':>9}  notes"
         )
         for r in s["methods"]:
             lo, hi = r["success_ci"]
@@ -125,7 +125,8 @@ def run(args) -> int:
             print(
                 f"  {r['method']:<22} {str(r['successes']) + '/' + str(r['runs']):>7} "
                 f"{f'{lo:.0%}-{hi:.0%}':>11} {_num(r['median_checks'], '.0f'):>9} "
-                f"{_num(r['median_seconds'], '.2f'):>8} {_num(r['median_smoothing_checks'], '.0f'):>10} "
+                f"{_num(r['median_seconds'], '.2f'):>8} {_num(r['median_checks_per_second'], '.0f'):>9} "
+                f"{_num(r['median_smoothing_checks'], '.0f'):>10} "
                 f"{_num(r['median_path_length'], '.4g'):>9}  {'; '.join(notes)}"
             )
         c = s["comparison"]
