@@ -58,6 +58,7 @@ from __future__ import annotations
 import configparser
 import hashlib
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -197,8 +198,12 @@ def _load_collada(path: Path) -> OmplAppMesh:
     except ImportError:
         raise UserError("mesh support needs the 'meshes' extra: pip install -e '.[meshes]'") from None
     try:
-        document = collada.Collada(str(path), ignore=[DaeUnsupportedError, DaeBrokenRefError])
-        primitives = [p for g in document.scene.objects("geometry") for p in g.primitives()] if document.scene else []
+        with warnings.catch_warnings():  # pycollada builds numpy.matrix objects, which numpy warns about
+            warnings.simplefilter("ignore", PendingDeprecationWarning)
+            document = collada.Collada(str(path), ignore=[DaeUnsupportedError, DaeBrokenRefError])
+            primitives = (
+                [p for g in document.scene.objects("geometry") for p in g.primitives()] if document.scene else []
+            )
     except Exception as exc:  # pycollada raises many types (DaeError, XML errors, KeyError, ...)
         raise UserError(
             f"cannot read mesh {path.name}: {' '.join(str(exc).split())[:200] or type(exc).__name__}"
