@@ -21,17 +21,17 @@ The conventions reproduced here, and where each comes from:
 - Bounds bound the robot frame's position: the volume when given (BenchmarkTypes.cpp lines 79-88, 140-152), else the
   environment's vertex bounding box (geometry/RigidBodyGeometry.cpp lines 127-145 with factor 1, add 0, lines 45/53 of
   RigidBodyGeometry.h; used only when no bounds are set: apps/detail/appUtil.cpp lines 75-89), then stretched to hold
-  start and goal (appUtil.cpp lines 23-73, called by AppBase::setup after the volume is set). In 2-D only x and y are
-  bounded; the angles are free (they wrap).
+  start and goal (appUtil.cpp lines 23-73, called at apps/AppBase.h line 108, after the volume is set). In 2-D only
+  x and y are bounded; the angles are free (they wrap).
 - Meshes are read by assimp with aiProcess_GenNormals | Triangulate | JoinIdenticalVertices | SortByPType |
   OptimizeGraph (RigidBodyGeometry.cpp lines 52-57, 97-102); no importer property is set (no SetProperty anywhere
   in OMPL.app), so assimp's COLLADA loader applies the file's <unit meter> and converts its <up_axis> to Y up by a
   rotation on the root node: Z_UP maps (x, y, z) to (x, z, -y), X_UP maps it to (-y, x, z) (assimp
   code/AssetLib/Collada/ColladaLoader.cpp, InternReadFile: "Apply unit-size scale calculation" and "Convert to Y_UP,
-  if different orientation", unless AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION; the conversion is as old as the
-  loader, assimp 1.x-5.x). Every OMPL.app resource is Z_UP: hence its 3-D problems have y up and negative z, and its
-  2-D mazes, drawn in their files' x-z plane, lie in the converted x-y plane. Other formats (STL, OBJ, PLY, OFF)
-  have no up axis and keep their coordinates.
+  if different orientation", unless AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION; the up-axis turn is in the
+  2008 loader already, the unit in today's). Every OMPL.app resource is Z_UP: hence its 3-D problems have y up
+  and negative z, and its 2-D mazes, drawn in their files' x-z plane, lie in the converted x-y plane. Other formats
+  (STL, OBJ, PLY, OFF) have no up axis and keep their coordinates (glTF, y up by definition, too).
 - Vertices are taken through the node hierarchy's transforms (geometry/detail/assimpUtil.cpp lines 63-76).
 - The robot mesh is re-centred on its mean vertex: getRobotCenter (RigidBodyGeometry.cpp lines 173-181) is the mean
   of every vertex of every mesh (assimpUtil.cpp lines 109-117), and the robot's triangles are shifted by minus that
@@ -45,7 +45,7 @@ The conventions reproduced here, and where each comes from:
 - Collision is FCL between triangle soups (FCLMethodWrapper.h lines 104-125): surfaces only. Here the meshes go through
   app.scene.meshes' validated convex decomposition: a closed part is solid, so a robot wholly inside a closed
   obstacle, valid for OMPL.app, is in collision here; open surfaces (most SketchUp exports) are thin plates in both.
-  Self-collision is off (a single rigid body: SE3RigidBodyPlanning.h line 29). The scene's edge-check step is
+  Self-collision is off (a single rigid body: apps/SE3RigidBodyPlanning.h lines 37-40). The scene's edge-check step is
   app.scene.custom's (a quarter of the robot's thickness), not OMPL's 1 % of the space's extent.
 
 The scene is an app.scene.custom scene: an SE(3) robot is a mesh robot on the carrier joints x, y, z, yaw, pitch,
@@ -78,6 +78,8 @@ UP_AXIS_TO_Y_UP = {
 # Bump when the converted meshes or generated files change: they are cached by content.
 CONVERSION_VERSION = "1"
 _SE3_KEYS = ("z", "axis.x", "axis.y", "axis.z")
+# The mesh formats both assimp and app.scene.meshes read (assimp has no VTK reader).
+MESH_SUFFIXES = meshes.MESH_SUFFIXES - {".vtk"}
 
 
 @dataclass
@@ -141,9 +143,9 @@ def read_problem(path: str | Path) -> OmplAppProblem:
         file = (path.parent / section[key].strip()).resolve()
         if not file.is_file():
             raise UserError(f"{path.name}: {key} mesh not found: {file}")
-        if file.suffix.lower() not in meshes.MESH_SUFFIXES or file.suffix.lower() in (".vtk", ".gltf", ".glb"):
+        if file.suffix.lower() not in MESH_SUFFIXES:
             raise UserError(
-                f"{path.name}: {key} mesh {file.name}: unsupported format (use .dae, .stl, .obj, .ply, .off)"
+                f"{path.name}: {key} mesh {file.name}: unsupported format (use {', '.join(sorted(MESH_SUFFIXES))})"
             )
         return file
 
