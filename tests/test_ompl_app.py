@@ -169,6 +169,9 @@ def test_plan_through_the_cli_is_certified(problem_dir, tmp_path, monkeypatch, c
     np.testing.assert_allclose(path[-1], [0, 0, -1.25, 0, 0, 0], atol=1e-9)
     # Round the wall's edge: some waypoint has the wedge (x from -1 to 2 about its centre) clear of |x| <= 4.
     assert np.any((path[:, 0] > 4.5) | (path[:, 0] < -4.5))
+    summary = cli("plan", "--ompl-app", problem_dir / "wall.cfg", "--seed", "2").stdout
+    assert "SE(3); COLLADA up axis, turned to y up as assimp does: robot Z_UP, world Z_UP" in summary
+    assert "re-centred on its mean vertex (21, 0.5, -6)" in summary
 
 
 def test_planar_problem(tmp_path):

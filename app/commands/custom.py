@@ -190,9 +190,9 @@ def describe(scene: Scene) -> list[str]:
     found = scene.info.get("ompl_app")
     if found:
         lines.append(
-            f"OMPL.app problem {found['problem']}: {found['motion']}, meshes' up axis "
-            f"{found['up_axis']['robot'] or 'none'} (robot) / {found['up_axis']['world'] or 'none'} (world) turned "
-            f"to y up, robot re-centred on its mean vertex ({', '.join(f'{c:.4g}' for c in found['robot_centre'])})"
+            f"OMPL.app problem {found['problem']}: {found['motion']}; COLLADA up axis, turned to y up as assimp "
+            f"does: robot {found['up_axis']['robot'] or 'none'}, world {found['up_axis']['world'] or 'none'}; robot "
+            f"re-centred on its mean vertex ({', '.join(f'{c:.4g}' for c in found['robot_centre'])})"
         )
     for d in scene.info["decompositions"]:
         how = f"from the cache in {d['seconds']:.2f} s" if d["from_cache"] else f"built in {d['seconds']:.1f} s"
