@@ -177,7 +177,7 @@ def scene_from_args(args, scene: str | None = None) -> Scene:
             raise UserError("give either SCENE or --robot/--env, not both")
         return build_scene(spec)
     if not scene:
-        raise UserError("a SCENE (name or file), --robot or --ompl-app is required")
+        raise UserError("a SCENE (name or file) or --robot is required")
     return load_scene(scene)
 
 
