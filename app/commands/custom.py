@@ -5,7 +5,7 @@ import argparse
 
 from app.commands.common import float_list, non_negative_float, positive_float_list
 from app.errors import UserError
-from app.scene import meshes
+from app.scene import meshes, ompl_app
 from app.scene.custom import CustomScene, CustomSpec, build_scene, load_scene
 from app.scene.model import Scene
 
@@ -14,6 +14,12 @@ def add_arguments(parser) -> None:
     """The --robot/--env flags, as one group of `parser`."""
     group = parser.add_argument_group("bring your own robot and environment (instead of SCENE)")
     group.add_argument("--robot", metavar="FILE", help="robot .urdf/.sdf, or a mesh (a free-flying rigid body)")
+    group.add_argument(
+        "--ompl-app",
+        metavar="PROBLEM.cfg",
+        help="an OMPL.app problem file (robot and environment meshes, start, goal, bounds), read with OMPL.app's "
+        "frame conventions; the mesh, resolution and limit flags still apply",
+    )
     group.add_argument(
         "--package-path",
         metavar="NAME=DIR",
@@ -143,8 +149,29 @@ def spec_from_args(args) -> CustomSpec | None:
     )
 
 
+# The flags that still apply to an OMPL.app problem (the file sets the rest).
+OMPL_APP_OPTIONS = ("mesh_method", "mesh_tolerance", "resolution", "velocity_limits", "acceleration_limits")
+
+
+def ompl_app_scene(args, scene: str | None) -> Scene:
+    """The scene of --ompl-app PROBLEM.cfg; refused beside SCENE or a flag the problem file sets."""
+    defaults = vars(_defaults())
+    given = [
+        flag
+        for dest, flag in {"robot": "--robot", **ROBOT_ONLY}.items()
+        if dest not in OMPL_APP_OPTIONS and getattr(args, dest) != defaults[dest]
+    ]
+    if scene or given:
+        raise UserError(
+            f"--ompl-app sets the robot, environment and bounds: give it without {', '.join(given) or 'SCENE'}"
+        )
+    return ompl_app.build_scene(args.ompl_app, **{dest: getattr(args, dest) for dest in OMPL_APP_OPTIONS})
+
+
 def scene_from_args(args, scene: str | None = None) -> Scene:
-    """The scene a command works on: --robot/--env when given, else SCENE (a name or a scene file)."""
+    """The scene a command works on: --ompl-app or --robot/--env when given, else SCENE (a name or a scene file)."""
+    if args.ompl_app:
+        return ompl_app_scene(args, scene)
     spec = spec_from_args(args)
     if spec is not None:
         if scene:
@@ -162,6 +189,13 @@ def describe(scene: Scene) -> list[str]:
     if not isinstance(scene, CustomScene):
         return []
     lines = []
+    found = scene.info.get("ompl_app")
+    if found:
+        lines.append(
+            f"OMPL.app problem {found['problem']}: {found['motion']}; COLLADA up axis, turned to y up as assimp "
+            f"does: robot {found['up_axis']['robot'] or 'none'}, world {found['up_axis']['world'] or 'none'}; robot "
+            f"re-centred on its mean vertex ({', '.join(f'{c:.4g}' for c in found['robot_centre'])})"
+        )
     for d in scene.info["decompositions"]:
         how = f"from the cache in {d['seconds']:.2f} s" if d["from_cache"] else f"built in {d['seconds']:.1f} s"
         parts = ", ".join(f"{n} by {m}" for m, n in d["parts"].items())
