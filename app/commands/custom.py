@@ -200,11 +200,12 @@ def describe(scene: Scene) -> list[str]:
         how = f"from the cache in {d['seconds']:.2f} s" if d["from_cache"] else f"built in {d['seconds']:.1f} s"
         parts = ", ".join(f"{n} by {m}" for m, n in d["parts"].items())
         volume = d["volume"]
-        added = (
-            f"{volume['added']:+.1%} volume outside the mesh"
-            if volume["relative_to"] == "mesh"
-            else f"{volume['pieces'] / volume['hull']:.0%} of the mesh's hull (the mesh is open)"
-        )
+        if volume["relative_to"] == "mesh":
+            added = f"{volume['added']:+.1%} volume outside the mesh"
+        elif volume["hull"] > 0:
+            added = f"{volume['pieces'] / volume['hull']:.0%} of the mesh's hull (the mesh is open)"
+        else:  # a flat mesh (a planar problem's outline): its pieces have the volume their thickness gives them
+            added = f"{volume['pieces']:.3g} cubic units of pieces round a flat mesh"
         lines.append(
             f"mesh {d['mesh']}: {d['pieces']} convex piece(s) by {d['method']} (parts: {parts}), {added}, "
             f"tolerance {d['validation']['tolerance']:.3g} m, {how}"
