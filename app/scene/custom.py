@@ -924,6 +924,12 @@ def hull_disagreement(
     pairs = read_srdf(inputs.srdf_path) if inputs.srdf_path else []
     exact = scene_dir / "robot.dmd.yaml"
     hulls = scene_dir / "robot-hulls.dmd.yaml"
+    # Kept beside the scene, keyed by what decides it (the pieces' and hulls' cache files are named by content): a
+    # cached load should not spend two robot set-ups and 600 checks on it again.
+    key = hashlib.sha256(repr((exact.read_text(), str(pieces_file), str(hull_file), pairs, samples)).encode())
+    kept = scene_dir / f"hull-disagreement-{key.hexdigest()[:16]}.json"
+    if kept.is_file():
+        return json.loads(kept.read_text())
     _write(hulls, exact.read_text().replace(str(pieces_file), str(hull_file)))
     rng = np.random.default_rng(0)
     collide = []
@@ -947,12 +953,14 @@ def hull_disagreement(
             diagram.plant().SetPositions(context, q)
             hits.append(port.Eval(context).HasCollisions())
         collide.append(np.array(hits))
-    return {
+    found = {
         "samples": samples,
         "hull_self_collision": float(collide[0].mean()),
         "pieces_self_collision": float(collide[1].mean()),
         "hull_only": float((collide[0] & ~collide[1]).mean()),
     }
+    _write(kept, json.dumps(found) + "\n")
+    return found
 
 
 # ---- entry points -------------------------------------------------------------------------------------------------
