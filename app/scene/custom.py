@@ -198,14 +198,11 @@ def read_mimics(path: Path) -> list[dict]:
     """The <mimic> elements of a URDF's joints, as the problem file's `mimic` entries: each such joint follows
     another (multiplier 1 and offset 0 unless given). Drake's URDF parser ignores them in kinematics (a continuous
     plant only records a coupler constraint that no query uses), so they are read here."""
-    import xml.etree.ElementTree as ET
+    from app.scene.model import xml_root
 
     if path.suffix.lower() != ".urdf":
         return []
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise UserError(f"cannot load {path.name}: {exc}") from None
+    root = xml_root(path, "cannot load")
     mimics = []
     for joint in root.iter("joint"):
         element = joint.find("mimic")
@@ -515,15 +512,9 @@ def _world_box(bounds: np.ndarray, pose: list[float]) -> tuple[np.ndarray, np.nd
 
 def _write(path: Path, text: str) -> None:
     """Write only when different (other processes may read the file meanwhile)."""
-    try:
-        if path.is_file() and path.read_text() == text:
-            return
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(
-            f"cannot write {path}: {exc.strerror or exc} (set {meshes.CACHE_ENV} to a writable folder)"
-        ) from None
-    write_atomically(path, text)
+    if path.is_file() and path.read_text() == text:
+        return
+    write_atomically(meshes.writable_folder(path.parent) / path.name, text)
 
 
 # ---- the builder --------------------------------------------------------------------------------------------------

@@ -76,6 +76,16 @@ SHELL_REACH = 0.6
 MAX_COORDINATE = 1e6
 
 
+def writable_folder(folder: Path) -> Path:
+    """`folder`, made if missing; one line naming the cache's variable where it cannot be."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        reason = exc.strerror or exc
+        raise UserError(f"cannot write {folder}: {reason} (set {CACHE_ENV} to a writable folder)") from None
+    return folder
+
+
 def cache_root() -> Path:
     """$NPP_CACHE_DIR, else $XDG_CACHE_HOME/npp, else ~/.cache/npp; absolute (generated model files name the
     cached meshes by file:// URIs, which must not depend on the working directory)."""

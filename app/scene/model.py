@@ -193,15 +193,20 @@ def read_problem(path: Path) -> ProblemFile:
     return problem
 
 
-def read_srdf(path: Path) -> list[tuple[str, str]]:
-    """The (link1, link2) pairs of an SRDF's <disable_collisions> elements."""
+def xml_root(path: Path, failure: str):
+    """The root element of an XML file (a URDF, an SRDF), or one line: `failure`, the file's name and the error."""
     import xml.etree.ElementTree as ET
 
-    check_input(path, "SRDF file")
     try:
-        root = ET.parse(path).getroot()
+        return ET.parse(path).getroot()
     except ET.ParseError as exc:
-        raise UserError(f"bad SRDF {path.name}: {exc}") from None
+        raise UserError(f"{failure} {path.name}: {exc}") from None
+
+
+def read_srdf(path: Path) -> list[tuple[str, str]]:
+    """The (link1, link2) pairs of an SRDF's <disable_collisions> elements."""
+    check_input(path, "SRDF file")
+    root = xml_root(path, "bad SRDF")
     pairs = []
     for element in root.iter("disable_collisions"):
         a, b = element.get("link1"), element.get("link2")

@@ -310,13 +310,7 @@ def _cached_file(cache_dir: Path | None, key_text: str, name: str, write) -> Pat
     key = hashlib.sha256((CONVERSION_VERSION + key_text).encode()).hexdigest()[:24]
     target = (cache_dir or meshes.cache_root()) / "ompl_app" / key / name
     if not target.is_file():
-        try:
-            target.parent.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise UserError(
-                f"cannot write {target.parent}: {exc.strerror or exc} (set {meshes.CACHE_ENV} to a writable folder)"
-            ) from None
-        write_atomically(target, write)
+        write_atomically(meshes.writable_folder(target.parent) / name, write)
     return target
 
 
