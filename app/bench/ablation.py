@@ -27,9 +27,8 @@ VARIANTS = {
 }
 DEFAULT_CHECKS = 100_000
 # Run after every other variant's seeds: uniform samples alone cost one check each, so within a check budget the lazy
-# roadmap grows to tens of thousands of nodes, and its neighbour searches take minutes a query (joint: 6 min, on a
-# shared 2-core machine), where the other variants take seconds. A sweep stopped early then still holds the same
-# seeds of every other variant.
+# roadmap grows far larger than the other variants' and its searches take far longer (benchmark pages). A sweep
+# stopped early then still holds the same seeds of every other variant.
 RUN_LAST = ("uniform-alone",)
 
 

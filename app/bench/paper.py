@@ -700,6 +700,11 @@ def _sampling_section(srows: list[dict], summary: list[dict], folder: Path) -> l
     return lines
 
 
+def _per_step_head(title: str, rows: str, steps: list[float]) -> list[str]:
+    """A title, then the head of a markdown table with a column per step a."""
+    return [title, "", f"| {rows} | " + " | ".join(f"a={a:g}" for a in steps) + " |", "|---|" + "---:|" * len(steps)]
+
+
 def _table1_section(summary: list[dict], rows) -> tuple[list[str], list[str]]:
     """The paper's Table 1: median t_eps per bar scene and step for RBBS and LFBS, the paper's RBBS values beside;
     then how t_eps moves with the step, the paper's and ours side by side. Returns the lines and the findings."""
@@ -714,12 +719,7 @@ def _table1_section(summary: list[dict], rows) -> tuple[list[str], list[str]]:
     if not steps:
         return lines + ["No rows.", ""], []
     for method in TABLE1_METHODS:
-        lines += [
-            f"**{method.upper()}**",
-            "",
-            "| scene | " + " | ".join(f"a={a:g}" for a in steps) + " |",
-            "|---|" + "---:|" * len(steps),
-        ]
+        lines += _per_step_head(f"**{method.upper()}**", "scene", steps)
         for scene in TABLE1_SCENES:
             cells = {s["step"]: s for s in summary if s["scene"] == scene and s["sampler"] == method}
             if not cells:
@@ -812,12 +812,7 @@ def _checks_per_passage_section(rows) -> tuple[list[str], list[str]]:
 
     for scene in sorted({k[0] for k in ratios}):
         samplers = sorted({k[1] for k in ratios if k[0] == scene}, key=lambda m: order.get(m, 99))
-        lines += [
-            f"### {scene}",
-            "",
-            "| sampler | " + " | ".join(f"a={a:g}" for a in steps) + " |",
-            "|---|" + "---:|" * len(steps),
-        ]
+        lines += _per_step_head(f"### {scene}", "sampler", steps)
         for m in samplers:
             lines.append(
                 f"| {m} | "

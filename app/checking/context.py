@@ -24,8 +24,8 @@ from app.checking.budget import Budget, BudgetSpent, Stop
 
 # Most configurations one edge-check call hands Drake at once (a few tenths of a second), so a stop is polled often.
 _MAX_BATCH = 4096
-# Workspace points asked at once between polls of the stop: among hundreds of environment pieces a point costs up to
-# a millisecond, and a search of thousands of points must still end when the query must.
+# Workspace points asked at once between polls of the stop: among many environment pieces a point query is dear, and
+# a search of thousands of points must still end when the query must.
 _POINT_BATCH = 64
 # The oracle's uncounted measurements and model, which a context passes through (CollisionOracle documents each).
 _PASSED_THROUGH = frozenset(

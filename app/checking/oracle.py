@@ -377,12 +377,10 @@ class CollisionOracle:
         distances add up to less than `width`.
 
         One of a gap's two obstacles lies within width/2 of the point, and most points have none so near: the pieces'
-        bounding spheres rule those points out without asking Drake. The others get
-        SceneGraph point queries, whose broad phase leaves out the pieces beyond their threshold: first within
-        width/2, then, for a point that has a piece so near, within `width` less the nearest distance (the farthest
-        the other obstacle may be); the pairs are compared at once in numpy. Among a thousand environment pieces a
-        point query within `width` costs milliseconds and a Python loop over the pairs as much again (benchmark
-        pages, "Time outside the checks")."""
+        bounding spheres rule those points out without asking Drake. The others get SceneGraph point queries, whose
+        broad phase leaves out the pieces beyond their threshold: first within width/2, then, for a point that has a
+        piece so near, within `width` less the nearest distance (the farthest the other obstacle may be), since a
+        query's cost grows with the pieces it reaches; the pairs are compared at once in numpy."""
         P = np.atleast_2d(np.asarray(P, float))
         gap = np.zeros(len(P), bool)
         robot = self._robot_geometries
