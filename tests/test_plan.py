@@ -456,6 +456,33 @@ def test_a_query_cancelled_from_another_thread_stops_with_moveits_preempted(orac
     assert plan(oracle, PlanSettings(seed=0), start=[20, 25, 75, 0, 0, 0], goal=[30, 25, 75, 0, 0, 0]).success
 
 
+def test_proving_a_path_keeps_to_the_time_limit_and_cancel_but_not_the_check_limit(oracles, monkeypatch):
+    """The certificate polls the query's stop between its batches of distance queries: a cancel (or a time limit)
+    that comes while a found path is being proved ends the query there, and says a path was found; a check limit
+    spent by the search does not stop the proof, which asks for no checks."""
+    import threading
+
+    from app.checking.certify import Certifier
+
+    oracle = oracles("maze")
+    cancel, calls, certify = threading.Event(), [], Certifier.certify
+
+    def certify_then_cancel(self, *args, **kwargs):
+        calls.append(1)
+        cancel.set()
+        return certify(self, *args, **kwargs)
+
+    monkeypatch.setattr(Certifier, "certify", certify_then_cancel)
+    with pytest.raises(NoPath, match=r"a path was found on maze but proving and timing it did not finish") as info:
+        plan(oracle, PlanSettings(seed=0), cancel=cancel)
+    assert info.value.code == "PREEMPTED" and info.value.details["stopped"] == "cancelled" and len(calls) == 1
+    monkeypatch.setattr(Certifier, "certify", certify)
+
+    spent = plan(oracle, PlanSettings(seed=0)).collision_checks  # the whole query's checks: search and smoothing
+    tight = plan(oracle, PlanSettings(seed=0, budget=Budget(checks=spent)))
+    assert tight.trajectory.certified and tight.distance_queries > 0
+
+
 def test_a_time_budget_ends_sampling_within_a_round(oracles):
     """rbbs spends most of a round looking for bridges in the maze: the budget stops it inside the sampler, in the
     first round (a round of it takes tens of seconds)."""

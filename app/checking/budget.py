@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass
 
@@ -81,3 +82,11 @@ class Stop:
         seconds = None if self.budget.seconds is None else max(0.0, self.budget.seconds - self.seconds())
         budget = Budget(seconds=seconds, checks=checks if left is None else min(left, checks))
         return Stop(budget, self._checker, self._cancel)
+
+    def without_check_limit(self) -> Stop:
+        """This stop on the same clock and cancel flag, without its check limit: for proving and timing a path
+        already found, which ask for distances rather than the collision checks a budget counts, but must keep to
+        the query's time limit."""
+        stop = copy.copy(self)
+        stop.budget = Budget(seconds=self.budget.seconds)
+        return stop

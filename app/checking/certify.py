@@ -493,6 +493,7 @@ class Certifier:
                 todo.append((key, np.asarray(q, float), limit))
         per_batch = max(1, self.BATCH_ROWS // max(1, len(self._gaps.pairs)))
         for first in range(0, len(todo), per_batch):
+            self.checker.poll()  # a proof keeps to its query's time limit (among many pieces a batch is dear)
             self._ends(todo[first : first + per_batch])
         return [self._cache[key] for key in keys]
 

@@ -67,9 +67,9 @@ class PlanSettings:
     sampler: the narrow-passage sampler's registered name; narrow / uniform: the sample counts that size a
     query's rounds (see Query) or, with full_roadmap, the whole roadmap; step: the sampler's base step a (None:
     the scene's default); budget: what the search for a path may spend (seconds and/or collision checks; Budget()
-    has no limit; the default, DEFAULT_BUDGET, stops on checks). What runs past it: once a path is found, proving it
-    (the certificate) and timing it run whole, so a query that finds its path just before a time limit ends later
-    by that much (the `certify` and `timing` seconds of its answer); k: neighbours per node (None: k-PRM*'s);
+    has no limit; the default, DEFAULT_BUDGET, stops on checks). Its time limit bounds the whole query, the proof
+    (the certificate) and timing of the path found included; its check limit bounds the search and smoothing, as
+    proving and timing ask for distances, not checks; k: neighbours per node (None: k-PRM*'s);
     smooth_rounds: random shortcut rounds; dt: trajectory sample period (s); sampler_params: extra keyword
     arguments of the sampler (e.g. alpha_angle); skip_connected: Kavraki's rule for a full roadmap;
     full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query); workspace: the
@@ -446,6 +446,7 @@ class Query:
         if certifier is not None:
             certifier.checker = checker
         self.unproved_edges = 0  # roadmap edges fine-checked free that the certificate could not prove
+        self.proof_unfinished = False  # the budget ended the proof or timing of a path found
 
     # ---- bookkeeping ----------------------------------------------------------------------------------------------
     def _timed(self, phase: str, fn, *args, **kwargs):
@@ -583,7 +584,7 @@ class Query:
             if proof is not None and np.array_equal(path, self.roadmap.Q[nodes]):
                 return path, stats, proof
             keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
-            with self._unlimited():  # edges the replay kept were proved already
+            with self._proving():  # edges the replay kept were proved already
                 proved, certificate = self.certify(path, [i for i, k in enumerate(keys) if k not in proved_edges])
             proved_edges.update(k for i, k in enumerate(keys) if i not in certificate["failed"])
             work = {k: work[k] + certificate[k] for k in work}
@@ -604,7 +605,7 @@ class Query:
         remembered, so the next candidate pays only for its new ones. The proved path is then shortened with
         shortcuts checked at the fine resolution, and if that cannot be proved either, the roadmap path is the answer.
         Paths are never returned unproved: the audit found that such paths can really collide (benchmark pages,
-        "Tuning notes"). Certificates run whole even when the budget ran out."""
+        "Tuning notes"). Certificates keep to the query's time limit, not to its check limit (`_proving`)."""
         while True:
             nodes = self.search()
             if nodes is None:
@@ -629,7 +630,7 @@ class Query:
         """The certificate of the roadmap path through `nodes` (its edges not proved before), or None when it cannot
         be proved; then its unprovable edges have left the roadmap."""
         edges = [(min(a, b), max(a, b)) for a, b in itertools.pairwise(nodes)]
-        with self._unlimited():
+        with self._proving():
             proved, certificate = self.certify(self.roadmap.Q[nodes])
         if proved:
             return certificate
@@ -662,50 +663,68 @@ class Query:
 
     def solve(self) -> PlanResult:
         """The easy route (straight, or through `via`) if it is free and proved; else grow round by round until start
-        and goal connect, then smooth, certify and time the path. The budget bounds everything but the certificate
-        and timing."""
+        and goal connect, then smooth, certify and time the path. A time limit bounds all of it; a check limit
+        bounds the search and smoothing, not the proof and timing (they ask for distances, not checks)."""
         self.checker.stop = self._stop
         try:
-            if self.straight():
-                path = self.route
-                with self._unlimited():
-                    proved, certificate = self.certify(path)
-                if proved:  # else the roadmap may find a route it can prove
-                    return self._result(
-                        [self.start_node, self.goal_nodes[self._goal_index(self.goal)]],
-                        path,
-                        {"straight": True, "via": len(path) - 2, "certificate": {**certificate, "proved": True}},
-                        raw=path,
-                    )
-            found = None
-            if self._searchable:  # a persistent roadmap: search what it holds before drawing any sample
-                self._timed("roadmap", self.roadmap.connect, np.array(self._unconnected, int))
-                self._unconnected = []
-                found = self.connect_and_smooth()
-            sizes = None if found is not None else self.round_sizes()
-            while sizes is not None:
-                self.grow(*sizes)
-                found = self.connect_and_smooth()
-                if found is not None:
-                    break
-                if self.narrow_from_round is None:  # uniform samples alone did not do it: a passage in the way
-                    self.narrow_from_round = self.rounds + 1
-                sizes = self.round_sizes()
+            found = self._find()
+            if found is not None:
+                with self._proving():
+                    return self._result(*found)
         except BudgetSpent as spent:
             self.stopped = spent.reason
-            found = None
         finally:
             self.checker.stop = None
-        if found is None:
-            raise self._not_connected()
-        return self._result(*found)
+        if self.proof_unfinished:
+            raise self._failure(
+                f"a path was found on {self.checker.scene.name} but proving and timing it did not finish within the "
+                f"budget {self.settings.budget} ({self.stopped}): a larger time budget lets it finish"
+            )
+        raise self._not_connected()
+
+    def _find(self) -> tuple | None:
+        """The arguments of `_result` for the easy route or a smoothed roadmap path (proved), or None when the
+        samples run out first; BudgetSpent when the budget does."""
+        if self.straight():
+            path = self.route
+            with self._proving():
+                proved, certificate = self.certify(path)
+            if proved:  # else the roadmap may find a route it can prove
+                nodes = [self.start_node, self.goal_nodes[self._goal_index(self.goal)]]
+                return (
+                    nodes,
+                    path,
+                    {"straight": True, "via": len(path) - 2, "certificate": {**certificate, "proved": True}},
+                    path,
+                )
+        found = None
+        if self._searchable:  # a persistent roadmap: search what it holds before drawing any sample
+            self._timed("roadmap", self.roadmap.connect, np.array(self._unconnected, int))
+            self._unconnected = []
+            found = self.connect_and_smooth()
+        sizes = None if found is not None else self.round_sizes()
+        while sizes is not None:
+            self.grow(*sizes)
+            found = self.connect_and_smooth()
+            if found is not None:
+                break
+            if self.narrow_from_round is None:  # uniform samples alone did not do it: a passage in the way
+                self.narrow_from_round = self.rounds + 1
+            sizes = self.round_sizes()
+        return found
 
     @contextlib.contextmanager
-    def _unlimited(self):
-        """The oracle answers past the budget in here: for the bounded work of proving a path already found."""
-        saved, self.checker.stop = self.checker.stop, None
+    def _proving(self):
+        """Proving or timing a path found: past the check limit (what it asks of Drake are distances, not the checks
+        a budget counts) but within the time limit and the cancel flag, so a timed query's answer keeps to its
+        time. Remembers when the budget ended a proof, for the failure's message."""
+        saved = self.checker.stop
+        self.checker.stop = None if saved is None else saved.without_check_limit()
         try:
             yield
+        except BudgetSpent:
+            self.proof_unfinished = True
+            raise
         finally:
             self.checker.stop = saved
 
