@@ -114,7 +114,7 @@ def test_scene_poses_and_bounds(wall_oracle):
     np.testing.assert_allclose(scene.start, [0, 0, 2.25, 0, 0, 0], atol=1e-12)
     np.testing.assert_allclose(scene.goal, [0, 0, -1.25, 0, 0, 0], atol=1e-12)
     assert scene.lower[:3].tolist() == [-8, -3, -4] and scene.upper[:3].tolist() == [8, 3, 4]
-    assert scene.continuous[3:].all() and not scene.self_collisions
+    assert scene.continuous[3:].all() and not scene.self_collisions and scene.one_body
     assert scene.info["ompl_app"]["robot_centre"] == pytest.approx(CENTRE)
 
 
@@ -163,7 +163,7 @@ def test_plan_through_the_cli_is_certified(problem_dir, tmp_path, monkeypatch, c
     result = cli("plan", "--ompl-app", problem_dir / "wall.cfg", "--seed", "2", "--json")
     assert result.returncode == 0, result.stderr
     answer = json.loads(result.stdout)
-    assert answer["success"] and answer["certified"]
+    assert answer["success"] and answer["certified"] and answer["certified_collisions"] == "all"
     path = np.array(answer["path"])
     np.testing.assert_allclose(path[0], [0, 0, 2.25, 0, 0, 0], atol=1e-9)
     np.testing.assert_allclose(path[-1], [0, 0, -1.25, 0, 0, 0], atol=1e-9)

@@ -234,15 +234,18 @@ def tool_frame(oracle, name: str | None) -> dict:
 
 def certificate_scope(scene) -> dict:
     """What `certified` covers, beside it in the JSON answer: self_collision (whether the robot's collisions with
-    itself were counted at all) and certified_collisions: "all" (robot vs environment and itself) or
-    "environment" (robot vs environment only: a motion through the arm itself may be certified)."""
+    itself were counted at all) and certified_collisions: "all" (robot vs environment and itself, or a robot of
+    one rigid body, which cannot collide with itself) or "environment" (robot vs environment only: a motion through
+    the arm itself may be certified)."""
     return {
         "self_collision": scene.self_collisions,
-        "certified_collisions": "all" if scene.self_collisions else "environment",
+        "certified_collisions": "all" if scene.self_collisions or scene.one_body else "environment",
     }
 
 
 def collisions(scene) -> str:
+    if scene.one_body:
+        return "robot vs environment (the robot is one rigid body)"
     if not scene.self_collisions:
         return "robot vs environment only (self-collision off)"
     text = f"robot vs environment and itself ({len(scene.disabled_pairs)} SRDF pairs left out)"
@@ -257,7 +260,7 @@ def collisions(scene) -> str:
 
 def summary(r, scene) -> str:
     m, s, t = r.roadmap, r.seconds, r.trajectory
-    scope = "" if scene.self_collisions else "; self-collision not checked"
+    scope = "" if scene.self_collisions or scene.one_body else "; self-collision not checked"
     edges = (
         f"{m['edges']} candidate edges, {m['edges_tried']} checked when a search used them (lazy)"
         if m["lazy"]

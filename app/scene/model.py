@@ -340,6 +340,15 @@ class Scene:
                     f"({self.coordinate_names[bad]}) is {limits[bad]:g}"
                 )
         self.self_collisions = problem.collisions == "all"
+        # A robot that is one rigid body (an OMPL.app problem's) has nothing to collide with itself.
+        self.one_body = (
+            sum(
+                bool(self.plant.GetCollisionGeometriesForBody(self.plant.get_body(b)))
+                for instance in self.robot_instances
+                for b in self.plant.GetBodyIndices(instance)
+            )
+            <= 1
+        )
 
         spec = problem.passage
         if spec.frame and not self.plant.HasFrameNamed(spec.frame):

@@ -110,7 +110,7 @@ class OmplAppMesh:
 # ---- reading --------------------------------------------------------------------------------------------------
 def read_problem(path: str | Path) -> OmplAppProblem:
     """Parse and check an OMPL.app problem file; meshes must exist. One-line UserError for anything wrong."""
-    path = check_input(Path(path), "scene file")
+    path = check_input(Path(path), "OMPL.app problem file")
     parser = configparser.ConfigParser(interpolation=None, strict=False)
     try:
         parser.read_string(path.read_text(errors="replace"), source=str(path))
