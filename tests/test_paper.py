@@ -166,11 +166,16 @@ def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
 
 
 @pytest.mark.slow
-def test_ur3_trial_times_a_welding_job(oracles):
-    spec = paper.ur3_specs(1)[0]
-    metrics = jobs.run_trial_spec(oracles(spec.scene), spec)
-    assert metrics["success"] == 1.0
-    assert metrics["seconds"] >= metrics["seconds_planning"] > 0 and metrics["collision_checks"] > 0
+def test_ur3_trial_times_a_job(oracles):
+    """A UR3 trial under the paper's protocol (a full roadmap per leg) times a whole job. Window's LFBS seed 1 is one
+    of the 14 of 20 runs that succeed (results/paper/report.md); a failed run, such as every welding LFBS run under
+    this protocol, is a row without times."""
+    by_key = {(s.scene, s.method, s.seed): s for s in paper.ur3_specs(2)}
+    done = jobs.run_trial_spec(oracles("window"), by_key["window", "lfbs", 1])
+    assert done["success"] == 1.0
+    assert done["seconds"] >= done["seconds_planning"] > 0 and done["collision_checks"] > 0
+    failed = jobs.run_trial_spec(oracles("welding"), by_key["welding", "lfbs", 0])
+    assert failed["success"] == 0.0 and failed["seconds_planning"] is None and "no path" in failed["error"]
 
 
 @pytest.mark.slow
