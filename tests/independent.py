@@ -10,7 +10,9 @@ _contexts = {}
 
 def raw_free(oracle, q) -> bool:
     """Free under the scene's policy, asked of SceneGraph directly on a context of our own (not the oracle's paths):
-    signed distances on the unfiltered geometry, keeping the pairs the scene counts."""
+    signed distances on the unfiltered geometry, keeping the pairs the scene counts. q: the plant's positions, which
+    are the configuration except in a scene with mimic joints, whose test writes them out itself rather than through
+    the scene's position map (it would not be independent then)."""
     plant, model = oracle.plant, oracle.model
     # Keyed by the model, held with its context so that its id is never reused (a query's contexts come and go).
     if id(model) not in _contexts:
