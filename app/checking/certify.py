@@ -338,10 +338,11 @@ class _Gaps:
         row, j = np.nonzero(use)
         d = n[row, j]
         Ar, Br = _rows(A, row), _rows(B, row)
-        gaps = np.einsum("ij,ij->i", d, Ar.p - Br.p) - self._support(Ar, -d, exact) - self._support(Br, d, exact)
-        best = np.full(len(A.p), -np.inf)
-        np.maximum.at(best, row, gaps)
-        return best
+        gaps = np.full(use.shape, -np.inf)
+        gaps[row, j] = (
+            np.einsum("ij,ij->i", d, Ar.p - Br.p) - self._support(Ar, -d, exact) - self._support(Br, d, exact)
+        )
+        return gaps.max(axis=1)
 
     def _support(self, S: _Posed, n: np.ndarray, exact: bool) -> np.ndarray:
         """max over each posed shape of n . (x - its centre), for world directions n (unit rows): exact, or for a
@@ -464,6 +465,18 @@ class Certifier:
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
         self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
         self._gaps = _gaps(oracle, geometries, self._rows >= 0, self._exact)
+        # What Drake's pairwise query is asked for. Every pair within the limit, with its direction, where a counted
+        # pair is of a kind Drake computes exactly (its distance is used) or no counted pair has a mesh (GJK between
+        # primitives costs little). Otherwise only the touching pairs (max_distance 0: a configuration in contact is
+        # still found): GJK on a mesh's hull costs time per vertex, and most pairs are settled by our bounds alone,
+        # so Drake is asked for the direction of the others only, one pair at a time (_ends).
+        robot = self._rows >= 0
+        counted = np.triu(robot[:, None] | robot[None, :], 1) & self._exact
+        if not oracle.scene.self_collisions:
+            counted &= ~(robot[:, None] & robot[None, :])
+        self._ask_all = self._gaps.is_hull.sum() == 0 or any(
+            not inspector.CollisionFiltered(geometries[i], geometries[j]) for i, j in zip(*np.nonzero(counted))
+        )
         # The direction Drake last gave for each pair of the gaps (world frame), NaN before it gave one.
         self._recent = np.full((len(self._gaps.pairs), 3), np.nan)
         # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in
@@ -481,6 +494,12 @@ class Certifier:
         poses = [query.GetPoseInWorld(g) for g in geometries]
         self._R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
         self._p = np.array([X.translation() for X in poses]).reshape(-1, 3)
+        # A point inside each shape, in its frame (its centre; a hull's mean vertex), and in the world for the
+        # environment's.
+        self._inside = self._gaps.offset.copy()
+        for i, vertices in self._gaps.hulls.items():
+            self._inside[i] += vertices.mean(axis=0)
+        self._anchors = self._p + np.einsum("gij,gj->gi", self._R, self._inside)
 
     def certify(self, position, variation, intervals) -> tuple[bool, dict]:
         """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
@@ -500,27 +519,37 @@ class Certifier:
             ]
             variations = np.array([variation(a, b) for _, (a, b) in todo]).reshape(len(todo), -1)
             travel = self.bound.pair_travel(variations)
-            # Each end is asked at the largest max_distance of the pieces it bounds, and each pair there is bounded
-            # until it reaches the largest of its bounds on those pieces (shared ends once).
-            need = {}
-            for (_, (a, b)), d, pair_travel in zip(todo, self.bound.max_distance(travel).tolist(), travel):
-                for s in (a, b):
-                    last = need.get(s, (0.0, pair_travel))
-                    need[s] = (max(last[0], d), np.maximum(last[1], pair_travel))
-            ends = dict(zip(need, self._distances([position(s) for s in need], *zip(*need.values()))))
+            ends = list(dict.fromkeys(s for _, ab in todo for s in ab))
+            slot = {s: j for j, s in enumerate(ends)}
+            by_end = np.array([slot[s] for _, ab in todo for s in ab])  # piece p's ends are rows 2p and 2p + 1
+            # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
+            # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
+            certain = self._certain_shortfall(np.array([position(s) for s in ends]), by_end, travel)
+            # Each end of the other pieces is asked at the largest max_distance of the pieces it bounds, and each pair
+            # there is bounded until it reaches the largest of its bounds on those pieces (shared ends once).
+            rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
+            rows = rows[np.argsort(by_end[rows], kind="stable")]
+            first = np.flatnonzero(np.diff(by_end[rows], prepend=-1))
+            need = np.maximum.reduceat(np.repeat(travel, 2, axis=0)[rows], first) if len(rows) else travel[:0]
+            asked = [ends[j] for j in by_end[rows[first]].tolist()]
+            found = self._distances([position(s) for s in asked], self.bound.max_distance(need).tolist(), need)
+            ends = dict(zip(asked, found))
             lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
-            clear, short = _clear([ends[a] for _, (a, b) in todo], [ends[b] for _, (a, b) in todo], travel)
-            parts = np.clip(np.ceil(short), 2, self.SPLIT_MAX).astype(int)
-            for (i, (a, b)), passed, length, n in zip(todo, clear.tolist(), lengths.tolist(), parts.tolist()):
+            clear, short = _clear([ends.get(a) for _, (a, b) in todo], [ends.get(b) for _, (a, b) in todo], travel)
+            parts = np.clip(np.ceil(np.maximum(short, certain)), 2, self.SPLIT_MAX).astype(int)
+            doomed = (certain > 1.0).tolist()
+            for (i, (a, b)), passed, length, n, unasked in zip(
+                todo, clear.tolist(), lengths.tolist(), parts.tolist(), doomed
+            ):
                 if i not in heaps:
                     continue
                 if passed:
                     pieces += 1
-                elif ends[a] is None or ends[b] is None or length <= self.floor:
+                elif length <= self.floor or not unasked and (ends[a] is None or ends[b] is None):
                     failed.append(i)
                     del heaps[i]
                 else:
-                    nearest = min(ends[a].nearest(), ends[b].nearest())
+                    nearest = 0.0 if unasked else min(ends[a].nearest(), ends[b].nearest())
                     cuts = [a, *(a + (b - a) * j / n for j in range(1, n)), b]
                     for s0, s1 in itertools.pairwise(cuts):
                         heapq.heappush(heaps[i], (nearest, s0, s1))
@@ -533,10 +562,27 @@ class Certifier:
         }
         return not failed, stats
 
-    def distances(self, q: np.ndarray, max_distance: float) -> dict | None:
+    def _certain_shortfall(self, Q: np.ndarray, by_end: np.ndarray, travel: np.ndarray) -> np.ndarray:
+        """Per piece (ends Q[by_end[2p]] and Q[by_end[2p + 1]], pair bounds travel[p]), a factor by which its bound
+        certainly exceeds its ends' distances for some pair of the gaps: the largest B_PQ / (U_a + U_b), with U an
+        upper bound on the pair's distance at an end -- the distance between a point inside each shape (its centre,
+        a hull's mean vertex). Our lower bounds are at most U, so a piece with a factor above 1 fails its test, and
+        by at least that factor (0 without pairs)."""
+        if self._ask_all or not len(self._gaps.pairs):
+            return np.zeros(len(travel))
+        rotations, centres = self._robot_poses(Q)
+        anchors = np.repeat(self._anchors[None], len(Q), axis=0)
+        anchors[:, self._slot >= 0] = centres + np.einsum("nrij,rj->nri", rotations, self._inside[self._slot >= 0])
+        a, b = self._gaps.pairs.T
+        upper = np.linalg.norm(anchors[:, a] - anchors[:, b], axis=2)  # (ends, pairs)
+        bound = travel[:, self._rows[a], self._rows[b]]  # (pieces, pairs)
+        return (bound / np.maximum(upper[by_end[0::2]] + upper[by_end[1::2]], 1e-300)).max(axis=1)
+
+    def distances(self, q: np.ndarray, max_distance: float, pair_travel: np.ndarray | None = None) -> dict | None:
         """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
-        pairs closer than max_distance (those left out are at least that far apart); None if q collides."""
-        end = self._distances([q], [max_distance])[0]
+        pairs closer than max_distance (those left out are at least that far apart); None if q collides. With
+        pair_travel (rows, rows: the pieces' bounds, see _distances) a pair's bound stops where it reaches that."""
+        end = self._distances([q], [max_distance], None if pair_travel is None else [pair_travel])[0]
         if end is None:
             return None
         return {
@@ -571,7 +617,7 @@ class Certifier:
         todo = [item for item, keep in zip(todo, inside.tolist()) if keep]
         # Drake's pairs of every configuration as rows (configuration, first, second geometry, distance); reading a
         # GeometryId costs more than the distance, so each is read once and mapped through its integer value.
-        answers = [self.checker.signed_distances(q, limit) for _, q, limit, _ in todo]
+        answers = [self.checker.signed_distances(q, limit if self._ask_all else 0.0) for _, q, limit, _ in todo]
         value = self._index_of_value
         found = np.array(
             [(value[p.id_A.get_value()], value[p.id_B.get_value()], p.distance) for pairs in answers for p in pairs],
@@ -596,20 +642,20 @@ class Certifier:
         flat = [p for pairs in answers for p in pairs]
         directions = np.array([flat[j].nhat_BA_W for j in position[~exact].tolist()], float).reshape(-1, 3)
         nhat = self._directions(len(kept), config[~exact], keys[~exact], swapped[~exact], directions)
-        for given in nhat:
-            reported = np.isfinite(given[:, 0])
-            self._recent[reported] = given[reported]
+        reported = np.isfinite(nhat[:, :, 0])
+        last = len(nhat) - 1 - reported[::-1].argmax(axis=0)  # the last configuration that reported each pair
+        pairs = np.flatnonzero(reported.any(axis=0))
+        self._recent[pairs] = nhat[last[pairs], pairs]
         drake = [todo[k] for k in kept.tolist()]
         limits = np.array([limit for _, _, limit, _ in drake])
         Q = np.array([q for _, q, _, _ in drake])
         # What settles each pair (see _distances): its bound over the pieces, with room for the rounding allowance.
         pair_rows = self._rows[self._gaps.pairs]
-        need = np.array(
-            [
-                np.full(len(pair_rows), limit) if travel is None else travel[pair_rows[:, 0], pair_rows[:, 1]]
-                for _, _, limit, travel in drake
-            ]
-        ).reshape(len(drake), -1) * _MARGIN + 2 * self._rounding + 1e-12
+        if drake[0][3] is None:
+            need = np.repeat(limits[:, None], len(pair_rows), axis=1)
+        else:
+            need = np.array([travel for *_, travel in drake])[:, pair_rows[:, 0], pair_rows[:, 1]]
+        need = need * _MARGIN + 2 * self._rounding + 1e-12
 
         # One table of poses, the environment's then each configuration's robot geometries.
         rotations, centres = self._robot_poses(Q)
@@ -643,7 +689,8 @@ class Certifier:
 
         rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
         known = np.isfinite(self._recent[near_pair[rows], 0])
-        rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
+        if known.any():
+            rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
         if len(rows):
             asked = np.empty((len(rows), 3))
             for k in np.unique(near_k[rows]).tolist():
