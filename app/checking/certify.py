@@ -17,8 +17,10 @@ d_PQ(a) + d_PQ(b) > B_PQ for every pair the scene counts, P and Q never touch in
 d(t) >= d(a) - B_PQ(a..t) and d(t) >= d(b) - B_PQ(t..b), and the two add up to at most B_PQ. A piece that fails
 is cut into parts (as many as its ends' distances fall short, 2 to 8); one that still fails once its motion is
 shorter than the floor (in the space's weighted metric) is reported as colliding. Each interval is cut nearest to
-contact first, several pieces of every interval at a
-time with their ends bounded in one batch (see Certifier).
+contact first, several pieces of every interval at a time with their ends bounded in one batch (see Certifier).
+A piece that certainly fails -- some pair's B_PQ exceeds the sum of upper bounds on its distance at the two ends,
+the distances between a point inside each shape -- is cut before its ends are asked (on mesh scenes, where asking
+costs most): no lower bound could pass it, and it falls short by at least that factor.
 
 Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
 mesh by GJK, whose answers can be too large -- unsafe here (seen near a maze pillar's corner, and by centimetres for
@@ -26,16 +28,23 @@ two nearly coaxial cylinders of the UR3's wrist and torch: benchmark pages). So 
 of that kind, reported by Drake or not, the certificate uses a lower bound of its own: the largest gap between the
 two shapes along three directions -- Drake's separating direction, and the normals of each shape at the near points
 that a few alternating projections onto the two shapes find -- from the shapes' support functions (the gap along
-any direction bounds the distance from below). On the maze's corner it matched the true distance to 1e-15. Where
-the query left the pair out (see max_distance) and the projections' directions alone bound it below D, Drake's
-direction is asked for that pair alone.
+any direction bounds the distance from below). On the maze's corner it matched the true distance to 1e-15. A mesh
+(its convex hull) counts as its hull's box -- which holds it, so the box's distance and support are a lower and an
+upper bound of the hull's -- except where a bound must be tight, which takes the hull's vertices.
+Bounds are tiered (bounding spheres, a centre to the other shape, gaps with boxes, gaps with vertices): a pair
+stops at the first that shows it as far apart as the pieces at that end need (its largest B_PQ over them: with
+any positive distance at the other end the pair then passes), so most pairs cost a sphere test. Where a pair is
+not settled without Drake's direction, it is bounded along the direction Drake last gave for it (ends of one
+motion are near each other) and, failing that, Drake's direction is asked for that pair alone.
 Every distance is lowered by a rounding allowance (1e-9 of the resolution).
 
 max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
 at that end. Each end is queried with D just above half the largest B_PQ of the pieces it bounds: a pair
 unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
-count as unreported when their own bound is at least D). Distances are cached per configuration, so ends shared by
-adjacent pieces, and by rounds of a caller that retries, are asked once.
+count as unreported when their own bound is at least D). Where no counted pair is of a kind Drake computes exactly
+and some has a mesh, Drake is asked for touching pairs only (D = 0): GJK on a hull costs time per vertex, and our
+bounds cover every pair anyway, Drake's direction being asked per pair where needed. Distances are cached per
+configuration, so ends shared by adjacent pieces, and by rounds of a caller that retries, are asked once.
 """
 
 from __future__ import annotations
@@ -266,14 +275,13 @@ class _Gaps:
         self.is_special = np.isin(np.arange(count), list(self.special))
         self.is_hull = np.isin(np.arange(count), list(hulls))
         self.hulls = hulls
-        self.shifted = np.any(self.offset != 0, axis=1)
 
     def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray, need: np.ndarray) -> tuple[np.ndarray, ...]:
         """(configurations, pairs, bounds): the rows (configuration k, pair) whose lower bound is below limit[k],
-        and their bounds, given the shapes' poses -- rotation(k, g) (n, 3, 3) and centre(k, g) (n, 3) of geometries
-        g in configurations k (index arrays) -- Drake's direction from b to a where it reported the pair in that
-        configuration (nhat (configurations, pairs, 3), else NaN), and the distance that settles each row
-        (need (configurations, pairs)). All configurations are done at once."""
+        and their bounds, given the shapes' poses -- rotation(k, g) (n, 3, 3) and centre(k, g) (n, 3; the shape's
+        centre, see offset) of geometries g in configurations k (index arrays) -- Drake's direction from b to a where
+        it reported the pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance
+        that settles each row (need (configurations, pairs)). All configurations are done at once."""
         k = np.repeat(np.arange(len(limit)), len(self.pairs))
         pair = np.tile(np.arange(len(self.pairs)), len(limit))
         bounds = self.bounds(k, pair, rotation, centre, nhat.reshape(-1, 3), limit[k], need.ravel())
@@ -285,10 +293,6 @@ class _Gaps:
         first tier's that reached min(need, limit) of the row; nhat, limit and need per row."""
         a, b = self.pairs[pair].T
         pa, pb = centre(k, a), centre(k, b)
-        for p, g in ((pa, a), (pb, b)):  # a mesh's centre from its frame's origin
-            rows = np.flatnonzero(self.shifted[g])
-            if len(rows):
-                p[rows] += np.einsum("mij,mj->mi", rotation(k[rows], g[rows]), self.offset[g[rows]])
         settle = np.minimum(need, limit)
         # Bounding spheres; then from a's centre to shape b, and the other way, on the rows left.
         bound = _norm(pa - pb) - self.radius[a] - self.radius[b]
@@ -335,13 +339,18 @@ class _Gaps:
     def _best_gap(self, A: _Posed, B: _Posed, n: np.ndarray, use: np.ndarray, exact: bool) -> np.ndarray:
         """Per row, the largest gap along the directions n[row, j] (unit, from B to A) where use[row, j]; -inf
         where none."""
-        row, j = np.nonzero(use)
-        d = n[row, j]
-        Ar, Br = _rows(A, row), _rows(B, row)
         gaps = np.full(use.shape, -np.inf)
-        gaps[row, j] = (
-            np.einsum("ij,ij->i", d, Ar.p - Br.p) - self._support(Ar, -d, exact) - self._support(Br, d, exact)
-        )
+        for j in range(use.shape[1]):
+            rows = np.flatnonzero(use[:, j])
+            if len(rows) == len(use):
+                Ar, Br, d = A, B, n[:, j]
+            elif len(rows):
+                Ar, Br, d = _rows(A, rows), _rows(B, rows), n[rows, j]
+            else:
+                continue
+            gaps[rows, j] = (
+                np.einsum("ij,ij->i", d, Ar.p - Br.p) - self._support(Ar, -d, exact) - self._support(Br, d, exact)
+            )
         return gaps.max(axis=1)
 
     def _support(self, S: _Posed, n: np.ndarray, exact: bool) -> np.ndarray:
@@ -500,6 +509,7 @@ class Certifier:
         for i, vertices in self._gaps.hulls.items():
             self._inside[i] += vertices.mean(axis=0)
         self._anchors = self._p + np.einsum("gij,gj->gi", self._R, self._inside)
+        self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
 
     def certify(self, position, variation, intervals) -> tuple[bool, dict]:
         """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
@@ -530,9 +540,13 @@ class Certifier:
             rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
             rows = rows[np.argsort(by_end[rows], kind="stable")]
             first = np.flatnonzero(np.diff(by_end[rows], prepend=-1))
-            need = np.maximum.reduceat(np.repeat(travel, 2, axis=0)[rows], first) if len(rows) else travel[:0]
             asked = [ends[j] for j in by_end[rows[first]].tolist()]
-            found = self._distances([position(s) for s in asked], self.bound.max_distance(need).tolist(), need)
+            limits, need = [], None
+            if len(rows):
+                pairs = self._rows[self._gaps.pairs]
+                limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel), 2)[rows], first).tolist()
+                need = np.maximum.reduceat(np.repeat(travel[:, pairs[:, 0], pairs[:, 1]], 2, axis=0)[rows], first)
+            found = self._distances([position(s) for s in asked], limits, need)
             ends = dict(zip(asked, found))
             lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
             clear, short = _clear([ends.get(a) for _, (a, b) in todo], [ends.get(b) for _, (a, b) in todo], travel)
@@ -582,7 +596,9 @@ class Certifier:
         """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
         pairs closer than max_distance (those left out are at least that far apart); None if q collides. With
         pair_travel (rows, rows: the pieces' bounds, see _distances) a pair's bound stops where it reaches that."""
-        end = self._distances([q], [max_distance], None if pair_travel is None else [pair_travel])[0]
+        pairs = self._rows[self._gaps.pairs]
+        need = None if pair_travel is None else pair_travel[None, pairs[:, 0], pairs[:, 1]]
+        end = self._distances([q], [max_distance], need)[0]
         if end is None:
             return None
         return {
@@ -590,12 +606,13 @@ class Certifier:
             for k, d in zip(end.keys.tolist(), end.distance.tolist())
         }
 
-    def _distances(self, Q: list, limits: list, pair_travel: list | None = None) -> list:
+    def _distances(self, Q: list, limits: list, pair_travel: np.ndarray | None = None) -> list:
         """For each configuration, the pairs within its limit (an _End), from the cache when it was asked at a
-        limit at least as large; None if it collides or lies outside the bounds. pair_travel[k] (rows, rows): the
-        largest bound on each pair's change over the pieces configuration k ends; a pair's lower bound that reaches
-        it at this end is enough for those pieces, given any positive one at their other end (so no tighter bound
-        is sought); without it every pair below the limit is bounded as tightly as the certificate can."""
+        limit at least as large; None if it collides or lies outside the bounds. pair_travel[k, pair] (pairs of the
+        gaps): the largest bound on the pair's change over the pieces configuration k ends; a pair's lower bound
+        that reaches it at this end is enough for those pieces, given any positive one at their other end (so no
+        tighter bound is sought); without it every pair below the limit is bounded as tightly as the certificate
+        can."""
         keys = [np.asarray(q, float).tobytes() for q in Q]
         todo = []
         for k, (key, q, limit) in enumerate(zip(keys, Q, limits)):
@@ -642,25 +659,27 @@ class Certifier:
         flat = [p for pairs in answers for p in pairs]
         directions = np.array([flat[j].nhat_BA_W for j in position[~exact].tolist()], float).reshape(-1, 3)
         nhat = self._directions(len(kept), config[~exact], keys[~exact], swapped[~exact], directions)
-        reported = np.isfinite(nhat[:, :, 0])
-        last = len(nhat) - 1 - reported[::-1].argmax(axis=0)  # the last configuration that reported each pair
-        pairs = np.flatnonzero(reported.any(axis=0))
-        self._recent[pairs] = nhat[last[pairs], pairs]
+        if not self._ask_all:  # Drake's directions for the pairs it reported, kept for the rows it did not
+            reported = np.isfinite(nhat[:, :, 0])
+            last = len(nhat) - 1 - reported[::-1].argmax(axis=0)  # the last configuration that reported each pair
+            pairs = np.flatnonzero(reported.any(axis=0))
+            self._recent[pairs] = nhat[last[pairs], pairs]
         drake = [todo[k] for k in kept.tolist()]
         limits = np.array([limit for _, _, limit, _ in drake])
         Q = np.array([q for _, q, _, _ in drake])
         # What settles each pair (see _distances): its bound over the pieces, with room for the rounding allowance.
-        pair_rows = self._rows[self._gaps.pairs]
         if drake[0][3] is None:
-            need = np.repeat(limits[:, None], len(pair_rows), axis=1)
+            need = np.repeat(limits[:, None], len(self._gaps.pairs), axis=1)
         else:
-            need = np.array([travel for *_, travel in drake])[:, pair_rows[:, 0], pair_rows[:, 1]]
+            need = np.array([travel for *_, travel in drake]).reshape(len(drake), -1)
         need = need * _MARGIN + 2 * self._rounding + 1e-12
 
         # One table of poses, the environment's then each configuration's robot geometries.
+        # Centres are the shapes' (see _Gaps.offset), not their frames' origins.
         rotations, centres = self._robot_poses(Q)
+        centres = centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[self._slot >= 0])
         rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
-        centres = np.concatenate([self._p, centres.reshape(-1, 3)])
+        centres = np.concatenate([self._centres, centres.reshape(-1, 3)])
         slot, count, robots = self._slot, len(self._slot), len(self._robot)
 
         def row(k, g):
@@ -688,7 +707,7 @@ class Certifier:
             return rows[bounds[rows] < need[k, pair]]
 
         rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
-        known = np.isfinite(self._recent[near_pair[rows], 0])
+        known = np.isfinite(self._recent[near_pair[rows], 0]) & (not self._ask_all)
         if known.any():
             rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
         if len(rows):
