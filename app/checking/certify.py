@@ -32,10 +32,11 @@ any direction bounds the distance from below). On the maze's corner it matched t
 (its convex hull) counts as its hull's box -- which holds it, so the box's distance and support are a lower and an
 upper bound of the hull's -- except where a bound must be tight, which takes the hull's vertices.
 Bounds are tiered (bounding spheres, a centre to the other shape, gaps with boxes, gaps with vertices): a pair
-stops at the first that shows it as far apart as the pieces at that end need (its largest B_PQ over them: with
-any positive distance at the other end the pair then passes), so most pairs cost a sphere test. Where a pair is
-not settled without Drake's direction, it is bounded along the direction Drake last gave for it (ends of one
-motion are near each other) and, failing that, Drake's direction is asked for that pair alone.
+stops at the first that puts it beyond the limit D (below) or, on mesh scenes, as far apart as the pieces at that
+end need (its largest B_PQ over them: with any positive distance at the other end the pair then passes), so most
+pairs cost a sphere test. Where a pair is not settled without Drake's direction, it is bounded along the direction
+Drake last gave for it (ends of one motion are near each other; mesh scenes) and, failing that, Drake's direction
+is asked for that pair alone.
 Every distance is lowered by a rounding allowance (1e-9 of the resolution).
 
 max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
@@ -327,8 +328,7 @@ class _Gaps:
         length = np.linalg.norm(n, axis=2)
         n = np.where(length[..., None] > 1e-12, n / np.maximum(length, 1e-300)[..., None], np.nan)
         best = self._best_gap(A, B, n, np.isfinite(n[:, :, 0]), exact=False)
-        hull = self.is_hull[A.g] | self.is_hull[B.g]
-        again = np.flatnonzero(hull & (best < settle))
+        again = np.flatnonzero((self.is_hull[A.g] | self.is_hull[B.g]) & (best < settle)) if self.hulls else []
         if len(again):
             m = n[again]
             use = np.isfinite(m[:, :, 0])
@@ -341,13 +341,13 @@ class _Gaps:
         where none."""
         gaps = np.full(use.shape, -np.inf)
         for j in range(use.shape[1]):
-            rows = np.flatnonzero(use[:, j])
-            if len(rows) == len(use):
-                Ar, Br, d = A, B, n[:, j]
-            elif len(rows):
-                Ar, Br, d = _rows(A, rows), _rows(B, rows), n[rows, j]
+            if use[:, j].all():
+                rows, Ar, Br, d = slice(None), A, B, n[:, j]
             else:
-                continue
+                rows = np.flatnonzero(use[:, j])
+                if not len(rows):
+                    continue
+                Ar, Br, d = _rows(A, rows), _rows(B, rows), n[rows, j]
             gaps[rows, j] = (
                 np.einsum("ij,ij->i", d, Ar.p - Br.p) - self._support(Ar, -d, exact) - self._support(Br, d, exact)
             )
@@ -532,21 +532,24 @@ class Certifier:
             ends = list(dict.fromkeys(s for _, ab in todo for s in ab))
             slot = {s: j for j, s in enumerate(ends)}
             by_end = np.array([slot[s] for _, ab in todo for s in ab])  # piece p's ends are rows 2p and 2p + 1
+            Q = np.array([position(s) for s in ends])
             # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
             # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
-            certain = self._certain_shortfall(np.array([position(s) for s in ends]), by_end, travel)
+            certain = self._certain_shortfall(Q, by_end, travel)
             # Each end of the other pieces is asked at the largest max_distance of the pieces it bounds, and each pair
             # there is bounded until it reaches the largest of its bounds on those pieces (shared ends once).
             rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
             rows = rows[np.argsort(by_end[rows], kind="stable")]
             first = np.flatnonzero(np.diff(by_end[rows], prepend=-1))
-            asked = [ends[j] for j in by_end[rows[first]].tolist()]
-            limits, need = [], None
+            asked = by_end[rows[first]]
+            limits, need = np.zeros(0), None
             if len(rows):
                 pairs = self._rows[self._gaps.pairs]
-                limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel), 2)[rows], first).tolist()
-                need = np.maximum.reduceat(np.repeat(travel[:, pairs[:, 0], pairs[:, 1]], 2, axis=0)[rows], first)
-            found = self._distances([position(s) for s in asked], limits, need)
+                limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel), 2)[rows], first)
+                if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
+                    need = _largest_by_group(travel[rows // 2][:, pairs[:, 0], pairs[:, 1]], first)
+            found = self._distances(list(Q[asked]), limits.tolist(), need)
+            asked = [ends[j] for j in asked.tolist()]
             ends = dict(zip(asked, found))
             lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
             clear, short = _clear([ends.get(a) for _, (a, b) in todo], [ends.get(b) for _, (a, b) in todo], travel)
@@ -707,7 +710,7 @@ class Certifier:
             return rows[bounds[rows] < need[k, pair]]
 
         rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
-        known = np.isfinite(self._recent[near_pair[rows], 0]) & (not self._ask_all)
+        known = np.isfinite(self._recent[near_pair[rows], 0]) if not self._ask_all else np.zeros(len(rows), bool)
         if known.any():
             rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
         if len(rows):
@@ -776,6 +779,18 @@ class _End(NamedTuple):
     def nearest(self) -> float:
         """The least distance of a pair here (the limit if none is reported)."""
         return min(float(self.distance.min()), self.limit) if len(self.distance) else self.limit
+
+
+def _largest_by_group(values: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """The largest row of each group of consecutive rows of `values` (groups start at `first`), elementwise; as
+    np.maximum.reduceat, which is slow on 2-d arrays, where groups here have one or two rows (an end bounds the
+    pieces either side of it)."""
+    size = np.diff(first, append=len(values))
+    largest = values[first]
+    for j in range(1, int(size.max(initial=1))):
+        more = np.flatnonzero(size > j)
+        largest[more] = np.maximum(largest[more], values[first[more] + j])
+    return largest
 
 
 def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
