@@ -43,8 +43,9 @@ max_distance. A query reports only the pairs within its max_distance D, so an un
 at that end. Each end is queried with D just above half the largest B_PQ of the pieces it bounds: a pair
 unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
 count as unreported when their own bound is at least D). Where no counted pair is of a kind Drake computes exactly
-and some has a mesh, Drake is asked for touching pairs only (D = 0): GJK on a hull costs time per vertex, and our
-bounds cover every pair anyway, Drake's direction being asked per pair where needed. Distances are cached per
+and some has a mesh, Drake is asked only whether anything is in contact (HasCollisions): GJK on a hull costs time
+per vertex, and our bounds cover every pair anyway, Drake's direction being asked per pair where needed. (A pair
+in contact cannot pass a piece even unasked: its lower bound is at most 0.) Distances are cached per
 configuration, so ends shared by adjacent pieces, and by rounds of a caller that retries, are asked once.
 """
 
@@ -483,9 +484,9 @@ class Certifier:
         self._gaps = _gaps(oracle, geometries, self._rows >= 0, self._exact)
         # What Drake's pairwise query is asked for. Every pair within the limit, with its direction, where a counted
         # pair is of a kind Drake computes exactly (its distance is used) or no counted pair has a mesh (GJK between
-        # primitives costs little). Otherwise only the touching pairs (max_distance 0: a configuration in contact is
-        # still found): GJK on a mesh's hull costs time per vertex, and most pairs are settled by our bounds alone,
-        # so Drake is asked for the direction of the others only, one pair at a time (_ends).
+        # primitives costs little). Otherwise only whether anything is in contact (HasCollisions: a configuration in
+        # contact still fails at once): GJK on a mesh's hull costs time per vertex, and most pairs are settled by
+        # our bounds alone, so Drake is asked for the direction of the others only, one pair at a time (_ends).
         robot = self._rows >= 0
         counted = np.triu(robot[:, None] | robot[None, :], 1) & self._exact
         if not oracle.scene.self_collisions:
@@ -644,14 +645,19 @@ class Certifier:
         todo = [item for item, keep in zip(todo, inside.tolist()) if keep]
         # Drake's pairs of every configuration as rows (configuration, first, second geometry, distance); reading a
         # GeometryId costs more than the distance, so each is read once and mapped through its integer value.
-        answers = [self.checker.signed_distances(q, limit if self._ask_all else 0.0) for _, q, limit, _ in todo]
+        if self._ask_all:
+            answers = [self.checker.signed_distances(q, limit) for _, q, limit, _ in todo]
+            in_contact = []
+        else:  # Drake is asked only whether anything is in contact (see __init__)
+            answers = [[] for _ in todo]
+            in_contact = [k for k, (_, q, _, _) in enumerate(todo) if self.checker.in_contact(q)]
         value = self._index_of_value
         found = np.array(
             [(value[p.id_A.get_value()], value[p.id_B.get_value()], p.distance) for pairs in answers for p in pairs],
             float,
         ).reshape(-1, 3)
         config = np.repeat(np.arange(len(answers)), [len(pairs) for pairs in answers])
-        touching = np.unique(config[found[:, 2] <= 0])
+        touching = np.union1d(config[found[:, 2] <= 0], in_contact)
         kept = np.setdiff1d(np.arange(len(answers)), touching)
         if not len(kept):
             return
