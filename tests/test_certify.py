@@ -421,6 +421,9 @@ def test_a_piece_cut_unasked_fails_by_at_least_that_factor_with_its_ends_distanc
         ok, short = _clear(ends[:1], ends[1:], travel)
         if certain > 1.0:
             assert not ok[0] and short[0] >= certain * (1 - 1e-9)
+            if not doomed:  # the whole edge is cut unasked in the first round, and judged from its parts
+                stats = certify_path(oracle.context(), np.array([a, b]))[1]
+                assert stats["distance_queries"] > 2 and stats["pieces"] + len(stats["failed"]) > 0
             doomed += 1
         else:
             kept += 1

@@ -548,7 +548,8 @@ class Certifier:
             # there is bounded until it reaches the largest of its bounds on those pieces (shared ends once).
             rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
             rows = rows[np.argsort(by_end[rows], kind="stable")]
-            first = np.flatnonzero(np.diff(by_end[rows], prepend=-1))
+            ordered = by_end[rows]
+            first = np.flatnonzero(np.concatenate([[len(rows) > 0], ordered[1:] != ordered[:-1]]))
             asked = by_end[rows[first]]
             limits, need = np.zeros(0), None
             if len(rows):
@@ -657,7 +658,7 @@ class Certifier:
             float,
         ).reshape(-1, 3)
         config = np.repeat(np.arange(len(answers)), [len(pairs) for pairs in answers])
-        touching = np.union1d(config[found[:, 2] <= 0], in_contact)
+        touching = np.unique(np.concatenate([config[found[:, 2] <= 0], in_contact]).astype(np.int64))
         kept = np.setdiff1d(np.arange(len(answers)), touching)
         if not len(kept):
             return
