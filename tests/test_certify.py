@@ -308,14 +308,11 @@ def test_a_failing_edge_stops_where_it_comes_nearest_not_after_proving_what_lies
     assert failing["distance_queries"] < 0.5 * before["distance_queries"]
 
 
-def test_mesh_distances_are_never_larger_than_the_hulls_sampled_distance(tmp_path, monkeypatch):
+def _mesh_scene(tmp_path, monkeypatch):
     """A free-flying L-shaped mesh robot among the convex pieces of a U channel (both posed away from their frames'
-    origins): every distance the certificate uses is at most the distance between dense surface samples of the two
-    convex pieces' hulls (an upper bound on their true distance), and a pair it leaves out is at least the limit
-    apart by the same samples."""
+    origins), and per geometry dense surface samples of its convex hull, as (oracle, clouds, robot, environment)."""
     trimesh = pytest.importorskip("trimesh")
     from pydrake.geometry import Role
-    from scipy.spatial import cKDTree
 
     from app.checking.oracle import CollisionOracle
     from app.scene.custom import CustomSpec, build_scene
@@ -327,7 +324,6 @@ def test_mesh_distances_are_never_larger_than_the_hulls_sampled_distance(tmp_pat
     u_channel(4.0).apply_translation([10.0, 6.0, 5.0]).export(tmp_path / "u.obj")
     spec = CustomSpec(robot=str(tmp_path / "l.obj"), env=[str(tmp_path / "u.obj")], bounds=["7..13", "3..9", "3..9"])
     oracle = CollisionOracle(build_scene(spec, progress=False))
-    certifier = Certifier(oracle.context())
     inspector = oracle.model.scene_graph().model_inspector()
     clouds = {}
     for g in inspector.GetAllGeometryIds(Role.kProximity):
@@ -336,27 +332,99 @@ def test_mesh_distances_are_never_larger_than_the_hulls_sampled_distance(tmp_pat
         clouds[g] = np.vstack([vertices, trimesh.convex.convex_hull(vertices).sample(1500, seed=0)])
     robot = [g for g in clouds if oracle.is_robot_geometry(g)]
     environment = [g for g in clouds if not oracle.is_robot_geometry(g)]
-    rng, limit, reported, left_out = np.random.default_rng(3), 0.5, 0, 0
+    return oracle, clouds, robot, environment
+
+
+def _sampled_distances(oracle, clouds, robot, environment, q) -> dict:
+    """{frozenset pair: distance between the two hulls' samples (at least their true distance)} at q."""
+    from scipy.spatial import cKDTree
+
+    query = oracle.query_object(q)
+    posed = {}
+    for g, cloud in clouds.items():
+        X = query.GetPoseInWorld(g)
+        posed[g] = cloud @ X.rotation().matrix().T + X.translation()
+    trees = {b: cKDTree(posed[b]) for b in environment}
+    return {frozenset((a, b)): float(trees[b].query(posed[a])[0].min()) for a in robot for b in environment}
+
+
+def test_mesh_distances_are_never_larger_than_the_hulls_sampled_distance(tmp_path, monkeypatch):
+    """Every distance the certificate uses between mesh pieces is at most the distance between dense surface samples
+    of the two convex pieces' hulls (an upper bound on their true distance), and a pair it leaves out is at least
+    the limit apart by the same samples; a colliding configuration has none (Drake finds the contact)."""
+    oracle, clouds, robot, environment = _mesh_scene(tmp_path, monkeypatch)
+    certifier = Certifier(oracle.context())
+    rng, limit, reported, left_out, colliding = np.random.default_rng(3), 0.5, 0, 0, 0
+    for q in oracle.space.uniform(rng, 300):
+        if not oracle.free(q):
+            assert certifier.distances(q, limit) is None
+            colliding += 1
+            continue
+        used = certifier.distances(q, limit)
+        for pair, sampled in _sampled_distances(oracle, clouds, robot, environment, q).items():
+            d = used.get(pair)
+            if d is None:
+                assert sampled >= limit - 1e-9
+                left_out += sampled < 2 * limit
+            else:
+                assert d <= sampled + 1e-9
+                reported += 1
+        if reported > 100 and left_out > 100 and colliding > 5:
+            break
+    assert reported > 100 and left_out > 100 and colliding > 5
+
+
+def test_bounds_settled_by_what_the_pieces_need_are_never_larger_than_the_sampled_distance(tmp_path, monkeypatch):
+    """Where the pieces at an end need a pair only this far apart, the certificate stops at the first bound that
+    reaches it (spheres, a centre to a hull's box, gaps between boxes): each of those bounds too is at most the
+    hulls' sampled distance, they are looser than the tight ones somewhere (so they were used), and what the pieces
+    need is reached wherever the tight bound reaches it."""
+    oracle, clouds, robot, environment = _mesh_scene(tmp_path, monkeypatch)
+    tight, settled = Certifier(oracle.context()), Certifier(oracle.context())
+    rows = len(motion_bound(oracle).rates)
+    rng, limit, looser, checked = np.random.default_rng(4), 0.5, 0, 0
     for q in oracle.space.uniform(rng, 300):
         if not oracle.free(q):
             continue
-        used = certifier.distances(q, limit)
-        query = oracle.query_object(q)
-        posed = {}
-        for g, cloud in clouds.items():
-            X = query.GetPoseInWorld(g)
-            posed[g] = cloud @ X.rotation().matrix().T + X.translation()
-        trees = {b: cKDTree(posed[b]) for b in environment}
-        for a in robot:
-            for b in environment:
-                sampled = float(trees[b].query(posed[a])[0].min())
-                d = used.get(frozenset((a, b)))
-                if d is None:
-                    assert sampled >= limit - 1e-9
-                    left_out += sampled < 2 * limit
-                else:
-                    assert d <= sampled + 1e-9
-                    reported += 1
-        if reported > 100 and left_out > 100:
+        need = rng.uniform(0.0, 0.3)
+        exact = tight.distances(q, limit)
+        used = settled.distances(q, limit, np.full((rows, rows), need))
+        for pair, sampled in _sampled_distances(oracle, clouds, robot, environment, q).items():
+            d, best = used.get(pair, limit), exact.get(pair, limit)
+            assert d <= sampled + 1e-9 if pair in used else sampled >= limit - 1e-9
+            assert d >= min(best, need)
+            looser += d < best - 1e-6
+            checked += 1
+        if looser > 30 and checked > 200:
             break
-    assert reported > 100 and left_out > 100
+    assert looser > 30 and checked > 200
+
+
+def test_a_piece_cut_unasked_fails_by_at_least_that_factor_with_its_ends_distances(tmp_path, monkeypatch):
+    """On a mesh scene a piece whose bound exceeds upper bounds on some pair's distance at its ends is cut before
+    its ends are asked: asked anyway, its ends' distances fail it, by at least the factor it was cut by."""
+    from app.checking.certify import _clear
+
+    oracle, *_ = _mesh_scene(tmp_path, monkeypatch)
+    certifier, bound = Certifier(oracle.context()), motion_bound(oracle)
+    rng = np.random.default_rng(5)
+    free = [q for q in oracle.space.uniform(rng, 300) if oracle.free(q)]
+    doomed, kept = 0, 0
+    for a, b in zip(free[::2], free[1::2]):
+        b = a + rng.uniform(0.02, 1.0) * oracle.space.difference(a, b)
+        if not oracle.free(b):
+            continue
+        travel = bound.pair_travel(np.abs(oracle.space.difference(a, b))[None])
+        certain = certifier._certain_shortfall(np.array([a, b]), np.array([0, 1]), travel)[0]
+        limit = float(bound.max_distance(travel)[0])
+        ends = certifier._distances([a, b], [limit, limit])
+        ok, short = _clear(ends[:1], ends[1:], travel)
+        if certain > 1.0:
+            assert not ok[0] and short[0] >= certain * (1 - 1e-9)
+            if not doomed:  # the whole edge is cut unasked in the first round, and judged from its parts
+                stats = certify_path(oracle.context(), np.array([a, b]))[1]
+                assert stats["distance_queries"] > 2 and stats["pieces"] + len(stats["failed"]) > 0
+            doomed += 1
+        else:
+            kept += 1
+    assert doomed > 10 and kept > 10

@@ -258,6 +258,7 @@ def test_the_seconds_in_drake_grow_with_each_kind_of_answer_and_stay_within_the_
     for kind, ask in [
         ("checks", lambda: context.are_free(Q)),
         ("distances", lambda: context.signed_distances(Q[0], 5.0)),
+        ("distances", lambda: context.in_contact(Q[0])),
         ("points", lambda: context.environment_gaps(np.array([[50.0, 50, 50]]), 20.0)),
     ]:
         before = dict(oracle.seconds)

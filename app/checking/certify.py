@@ -17,8 +17,10 @@ d_PQ(a) + d_PQ(b) > B_PQ for every pair the scene counts, P and Q never touch in
 d(t) >= d(a) - B_PQ(a..t) and d(t) >= d(b) - B_PQ(t..b), and the two add up to at most B_PQ. A piece that fails
 is cut into parts (as many as its ends' distances fall short, 2 to 8); one that still fails once its motion is
 shorter than the floor (in the space's weighted metric) is reported as colliding. Each interval is cut nearest to
-contact first, several pieces of every interval at a
-time with their ends bounded in one batch (see Certifier).
+contact first, several pieces of every interval at a time with their ends bounded in one batch (see Certifier).
+A piece that certainly fails -- some pair's B_PQ exceeds the sum of upper bounds on its distance at the two ends,
+the distances between a point inside each shape -- is cut before its ends are asked (on mesh scenes, where asking
+costs most): no lower bound could pass it, and it falls short by at least that factor.
 
 Distances. Drake computes box-box and sphere pairs in closed form, but pairs with a cylinder, capsule, ellipsoid or
 mesh by GJK, whose answers can be too large -- unsafe here (seen near a maze pillar's corner, and by centimetres for
@@ -26,16 +28,25 @@ two nearly coaxial cylinders of the UR3's wrist and torch: benchmark pages). So 
 of that kind, reported by Drake or not, the certificate uses a lower bound of its own: the largest gap between the
 two shapes along three directions -- Drake's separating direction, and the normals of each shape at the near points
 that a few alternating projections onto the two shapes find -- from the shapes' support functions (the gap along
-any direction bounds the distance from below). On the maze's corner it matched the true distance to 1e-15. Where
-the query left the pair out (see max_distance) and the projections' directions alone bound it below D, Drake's
-direction is asked for that pair alone.
+any direction bounds the distance from below). On the maze's corner it matched the true distance to 1e-15. A mesh
+(its convex hull) counts as its hull's box -- which holds it, so the box's distance and support are a lower and an
+upper bound of the hull's -- except where a bound must be tight, which takes the hull's vertices.
+Bounds are tiered (bounding spheres, a centre to the other shape, gaps with boxes, gaps with vertices): a pair
+stops at the first that puts it beyond the limit D (below) or, on mesh scenes, as far apart as the pieces at that
+end need (its largest B_PQ over them: with any positive distance at the other end the pair then passes), so most
+pairs cost a sphere test. Where a pair is not settled without Drake's direction, it is bounded along the direction
+Drake last gave for it (ends of one motion are near each other; mesh scenes) and, failing that, Drake's direction
+is asked for that pair alone.
 Every distance is lowered by a rounding allowance (1e-9 of the resolution).
 
 max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
 at that end. Each end is queried with D just above half the largest B_PQ of the pieces it bounds: a pair
 unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
-count as unreported when their own bound is at least D). Distances are cached per configuration, so ends shared by
-adjacent pieces, and by rounds of a caller that retries, are asked once.
+count as unreported when their own bound is at least D). Where no counted pair is of a kind Drake computes exactly
+and some has a mesh, Drake is asked only whether anything is in contact (HasCollisions): GJK on a hull costs time
+per vertex, and our bounds cover every pair anyway, Drake's direction being asked per pair where needed. (A pair
+in contact cannot pass a piece even unasked: its lower bound is at most 0.) Distances are cached per
+configuration, so ends shared by adjacent pieces, and by rounds of a caller that retries, are asked once.
 """
 
 from __future__ import annotations
@@ -210,7 +221,16 @@ class _Gaps:
 
     Shapes as a box core (half sizes), a disc (radius, in the x-y plane) and a ball (radius) summed: a box is a
     core, a sphere a ball, a capsule a z segment and a ball, a cylinder a z segment and a disc -- one formula for the
-    nearest point and for the support function of all four. Ellipsoids and meshes are handled apart ("special")."""
+    nearest point and for the support function of all four. A mesh (Drake uses its convex hull) is its hull's box in
+    its own frame for nearest points and first bounds (the box holds the hull, so the distance to the box and its
+    support are a lower and an upper bound of the hull's), and its hull's vertices where a bound must be tight.
+    Ellipsoids are handled apart ("special").
+
+    Tiers. Most rows need no tight bound: a row is settled by the first bound that reaches its `need` (how far
+    apart the pair must be at this end for the pieces being certified, see Certifier._ends) or its `limit` (beyond
+    which the pair is left out): bounding spheres, then each centre to the other shape, then the gaps along three
+    directions with boxes for hulls, and only then the gaps of hull pairs with the hulls' vertices. Each is a lower
+    bound of the distance, so a row keeps the largest it found."""
 
     def __init__(self, oracle, geometries: list, robot: np.ndarray, exact: np.ndarray):
         from pydrake.math import RigidTransform
@@ -234,7 +254,8 @@ class _Gaps:
         # A mesh's centre in its own frame (the middle of its box), about which its vertices are kept: an obstacle
         # piece is posed in the world frame, so about its frame's origin its bounding sphere would hold the world.
         self.offset = np.zeros((count, 3))
-        self.special = {}  # geometry index -> ("ellipsoid", semi-axes) or ("vertices", (n, 3) about the centre)
+        self.special = {}  # geometry index -> semi-axes of an ellipsoid
+        hulls = {}  # geometry index -> a mesh hull's vertices (n, 3) about its centre
         for i in np.unique(self.pairs):
             kind, data = _describe(inspector, geometries[i])
             if kind == "vertices":
@@ -248,48 +269,58 @@ class _Gaps:
             elif kind in ("cylinder", "capsule"):
                 self.core[i, 2] = data[1]
                 (self.disc if kind == "cylinder" else self.ball)[i] = data[0]
+            elif kind == "vertices":
+                self.core[i] = np.abs(data).max(axis=0)
+                hulls[i] = data
             else:
-                self.special[i] = (kind, data)
+                self.special[i] = data
         self.is_special = np.isin(np.arange(count), list(self.special))
-        self.shifted = np.any(self.offset != 0, axis=1)
+        self.is_hull = np.isin(np.arange(count), list(hulls))
+        self.hulls = hulls
 
-    def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray) -> tuple[np.ndarray, ...]:
+    def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray, need: np.ndarray) -> tuple[np.ndarray, ...]:
         """(configurations, pairs, bounds): the rows (configuration k, pair) whose lower bound is below limit[k],
-        and their bounds, given the shapes' poses -- rotation(k, g) (n, 3, 3) and centre(k, g) (n, 3) of geometries
-        g in configurations k (index arrays) -- and Drake's direction from b to a where it reported the pair in
-        that configuration (nhat (configurations, pairs, 3), else NaN). All configurations are done at once."""
+        and their bounds, given the shapes' poses -- rotation(k, g) (n, 3, 3) and centre(k, g) (n, 3; the shape's
+        centre, see offset) of geometries g in configurations k (index arrays) -- Drake's direction from b to a where
+        it reported the pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance
+        that settles each row (need (configurations, pairs)). All configurations are done at once."""
         k = np.repeat(np.arange(len(limit)), len(self.pairs))
         pair = np.tile(np.arange(len(self.pairs)), len(limit))
+        bounds = self.bounds(k, pair, rotation, centre, nhat.reshape(-1, 3), limit[k], need.ravel())
+        below = np.flatnonzero(bounds < limit[k])
+        return k[below], pair[below], bounds[below]
+
+    def bounds(self, k, pair, rotation, centre, nhat, limit, need) -> np.ndarray:
+        """Lower bounds on the distance of rows (configuration k, pair) (see near), each at least as large as the
+        first tier's that reached min(need, limit) of the row; nhat, limit and need per row."""
         a, b = self.pairs[pair].T
         pa, pb = centre(k, a), centre(k, b)
-        for p, g in ((pa, a), (pb, b)):  # a mesh's centre from its frame's origin
-            rows = np.flatnonzero(self.shifted[g])
-            if len(rows):
-                p[rows] += np.einsum("mij,mj->mi", rotation(k[rows], g[rows]), self.offset[g[rows]])
-        # Cheap bounds first, to skip most pairs: bounding spheres; then from each centre to the other shape.
-        near = np.flatnonzero(np.linalg.norm(pa - pb, axis=1) - self.radius[a] - self.radius[b] < limit[k])
-        k, pair, a, b = k[near], pair[near], a[near], b[near]
-        # From a's centre to shape b, then the other way on the rows left: each pass prunes most of what reaches it.
-        B = self._posed(b, rotation(k, b), pb[near])
-        keep = np.flatnonzero(self._distance_to(B, pa[near]) - self.radius[a] < limit[k])
-        k, pair, a, B = k[keep], pair[keep], a[keep], _rows(B, keep)
-        A = self._posed(a, rotation(k, a), pa[near][keep])
-        keep = np.flatnonzero(self._distance_to(A, B.p) - B.radius < limit[k])
-        k, pair = k[keep], pair[keep]
-        bounds = self._gap(_rows(A, keep), _rows(B, keep), nhat[k, pair])
-        below = bounds < limit[k]
-        return k[below], pair[below], bounds[below]
+        settle = np.minimum(need, limit)
+        # Bounding spheres; then from a's centre to shape b, and the other way, on the rows left.
+        bound = _norm(pa - pb) - self.radius[a] - self.radius[b]
+        live = np.flatnonzero(bound < settle)
+        B = self._posed(b[live], rotation(k[live], b[live]), pb[live])
+        bound[live] = np.maximum(bound[live], self._distance_to(B, pa[live]) - self.radius[a[live]])
+        keep = np.flatnonzero(bound[live] < settle[live])
+        live, B = live[keep], _rows(B, keep)
+        A = self._posed(a[live], rotation(k[live], a[live]), pa[live])
+        bound[live] = np.maximum(bound[live], self._distance_to(A, B.p) - B.radius)
+        keep = np.flatnonzero(bound[live] < settle[live])
+        live, A, B = live[keep], _rows(A, keep), _rows(B, keep)
+        bound[live] = np.maximum(bound[live], self._gap(A, B, nhat[live], settle[live]))
+        return bound
 
     def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
         return _Posed(R, p, self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
 
-    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray) -> np.ndarray:
+    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray, settle: np.ndarray) -> np.ndarray:
         """The largest gap between the shapes along three directions: Drake's where it has one, and the normals of
-        each shape at the near points that alternating projections onto the two shapes find (for an ellipsoid or a
-        mesh, its centre). Any direction's gap bounds the distance from below; a normal of a shape makes that shape's
-        side of the bound exact. A pair left below its limit without Drake's direction is given it (Certifier._ends):
-        for a mesh, Drake's direction makes the bound nearly exact at the cost of one pair query, where the hull's
-        face normals cost faces x vertices per pair."""
+        each shape at the near points that alternating projections onto the two shapes find (a mesh as its box, an
+        ellipsoid as its centre). Any direction's gap bounds the distance from below; a normal of a shape makes that
+        shape's side of the bound exact. Hulls count as their boxes first; the rows with a hull still below `settle`
+        are bounded again with the hull's vertices, along Drake's direction if it has one (GJK's direction between
+        two hulls is close to theirs; it costs one pair query where the hull's face normals would cost faces x
+        vertices per pair), else along the projections'."""
         on_a = A.p
         for _ in range(PROJECTIONS):
             on_b = self._project(B, on_a)
@@ -297,24 +328,57 @@ class _Gaps:
         n = np.stack([on_a - on_b, on_a - self._project(B, on_a), nhat], 1)
         length = np.linalg.norm(n, axis=2)
         n = np.where(length[..., None] > 1e-12, n / np.maximum(length, 1e-300)[..., None], np.nan)
-        gaps = [
-            np.einsum("ij,ij->i", n[:, k], A.p - B.p) - self._support(A, -n[:, k]) - self._support(B, n[:, k])
-            for k in range(n.shape[1])
-        ]
-        gaps = np.column_stack(gaps)
-        return np.where(np.isnan(gaps), -np.inf, gaps).max(1)
+        best = self._best_gap(A, B, n, np.isfinite(n[:, :, 0]), exact=False)
+        again = np.flatnonzero((self.is_hull[A.g] | self.is_hull[B.g]) & (best < settle)) if self.hulls else []
+        if len(again):
+            m = n[again]
+            use = np.isfinite(m[:, :, 0])
+            use[:, :2] &= ~use[:, 2:]  # Drake's direction alone where there is one
+            best[again] = np.maximum(best[again], self._best_gap(_rows(A, again), _rows(B, again), m, use, exact=True))
+        return best
 
-    def _support(self, S: _Posed, n: np.ndarray) -> np.ndarray:
-        """max over each posed shape of n . (x - its centre), for world directions n (unit rows)."""
+    def _best_gap(self, A: _Posed, B: _Posed, n: np.ndarray, use: np.ndarray, exact: bool) -> np.ndarray:
+        """Per row, the largest gap along the directions n[row, j] (unit, from B to A) where use[row, j]; -inf
+        where none. A direction every row has goes in one call without gathering the rows; the rest in one more."""
+        gaps = np.full(use.shape, -np.inf)
+        every = use.all(axis=0)
+        for j in np.flatnonzero(every).tolist():
+            gaps[:, j] = self._along(A, B, n[:, j], exact)
+        partial = np.flatnonzero(~every)
+        row, column = np.nonzero(use[:, partial])
+        if len(row):
+            column = partial[column]
+            gaps[row, column] = self._along(_rows(A, row), _rows(B, row), n[row, column], exact)
+        return gaps.max(axis=1)
+
+    def _along(self, A: _Posed, B: _Posed, d: np.ndarray, exact: bool) -> np.ndarray:
+        """The gap of each pair of rows A[i], B[i] along d[i] (unit, from B to A). With hulls' vertices both shapes'
+        supports go in one call (they cost one product per hull and call); in closed form, two calls cost less than
+        gathering the rows into one."""
+        if not exact:
+            return np.einsum("ij,ij->i", d, A.p - B.p) - self._support(A, -d, False) - self._support(B, d, False)
+        both = _Posed(*(np.concatenate(fields) for fields in zip(A, B)))
+        support = self._support(both, np.concatenate([-d, d]), exact)
+        return np.einsum("ij,ij->i", d, A.p - B.p) - support[: len(d)] - support[len(d) :]
+
+    def _support(self, S: _Posed, n: np.ndarray, exact: bool) -> np.ndarray:
+        """max over each posed shape of n . (x - its centre), for world directions n (unit rows): exact, or for a
+        hull, its box's (larger) unless `exact`."""
         u = np.einsum("mji,mj->mi", S.R, n)
         out = (S.core * np.abs(u)).sum(1) + S.disc * np.hypot(u[:, 0], u[:, 1]) + S.ball
-        for i in np.unique(S.g[self.is_special[S.g]]):
-            (kind, data), m = self.special[i], S.g == i
-            out[m] = np.linalg.norm(data * u[m], axis=1) if kind == "ellipsoid" else (u[m] @ data.T).max(1)
+        if exact:  # rows by hull, one product with each hull's vertices
+            rows = np.flatnonzero(self.is_hull[S.g])
+            rows = rows[np.argsort(S.g[rows], kind="stable")]
+            starts = np.flatnonzero(np.diff(S.g[rows], prepend=-1))
+            for group, g in zip(np.split(rows, starts[1:]), S.g[rows[starts]].tolist()):
+                out[group] = (u[group] @ self.hulls[g].T).max(1)
+        for i in np.unique(S.g[self.is_special[S.g]]):  # ellipsoids
+            m = S.g == i
+            out[m] = np.linalg.norm(self.special[i] * u[m], axis=1)
         return out
 
     def _project(self, S: _Posed, x: np.ndarray) -> np.ndarray:
-        """The point of each posed shape nearest to x, in the world (the centre of an ellipsoid or mesh)."""
+        """The point of each posed shape nearest to x, in the world (a hull's box's; an ellipsoid's centre)."""
         local = np.einsum("mji,mj->mi", S.R, x - S.p)
         near = np.clip(local, -S.core, S.core)
         disc = S.disc > 0
@@ -324,7 +388,8 @@ class _Gaps:
         return S.p + np.einsum("mij,mj->mi", S.R, near)
 
     def _distance_to(self, S: _Posed, x: np.ndarray) -> np.ndarray:
-        """A lower bound on the distance from x to each posed shape: exact where _project is, else to its radius."""
+        """A lower bound on the distance from x to each posed shape: to its nearest point as _project finds it (a
+        hull's box holds the hull, so it is no farther), or for an ellipsoid, to its bounding sphere."""
         exact = _norm(self._project(S, x) - x)
         rough = np.maximum(_norm(S.p - x) - S.radius, 0.0)
         return np.where(self.is_special[S.g], rough, exact)
@@ -357,6 +422,16 @@ def _norm(v: np.ndarray) -> np.ndarray:
 
 
 _bounds: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+_shared_gaps: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _gaps(oracle, geometries: list, robot: np.ndarray, exact: np.ndarray) -> _Gaps:
+    """The shared oracle's _Gaps, made once per oracle (its hulls' support tables fill as they are used)."""
+    if oracle not in _shared_gaps:
+        _shared_gaps[oracle] = _Gaps(oracle, geometries, robot, exact)
+    return _shared_gaps[oracle]
 
 
 def motion_bound(oracle) -> MotionBound:
@@ -406,7 +481,21 @@ class Certifier:
         self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
         self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
-        self._gaps = _Gaps(oracle, geometries, self._rows >= 0, self._exact)
+        self._gaps = _gaps(oracle, geometries, self._rows >= 0, self._exact)
+        # What Drake's pairwise query is asked for. Every pair within the limit, with its direction, where a counted
+        # pair is of a kind Drake computes exactly (its distance is used) or no counted pair has a mesh (GJK between
+        # primitives costs little). Otherwise only whether anything is in contact (HasCollisions: a configuration in
+        # contact still fails at once): GJK on a mesh's hull costs time per vertex, and most pairs are settled by
+        # our bounds alone, so Drake is asked for the direction of the others only, one pair at a time (_ends).
+        robot = self._rows >= 0
+        counted = np.triu(robot[:, None] | robot[None, :], 1) & self._exact
+        if not oracle.scene.self_collisions:
+            counted &= ~(robot[:, None] & robot[None, :])
+        self._ask_all = self._gaps.is_hull.sum() == 0 or any(
+            not inspector.CollisionFiltered(geometries[i], geometries[j]) for i, j in zip(*np.nonzero(counted))
+        )
+        # The direction Drake last gave for each pair of the gaps (world frame), NaN before it gave one.
+        self._recent = np.full((len(self._gaps.pairs), 3), np.nan)
         # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in
         # robot slots (slot -1: environment).
         self._robot = [g for i, g in enumerate(geometries) if self._rows[i] >= 0]
@@ -422,6 +511,13 @@ class Certifier:
         poses = [query.GetPoseInWorld(g) for g in geometries]
         self._R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
         self._p = np.array([X.translation() for X in poses]).reshape(-1, 3)
+        # A point inside each shape, in its frame (its centre; a hull's mean vertex), and in the world for the
+        # environment's.
+        self._inside = self._gaps.offset.copy()
+        for i, vertices in self._gaps.hulls.items():
+            self._inside[i] += vertices.mean(axis=0)
+        self._anchors = self._p + np.einsum("gij,gj->gi", self._R, self._inside)
+        self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
 
     def certify(self, position, variation, intervals) -> tuple[bool, dict]:
         """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
@@ -441,24 +537,45 @@ class Certifier:
             ]
             variations = np.array([variation(a, b) for _, (a, b) in todo]).reshape(len(todo), -1)
             travel = self.bound.pair_travel(variations)
-            # Each end is asked at the largest max_distance of the pieces it bounds (shared ends once).
-            need = {}
-            for (_, (a, b)), d in zip(todo, self.bound.max_distance(travel).tolist()):
-                need[a], need[b] = max(need.get(a, 0.0), d), max(need.get(b, 0.0), d)
-            ends = dict(zip(need, self._distances([position(s) for s in need], list(need.values()))))
+            ends = list(dict.fromkeys(s for _, ab in todo for s in ab))
+            slot = {s: j for j, s in enumerate(ends)}
+            by_end = np.array([slot[s] for _, ab in todo for s in ab])  # piece p's ends are rows 2p and 2p + 1
+            Q = np.array([position(s) for s in ends])
+            # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
+            # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
+            certain = self._certain_shortfall(Q, by_end, travel)
+            # Each end of the other pieces is asked at the largest max_distance of the pieces it bounds, and each pair
+            # there is bounded until it reaches the largest of its bounds on those pieces (shared ends once).
+            rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
+            rows = rows[np.argsort(by_end[rows], kind="stable")]
+            ordered = by_end[rows]
+            first = np.flatnonzero(np.concatenate([[len(rows) > 0], ordered[1:] != ordered[:-1]]))
+            asked = by_end[rows[first]]
+            limits, need = np.zeros(0), None
+            if len(rows):
+                pairs = self._rows[self._gaps.pairs]
+                limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel), 2)[rows], first)
+                if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
+                    need = _largest_by_group(travel[rows // 2][:, pairs[:, 0], pairs[:, 1]], first)
+            found = self._distances(list(Q[asked]), limits.tolist(), need)
+            asked = [ends[j] for j in asked.tolist()]
+            ends = dict(zip(asked, found))
             lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
-            clear, short = _clear([ends[a] for _, (a, b) in todo], [ends[b] for _, (a, b) in todo], travel)
-            parts = np.clip(np.ceil(short), 2, self.SPLIT_MAX).astype(int)
-            for (i, (a, b)), passed, length, n in zip(todo, clear.tolist(), lengths.tolist(), parts.tolist()):
+            clear, short = _clear([ends.get(a) for _, (a, b) in todo], [ends.get(b) for _, (a, b) in todo], travel)
+            parts = np.clip(np.ceil(np.maximum(short, certain)), 2, self.SPLIT_MAX).astype(int)
+            doomed = (certain > 1.0).tolist()
+            for (i, (a, b)), passed, length, n, unasked in zip(
+                todo, clear.tolist(), lengths.tolist(), parts.tolist(), doomed
+            ):
                 if i not in heaps:
                     continue
                 if passed:
                     pieces += 1
-                elif ends[a] is None or ends[b] is None or length <= self.floor:
+                elif length <= self.floor or not unasked and (ends[a] is None or ends[b] is None):
                     failed.append(i)
                     del heaps[i]
                 else:
-                    nearest = min(ends[a].nearest(), ends[b].nearest())
+                    nearest = 0.0 if unasked else min(ends[a].nearest(), ends[b].nearest())
                     cuts = [a, *(a + (b - a) * j / n for j in range(1, n)), b]
                     for s0, s1 in itertools.pairwise(cuts):
                         heapq.heappush(heaps[i], (nearest, s0, s1))
@@ -471,10 +588,29 @@ class Certifier:
         }
         return not failed, stats
 
-    def distances(self, q: np.ndarray, max_distance: float) -> dict | None:
+    def _certain_shortfall(self, Q: np.ndarray, by_end: np.ndarray, travel: np.ndarray) -> np.ndarray:
+        """Per piece (ends Q[by_end[2p]] and Q[by_end[2p + 1]], pair bounds travel[p]), a factor by which its bound
+        certainly exceeds its ends' distances for some pair of the gaps: the largest B_PQ / (U_a + U_b), with U an
+        upper bound on the pair's distance at an end -- the distance between a point inside each shape (its centre,
+        a hull's mean vertex). Our lower bounds are at most U, so a piece with a factor above 1 fails its test, and
+        by at least that factor (0 without pairs)."""
+        if self._ask_all or not len(self._gaps.pairs):
+            return np.zeros(len(travel))
+        rotations, centres = self._robot_poses(Q)
+        anchors = np.repeat(self._anchors[None], len(Q), axis=0)
+        anchors[:, self._slot >= 0] = centres + np.einsum("nrij,rj->nri", rotations, self._inside[self._slot >= 0])
+        a, b = self._gaps.pairs.T
+        upper = np.linalg.norm(anchors[:, a] - anchors[:, b], axis=2)  # (ends, pairs)
+        bound = travel[:, self._rows[a], self._rows[b]]  # (pieces, pairs)
+        return (bound / np.maximum(upper[by_end[0::2]] + upper[by_end[1::2]], 1e-300)).max(axis=1)
+
+    def distances(self, q: np.ndarray, max_distance: float, pair_travel: np.ndarray | None = None) -> dict | None:
         """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
-        pairs closer than max_distance (those left out are at least that far apart); None if q collides."""
-        end = self._distances([q], [max_distance])[0]
+        pairs closer than max_distance (those left out are at least that far apart); None if q collides. With
+        pair_travel (rows, rows: the pieces' bounds, see _distances) a pair's bound stops where it reaches that."""
+        pairs = self._rows[self._gaps.pairs]
+        need = None if pair_travel is None else pair_travel[None, pairs[:, 0], pairs[:, 1]]
+        end = self._distances([q], [max_distance], need)[0]
         if end is None:
             return None
         return {
@@ -482,15 +618,19 @@ class Certifier:
             for k, d in zip(end.keys.tolist(), end.distance.tolist())
         }
 
-    def _distances(self, Q: list, limits: list) -> list:
+    def _distances(self, Q: list, limits: list, pair_travel: np.ndarray | None = None) -> list:
         """For each configuration, the pairs within its limit (an _End), from the cache when it was asked at a
-        limit at least as large; None if it collides or lies outside the bounds."""
+        limit at least as large; None if it collides or lies outside the bounds. pair_travel[k, pair] (pairs of the
+        gaps): the largest bound on the pair's change over the pieces configuration k ends; a pair's lower bound
+        that reaches it at this end is enough for those pieces, given any positive one at their other end (so no
+        tighter bound is sought); without it every pair below the limit is bounded as tightly as the certificate
+        can."""
         keys = [np.asarray(q, float).tobytes() for q in Q]
         todo = []
-        for key, q, limit in zip(keys, Q, limits):
+        for k, (key, q, limit) in enumerate(zip(keys, Q, limits)):
             cached = self._cache.get(key, False)
             if cached is False or (cached is not None and cached.limit < limit):
-                todo.append((key, np.asarray(q, float), limit))
+                todo.append((key, np.asarray(q, float), limit, None if pair_travel is None else pair_travel[k]))
         per_batch = max(1, self.BATCH_ROWS // max(1, len(self._gaps.pairs)))
         for first in range(0, len(todo), per_batch):
             self.checker.poll()  # a proof keeps to its query's time limit (among many pieces a batch is dear)
@@ -498,23 +638,28 @@ class Certifier:
         return [self._cache[key] for key in keys]
 
     def _ends(self, todo: list) -> None:
-        """Into the cache: the certificate's distances at each (key, q, limit) of `todo` -- Drake's for the pairs it
-        computes exactly, our lower bound for the others (a pair left out is at least `limit` apart); None where q
-        is out of bounds or Drake finds a pair touching."""
-        for key, _, _ in todo:
+        """Into the cache: the certificate's distances at each (key, q, limit, pair travel) of `todo` -- Drake's for
+        the pairs it computes exactly, our lower bound for the others (a pair left out is at least `limit` apart);
+        None where q is out of bounds or Drake finds a pair touching."""
+        for key, *_ in todo:
             self._cache[key] = None
-        inside = self.checker.space.within_bounds(np.array([q for _, q, _ in todo]))
+        inside = self.checker.space.within_bounds(np.array([q for _, q, *_ in todo]))
         todo = [item for item, keep in zip(todo, inside.tolist()) if keep]
         # Drake's pairs of every configuration as rows (configuration, first, second geometry, distance); reading a
         # GeometryId costs more than the distance, so each is read once and mapped through its integer value.
-        answers = [self.checker.signed_distances(q, limit) for _, q, limit in todo]
+        if self._ask_all:
+            answers = [self.checker.signed_distances(q, limit) for _, q, limit, _ in todo]
+            in_contact = []
+        else:  # Drake is asked only whether anything is in contact (see __init__)
+            answers = [[] for _ in todo]
+            in_contact = [k for k, (_, q, _, _) in enumerate(todo) if self.checker.in_contact(q)]
         value = self._index_of_value
         found = np.array(
             [(value[p.id_A.get_value()], value[p.id_B.get_value()], p.distance) for pairs in answers for p in pairs],
             float,
         ).reshape(-1, 3)
         config = np.repeat(np.arange(len(answers)), [len(pairs) for pairs in answers])
-        touching = np.unique(config[found[:, 2] <= 0])
+        touching = np.unique(np.concatenate([config[found[:, 2] <= 0], in_contact]).astype(np.int64))
         kept = np.setdiff1d(np.arange(len(answers)), touching)
         if not len(kept):
             return
@@ -532,14 +677,27 @@ class Certifier:
         flat = [p for pairs in answers for p in pairs]
         directions = np.array([flat[j].nhat_BA_W for j in position[~exact].tolist()], float).reshape(-1, 3)
         nhat = self._directions(len(kept), config[~exact], keys[~exact], swapped[~exact], directions)
+        if not self._ask_all:  # Drake's directions for the pairs it reported, kept for the rows it did not
+            reported = np.isfinite(nhat[:, :, 0])
+            last = len(nhat) - 1 - reported[::-1].argmax(axis=0)  # the last configuration that reported each pair
+            pairs = np.flatnonzero(reported.any(axis=0))
+            self._recent[pairs] = nhat[last[pairs], pairs]
         drake = [todo[k] for k in kept.tolist()]
-        limits = np.array([limit for _, _, limit in drake])
-        Q = np.array([q for _, q, _ in drake])
+        limits = np.array([limit for _, _, limit, _ in drake])
+        Q = np.array([q for _, q, _, _ in drake])
+        # What settles each pair (see _distances): its bound over the pieces, with room for the rounding allowance.
+        if drake[0][3] is None:
+            need = np.repeat(limits[:, None], len(self._gaps.pairs), axis=1)
+        else:
+            need = np.array([travel for *_, travel in drake]).reshape(len(drake), -1)
+        need = need * _MARGIN + 2 * self._rounding + 1e-12
 
         # One table of poses, the environment's then each configuration's robot geometries.
+        # Centres are the shapes' (see _Gaps.offset), not their frames' origins.
         rotations, centres = self._robot_poses(Q)
+        centres = centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[self._slot >= 0])
         rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
-        centres = np.concatenate([self._p, centres.reshape(-1, 3)])
+        centres = np.concatenate([self._centres, centres.reshape(-1, 3)])
         slot, count, robots = self._slot, len(self._slot), len(self._robot)
 
         def row(k, g):
@@ -551,26 +709,36 @@ class Certifier:
         def centre(k, g):
             return centres[row(k, g)]
 
-        near_k, near_pair, bounds = self._gaps.near(rotation, centre, nhat, limits)
+        near_k, near_pair, bounds = self._gaps.near(rotation, centre, nhat, limits, need)
         # A pair Drake's query left out is farther apart than the limit by Drake's reckoning, but without Drake's
         # direction our bound can fall far below that: alternating projections converge slowly between long shapes
-        # side by side (the UR3's upper arm and torch 9.8 mm apart were bounded at -2.4 mm), and such a pair fails every
-        # piece down to the floor. So those pairs are bounded again along Drake's direction for them alone.
-        unaided = np.isnan(nhat[near_k, near_pair, 0])
-        if unaided.any():
-            again = np.unique(near_k[unaided])
-            for k in again.tolist():
+        # side by side (the UR3's upper arm and torch 9.8 mm apart were bounded at -2.4 mm), and such a pair fails
+        # every piece down to the floor. So those pairs not settled are bounded again: along the direction Drake
+        # last gave for the pair (ends of one motion are near each other, and any direction gives a lower bound),
+        # then, where that is not enough either, along Drake's direction for the pair alone.
+
+        def tighten(rows, directions):
+            """Bound rows again along these directions; the rows still not settled."""
+            k, pair = near_k[rows], near_pair[rows]
+            again = self._gaps.bounds(k, pair, rotation, centre, directions, limits[k], need[k, pair])
+            bounds[rows] = np.maximum(bounds[rows], again)
+            return rows[bounds[rows] < need[k, pair]]
+
+        rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
+        known = np.isfinite(self._recent[near_pair[rows], 0]) if not self._ask_all else np.zeros(len(rows), bool)
+        if known.any():
+            rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
+        if len(rows):
+            asked = np.empty((len(rows), 3))
+            for k in np.unique(near_k[rows]).tolist():
                 query = self.checker.query_object(Q[k])
-                for pair in near_pair[unaided & (near_k == k)].tolist():
-                    nhat[k, pair] = self._direction(query, pair)
-            redone = self._gaps.near(
-                lambda k, g: rotation(again[k], g), lambda k, g: centre(again[k], g), nhat[again], limits[again]
-            )
-            kept_rows = ~np.isin(near_k, again)
-            near_k = np.concatenate([near_k[kept_rows], again[redone[0]]])
-            near_pair = np.concatenate([near_pair[kept_rows], redone[1]])
-            bounds = np.concatenate([bounds[kept_rows], redone[2]])
-        # Every configuration's distances -- Drake's exact ones and our bounds -- sorted by configuration, then key.
+                for r in np.flatnonzero(near_k[rows] == k).tolist():
+                    asked[r] = self._recent[near_pair[rows[r]]] = self._direction(query, near_pair[rows[r]])
+            tighten(rows, asked)
+        # Every configuration's distances -- Drake's exact ones and our bounds below the limit -- sorted by
+        # configuration, then key.
+        below = bounds < limits[near_k]
+        near_k, near_pair, bounds = near_k[below], near_pair[below], bounds[below]
         config = np.concatenate([config[exact], near_k])
         index = np.concatenate([index[exact], self._gaps.pairs[near_pair]])
         keys = np.concatenate([keys[exact], self._gaps.keys[near_pair]])
@@ -579,7 +747,7 @@ class Certifier:
         rows = self._rows[index[order]]
         split = np.cumsum(np.bincount(config, minlength=len(drake)))[:-1]
         parts = zip(*(np.split(array, split) for array in (keys[order], distance[order], rows[:, 0], rows[:, 1])))
-        for (key, _, limit), part in zip(drake, parts):
+        for (key, _, limit, _), part in zip(drake, parts):
             self._cache[key] = _End(limit, *part)
 
     def _direction(self, query, pair: int) -> np.ndarray:
@@ -626,6 +794,18 @@ class _End(NamedTuple):
     def nearest(self) -> float:
         """The least distance of a pair here (the limit if none is reported)."""
         return min(float(self.distance.min()), self.limit) if len(self.distance) else self.limit
+
+
+def _largest_by_group(values: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """The largest row of each group of consecutive rows of `values` (groups start at `first`), elementwise; as
+    np.maximum.reduceat, which is slow on 2-d arrays, where groups here have one or two rows (an end bounds the
+    pieces either side of it)."""
+    size = np.diff(first, append=len(values))
+    largest = values[first]
+    for j in range(1, int(size.max(initial=1))):
+        more = np.flatnonzero(size > j)
+        largest[more] = np.maximum(largest[more], values[first[more] + j])
+    return largest
 
 
 def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -164,6 +164,12 @@ class QueryContext:
         self.distance_queries += 1
         return self.oracle.signed_distance_pairs(q, max_distance)
 
+    def in_contact(self, q: np.ndarray) -> bool:
+        """Whether a pair the scene's policy counts penetrates at q (CollisionOracle.in_contact); the certificate's
+        question in place of a signed-distance query, counted as one in `distance_queries`, not in `checks`."""
+        self.distance_queries += 1
+        return self.oracle.in_contact(q)
+
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`
         (CollisionOracle.environment_gaps); counted in `point_queries`. Asked in batches, polling the stop before

@@ -296,6 +296,17 @@ class CollisionOracle:
         """Whether a SceneGraph geometry belongs to the robot (else to the environment)."""
         return geometry_id in self._robot_geometries
 
+    def in_contact(self, q: np.ndarray) -> bool:
+        """Whether a pair the scene's policy counts penetrates at q: HasCollisions, where the certificate needs no
+        distances from Drake (it costs a third of signed_distance_pairs(q, 0) on a mesh robot); timed as a distance
+        query."""
+        with self._lock:
+            start = time.perf_counter()
+            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
+            hit = self._query_port.Eval(self._ctx).HasCollisions()
+            self.seconds["distances"] += time.perf_counter() - start
+            return hit
+
     def signed_distance_pairs(self, q: np.ndarray, max_distance: float) -> list:
         """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
         `max_distance` (farther pairs are left out)."""
