@@ -270,15 +270,17 @@ def _sample(timed: list, W: np.ndarray, waypoint_times: np.ndarray, dt: float, j
     dim = W.shape[1]
     positions = np.tile(W[0], (len(times), 1))
     velocities, accelerations = np.zeros((len(times), dim)), np.zeros((len(times), dim))
-    starts = np.array([t0 for t0, _ in timed])
-    for i, time in enumerate(times):
-        if not timed:
-            break
-        t0, trajectory = timed[int(np.clip(np.searchsorted(starts, time, side="right") - 1, 0, len(timed) - 1))]
-        local = min(time - t0, trajectory.end_time())
-        positions[i] = trajectory.value(local).ravel()
-        velocities[i] = trajectory.EvalDerivative(local, 1).ravel()
-        accelerations[i] = trajectory.EvalDerivative(local, 2).ravel()
+    if timed:
+        # Each leg's samples in one call per quantity (a call per sample cost more than Toppra on short paths).
+        starts = np.array([t0 for t0, _ in timed])
+        leg = np.clip(np.searchsorted(starts, times, side="right") - 1, 0, len(timed) - 1)
+        for k, (t0, trajectory) in enumerate(timed):
+            rows = np.flatnonzero(leg == k)
+            if len(rows):
+                local = np.minimum(times[rows] - t0, trajectory.end_time())
+                positions[rows] = trajectory.vector_values(local).T
+                velocities[rows] = trajectory.MakeDerivative(1).vector_values(local).T
+                accelerations[rows] = trajectory.MakeDerivative(2).vector_values(local).T
     positions[-1], velocities[-1] = W[-1], 0.0  # exactly the goal, at rest
     names = list(joint_names) if joint_names is not None else [f"q[{i}]" for i in range(dim)]
     return Trajectory(

@@ -82,6 +82,7 @@ class Roadmap:
         self.edges_proposed = 0  # lazy candidates ever added
         self._tried: set[int] = set()  # `_key`s of the pairs ever proposed
         self.proved: set[tuple[int, int]] = set()  # edges the certificate proved free, (smaller, larger)
+        self._labelled = None  # (graph sizes, connected components) of the last `_labels`
         self._nodes: dict[bytes, int] = {}  # a configuration's bytes -> its node, so a repeated one is not added twice
         self._tree: cKDTree | None = None  # built when next asked for neighbours (None: nodes added since)
         # The search's graph, kept from one search to the next so that a search only merges in the edges added and
@@ -240,9 +241,13 @@ class Roadmap:
     def _labels(self) -> tuple[int, np.ndarray]:
         """Connected components of the graph of edges not known to collide: (count, label per node), from the edge
         arrays in C (a persistent roadmap asks this of tens of thousands of edges after every query)."""
-        alive = self._ends[self._alive]
-        graph = csr_matrix((np.ones(len(alive)), (alive[:, 0], alive[:, 1])), shape=(len(self), len(self)))
-        return connected_components(graph, directed=False)
+        # Edges are only ever added or killed, so the sizes name the graph: kept until they change. The search's
+        # graph holds each edge both ways, so its strong components are the components, found without the
+        # transposed copy an undirected count makes (half the time on 16 500 nodes).
+        state = (len(self), len(self._ends), int(self._alive.sum()))
+        if self._labelled is None or self._labelled[0] != state:
+            self._labelled = (state, connected_components(self._search_graph(), directed=True, connection="strong"))
+        return self._labelled[1]
 
     def connected(self, a: int, b: int) -> bool:
         labels = self._labels()[1]
