@@ -1,6 +1,7 @@
 """The cell roadmap (app.planning.cell): built once, it answers many queries and keeps what they learn; saved, it
 loads back only into the cell it was built for and answers as the one in memory does."""
 
+import dataclasses
 import json
 import re
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from app.checking.budget import Budget
-from app.errors import UserError
+from app.errors import NoPath, UserError
 from app.planning.cell import BuildSettings, CellRoadmap, read
 from app.planning.planner import PlanSettings
 from app.scene.model import SCENES_DIR
@@ -72,6 +73,21 @@ def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
     size = len(cell)
     again = cell.solve(settings=QUERY)
     assert again.rounds == 0 and len(cell) == size and again.collision_checks < result.collision_checks
+
+
+def test_a_failed_query_takes_its_samples_away_and_keeps_its_verdicts(oracles):
+    """A query that spends its budget without a path leaves the roadmap its nodes and edges as they were, plus the
+    verdicts it reached on edges between them; the next query is answered as on a roadmap it never touched."""
+    oracle = oracles("bar")
+    cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))  # far too few to cross the wall
+    size, checked = len(cell), len(cell.graph.edges(checked=True))
+    with pytest.raises(NoPath):
+        cell.solve(settings=dataclasses.replace(QUERY, budget=Budget(checks=3000)))
+    assert len(cell) == size and len(cell.graph.Q) == size and len(cell.graph.kinds) == size
+    assert (cell.graph.edges() < size).all() and len(cell.graph.edges(checked=True)) >= checked
+    untouched = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))
+    after, fresh = cell.solve(settings=QUERY), untouched.solve(settings=QUERY)
+    assert after.success and fresh.success and after.collision_checks <= fresh.collision_checks
 
 
 def test_an_edge_known_to_collide_is_never_used_or_checked_again(oracles, bar_file):

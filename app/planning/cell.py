@@ -8,7 +8,8 @@ configurations (every IK solution of a tool pose): the query reaches whichever i
 
 Nothing a query learns is forgotten: an edge checked free or found colliding is never checked again, an edge the
 certificate proved is never proved again (nor one it could not prove tried again), and the samples a hard query had
-to add stay for the next one, so a cell gets cheaper the more it is used. OMPL's PRM keeps its graph the same way
+to add stay for the next one, so a cell gets cheaper the more it is used (a query that fails takes its samples away
+again, and leaves its edge verdicts). OMPL's PRM keeps its graph the same way
 across `clearQuery()`.
 
 `save(path)` writes one file; `CellRoadmap.load(path, oracle)` reads it back only into the cell it was built for: the
@@ -39,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from app.checking.budget import Budget
-from app.errors import SamplerBudgetExceeded, UserError
+from app.errors import NoPath, SamplerBudgetExceeded, UserError
 from app.io import write_atomically
 from app.planning.planner import PlanResult, PlanSettings, Query, Samples, default_step
 
@@ -166,8 +167,11 @@ class CellRoadmap:
         self, start=None, goal=None, settings: PlanSettings | None = None, *, via=None, cancel=None
     ) -> PlanResult:
         """Plan from start to goal (default: the scene's; `goal` may be several configurations, any of which will
-        do) on this roadmap, with `settings` (default: PlanSettings()). What the query learns stays in the roadmap,
-        whether it succeeds or not. Raises as app.plan does."""
+        do) on this roadmap, with `settings` (default: PlanSettings()). What the query learns stays in the roadmap;
+        but when it fails, the nodes it added (its samples, its start and goals) leave again, keeping only its
+        verdicts on edges between the roadmap's nodes: a query that spends its whole budget where no path is found
+        adds thousands of samples there, and every later search would pay for them. Raises as app.plan does."""
+        size = len(self.graph)
         query = Query(
             self.oracle,
             settings or PlanSettings(),
@@ -180,6 +184,9 @@ class CellRoadmap:
         )
         try:
             return query.solve()
+        except NoPath:
+            self.graph.truncate(size)
+            raise
         finally:
             self._certifier = query.certifier
             self.provenance["queries"] += 1

@@ -364,6 +364,26 @@ class Roadmap:
             for u, v in self._ends[self._alive & self._checked].tolist():
                 self._components.union(u, v)
 
+    def truncate(self, n: int) -> None:
+        """Drop the nodes from index n on, with every edge that touches one; what was decided between the nodes
+        kept stays (verdicts, proofs, pairs tried)."""
+        if n >= len(self):
+            return
+        keep = (self._ends < n).all(axis=1)
+        self.Q, self.kinds, self._embedded, self._tree = self.Q[:n], self.kinds[:n], self._embedded[:n], None
+        self._nodes = {key: i for key, i in self._nodes.items() if i < n}
+        self._ends, self._lengths = self._ends[keep], self._lengths[keep]
+        self._alive, self._checked = self._alive[keep], self._checked[keep]
+        self._rows = dict(zip(_key(self._ends[:, 0], self._ends[:, 1]).tolist(), range(len(self._ends))))
+        self._tried = {key for key in self._tried if key & 0xFFFFFFFF < n}  # the larger node is the low bits
+        self.proved = {pair for pair in self.proved if pair[1] < n}
+        self._search, self._search_synced = tuple(column[:0] for column in self._search), 0
+        self._labelled = None
+        self._components = _UnionFind()
+        self._components.grow(n)
+        for a, b in self._ends[self._alive & self._checked].tolist():
+            self._components.union(a, b)
+
     def edge_pairs(self, P: np.ndarray) -> list[tuple[int, int] | None]:
         """For each straight segment of the polyline P, the roadmap edge (node pair, smaller first) not known to
         collide that joins the very same two configurations, or None."""
