@@ -505,7 +505,8 @@ def figure(report: dict, path: str) -> None:
 
     scenes = report["scenes"]
     width = 1.0 + 1.6 * max(len(s["methods"]) for s in scenes)
-    fig, axes = plt.subplots(1, len(scenes), figsize=(width * len(scenes), 4.2), squeeze=False)
+    # Constrained layout makes room for the two-line suptitle and no more.
+    fig, axes = plt.subplots(1, len(scenes), figsize=(width * len(scenes), 4.2), squeeze=False, layout="constrained")
     rng = np.random.default_rng(0)  # the dots' horizontal jitter
     for ax, s in zip(axes.flat, scenes):
         labels = []
@@ -531,5 +532,4 @@ def figure(report: dict, path: str) -> None:
         f"and timed; OMPL: {report['ompl_seconds']:g} s per query, smoothed, neither certified nor timed",
         fontsize=8,
     )
-    fig.tight_layout(rect=(0, 0, 1, 0.9))
     save(fig, path)
