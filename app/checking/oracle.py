@@ -212,8 +212,7 @@ class CollisionOracle:
         Pairs farther apart than `max_distance` are not computed, so the answer is capped there.
         """
         with self._lock:
-            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
-            pairs = self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+            pairs = self.query_object(q).ComputeSignedDistancePairwiseClosestPoints(max_distance)
         return min((p.distance for p in pairs), default=float(max_distance))
 
     def contacts(self, q: np.ndarray, margin: float = 0.0) -> dict[str, bool]:
@@ -237,8 +236,7 @@ class CollisionOracle:
         """The body pairs (scoped names, sorted) in collision at q under the scene's policy; for error messages.
         Geometry anchored to the world (a custom scene's environment pieces) is named itself, not "world"."""
         with self._lock:
-            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
-            query = self._query_port.Eval(self._ctx)
+            query = self.query_object(q)
             try:
                 pairs = [(p.id_A, p.id_B) for p in query.ComputePointPairPenetration()]
             except RuntimeError:  # a shape pair without penetration support: fall back to signed distances
@@ -302,18 +300,16 @@ class CollisionOracle:
         query."""
         with self._lock:
             start = time.perf_counter()
-            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
-            hit = self._query_port.Eval(self._ctx).HasCollisions()
+            hit = not self._raw_free(np.asarray(q, float)[None])[0]
             self.seconds["distances"] += time.perf_counter() - start
-            return hit
+            return bool(hit)
 
     def signed_distance_pairs(self, q: np.ndarray, max_distance: float) -> list:
         """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
         `max_distance` (farther pairs are left out)."""
         with self._lock:
             start = time.perf_counter()
-            self.plant.SetPositions(self._ctx, self._positions(np.asarray(q, float)))
-            pairs = self._query_port.Eval(self._ctx).ComputeSignedDistancePairwiseClosestPoints(max_distance)
+            pairs = self.query_object(q).ComputeSignedDistancePairwiseClosestPoints(max_distance)
             self.seconds["distances"] += time.perf_counter() - start
             return pairs
 

@@ -359,10 +359,7 @@ class Roadmap:
         row = self._rows.get(_key(a, b))
         if row is not None and self._alive[row]:
             self._alive[row] = False
-            self._components = _UnionFind()
-            self._components.grow(len(self.Q))
-            for u, v in self._ends[self._alive & self._checked].tolist():
-                self._components.union(u, v)
+            self._recount_components()
 
     def truncate(self, n: int) -> None:
         """Drop the nodes from index n on, with every edge that touches one; what was decided between the nodes
@@ -379,8 +376,13 @@ class Roadmap:
         self.proved = {pair for pair in self.proved if pair[1] < n}
         self._search, self._search_synced = tuple(column[:0] for column in self._search), 0
         self._labelled = None
+        self._recount_components()
+
+    def _recount_components(self) -> None:
+        """The skip-connected rule's components from scratch, from the edges decided free: after edges or nodes
+        left, which union-find cannot undo."""
         self._components = _UnionFind()
-        self._components.grow(n)
+        self._components.grow(len(self.Q))
         for a, b in self._ends[self._alive & self._checked].tolist():
             self._components.union(a, b)
 
@@ -425,16 +427,14 @@ class Roadmap:
         graph.Q = checker.space.wrap(Q)
         graph.kinds = [names[c] for c in kinds]
         graph._nodes = {q.tobytes(): i for i, q in enumerate(graph.Q)}
-        graph._components.grow(len(Q))
         graph._embedded = graph.embed(graph.Q) if len(Q) else np.empty((0, checker.space.dim))
         graph._tree = cKDTree(graph._embedded, boxsize=graph._box) if len(Q) else None
         ends = np.asarray(data["ends"], int).reshape(-1, 2)
         alive, checked, proved = (np.asarray(data[key], bool) for key in ("alive", "checked", "proved"))
         graph._add_edges(ends[alive], checked=False)
         graph._checked[:] = checked[alive]
-        for a, b in ends[alive & checked].tolist():
-            graph._components.union(a, b)
         graph._add_dead(ends[~alive])
+        graph._recount_components()
         graph._tried = set(_key(ends[:, 0], ends[:, 1]).tolist())
         graph.proved = {tuple(edge) for edge in ends[proved].tolist()}
         graph.edges_tried, graph.edges_proposed = (int(c) for c in data["counters"])
