@@ -421,24 +421,25 @@ def _norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
-_bounds: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+# Per shared oracle, what its certifiers all use, made once: {kind: object}; gone with the oracle.
+_per_oracle: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-_shared_gaps: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+def _shared(oracle, kind: str, make):
+    made = _per_oracle.setdefault(oracle, {})
+    if kind not in made:
+        made[kind] = make()
+    return made[kind]
 
 
 def _gaps(oracle, geometries: list, robot: np.ndarray, exact: np.ndarray) -> _Gaps:
     """The shared oracle's _Gaps, made once per oracle (its hulls' support tables fill as they are used)."""
-    if oracle not in _shared_gaps:
-        _shared_gaps[oracle] = _Gaps(oracle, geometries, robot, exact)
-    return _shared_gaps[oracle]
+    return _shared(oracle, "gaps", lambda: _Gaps(oracle, geometries, robot, exact))
 
 
 def motion_bound(oracle) -> MotionBound:
     """The shared oracle's MotionBound, computed once per oracle."""
-    if oracle not in _bounds:
-        _bounds[oracle] = MotionBound(oracle)
-    return _bounds[oracle]
+    return _shared(oracle, "motion bound", lambda: MotionBound(oracle))
 
 
 class Certifier:
