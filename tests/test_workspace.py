@@ -126,6 +126,67 @@ def test_the_gap_search_finds_what_the_definition_finds(oracles, scene):
     assert 0 < found.sum() < len(P)
 
 
+def test_the_gap_search_on_a_decomposed_mesh_finds_what_the_definition_finds(tmp_path, monkeypatch):
+    """An environment of convex hulls (a U channel cut into pieces): the numpy distances to the hulls' triangles
+    decide as Drake's point queries do, about the channel's inside and around its outside."""
+    from pydrake.geometry import Role
+
+    from app.checking.oracle import CollisionOracle
+    from app.scene.custom import CustomSpec, build_scene
+    from mesh_shapes import u_channel
+
+    monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
+    u_channel(4.0).apply_transform(trimesh_turn()).export(tmp_path / "u.obj")
+    spec = CustomSpec(robot="examples/trap/cube.obj", env=[str(tmp_path / "u.obj")], bounds=["-3..3"] * 3)
+    oracle = CollisionOracle(build_scene(spec, progress=False))
+    inspector = oracle.model.scene_graph().model_inspector()
+    pieces = [g for g in inspector.GetAllGeometryIds(Role.kProximity) if not oracle.is_robot_geometry(g)]
+    assert len(pieces) > 1 and {type(inspector.GetShape(g)).__name__ for g in pieces} == {"Convex"}
+    rng = np.random.default_rng(2)
+    P = rng.uniform(-3, 3, (600, 3))
+    found = oracle.environment_gaps(P, 2.5)
+    assert np.array_equal(found, exhaustive_gaps(oracle, P, 2.5))
+    assert 0 < found.sum() < len(P)
+
+
+def trimesh_turn() -> np.ndarray:
+    """A turn about an oblique axis, so no face of the channel lies along the world's axes."""
+    import trimesh
+
+    return trimesh.transformations.rotation_matrix(0.7, [1.0, 2.0, 3.0])
+
+
+def test_a_turned_boxs_distances_are_exact_inside_and_out():
+    """Polytopes against the closed form of a box's signed distance, in the box's own frame."""
+    from scipy.spatial.transform import Rotation
+
+    from app.checking.polytopes import Polytopes
+
+    R, t, half = Rotation.from_rotvec([0.3, -0.8, 0.5]).as_matrix(), np.array([1.0, -2.0, 0.5]), np.array([1, 2, 3.0])
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+    faces = [
+        [corners[[i for i in range(8) if (i >> (2 - axis)) & 1 == side][j]] for j in (0, 1, 3, 2)]
+        for axis in range(3)
+        for side in (0, 1)
+    ]
+    box = Polytopes([[loop @ R.T + t for loop in faces]])
+    P = t + np.random.default_rng(0).uniform(-6, 6, (2000, 3))
+    points, distance, gradient = box.near(P, np.full(len(P), 20.0))
+    assert points.tolist() == list(range(len(P)))
+    local = (P - t) @ R  # the points in the box's frame
+    outside = np.maximum(np.abs(local) - half, 0)
+    expected = np.where(
+        np.linalg.norm(outside, axis=1) > 0, np.linalg.norm(outside, axis=1), (np.abs(local) - half).max(axis=1)
+    )
+    assert np.allclose(distance, expected, atol=1e-12) and (expected < 0).sum() > 50
+    out = expected > 0
+    towards = np.sign(local) * outside / np.linalg.norm(outside, axis=1, keepdims=True).clip(1e-300)
+    assert np.allclose(gradient[out], towards[out] @ R.T, atol=1e-9)
+    # Beyond reach, nothing: a point 1 beyond a face is found within 1.5 and not within 0.5.
+    near = t + R @ np.array([2.0, 0, 0])
+    assert len(box.near(near[None], np.array([1.5]))[0]) == 1 and not len(box.near(near[None], np.array([0.5]))[0])
+
+
 def test_a_gap_search_ends_when_the_budget_is_spent(oracles):
     oracle = oracles("maze").context(Budget(seconds=0.0))
     P = np.random.default_rng(0).uniform(0, 20, (4096, 3))

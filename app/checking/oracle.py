@@ -32,6 +32,7 @@ import numpy as np
 
 from app.checking.budget import Budget
 from app.checking.context import QueryContext
+from app.checking.polytopes import Polytopes, gaps
 from app.scene.cspace import ConfigurationSpace
 from app.scene.model import Scene
 
@@ -73,9 +74,10 @@ class CollisionOracle:
         # Configurations answered for every query since the oracle was made: for a progress display that watches
         # the oracle from another thread. A query's own count is its context's `checks`.
         self.answered = 0
-        # Seconds spent in Drake's answers since the oracle was made, by kind: collision checks, signed-distance
-        # queries, workspace point queries. A benchmark takes the difference over a run to tell the share of its
-        # time that Drake's queries took from the share that went to everything else.
+        # Seconds spent answering geometric questions since the oracle was made, by kind: collision checks and
+        # signed-distance queries (Drake's), workspace point queries (mostly numpy, app.checking.polytopes). A
+        # benchmark takes the difference over a run to tell the share of its time that queries took from the share
+        # that went to everything else.
         self.seconds = {"checks": 0.0, "distances": 0.0, "points": 0.0}
 
         # The checker takes ownership of the diagram; everything below goes through checker.model().
@@ -358,63 +360,95 @@ class CollisionOracle:
         )
 
     @functools.cached_property
-    def _environment_spheres(self) -> tuple[np.ndarray, np.ndarray]:
-        """The environment pieces' bounding spheres: centres (their geometry frames' origins), (m, 3), and radii,
-        (m,); the environment does not move with the robot."""
-        from pydrake.geometry import Role
+    def _environment(self) -> tuple[Polytopes, list, np.ndarray, np.ndarray]:
+        """The environment, which does not move with the robot: its boxes and convex hulls as world-frame
+        polytopes, and its other pieces (spheres, cylinders, ...) as geometry ids with the bounding spheres about
+        their frames' origins, centres (k, 3) and radii (k,)."""
+        from pydrake.geometry import Box, Convex, Mesh, Role
 
+        faces, others = [], []
         with self._lock:
             query = self._query_port.Eval(self._ctx)
-            pieces = [g for g in self._inspector.GetAllGeometryIds(Role.kProximity) if g not in self._robot_geometries]
-            poses = [query.GetPoseInWorld(g) for g in pieces]
-        centres = np.array([X.translation() for X in poses]).reshape(-1, 3)
-        radii = np.array([np.linalg.norm(half_extent(self._inspector.GetShape(g), np.eye(3))) for g in pieces])
-        return centres, radii
+            for g in self._inspector.GetAllGeometryIds(Role.kProximity):
+                if g in self._robot_geometries:
+                    continue
+                shape, X = self._inspector.GetShape(g), query.GetPoseInWorld(g)
+                if isinstance(shape, Box):
+                    loops = [
+                        np.array(face) * (np.array([shape.width(), shape.depth(), shape.height()]) / 2)
+                        for face in _BOX_FACES
+                    ]
+                elif isinstance(shape, (Convex, Mesh)):  # Drake's proximity engine uses a mesh's convex hull
+                    hull = shape.GetConvexHull()
+                    loops, data, i = [], hull.face_data(), 0
+                    while i < len(data):
+                        loops.append(np.array([hull.vertex(int(v)) for v in data[i + 1 : i + 1 + data[i]]]))
+                        i += 1 + data[i]
+                else:
+                    others.append((g, X.translation(), np.linalg.norm(half_extent(shape, np.eye(3)))))
+                    continue
+                R, t = X.rotation().matrix(), X.translation()
+                faces.append([loop @ R.T + t for loop in loops])
+        centres = np.array([c for _, c, _ in others]).reshape(-1, 3)
+        return Polytopes(faces), [g for g, _, _ in others], centres, np.array([r for _, _, r in others])
 
-    def _near_environment(self, P: np.ndarray, distance: float) -> np.ndarray:
-        """Whether each point (n, 3) may lie within `distance` of an environment piece: its bounding sphere does
-        (False: surely not); in numpy, points by pieces at once (a thousand pieces cost microseconds a point)."""
-        centres, radii = self._environment_spheres
-        gaps = np.linalg.norm(P[:, None, :] - centres[None], axis=2) - radii
-        return np.any(gaps <= distance * (1 + 1e-9), axis=1)
+    def _point_distances(self, P: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The points (n, 3) and environment pieces within `reach` (n,) of each other: (point index, signed
+        distance, unit gradient at the point), by point. Boxes and hulls in numpy, the same answers as SceneGraph's
+        point queries at a fraction of their cost; other shapes by those queries, for the points their bounding
+        spheres reach."""
+        polytopes, others, centres, radii = self._environment
+        found = polytopes.near(P, reach)
+        if not others:
+            return found
+        ball = np.linalg.norm(P[:, None, :] - centres[None], axis=2) - radii
+        asked = np.flatnonzero(np.any(ball <= reach[:, None] * (1 + 1e-9), axis=1))
+        rows = []
+        with self._lock:
+            query = self._query_port.Eval(self._ctx)
+            for i in asked.tolist():
+                try:
+                    answers = query.ComputeSignedDistanceToPoint(P[i], reach[i])
+                except RuntimeError:
+                    # Drake refuses a point query near some sliver hulls of decomposed meshes ("very sharp edge"):
+                    # the other shapes near such a point go unseen; the gap search is a sampling heuristic.
+                    continue
+                rows += [(i, r.distance, r.grad_W) for r in answers if r.id_G in others]
+        if not rows:
+            return found
+        points = np.concatenate([found[0], [i for i, _, _ in rows]]).astype(int)
+        order = np.argsort(points, kind="stable")
+        distance = np.concatenate([found[1], [d for _, d, _ in rows]])
+        gradient = np.concatenate([found[2], np.array([g for _, _, g in rows]).reshape(-1, 3)])
+        return points[order], distance[order], gradient[order]
 
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`: two
         obstacles on roughly opposite sides of it (their distance gradients more than 120 degrees apart) whose
-        distances add up to less than `width`.
+        distances add up to less than `width` (`polytopes.gaps`).
 
-        One of a gap's two obstacles lies within width/2 of the point, and most points have none so near: the pieces'
-        bounding spheres rule those points out without asking Drake. The others get SceneGraph point queries, whose
-        broad phase leaves out the pieces beyond their threshold: first within width/2, then, for a point that has a
-        piece so near, within `width` less the nearest distance (the farthest the other obstacle may be), since a
-        query's cost grows with the pieces it reaches; the pairs are compared at once in numpy."""
+        One of a gap's two obstacles lies within width/2 of the point, so the pieces within width/2 are found first;
+        then, for a point free with one so near, those within `width` less the nearest distance (the farthest the
+        other obstacle may be): the fewer pieces a point reaches, the less it costs."""
         P = np.atleast_2d(np.asarray(P, float))
+        start = time.perf_counter()
+        points, distance, _ = self._point_distances(P, np.full(len(P), width / 2))
+        nearest = np.full(len(P), np.inf)
+        np.minimum.at(nearest, points, distance)
+        free = np.flatnonzero(np.isfinite(nearest) & (nearest > 0))
+        points, distance, gradient = self._point_distances(P[free], width - nearest[free])
         gap = np.zeros(len(P), bool)
-        robot = self._robot_geometries
-        near_any = self._near_environment(P, width / 2)
-        with self._lock:
-            start = time.perf_counter()
-            query = self._query_port.Eval(self._ctx)
-            for i in np.flatnonzero(near_any).tolist():
-                p = P[i]
-                try:
-                    near = [r.distance for r in query.ComputeSignedDistanceToPoint(p, width / 2) if r.id_G not in robot]
-                    if not near or min(near) <= 0:
-                        continue
-                    pieces = [
-                        r for r in query.ComputeSignedDistanceToPoint(p, width - min(near)) if r.id_G not in robot
-                    ]
-                except RuntimeError:
-                    # Drake refuses a point query near some sliver pieces of decomposed meshes ("very sharp edge",
-                    # seen on OMPL.app's Maze_planar): such a point is not taken as a gap; the search is a sampling
-                    # heuristic, nothing is proved by it.
-                    continue
-                d = np.array([r.distance for r in pieces])
-                G = np.array([r.grad_W for r in pieces]).reshape(-1, 3)
-                cosine = G[:, None, 0] * G[None, :, 0] + G[:, None, 1] * G[None, :, 1] + G[:, None, 2] * G[None, :, 2]
-                gap[i] = bool(np.any((d[:, None] + d[None, :] < width) & (cosine < -0.5)))
-            self.seconds["points"] += time.perf_counter() - start
+        gap[free] = gaps(points, distance, gradient, len(free), width)
+        self.seconds["points"] += time.perf_counter() - start
         return gap
+
+
+# The six faces of the box [-1, 1]^3, each a loop of corners around it.
+_BOX_FACES = (
+    [[(s, -1, -1), (s, 1, -1), (s, 1, 1), (s, -1, 1)] for s in (-1, 1)]
+    + [[(-1, s, -1), (1, s, -1), (1, s, 1), (-1, s, 1)] for s in (-1, 1)]
+    + [[(-1, -1, s), (1, -1, s), (1, 1, s), (-1, 1, s)] for s in (-1, 1)]
+)
 
 
 def half_extent(shape, rotation: np.ndarray) -> np.ndarray:
