@@ -202,6 +202,8 @@ ROWS = [
     (["plan", "--ompl-app", "{dir}"], 2, "is not a file"),
     (["plan", "--ompl-app", "{file}"], 2, "File contains no section headers"),
     (["plan", "bar", "--ompl-app", "{file}"], 2, "--ompl-app sets the robot, environment and bounds"),
+    (["roadmap", "info", "{file}"], 2, "is not a roadmap file of this planner (not an .npz archive)"),
+    (["plan", "bar", "--roadmap", "{file}"], 2, "is not a roadmap file of this planner (not an .npz archive)"),
     (["view", "bar", "--trajectory", "{dir}", "--html", "{out}/x.html"], 2, "is not a file"),
     (["view", "bar", "--trajectory", "{long}", "--html", "{out}/x.html"], 2, "cannot read trajectory file"),
     (["view", "tunnel", "--trajectory", "{maze_motion}", "--html", "{out}/x.html"], 2, "scene 'maze', not of 'tunnel'"),

@@ -15,6 +15,8 @@ from scipy.spatial import cKDTree
 
 # Triangle rows (a point and a triangle of a piece near it) handled at once: about 200 MB of temporaries.
 ROWS = 1 << 20
+# Points times pieces up to which every pair goes to the bounding-box test without the KD-tree.
+DENSE = 4096
 
 
 class Polytopes:
@@ -69,11 +71,14 @@ class Polytopes:
         none = np.empty(0, int), np.empty(0), np.empty((0, 3))
         if not self.count or not len(P):
             return none
-        lists = self._tree.query_ball_point(P, reach + self.radii.max(), return_sorted=False)
-        points = np.repeat(np.arange(len(P)), [len(found) for found in lists])
-        if not len(points):
-            return none
-        pieces = np.concatenate(lists).astype(int)
+        if self.count * len(P) <= DENSE:  # few pieces: every pair, cheaper than asking the tree
+            points, pieces = np.divmod(np.arange(self.count * len(P)), self.count)
+        else:
+            lists = self._tree.query_ball_point(P, reach + self.radii.max(), return_sorted=False)
+            points = np.repeat(np.arange(len(P)), [len(found) for found in lists])
+            if not len(points):
+                return none
+            pieces = np.concatenate(lists).astype(int)
         # The distance to a piece's bounding box is a lower bound of the distance to the piece.
         outside = np.maximum(self.lower[pieces] - P[points], P[points] - self.upper[pieces])
         box = np.linalg.norm(np.maximum(outside, 0), axis=1)

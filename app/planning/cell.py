@@ -242,6 +242,13 @@ def read(path) -> tuple[dict, dict]:
     if size > MAX_FILE_BYTES:
         raise UserError(f"roadmap {path} is {size / 2**20:.0f} MiB, over the {MAX_FILE_BYTES >> 20} MiB limit")
     try:
+        with open(path, "rb") as head:
+            zipped = head.read(4) == b"PK\x03\x04"
+    except OSError as exc:
+        raise UserError(f"cannot read roadmap {path}: {exc.strerror or exc}") from None
+    if not zipped:  # numpy would take any other file for a pickle and say so
+        raise UserError(f"{path} is not a roadmap file of this planner (not an .npz archive)")
+    try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
