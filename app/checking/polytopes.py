@@ -11,7 +11,6 @@ at once. A KD-tree of the pieces' centres and their bounding boxes leave out the
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 # Triangle rows (a point and a triangle of a piece near it) handled at once: about 200 MB of temporaries.
 ROWS = 1 << 20
@@ -61,6 +60,8 @@ class Polytopes:
         self.upper = np.array([v.max(axis=0) for v in vertices]).reshape(-1, 3)
         self.centres = (self.lower + self.upper) / 2
         self.radii = np.array([np.linalg.norm(v - c, axis=1).max() for v, c in zip(vertices, self.centres)])
+        from scipy.spatial import cKDTree  # (loaded with the first scene, not when the command line starts)
+
         self._tree = cKDTree(self.centres) if self.count else None
 
     def near(self, P: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
