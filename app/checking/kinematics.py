@@ -73,14 +73,15 @@ class TreeKinematics:
         kinds = {plant.get_joint(i).type_name() for i in plant.GetJointIndices()}
         return cls(plant, frames, position_map) if kinds <= set(_KINDS) else None
 
-    def _body_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3)."""
-        n = len(Q)
+    def _chain(self, Q: np.ndarray) -> tuple[list, list]:
+        """Every body's world rotation and position, in `_bodies` order: (n, 3, 3) and (n, 3), or (3, 3) and (3,)
+        for a body welded to the world (directly or through other welds: a cart, a mounting plate), which every
+        configuration shares, so that it is computed once and its children multiply by one matrix."""
         R, p = [], []
         for body in self._bodies:
             if body is None:  # the world
-                R.append(np.broadcast_to(np.eye(3), (n, 3, 3)))
-                p.append(np.zeros((n, 3)))
+                R.append(np.eye(3))
+                p.append(np.zeros(3))
                 continue
             parent, kind, (column, multiplier, offset), constants = body
             if kind != "weld":
@@ -97,7 +98,16 @@ class TreeKinematics:
                 R_PC, p_PC = constants
             R.append(R[parent] @ R_PC)
             p.append(p[parent] + _apply(R[parent], p_PC))
-        return np.stack(R, axis=1), np.stack(p, axis=1)
+        return R, p
+
+    def _body_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3)."""
+        R, p = self._chain(Q)
+        n = len(Q)
+        return (
+            np.stack([np.broadcast_to(r, (n, 3, 3)) for r in R], axis=1),
+            np.stack([np.broadcast_to(x, (n, 3)) for x in p], axis=1),
+        )
 
     def poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each frame's world rotation (n, frames, 3, 3) and origin (n, frames, 3)."""
@@ -107,9 +117,15 @@ class TreeKinematics:
 
     def origins(self, Q: np.ndarray, frames: np.ndarray) -> np.ndarray:
         """The world origin of frame frames[i] in configuration Q[i], (n, 3)."""
-        R, p = self._body_poses(np.atleast_2d(np.asarray(Q, float)))
-        rows, body = np.arange(len(frames)), self._frame_body[frames]
-        return p[rows, body] + _apply(R[rows, body], self._frame_p[frames])
+        R, p = self._chain(np.atleast_2d(np.asarray(Q, float)))
+        body = self._frame_body[frames]
+        out = np.empty((len(frames), 3))
+        for j in np.unique(body).tolist():  # by body: the rows of the frames on it
+            rows = np.flatnonzero(body == j)
+            R_j = R[j] if R[j].ndim == 2 else R[j][rows]
+            p_j = p[j] if p[j].ndim == 1 else p[j][rows]
+            out[rows] = p_j + _apply(R_j, self._frame_p[frames[rows]])
+        return out
 
 
 def _coordinate(joint, position_map) -> tuple:

@@ -117,7 +117,8 @@ class WorkspaceGaps:
         else:
             if self._tree is None:
                 self._tree = cKDTree(self.points)
-            near = self._tree.query(x)[0] <= self.tolerance
+            # Bounded, the tree stops looking past the tolerance (a point beyond it comes back at infinity).
+            near = self._tree.query(x, distance_upper_bound=np.nextafter(self.tolerance, np.inf))[0] <= self.tolerance
         Q = Q[near]
         return Q[self.space.within_bounds(Q)]
 
