@@ -17,6 +17,7 @@ it looked at. Configurations outside the bounds are rejected before Drake and no
 from __future__ import annotations
 
 import functools
+import time
 
 import numpy as np
 
@@ -24,9 +25,11 @@ from app.checking.budget import Budget, BudgetSpent, Stop
 
 # Most configurations one edge-check call hands Drake at once (a few tenths of a second), so a stop is polled often.
 _MAX_BATCH = 4096
-# Workspace points asked at once between polls of the stop: among many environment pieces a point query is dear, and
-# a search of thousands of points must still end when the query must.
-_POINT_BATCH = 64
+# Workspace points asked at once between polls of the stop, at first; then as many as take about _POINT_SECONDS at
+# the pace of the batch before, within [_POINT_BATCH, _MAX_BATCH]. Among many environment pieces a point is dear and
+# a search of thousands of points must still end when the query must; among a few, each call's fixed cost would
+# outweigh the points.
+_POINT_BATCH, _POINT_SECONDS = 64, 0.005
 # The oracle's uncounted measurements and model, which a context passes through (CollisionOracle documents each).
 _PASSED_THROUGH = frozenset(
     {
@@ -176,11 +179,15 @@ class QueryContext:
         each, so BudgetSpent may end it part way."""
         P = np.atleast_2d(np.asarray(P, float))
         gap = np.zeros(len(P), bool)
-        for b in range(0, len(P), _POINT_BATCH):
+        b, size = 0, _POINT_BATCH
+        while b < len(P):
             self.poll()
-            batch = P[b : b + _POINT_BATCH]
+            batch = P[b : b + size]
             self.point_queries += len(batch)
+            clock = time.perf_counter()
             gap[b : b + len(batch)] = self.oracle.environment_gaps(batch, width)
+            pace = (time.perf_counter() - clock) / len(batch)
+            b, size = b + len(batch), int(np.clip(_POINT_SECONDS / max(pace, 1e-9), _POINT_BATCH, _MAX_BATCH))
         return gap
 
 

@@ -89,11 +89,15 @@ class Polytopes:
             return none
         # Pairs in chunks of about ROWS triangle rows: a point among hundreds of pieces needs thousands of rows.
         rows = np.cumsum(self.size[pieces])
-        found = []
-        for chunk in np.split(np.arange(len(points)), np.searchsorted(rows, np.arange(ROWS, rows[-1], ROWS))):
-            at, distance, closest = self._distances(P[points[chunk]], pieces[chunk], reach[points[chunk]])
-            found.append((points[chunk][at], distance, closest))
-        points, distance, closest = (np.concatenate(column) for column in zip(*found))
+        if rows[-1] <= ROWS:
+            at, distance, closest = self._distances(P[points], pieces, reach[points])
+            points = points[at]
+        else:
+            found = []
+            for chunk in np.split(np.arange(len(points)), np.searchsorted(rows, np.arange(ROWS, rows[-1], ROWS))):
+                at, distance, closest = self._distances(P[points[chunk]], pieces[chunk], reach[points[chunk]])
+                found.append((points[chunk][at], distance, closest))
+            points, distance, closest = (np.concatenate(column) for column in zip(*found))
         gradient = np.zeros_like(closest)
         outside = distance > 0
         gradient[outside] = (P[points[outside]] - closest[outside]) / distance[outside, None]
@@ -111,6 +115,9 @@ class Polytopes:
         depth = np.maximum.reduceat(height, first)  # <= 0: behind every face plane, inside
         inside = depth <= 0
         at = np.flatnonzero(~inside & (depth <= reach))
+        inside = np.flatnonzero(inside)
+        if not len(at):  # (most points of a sparse scene: nothing within reach, or inside only)
+            return inside, depth[inside], P[inside]
         # A convex piece's nearest point to a point outside lies on a face that faces the point.
         wanted = np.zeros(len(pieces), bool)
         wanted[at] = True
@@ -124,7 +131,6 @@ class Polytopes:
         d = np.linalg.norm(p - closest, axis=1)
         best = _argmin_runs(d, first, runs)
         near = d[best] <= reach[at]
-        inside = np.flatnonzero(inside)
         pairs = np.concatenate([inside, at[near]])
         distance = np.concatenate([depth[inside], d[best][near]])
         closest = np.concatenate([P[inside], closest[best][near]])
