@@ -135,26 +135,30 @@ class QueryContext:
         Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
         D = space.difference(Q1, Q2)
         n = space.segments(Q1, Q2, resolution)
-        orders = [_coarse_to_fine(k + 1)[2 if ends_free else 0 :] for k in n.tolist()]
+        skip = 2 if ends_free else 0
+        length = np.maximum(n + 1 - skip, 0)
+        # Every edge's points in coarse-to-fine order, one row each (-1 past its end): a round takes the same
+        # columns of every edge still live, in edge order, so that it costs a few array operations however many.
+        orders = np.full((len(Q1), int(length.max(initial=0))), -1)
+        for i, k in enumerate(n.tolist()):
+            orders[i, : length[i]] = _coarse_to_fine(k + 1)[skip:]
         free = np.ones(len(Q1), bool)
-        cursor = np.zeros(len(Q1), int)
-        chunk = 1
+        begin, chunk = 0, 1
         while True:
-            live = [i for i in np.flatnonzero(free).tolist() if cursor[i] < len(orders[i])]
-            if not live:
+            live = np.flatnonzero(free & (length > begin))
+            if not len(live):
                 return free, np.ones(len(Q1), bool)
-            takes = [orders[i][cursor[i] : cursor[i] + chunk] for i in live]
-            lengths = np.array([len(t) for t in takes])
-            cursor[live] += lengths
-            owner = np.repeat(live, lengths)
-            t = np.concatenate(takes) / n[owner]
+            block = orders[live, begin : begin + chunk]
+            taken = block >= 0
+            owner = np.repeat(live, taken.sum(axis=1))
+            t = block[taken] / n[owner]
             points = space.wrap(Q1[owner] + t[:, None] * D[owner])
             ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
             hit_owners = np.unique(owner[~ok])
             free[hit_owners] = False
+            begin += chunk
             if until_one_collides and len(hit_owners):
-                decided = ~free | (cursor >= np.array([len(o) for o in orders]))
-                return free, decided
+                return free, ~free | (length <= begin)
             chunk *= 2  # few points first (endpoints, midpoints), then ever finer
 
     def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
