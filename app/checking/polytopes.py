@@ -34,14 +34,9 @@ class Polytopes:
         vertices = [np.concatenate(loops).reshape(-1, 3) if loops else np.zeros((1, 3)) for loops in faces]
         # Each face turned to look outward: away from a point inside its piece, the mean of its vertices.
         mean = np.array([v.mean(axis=0) for v in vertices]).reshape(-1, 3)
-        inward = (
-            np.einsum(
-                "ij,ij->i", np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), T[:, 0] - mean[np.asarray(pieces, int)]
-            )
-            < 0
-        )
-        T[inward] = T[inward][:, [0, 2, 1]]
         normal = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+        inward = np.einsum("ij,ij->i", normal, T[:, 0] - mean[np.asarray(pieces, int)]) < 0
+        T[inward], normal[inward] = T[inward][:, [0, 2, 1]], -normal[inward]
         area = np.linalg.norm(normal, axis=1)
         # A sliver of no area adds no point to its piece's surface (its edges belong to its neighbours) and no
         # direction to its inside.
