@@ -181,7 +181,7 @@ def gaps(points: np.ndarray, distance: np.ndarray, gradient: np.ndarray, n: int,
 
     One of two such obstacles is nearer than width/2: each of those is paired with the obstacles of its point no
     nearer than itself and near enough, in chunks of about ROWS pairs (a point among hundreds of pieces has
-    thousands)."""
+    thousands); each point's nearest obstacle first, and the others only for the points that are no gap yet."""
     gap = np.zeros(n, bool)
     if not len(points):
         return gap
@@ -193,12 +193,17 @@ def gaps(points: np.ndarray, distance: np.ndarray, gradient: np.ndarray, n: int,
     near = np.flatnonzero(distance < width / 2)
     runs = np.searchsorted(key, key[near] + (width - 2 * distance[near]), side="left") - near - 1
     near, runs = near[runs > 0], runs[runs > 0]
-    if not len(near):
-        return gap
-    cost = np.cumsum(runs)
-    for chunk in np.split(np.arange(len(near)), np.searchsorted(cost, np.arange(ROWS, cost[-1], ROWS))):
-        a = np.repeat(near[chunk], runs[chunk])
-        b = _runs(near[chunk] + 1, runs[chunk])
-        facing = np.einsum("ij,ij->i", gradient[a], gradient[b]) < -0.5
-        gap[points[a[facing]]] = True
+    # Each point's nearest obstacle first: most gaps show with it, and their points need no more pairs.
+    nearest = np.concatenate([[True], points[1:] != points[:-1]])[near]
+    for take in (nearest, ~nearest):
+        take = take & ~gap[points[near]]
+        if not take.any():
+            continue
+        first, count = near[take], runs[take]
+        cost = np.cumsum(count)
+        for chunk in np.split(np.arange(len(first)), np.searchsorted(cost, np.arange(ROWS, cost[-1], ROWS))):
+            a = np.repeat(first[chunk], count[chunk])
+            b = _runs(first[chunk] + 1, count[chunk])
+            facing = np.einsum("ij,ij->i", gradient[a], gradient[b]) < -0.5
+            gap[points[a[facing]]] = True
     return gap
