@@ -147,6 +147,67 @@ def test_the_motion_bound_holds_for_the_kinematics(checkers, name):
     assert worst > 0.2  # and it is not absurdly loose
 
 
+@pytest.mark.parametrize("name", ["bar", "window", "joint3d"])
+def test_the_bound_from_a_pieces_ends_holds_all_along_it_and_is_tighter(checkers, name):
+    """The bound from the lever arms at a straight piece's two ends: all along the piece, every point of a robot
+    geometry lies within its rate of each revolute axis moving it, and strays no farther than its travel from where
+    it started; that travel is never above the bound anywhere in the space, and on the arms, well below it on
+    average."""
+    oracle = checkers(name)
+    plant, bound = oracle.plant, motion_bound(oracle)
+    inspector = oracle.model.scene_graph().model_inspector()
+    context = plant.CreateDefaultContext()
+    rng = np.random.default_rng(6)
+    geometries = [(g, _shape_points(inspector, g, rng)) for g in bound.rows]
+    environment = len(bound.rates) - 1  # a pair with the environment row is bounded by the geometry's own travel
+
+    def world_points(q):
+        plant.SetPositions(context, q)
+        return [
+            plant.EvalBodyPoseInWorld(context, plant.GetBodyFromFrameId(inspector.GetFrameId(g)))
+            .multiply(inspector.GetPoseInFrame(g))
+            .multiply(points)
+            for g, points in geometries
+        ]
+
+    revolute = [plant.get_joint(j) for j in plant.GetJointIndices() if plant.get_joint(j).type_name() == "revolute"]
+
+    def arms(q):
+        """Per revolute joint, per geometry: the largest distance of its points from the joint's axis."""
+        points = world_points(q)
+        out = np.zeros((len(revolute), len(geometries)))
+        for i, joint in enumerate(revolute):
+            X = joint.frame_on_child().CalcPoseInWorld(context)
+            axis = X.rotation().matrix() @ joint.revolute_axis()
+            for k, p in enumerate(points):
+                v = p - X.translation()[:, None]
+                out[i, k] = np.linalg.norm(v - np.outer(axis, axis @ v), axis=0).max()
+        return out
+
+    ratios = []
+    for scale in (1e-3, 1e-2, 1e-1, 1.0):
+        for q in oracle.space.uniform(rng, 8):
+            qb = np.clip(q + rng.normal(size=oracle.space.dim) * scale, oracle.space.lower, oracle.space.upper)
+            variation = np.abs(qb - q)
+            levers = bound.levers(np.array([q, qb]))
+            travel = bound.pair_travel_from(variation[None], levers[:1], levers[1:])[0]
+            rates = bound.piece_rates(variation[None], levers[:1], levers[1:])[0]
+            anywhere = bound.pair_travel(variation)
+            assert np.all(travel <= anywhere * (1 + 1e-12))
+            start = world_points(q)
+            rows = [bound.row(g) for g, _ in geometries]
+            columns = [joint.position_start() for joint in revolute]
+            for t in np.linspace(0, 1, 17):
+                on = q + t * (qb - q)
+                moves = rates[np.ix_(rows, columns)].T > 0  # the joints that move each geometry
+                assert np.all(arms(on)[moves] <= rates[np.ix_(rows, columns)].T[moves] * (1 + 1e-9) + 1e-12)
+                for row, a, b in zip(rows, start, world_points(on)):
+                    assert np.linalg.norm(b - a, axis=0).max() <= travel[row, environment] * (1 + 1e-9) + 1e-12
+            moving = anywhere[:-1, environment] > 0
+            ratios += (travel[:-1, environment][moving] / anywhere[:-1, environment][moving]).tolist()
+    assert np.mean(ratios) < 0.9
+
+
 def test_the_distances_used_are_never_larger_than_the_true_ones(checkers):
     """Drake's GJK distance of the maze's hull (a cylinder) to a pillar's corner comes out too large by up to a
     few tenths of a millimetre; the certificate's own lower bound never does. True distance here: the hull's
@@ -295,15 +356,17 @@ def test_a_pair_drake_leaves_out_is_bounded_along_drakes_direction(checkers):
 
 
 def test_a_failing_edge_stops_where_it_comes_nearest_not_after_proving_what_lies_before(checkers):
-    """An edge of a welding path whose torch passes the near rail at 0.05 mm (certificate floor) about 58 % of the
-    way along, the clearance small all the way there: it fails in fewer distance queries than half of what proving
-    its first 55 % takes (leftmost-first bisection proved that part before it got to the failure: 641 queries)."""
+    """An edge of a welding path whose torch passes the near rail at 0.03 mm about 59 % of the way along, the
+    clearance small all the way there. With the floor at 1/64 of the resolution it cannot be proved, and it fails in
+    fewer distance queries than half of what proving its first 55 % takes (leftmost-first bisection would prove that
+    part before it got to the failure)."""
     oracle = checkers("welding")
+    floor = oracle.space.resolution / 64
     a = np.array([-1.3577, -1.3156, 2.1487, 0.2291, -0.3386, 2.2679])
     b = np.array([-0.9667, -1.1954, 2.3442, 2.0333, -0.0085, 3.0877])
-    ok, failing = certify_path(oracle, np.array([a, b]))
+    ok, failing = certify_path(oracle, np.array([a, b]), floor)
     assert not ok
-    ok, before = certify_path(oracle, np.array([a, a + 0.555 * oracle.space.difference(a, b)]))
+    ok, before = certify_path(oracle, np.array([a, a + 0.555 * oracle.space.difference(a, b)]), floor)
     assert ok
     assert failing["distance_queries"] < 0.5 * before["distance_queries"]
 

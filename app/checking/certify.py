@@ -7,6 +7,13 @@ from the joint to g's body (a prismatic joint on the way adds its largest travel
 radius about its body origin, taken from the shape. So along any motion a point of g travels at most
 B_g = sum_j rates[g, j] * (travel of q_j).
 
+Where the ends of a piece are known, the revolute rates are taken there instead (Schwarzer, Saha and Latombe's
+bound): the distance from the joint's axis to g's centre plus g's radius about it, at each end, grown by how far
+the joints between the axis and g move g's points along the piece (the arm depends on those joints alone), the
+lesser of the two ends and never more than the rate anywhere. An arm folded near its base moves its tool much
+less per radian of the shoulder than the outstretched arm the rate anywhere assumes: on the UR3 the tool's bound
+is about half, and proving a piece takes fewer, longer parts.
+
 Relative motion. Two robot geometries' distance is the same measured in the frame of the last body their chains
 to the world share, where only the joints below it move them: for such a pair the bound B_PQ sums the two rates
 over the coordinates of the joints the chains do not share (the cart and the shoulder never bring the wrist nearer
@@ -122,6 +129,8 @@ class MotionBound:
             self.rates, self.pair_rates = self.rates @ spread, self.pair_rates @ spread
         if not oracle.scene.self_collisions:  # robot-robot pairs do not count
             self.pair_rates[:-1, :-1] = 0.0
+        self._unshared = self.pair_rates > 0  # where a pair's rates count a coordinate (shared: 0)
+        self._levers = None if mimic is not None else _LeverArms.of(oracle, inboard, self.rows, self.rates)
 
     def row(self, geometry_id) -> int:
         return self.rows.get(geometry_id, -1)
@@ -131,14 +140,104 @@ class MotionBound:
         return self.rates @ variation
 
     def pair_travel(self, variation: np.ndarray) -> np.ndarray:
-        """Bounds on how much each pair's distance changes, (..., rows, rows), for variations (..., dim)."""
+        """Bounds on how much each pair's distance changes, (..., rows, rows), for variations (..., dim), anywhere
+        in the space."""
         return np.einsum("pqj,...j->...pq", self.pair_rates, variation)
+
+    def levers(self, Q: np.ndarray) -> np.ndarray | None:
+        """Per configuration of Q (n, dim), geometry row and coordinate: the distance from the coordinate's revolute
+        axis to the farthest point of the geometry there (inf for other coordinates and the environment row), for
+        pair_travel_from; None where this robot has no such bound (mimic joints, joints other than revolute,
+        prismatic and weld): its pieces take the bound anywhere in the space."""
+        return None if self._levers is None else self._levers(Q)
+
+    def piece_rates(self, variation: np.ndarray, levers_a: np.ndarray, levers_b: np.ndarray) -> np.ndarray:
+        """Rates (n, rows, dim) that hold all along pieces of motion (n, dim) with their ends' levers (n, rows, dim):
+        a revolute joint moves a geometry's points at most its lever arm per radian, and along the piece that arm
+        grows by no more than the joints between the axis and the geometry move its points (a joint's own turn
+        does not change it), so each end's lever plus that growth bounds the arm -- the lesser of the two ends',
+        and never more than the rate anywhere in the space."""
+        slack = self._levers.slack(variation)
+        return np.minimum(self.rates, np.minimum(levers_a, levers_b) + slack)
+
+    def pair_travel_from(self, variation: np.ndarray, levers_a: np.ndarray, levers_b: np.ndarray) -> np.ndarray:
+        """pair_travel for pieces of motion (n, dim) with their ends' levers (n, rows, dim) (see piece_rates)."""
+        moved = self.piece_rates(variation, levers_a, levers_b) * variation[:, None, :]
+        return np.einsum("npj,pqj->npq", moved, self._unshared) + np.einsum("nqj,pqj->npq", moved, self._unshared)
 
     @staticmethod
     def max_distance(pair_travel: np.ndarray) -> np.ndarray:
         """The max_distance at which every unreported pair passes: half the largest pair bound (the environment-
         environment entry counts nothing, and is 0)."""
         return 0.5 * pair_travel.max(axis=(-2, -1)) * _MARGIN + 1e-12
+
+
+class _LeverArms:
+    """Lever arms of a robot's geometries about its revolute axes, at given configurations (see
+    MotionBound.levers): from each axis (a line through its joint frame's origin) to the geometry's centre, plus
+    the geometry's radius about that centre."""
+
+    def __init__(self, kinematics: TreeKinematics, axes, columns, centres, radius, below, rates):
+        self._kinematics = kinematics
+        self._axes = axes  # unit axis per revolute joint, in its frame on the child body
+        self._columns = columns  # its coordinate
+        self._centres = centres  # frames (after the axes' frames) of the robot rows' centres
+        self._radius = radius  # per robot row, about its centre
+        self._below = below  # (rows, dim, dim): coordinate k moves a row's geometry relative to coordinate j's axis
+        self._rates = rates
+
+    @classmethod
+    def of(cls, oracle, inboard: dict, rows: dict, rates: np.ndarray) -> _LeverArms | None:
+        from pydrake.math import RigidTransform
+
+        plant = oracle.plant
+        inspector = oracle.model.scene_graph().model_inspector()
+        dim = rates.shape[1]
+        frames, axes, columns = [], [], []
+        for index in plant.GetJointIndices():
+            joint = plant.get_joint(index)
+            if joint.type_name() == "revolute" and joint.num_positions() == 1:
+                frames.append((joint.child_body(), joint.frame_on_child().GetFixedPoseInBodyFrame()))
+                axes.append(joint.revolute_axis())
+                columns.append(joint.position_start())
+        radius, below = np.zeros(len(rows)), np.zeros((len(rows) + 1, dim, dim), bool)
+        for geometry, row in rows.items():
+            body = plant.GetBodyFromFrameId(inspector.GetFrameId(geometry))
+            kind, data = _describe(inspector, geometry)
+            centre = np.zeros(3)
+            if kind == "vertices":  # about the middle of the hull's box, not the mesh's origin
+                centre = 0.5 * (data.min(axis=0) + data.max(axis=0))
+                data = data - centre
+            radius[row] = _radius(kind, data, RigidTransform())
+            frames.append((body, inspector.GetPoseInFrame(geometry).multiply(RigidTransform(centre))))
+            # The joints from the geometry's body up: each one's coordinates move it about the axes above.
+            moved = np.zeros(dim, bool)
+            for joint in _chain(inboard, body.index()):
+                below[row, joint.position_start() : joint.position_start() + joint.num_positions()] = moved
+                moved[joint.position_start() : joint.position_start() + joint.num_positions()] = True
+        kinematics = TreeKinematics.of(plant, frames)
+        if kinematics is None:
+            return None
+        centres = np.zeros(len(rows), int)
+        centres[list(rows.values())] = len(axes) + np.arange(len(rows))
+        return cls(kinematics, np.array(axes).reshape(-1, 3), np.array(columns, int), centres, radius, below, rates)
+
+    def __call__(self, Q: np.ndarray) -> np.ndarray:
+        R, p = self._kinematics.poses(Q)
+        n, count = len(Q), len(self._columns)
+        u = np.einsum("naij,aj->nai", R[:, :count], self._axes)  # world axes (n, axes, 3)
+        v = p[:, None, self._centres] - p[:, :count, None]  # axis point to centre (n, axes, rows, 3)
+        along = np.einsum("narj,naj->nar", v, u)
+        off = np.sqrt(np.maximum(np.einsum("narj,narj->nar", v, v) - along**2, 0.0))
+        levers = np.full((n, len(self._radius) + 1, self._rates.shape[1]), np.inf)
+        levers[:, :-1, self._columns] = off.transpose(0, 2, 1) + self._radius[:, None]
+        return levers
+
+    def slack(self, variation: np.ndarray) -> np.ndarray:
+        """How much each row's lever arm about each coordinate's axis can grow over a piece of motion (n, dim):
+        what the coordinates between that axis and the geometry move the geometry's points, (n, rows, dim)."""
+        moved = self._rates[None] * variation[:, None, :]  # (n, rows, k)
+        return np.einsum("nrk,rjk->nrj", moved, self._below)
 
 
 def _chain(inboard: dict, body_index) -> list:
@@ -537,11 +636,15 @@ class Certifier:
                 (i, heapq.heappop(heap)[1:]) for i, heap in heaps.items() for _ in range(min(self.WIDTH, len(heap)))
             ]
             variations = np.array([variation(a, b) for _, (a, b) in todo]).reshape(len(todo), -1)
-            travel = self.bound.pair_travel(variations)
             ends = list(dict.fromkeys(s for _, ab in todo for s in ab))
             slot = {s: j for j, s in enumerate(ends)}
             by_end = np.array([slot[s] for _, ab in todo for s in ab])  # piece p's ends are rows 2p and 2p + 1
             Q = np.array([position(s) for s in ends])
+            levers = self.bound.levers(Q)
+            if levers is None:
+                travel = self.bound.pair_travel(variations)
+            else:
+                travel = self.bound.pair_travel_from(variations, levers[by_end[0::2]], levers[by_end[1::2]])
             # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
             # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
             certain = self._certain_shortfall(Q, by_end, travel)
