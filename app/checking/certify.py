@@ -225,10 +225,10 @@ class _LeverArms:
     def __call__(self, Q: np.ndarray) -> np.ndarray:
         R, p = self._kinematics.poses(Q)
         n, count = len(Q), len(self._columns)
-        u = np.einsum("naij,aj->nai", R[:, :count], self._axes)  # world axes (n, axes, 3)
+        u = R[:, :count] @ self._axes[:, :, None]  # world axes (n, axes, 3, 1)
         v = p[:, None, self._centres] - p[:, :count, None]  # axis point to centre (n, axes, rows, 3)
-        along = np.einsum("narj,naj->nar", v, u)
-        off = np.sqrt(np.maximum(np.einsum("narj,narj->nar", v, v) - along**2, 0.0))
+        along = (v @ u)[..., 0]
+        off = np.sqrt(np.maximum((v * v).sum(axis=3) - along**2, 0.0))
         levers = np.full((n, len(self._radius) + 1, self._rates.shape[1]), np.inf)
         levers[:, :-1, self._columns] = off.transpose(0, 2, 1) + self._radius[:, None]
         return levers

@@ -38,11 +38,13 @@ class TreeKinematics:
         self._frame_body = np.array([add(body.index()) for body, _ in frames], int)
         self._frame_R = np.array([X.rotation().matrix() for _, X in frames]).reshape(-1, 3, 3)
         self._frame_p = np.array([X.translation() for _, X in frames]).reshape(-1, 3)
-        # Per body: (parent slot, kind, coordinate, constants) -- X_PC = X_PF X_FM(q) X_MC written so that q enters
-        # only through scalars: a revolute joint turning by q about the unit axis k (K = [k]x) gives
-        # R_FM = I + sin q K + (1 - cos q) K^2 (Rodrigues), so R_PC = A0 + sin q A1 + (1 - cos q) A2 and
-        # p_PC = b0 + sin q b1 + (1 - cos q) b2; a prismatic one, R_PC = A0 and p_PC = b0 + q b1. The world: None.
-        self._bodies = []
+        # Per body: (parent slot, its row among the moving bodies or None, a weld's constant (R_PC, p_PC)); the
+        # world: None. X_PC = X_PF X_FM(q) X_MC is written so that q enters only through scalars: a revolute joint
+        # turning by q about the unit axis k (K = [k]x) gives R_FM = I + sin q K + (1 - cos q) K^2 (Rodrigues), so
+        # R_PC = A0 + sin q A1 + (1 - cos q) A2 and p_PC = b0 + sin q b1 + (1 - cos q) b2; a prismatic one,
+        # R_PC = A0 and p_PC = b0 + q b1. So a moving body's X_PC, as 12 numbers (R_PC row-major, then p_PC), is
+        # [1, sin q, 1 - cos q] or [1, q, 0] times a (3, 12) table of constants: all moving bodies' in one product.
+        self._bodies, tables, columns, multipliers, offsets, revolute = [], [], [], [], [], []
         for joint, parent in order:
             if joint is None:
                 self._bodies.append(None)
@@ -51,21 +53,35 @@ class TreeKinematics:
             X_MC = joint.frame_on_child().GetFixedPoseInBodyFrame().inverse()
             kind = joint.type_name()
             if kind == "weld":
-                X_PF = X_PF.multiply(joint.X_FM())
+                X = X_PF.multiply(joint.X_FM()).multiply(X_MC)
+                self._bodies.append((parent, None, (X.rotation().matrix(), X.translation())))
+                continue
             R_PF, p_PF, R_MC, p_MC = (
                 X_PF.rotation().matrix(),
                 X_PF.translation(),
                 X_MC.rotation().matrix(),
                 X_MC.translation(),
             )
-            constants = [R_PF @ R_MC, p_PF + R_PF @ p_MC]
+            table = np.zeros((3, 12))
+            table[0] = np.concatenate([(R_PF @ R_MC).ravel(), p_PF + R_PF @ p_MC])
             if kind == "revolute":
                 k = joint.revolute_axis()
                 K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-                constants += [R_PF @ K @ R_MC, R_PF @ K @ p_MC, R_PF @ K @ K @ R_MC, R_PF @ K @ K @ p_MC]
-            elif kind == "prismatic":
-                constants += [R_PF @ joint.translation_axis()]
-            self._bodies.append((parent, kind, _coordinate(joint, position_map), constants))
+                table[1] = np.concatenate([(R_PF @ K @ R_MC).ravel(), R_PF @ K @ p_MC])
+                table[2] = np.concatenate([(R_PF @ K @ K @ R_MC).ravel(), R_PF @ K @ K @ p_MC])
+            else:
+                table[1, 9:] = R_PF @ joint.translation_axis()
+            column, multiplier, offset = _coordinate(joint, position_map)
+            self._bodies.append((parent, len(tables), None))
+            tables.append(table)
+            columns.append(column)
+            multipliers.append(1.0 if multiplier is None else multiplier)
+            offsets.append(0.0 if offset is None else offset)
+            revolute.append(kind == "revolute")
+        self._tables = np.array(tables).reshape(-1, 3, 12)
+        self._columns = np.array(columns, int)
+        self._multipliers, self._offsets = np.array(multipliers), np.array(offsets)
+        self._revolute = np.array(revolute, bool)
 
     @classmethod
     def of(cls, plant, frames: list, position_map=None) -> TreeKinematics | None:
@@ -77,25 +93,23 @@ class TreeKinematics:
         """Every body's world rotation and position, in `_bodies` order: (n, 3, 3) and (n, 3), or (3, 3) and (3,)
         for a body welded to the world (directly or through other welds: a cart, a mounting plate), which every
         configuration shares, so that it is computed once and its children multiply by one matrix."""
+        x = Q[:, self._columns] * self._multipliers + self._offsets
+        coefficients = np.stack(
+            [np.ones_like(x), np.where(self._revolute, np.sin(x), x), np.where(self._revolute, 1.0 - np.cos(x), 0.0)],
+            axis=2,
+        )
+        local = np.einsum("nbk,bkm->bnm", coefficients, self._tables)  # (moving bodies, n, 12)
         R, p = [], []
         for body in self._bodies:
             if body is None:  # the world
                 R.append(np.eye(3))
                 p.append(np.zeros(3))
                 continue
-            parent, kind, (column, multiplier, offset), constants = body
-            if kind != "weld":
-                x = Q[:, column] if multiplier is None else multiplier * Q[:, column] + offset
-            if kind == "revolute":
-                A0, b0, A1, b1, A2, b2 = constants
-                sin, versin = np.sin(x), 1.0 - np.cos(x)
-                R_PC = A0 + sin[:, None, None] * A1 + versin[:, None, None] * A2
-                p_PC = b0 + sin[:, None] * b1 + versin[:, None] * b2
-            elif kind == "prismatic":
-                A0, b0, b1 = constants
-                R_PC, p_PC = A0, b0 + x[:, None] * b1
-            else:
+            parent, moving, constants = body
+            if moving is None:
                 R_PC, p_PC = constants
+            else:
+                R_PC, p_PC = local[moving, :, :9].reshape(-1, 3, 3), local[moving, :, 9:]
             R.append(R[parent] @ R_PC)
             p.append(p[parent] + _apply(R[parent], p_PC))
         return R, p
@@ -103,11 +117,10 @@ class TreeKinematics:
     def _body_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3)."""
         R, p = self._chain(Q)
-        n = len(Q)
-        return (
-            np.stack([np.broadcast_to(r, (n, 3, 3)) for r in R], axis=1),
-            np.stack([np.broadcast_to(x, (n, 3)) for x in p], axis=1),
-        )
+        rotations, positions = np.empty((len(Q), len(R), 3, 3)), np.empty((len(Q), len(R), 3))
+        for j, (r, x) in enumerate(zip(R, p)):
+            rotations[:, j], positions[:, j] = r, x
+        return rotations, positions
 
     def poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each frame's world rotation (n, frames, 3, 3) and origin (n, frames, 3)."""
@@ -144,4 +157,4 @@ def _coordinate(joint, position_map) -> tuple:
 
 def _apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
     """R @ v for broadcast stacks of rotations (..., 3, 3) and vectors (..., 3)."""
-    return (R @ np.broadcast_to(v, np.broadcast_shapes(R.shape[:-1], np.shape(v)))[..., None])[..., 0]
+    return (R @ v[..., None])[..., 0]
