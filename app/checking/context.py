@@ -137,29 +137,31 @@ class QueryContext:
         n = space.segments(Q1, Q2, resolution)
         skip = 2 if ends_free else 0
         length = np.maximum(n + 1 - skip, 0)
-        # Every edge's points in coarse-to-fine order, one row each (-1 past its end): a round takes the same
+        # Every edge's fractions in coarse-to-fine order, one row each (NaN past its end): a round takes the same
         # columns of every edge still live, in edge order, so that it costs a few array operations however many.
-        orders = np.full((len(Q1), int(length.max(initial=0))), -1)
+        fractions = np.full((len(Q1), int(length.max(initial=0))), np.nan)
         for i, k in enumerate(n.tolist()):
-            orders[i, : length[i]] = _coarse_to_fine(k + 1)[skip:]
+            fractions[i, : length[i]] = _coarse_to_fine(k + 1)[skip:] / k
         free = np.ones(len(Q1), bool)
+        live = np.flatnonzero(length > 0)
         begin, chunk = 0, 1
-        while True:
-            live = np.flatnonzero(free & (length > begin))
-            if not len(live):
-                return free, np.ones(len(Q1), bool)
-            block = orders[live, begin : begin + chunk]
-            taken = block >= 0
+        while len(live):
+            t = fractions[live, begin : begin + chunk]
+            taken = ~np.isnan(t)
             owner = np.repeat(live, taken.sum(axis=1))
-            t = block[taken] / n[owner]
-            points = space.wrap(Q1[owner] + t[:, None] * D[owner])
-            ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
-            hit_owners = np.unique(owner[~ok])
-            free[hit_owners] = False
+            points = space.wrap(Q1[owner] + t[taken][:, None] * D[owner])
+            if len(points) <= _MAX_BATCH:
+                ok = self.are_free(points)
+            else:
+                ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
+            hit = owner[~ok]
+            free[hit] = False
             begin += chunk
-            if until_one_collides and len(hit_owners):
+            if until_one_collides and len(hit):
                 return free, ~free | (length <= begin)
+            live = live[free[live] & (length[live] > begin)]
             chunk *= 2  # few points first (endpoints, midpoints), then ever finer
+        return free, np.ones(len(Q1), bool)
 
     def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
         return bool(self.edges_free(q1, q2, resolution)[0])
