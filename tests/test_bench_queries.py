@@ -160,3 +160,12 @@ def test_ompls_prm_keeps_its_graph_and_reaches_one_of_several_goals():
         assert q["goals"] == 2 and not q["stale"] and q["solved"] and q["from_start"] and q["to_a_goal"]
         assert q["milestones"] >= milestones
         milestones = q["milestones"]
+
+
+def test_the_figures_caption_spells_the_budget():
+    from app.bench.queries import _spelled
+    from app.checking.budget import Budget
+
+    assert _spelled(str(Budget(checks=200_000))) == "200,000 checks"
+    assert _spelled(str(Budget(seconds=2.5, checks=5000))) == "2.5 s, 5,000 checks"
+    assert _spelled(str(Budget())) == "no limit"

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 import time
 from dataclasses import dataclass
 
@@ -528,8 +529,20 @@ def figure(report: dict, path: str) -> None:
         ax.set_title(f"{s['scene']}: {s['query_set']['count']} queries", fontsize=10)
         ax.set_ylabel("seconds per query", fontsize=9)
     fig.suptitle(
-        f"every query a dot (x: failed); line: median, dotted: p95\nours: {report['budget']} per query, certified "
-        f"and timed; OMPL: {report['ompl_seconds']:g} s per query, smoothed, neither certified nor timed",
+        "every query a dot (x: failed); line: median, dotted: p95\n"
+        f"ours: {_spelled(report['budget'])} per query, certified and timed; "
+        f"OMPL: {report['ompl_seconds']:g} s per query, smoothed, neither certified nor timed",
         fontsize=8,
     )
     save(fig, path)
+
+
+def _spelled(budget: str) -> str:
+    """A budget as the command line writes it ("200000checks,10s") spelled for a caption ("200,000 checks, 10 s")."""
+    if budget == "none":
+        return "no limit"
+    parts = []
+    for part in budget.split(","):
+        number, unit = re.fullmatch(r"([0-9.e+-]+)(\D*)", part).groups()
+        parts.append(f"{float(number):,.0f} checks" if unit == "checks" else f"{float(number):g} s")
+    return ", ".join(parts)

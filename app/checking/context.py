@@ -150,10 +150,8 @@ class QueryContext:
             taken = ~np.isnan(t)
             owner = np.repeat(live, taken.sum(axis=1))
             points = space.wrap(Q1[owner] + t[taken][:, None] * D[owner])
-            if len(points) <= _MAX_BATCH:
-                ok = self.are_free(points)
-            else:
-                ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in range(0, len(points), _MAX_BATCH)])
+            batches = range(0, len(points), _MAX_BATCH)
+            ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in batches])
             hit = owner[~ok]
             free[hit] = False
             begin += chunk
