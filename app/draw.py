@@ -27,6 +27,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from app.io import write_atomically  # noqa: E402
+from app.scene.meshes import hull_vertices  # noqa: E402
 
 OBSTACLE = (0.45, 0.45, 0.5)
 OBSTACLE_EDGE = (0.3, 0.3, 0.35)
@@ -107,9 +108,7 @@ def _draw_flat(ax, shape, pose, **style) -> None:
 
 def _hull_points(shape, pose) -> np.ndarray:
     """World vertices of what Drake collides with for a mesh: its convex hull (custom scenes' pieces)."""
-    hull = shape.GetConvexHull()
-    points = np.array([hull.vertex(i) for i in range(hull.num_vertices())])  # scaled already
-    return points @ pose.rotation().matrix().T + pose.translation()
+    return hull_vertices(shape) @ pose.rotation().matrix().T + pose.translation()
 
 
 def _faces(shape, pose) -> list[np.ndarray] | None:

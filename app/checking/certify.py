@@ -69,6 +69,7 @@ import numpy as np
 
 from app.checking.kinematics import TreeKinematics
 from app.checking.protocol import Checker
+from app.scene.meshes import hull_vertices
 
 # A piece is cut until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
 FLOOR_DIVISOR = 256
@@ -296,8 +297,7 @@ def _describe(inspector, geometry) -> tuple[str, object]:
     if isinstance(shape, Ellipsoid):
         return "ellipsoid", np.array([shape.a(), shape.b(), shape.c()])
     if isinstance(shape, (Mesh, Convex)):  # Drake's proximity engine uses a mesh's convex hull
-        hull = shape.GetConvexHull()
-        return "vertices", np.array([hull.vertex(i) for i in range(hull.num_vertices())])
+        return "vertices", hull_vertices(shape)
     raise ValueError(f"geometry '{inspector.GetName(geometry)}': no certificate for a {type(shape).__name__}")
 
 

@@ -34,6 +34,7 @@ from app.checking.budget import Budget
 from app.checking.context import QueryContext
 from app.checking.polytopes import Polytopes, gaps
 from app.scene.cspace import ConfigurationSpace
+from app.scene.meshes import hull_vertices
 from app.scene.model import Scene
 
 # pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
@@ -466,7 +467,6 @@ def half_extent(shape, rotation: np.ndarray) -> np.ndarray:
     if isinstance(shape, Ellipsoid):
         return np.sqrt(rotation**2 @ np.array([shape.a(), shape.b(), shape.c()]) ** 2)
     if isinstance(shape, (Convex, Mesh)):
-        hull = shape.GetConvexHull()
-        points = np.array([hull.vertex(i) for i in range(hull.num_vertices())]) @ rotation.T
+        points = hull_vertices(shape) @ rotation.T
         return np.abs(points).max(axis=0)
     return np.zeros(3)

@@ -43,6 +43,7 @@ from app.checking.budget import Budget
 from app.errors import NoPath, SamplerBudgetExceeded, UserError
 from app.io import write_atomically
 from app.planning.planner import PlanResult, PlanSettings, Query, Samples, default_step
+from app.scene.meshes import hull_vertices
 
 # The roadmap graph pulls in scipy: imported when a cell roadmap is made, not when the package is.
 
@@ -444,8 +445,7 @@ def _shape_bytes(shape) -> bytes:
     elif isinstance(shape, HalfSpace):
         size = []
     elif isinstance(shape, (Convex, Mesh)):
-        hull = shape.GetConvexHull()
-        size = [hull.vertex(i) for i in range(hull.num_vertices())]
+        size = hull_vertices(shape)
     else:  # a shape this list does not know: its description, which names its kind and size
         return kind + repr(shape).encode()
     return kind + _rounded(size)
