@@ -116,24 +116,33 @@ def _shape_points(inspector, geometry, rng) -> np.ndarray:
     raise AssertionError(f"no test points for {type(shape).__name__}")
 
 
+class _RobotPoints:
+    """The oracle's motion bound, its robot geometries with points on each (`geometries`: (id, points (3, n))), and
+    where those points are at a configuration (`at`), by Drake's own kinematics."""
+
+    def __init__(self, oracle, seed: int):
+        self.plant, self.bound = oracle.plant, motion_bound(oracle)
+        self.inspector = oracle.model.scene_graph().model_inspector()
+        self.context = self.plant.CreateDefaultContext()
+        self.rng = np.random.default_rng(seed)
+        self.geometries = [(g, _shape_points(self.inspector, g, self.rng)) for g in self.bound.rows]
+
+    def at(self, q) -> list[np.ndarray]:
+        plant, inspector = self.plant, self.inspector
+        plant.SetPositions(self.context, q)
+        return [
+            plant.EvalBodyPoseInWorld(self.context, plant.GetBodyFromFrameId(inspector.GetFrameId(g)))
+            .multiply(inspector.GetPoseInFrame(g))
+            .multiply(points)
+            for g, points in self.geometries
+        ]
+
+
 @pytest.mark.parametrize("name", ["bar", "maze", "window", "joint3d"])
 def test_the_motion_bound_holds_for_the_kinematics(checkers, name):
     oracle = checkers(name)
-    plant, bound = oracle.plant, motion_bound(oracle)
-    inspector = oracle.model.scene_graph().model_inspector()
-    context = plant.CreateDefaultContext()
-    rng = np.random.default_rng(3)
-    geometries = [(g, _shape_points(inspector, g, rng)) for g in bound.rows]
-
-    def world_points(q):
-        plant.SetPositions(context, q)
-        out = []
-        for g, points in geometries:
-            body = plant.GetBodyFromFrameId(inspector.GetFrameId(g))
-            X = plant.EvalBodyPoseInWorld(context, body).multiply(inspector.GetPoseInFrame(g))
-            out.append(X.multiply(points))
-        return out
-
+    robot = _RobotPoints(oracle, 3)
+    bound, rng, geometries, world_points = robot.bound, robot.rng, robot.geometries, robot.at
     worst = 0.0
     for scale in (1e-3, 1e-2, 1e-1, 1.0):
         for q in oracle.space.uniform(rng, 10):
@@ -154,22 +163,10 @@ def test_the_bound_from_a_pieces_ends_holds_all_along_it_and_is_tighter(checkers
     it started; that travel is never above the bound anywhere in the space, and on the arms, well below it on
     average."""
     oracle = checkers(name)
-    plant, bound = oracle.plant, motion_bound(oracle)
-    inspector = oracle.model.scene_graph().model_inspector()
-    context = plant.CreateDefaultContext()
-    rng = np.random.default_rng(6)
-    geometries = [(g, _shape_points(inspector, g, rng)) for g in bound.rows]
+    robot = _RobotPoints(oracle, 6)
+    plant, bound, rng, geometries, world_points = robot.plant, robot.bound, robot.rng, robot.geometries, robot.at
+    context = robot.context
     environment = len(bound.rates) - 1  # a pair with the environment row is bounded by the geometry's own travel
-
-    def world_points(q):
-        plant.SetPositions(context, q)
-        return [
-            plant.EvalBodyPoseInWorld(context, plant.GetBodyFromFrameId(inspector.GetFrameId(g)))
-            .multiply(inspector.GetPoseInFrame(g))
-            .multiply(points)
-            for g, points in geometries
-        ]
-
     revolute = [plant.get_joint(j) for j in plant.GetJointIndices() if plant.get_joint(j).type_name() == "revolute"]
 
     def arms(q):
@@ -263,21 +260,8 @@ def test_a_robot_pairs_distance_changes_no_more_than_its_relative_motion_bound(c
     by at most the pair's bound, which leaves out the joints both links ride on (so the pair's distance, their
     smallest, does too); and for links on one chain that bound is well below the sum of the two links' travels."""
     oracle = checkers("window")
-    plant, bound = oracle.plant, motion_bound(oracle)
-    inspector = oracle.model.scene_graph().model_inspector()
-    context = plant.CreateDefaultContext()
-    rng = np.random.default_rng(4)
-    geometries = [(g, _shape_points(inspector, g, rng)) for g in bound.rows]
-
-    def world_points(q):
-        plant.SetPositions(context, q)
-        return [
-            plant.EvalBodyPoseInWorld(context, plant.GetBodyFromFrameId(inspector.GetFrameId(g)))
-            .multiply(inspector.GetPoseInFrame(g))
-            .multiply(points)
-            for g, points in geometries
-        ]
-
+    robot = _RobotPoints(oracle, 4)
+    bound, rng, geometries, world_points = robot.bound, robot.rng, robot.geometries, robot.at
     rows = [bound.row(g) for g, _ in geometries]
     tighter = 0
     for scale in (1e-2, 1e-1, 1.0):
