@@ -238,3 +238,26 @@ def test_a_scale_outside_zero_to_one_is_refused(oracles, scale):
 
     with pytest.raises(UserError, match="velocity_scale must be a fraction in"):
         time_path(oracles("bar").context(), ZIGZAGS["bar"], 0.01, velocity_scale=scale)
+
+
+def test_a_blended_curves_variation_is_each_coordinates_travel():
+    """Over a blend and over parts of it (where a coordinate's rate turns through zero, and where it does not),
+    `variation` is each coordinate's travel along the curve, summed finely, to rounding: never less (the
+    certificate's bound rests on it) and not the larger bound of its greatest rate times the length."""
+    from app.motion.timing import _Curve, _first_radii, _legs, _prepare
+
+    W = np.array([[0.0, 0.0], [1.0, 0.2], [0.4, 1.0], [1.3, 1.4]])
+    W, _, _, tangent, arc = _prepare(W, np.ones(2), np.ones(2), np.ones(2))
+    curve = _Curve(_legs(W, tangent, arc, _first_radii(np.diff(arc))))
+    blends = [(s0, s1) for leg in curve.legs for s0, s1, corner in leg.pieces if corner is not None]
+    assert blends
+    looser = 0
+    for s0, s1 in blends + [(a + 0.3 * (b - a), a + 0.6 * (b - a)) for a, b in blends]:
+        s = np.linspace(s0, s1, 20001)
+        travel = np.abs(np.diff([curve.position(x) for x in s], axis=0)).sum(axis=0)
+        bound = curve.variation(s0, s1)
+        assert np.all(bound >= travel * (1 - 1e-9))
+        assert np.allclose(bound, travel, rtol=1e-6, atol=1e-12)
+        rates = np.abs([curve.variation(x, x + 1e-9) / 1e-9 for x in (s0, s1 - 1e-9)]).max(axis=0)
+        looser += np.any(rates * (s1 - s0) > bound * 1.01)
+    assert looser  # the travel is tighter than the old bound somewhere

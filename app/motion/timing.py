@@ -100,10 +100,14 @@ class _Curve:
         return leg.path.value(s - leg.offset).ravel()
 
     def variation(self, s0: float, s1: float) -> np.ndarray:
-        # Within a piece the derivative is linear in s, so its largest magnitude is at an end.
+        # Within a piece the derivative is linear in s, so each coordinate's travel, the integral of its magnitude,
+        # is in closed form: the mean of the two ends' magnitudes, or where it changes sign, the two triangles
+        # either side of its zero, (d0^2 + d1^2) / (2 (|d0| + |d1|)).
         leg = self._at(0.5 * (s0 + s1))
-        d0, d1 = (np.abs(leg.path.EvalDerivative(s - leg.offset, 1).ravel()) for s in (s0, s1))
-        return np.maximum(d0, d1) * (s1 - s0) * _SLACK
+        d0, d1 = (leg.path.EvalDerivative(s - leg.offset, 1).ravel() for s in (s0, s1))
+        a, b = np.abs(d0), np.abs(d1)
+        mean = np.where(d0 * d1 >= 0, 0.5 * (a + b), (a * a + b * b) / (2 * np.maximum(a + b, 1e-300)))
+        return mean * (s1 - s0) * _SLACK
 
 
 def _certified_radii(
