@@ -204,12 +204,7 @@ class _LeverArms:
         radius, below = np.zeros(len(rows)), np.zeros((len(rows) + 1, dim, dim), bool)
         for geometry, row in rows.items():
             body = plant.GetBodyFromFrameId(inspector.GetFrameId(geometry))
-            kind, data = _describe(inspector, geometry)
-            centre = np.zeros(3)
-            if kind == "vertices":  # about the middle of the hull's box, not the mesh's origin
-                centre = 0.5 * (data.min(axis=0) + data.max(axis=0))
-                data = data - centre
-            radius[row] = _radius(kind, data, RigidTransform())
+            _, _, centre, radius[row] = _centred(*_describe(inspector, geometry))
             frames.append((body, inspector.GetPoseInFrame(geometry).multiply(RigidTransform(centre))))
             # The joints from the geometry's body up: each one's coordinates move it about the axes above.
             moved = np.zeros(dim, bool)
@@ -301,6 +296,19 @@ def _describe(inspector, geometry) -> tuple[str, object]:
     raise ValueError(f"geometry '{inspector.GetName(geometry)}': no certificate for a {type(shape).__name__}")
 
 
+def _centred(kind: str, data) -> tuple[str, object, np.ndarray, float]:
+    """(kind, data, centre, radius) of a shape described about its centre, in its own frame: a mesh's vertices
+    about the middle of their box (an obstacle piece is posed in the world frame, so about its frame's origin its
+    bounding sphere would hold the world), other shapes about their frame's origin; radius: its farthest point."""
+    from pydrake.math import RigidTransform
+
+    centre = np.zeros(3)
+    if kind == "vertices":
+        centre = 0.5 * (data.min(axis=0) + data.max(axis=0))
+        data = data - centre
+    return kind, data, centre, _radius(kind, data, RigidTransform())
+
+
 def _radius(kind: str, data, pose) -> float:
     """Largest distance from the origin of the frame the shape is posed in (pose X_FG) to a point of the shape."""
     if kind in ("box", "vertices"):
@@ -332,8 +340,6 @@ class _Gaps:
     bound of the distance, so a row keeps the largest it found."""
 
     def __init__(self, oracle, geometries: list, robot: np.ndarray, exact: np.ndarray):
-        from pydrake.math import RigidTransform
-
         inspector = oracle.model.scene_graph().model_inspector()
         self.pairs = np.array(
             [
@@ -350,17 +356,12 @@ class _Gaps:
         count = len(geometries)
         self.core, self.disc, self.ball = np.zeros((count, 3)), np.zeros(count), np.zeros(count)
         self.radius = np.zeros(count)  # about the shape's centre
-        # A mesh's centre in its own frame (the middle of its box), about which its vertices are kept: an obstacle
-        # piece is posed in the world frame, so about its frame's origin its bounding sphere would hold the world.
+        # A shape's centre in its own frame (see _centred), about which a mesh's vertices are kept.
         self.offset = np.zeros((count, 3))
         self.special = {}  # geometry index -> semi-axes of an ellipsoid
         hulls = {}  # geometry index -> a mesh hull's vertices (n, 3) about its centre
         for i in np.unique(self.pairs):
-            kind, data = _describe(inspector, geometries[i])
-            if kind == "vertices":
-                self.offset[i] = 0.5 * (data.min(axis=0) + data.max(axis=0))
-                data = data - self.offset[i]
-            self.radius[i] = _radius(kind, data, RigidTransform())
+            kind, data, self.offset[i], self.radius[i] = _centred(*_describe(inspector, geometries[i]))
             if kind == "box":
                 self.core[i] = data
             elif kind == "sphere":

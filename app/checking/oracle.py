@@ -380,10 +380,10 @@ class CollisionOracle:
                         for face in _BOX_FACES
                     ]
                 elif isinstance(shape, (Convex, Mesh)):  # Drake's proximity engine uses a mesh's convex hull
-                    hull = shape.GetConvexHull()
-                    loops, data, i = [], hull.face_data(), 0
-                    while i < len(data):
-                        loops.append(np.array([hull.vertex(int(v)) for v in data[i + 1 : i + 1 + data[i]]]))
+                    vertices, data = hull_vertices(shape), shape.GetConvexHull().face_data()
+                    loops, i = [], 0
+                    while i < len(data):  # each face: its vertex count, then its vertices' indices
+                        loops.append(vertices[np.asarray(data[i + 1 : i + 1 + data[i]], int)])
                         i += 1 + data[i]
                 else:
                     others.append((g, X.translation(), np.linalg.norm(half_extent(shape, np.eye(3)))))
