@@ -23,7 +23,7 @@ import numpy as np
 
 from app.errors import NoPath, UserError
 from app.motion.path import dedupe
-from app.motion.timing import time_path
+from app.motion.timing import BlendProof, time_path
 from app.motion.trajectory import Trajectory, TrajectoryFile
 from app.planning.cell import CellRoadmap
 from app.planning.ik import solve_poses, tool_line
@@ -52,6 +52,7 @@ class Leg:
     trajectory: Trajectory | None  # None for a leg timed with the next ones, through the pose joining them
     narrow: np.ndarray  # the leg's narrow-passage samples (empty for a straight leg)
     on_path: np.ndarray
+    blends: BlendProof | None = None  # what was proved of the path where that is its blended curve (PlanResult)
 
     def to_json(self) -> dict:
         return {
@@ -144,11 +145,12 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
         back = next((leg for leg in legs if (leg.start, leg.goal) == (b, a)), None)
         if back is not None:
             # Back out the way the job came in (out of the hatch after the part): that path is proved already.
-            path = back.path[::-1]
-            trajectory = None if i in joined else time_path(checker, path, settings.dt, **_timing(settings))
+            path, proof = back.path[::-1], back.blends.reversed() if back.blends else None
+            trajectory = None if i in joined else time_path(checker, path, settings.dt, **_timing(settings, proof))
             duration = trajectory.duration if trajectory else 0.0
             none, used = np.empty((0, oracle.space.dim)), np.zeros(0, bool)
-            legs.append(Leg(a, b, "back", 0, 0, 0, time.perf_counter() - t, duration, path, trajectory, none, used))
+            seconds = time.perf_counter() - t
+            legs.append(Leg(a, b, "back", 0, 0, 0, seconds, duration, path, trajectory, none, used, proof))
             continue
         # The planner tries the easy route first: the straight joint move (a seam step of a few centimetres needs
         # no roadmap), or where that is blocked the tool's straight line (the forearm following the torch into a
@@ -192,6 +194,7 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
                 trajectory,
                 samples,
                 on_path,
+                result.blends,
             )
         )
 
@@ -209,10 +212,12 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
     )
 
 
-def _timing(settings: PlanSettings) -> dict:
-    """time_path's keywords for a job's proved paths under `settings`' limit scaling."""
+def _timing(settings: PlanSettings, proof: BlendProof | None = None, edges_proved: bool = True) -> dict:
+    """time_path's keywords for a job's proved paths under `settings`' limit scaling: proved as polylines, or as
+    the blended curve `proof`."""
     return {
-        "edges_proved": True,
+        "edges_proved": edges_proved and proof is None,
+        "proof": proof,
         "velocity_scale": settings.velocity_scale,
         "acceleration_scale": settings.acceleration_scale,
     }
@@ -224,14 +229,15 @@ def _through(oracle, legs: list[Leg], settings: PlanSettings) -> Trajectory:
     if len(legs) == 1:
         return legs[0].trajectory
     paths = [dedupe(leg.path) for leg in legs]
-    # Every path a query returns is certified, so only the blends need proving.
+    # Every path a query returns is certified: where as a polyline, only the blends need proving.
     try:
         W = np.vstack([paths[0]] + [p[1:] for p in paths[1:]])
-        trajectory = time_path(oracle, W, settings.dt, **_timing(settings))
+        proved = all(leg.blends is None for leg in legs)
+        trajectory = time_path(oracle, W, settings.dt, **_timing(settings, edges_proved=proved))
     except RuntimeError:  # Toppra found no timing of the joined curve: stop at the poses after all
         for leg in legs:
             try:
-                leg.trajectory = time_path(oracle, leg.path, settings.dt, **_timing(settings))
+                leg.trajectory = time_path(oracle, leg.path, settings.dt, **_timing(settings, leg.blends))
             except RuntimeError as exc:
                 raise NoPath(f"leg {leg.start} -> {leg.goal} found but not time-parameterized: {exc}") from None
             leg.duration = leg.trajectory.duration

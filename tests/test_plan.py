@@ -323,7 +323,8 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
     from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar-3link"))
-    raw, refused, smooth, certify = [], [], Query.smooth, Query.certify
+    raw, refused, smooth = [], [], Query.smooth
+    certify, certify_blends = Query.certify, Query.certify_blends
 
     def recording(self, nodes, memo=None):
         raw.append(self.roadmap.Q[nodes])
@@ -332,14 +333,23 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
     def on_raw(path, i):
         return any(on_segment(oracle.space, a, b, path[i : i + 2]) for a, b in zip(raw[-1][:-1], raw[-1][1:]))
 
-    def refusing(self, path, edges=None):
-        proved, stats = certify(self, path, edges)
-        new = [i for i in (range(len(path) - 1) if edges is None else edges) if not on_raw(path, i)]
+    def refuse(path, edges) -> list[int]:
+        """The first smoothed path's longest new edge, refused wherever it appears."""
+        new = [i for i in edges if not on_raw(path, i)]
         if raw and not refused and new:
             worst = max(new, key=lambda i: oracle.space.distance(path[i], path[i + 1]))
             refused.append(path[worst : worst + 2].copy())
-            return False, {**stats, "failed": [worst]}
-        return proved, stats
+        return [i for i in edges if refused and np.array_equal(path[i : i + 2], refused[0])]
+
+    def refusing(self, path, edges=None):
+        proved, stats = certify(self, path, edges)
+        failed = refuse(path, range(len(path) - 1) if edges is None else edges)
+        return (False, {**stats, "failed": failed}) if failed else (proved, stats)
+
+    def refusing_blends(self, path):
+        proved, stats = certify_blends(self, path)
+        failed = refuse(path, range(len(path) - 1))
+        return (False, {**stats, "failed": failed}) if failed else (proved, stats)
 
     unwinding = []
 
@@ -352,6 +362,7 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
 
     monkeypatch.setattr(Query, "smooth", recording)
     monkeypatch.setattr(Query, "certify", refusing)
+    monkeypatch.setattr(Query, "certify_blends", refusing_blends)
     monkeypatch.setattr(planner, "unwind", counted_unwind)
     result = plan(oracle, PlanSettings(seed=0))
     assert refused and result.smoothing["repairs"] == 1 and not result.smoothing["fine_only"]
@@ -415,12 +426,20 @@ def test_a_free_route_through_via_points_is_the_answer_without_a_roadmap(oracles
 
 
 def test_a_plan_without_timing_returns_the_certified_path_alone(oracles):
+    """Without timing the polyline itself is the answer, and it is what is proved; with timing, the blended curve
+    the trajectory follows is, and the answer says so."""
+    from app.checking.certify import certify_path
+
     oracle = oracles("bar-3link")
     timed, bare = (plan(oracle, PlanSettings(seed=0, timing=t)) for t in (True, False))
     assert bare.trajectory is None and timed.trajectory is not None and bare.seconds["timing"] == 0
     assert np.array_equal(bare.path, timed.path)
     answer = json.loads(json.dumps(bare.to_json()))
     assert answer["trajectory"] is None and answer["certified"] is True
+    assert bare.smoothing["certificate"]["blended"] is False and bare.blends is None
+    assert certify_path(oracle.context(), bare.path)[0]
+    assert timed.smoothing["certificate"]["blended"] is True and timed.trajectory.certified
+    assert np.array_equal(timed.blends.path, timed.path) and not timed.blends.failed
 
 
 def test_a_check_budget_is_never_overrun(oracles):

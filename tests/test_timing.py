@@ -168,6 +168,39 @@ def test_a_path_that_cannot_be_certified_is_timed_but_not_certified(checkers):
     assert not smooth.certified and smooth.duration > 0
 
 
+def test_the_curve_followed_is_proved_not_the_corner_it_cuts(checkers):
+    """prove_blends proves the blended curve a trajectory follows: a corner inside pillar_1 that its blend cuts off
+    does not stop it, where the polyline cannot be proved; timed with that proof, the motion is certified and
+    free."""
+    from app.checking.certify import Certifier, certify_path
+    from app.motion.timing import prove_blends
+
+    oracle = checkers("maze")
+    W = np.array([[3.0, 7.5, 1.5, 0.0], [4.9, 8.8, 1.5, 0.0], [3.0, 10.0, 1.5, 0.0]])
+    assert not raw_free(oracle, W[1]) and not certify_path(oracle, W)[0]
+    proof = prove_blends(Certifier(oracle), W)
+    assert not proof.failed and proof.radii[1] > 0
+    smooth, _, stats = _times(oracle, W, proof=proof)
+    assert smooth.certified and stats["distance_queries"] == 0  # nothing proved again
+    _check_motion(oracle, smooth, W)
+    _check_free(oracle, W, proof=proof)
+
+
+def test_a_straight_part_that_cannot_be_proved_names_its_edge_of_the_path(checkers):
+    """Where the straight legs themselves touch the pillar the proof fails on them, by their index in the path
+    given (a repeated waypoint is an edge of no length, skipped but counted), and reversing a proof reverses it."""
+    from app.checking.certify import Certifier
+    from app.motion.timing import prove_blends
+
+    oracle = checkers("maze")
+    W = _round_the_pillar(-1e-3)
+    failed = prove_blends(Certifier(oracle), W).failed
+    assert failed and set(failed) <= {0, 1}
+    repeated = prove_blends(Certifier(oracle), W[[0, 0, 1, 2]])
+    assert repeated.failed == [i + 1 for i in failed]
+    assert repeated.reversed().failed == sorted(2 - i for i in repeated.failed)
+
+
 def test_one_waypoint_is_a_motionless_trajectory(checkers):
     oracle = checkers("maze")
     q = oracle.scene.start

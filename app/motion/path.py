@@ -22,10 +22,13 @@ FINE = 0.25
 def dedupe(P: np.ndarray, tol: float = 1e-12) -> np.ndarray:
     """Drop waypoints equal to their predecessor."""
     P = np.atleast_2d(np.asarray(P, float))
-    if len(P) < 2:
-        return P
-    keep = np.concatenate([[True], np.any(np.abs(np.diff(P, axis=0)) > tol, axis=1)])
-    return P[keep]
+    return P[distinct(P, tol)]
+
+
+def distinct(P: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+    """Indices of the waypoints that differ from their predecessor (the first always)."""
+    P = np.atleast_2d(np.asarray(P, float))
+    return np.flatnonzero(np.concatenate([[True], np.any(np.abs(np.diff(P, axis=0)) > tol, axis=1)]))
 
 
 def segment_lengths(oracle, P: np.ndarray) -> np.ndarray:

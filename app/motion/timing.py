@@ -7,7 +7,10 @@ robot stop at each waypoint. Here each corner is rounded instead by a parabolic 
 from a point `radius` before the corner, through the corner as control point, to the point `radius` after it -- so
 the path is C1 and Toppra slows down just as much as its curvature needs. A blend leaves the checked polyline, so
 the whole curve is certified (app.checking.certify); a blend that cannot be certified is halved, and after TIGHTEN
-halvings the corner becomes a stop (the path is cut there into legs, each timed from rest to rest).
+halvings the corner becomes a stop (the path is cut there into legs, each timed from rest to rest). What is proved
+is that curve, not the polyline: where the polyline's edges are proved already only the blends are, and otherwise
+(`prove_blends`, what the planner asks first) the straight parts between the blends are, not the corners the blends
+cut off.
 
 The path parameter s is arc length in the space's weighted metric along the polyline, and a blend of radius r
 spans s in [corner - r, corner + r], so straight parts keep their s whatever the blends: a straight piece that was
@@ -30,7 +33,7 @@ import numpy as np
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 from app.checking.certify import Certifier
 from app.errors import UserError
-from app.motion.path import dedupe
+from app.motion.path import distinct
 from app.motion.trajectory import Trajectory
 
 # A blend's first radius: this fraction of the shorter of its two segments (at most 1/2, so blends never overlap).
@@ -110,29 +113,90 @@ class _Curve:
         return mean * (s1 - s0) * _SLACK
 
 
+class _Polyline:
+    """position(s) and variation(s0, s1) along the waypoints' polyline, over the curve's s, for the certifier."""
+
+    def __init__(self, W, tangent, arc):
+        self.W, self.tangent, self.arc = W, tangent, arc
+
+    def segment(self, s: float) -> int:
+        return int(np.clip(np.searchsorted(self.arc, s, side="right") - 1, 0, len(self.arc) - 2))
+
+    def position(self, s: float) -> np.ndarray:
+        j = self.segment(s)
+        return self.W[j] + (s - self.arc[j]) * self.tangent[j]
+
+    def variation(self, s0: float, s1: float) -> np.ndarray:
+        return np.abs(self.tangent[self.segment(0.5 * (s0 + s1))]) * (s1 - s0) * _SLACK
+
+
 def _certified_radii(
-    certifier: Certifier, W, tangent, arc, radii, tighten: int, edges_proved: bool
-) -> tuple[np.ndarray, bool, dict]:
-    """Blend radii tightened until every blend is certified (a corner that never is becomes a stop), whether the
-    whole curve then is (False: a straight piece of the polyline itself failed), and the certification cost.
-    edges_proved: the polyline's edges are certified already, so are the straight pieces (each part of one edge)."""
+    certifier: Certifier, W, tangent, arc, radii, tighten: int, known: np.ndarray, give_up: bool = False
+) -> tuple[np.ndarray, list[int], dict]:
+    """Blend radii tightened until every blend is certified (a corner that never is becomes a stop), the segments
+    whose straight part failed (indices into W's segments; none: the whole curve is certified), and the cost.
+
+    A segment's straight part runs between its corners' blends. As a blend shrinks, the straight parts beside it
+    grow and keep their s, so only what they gain is proved. Each round proves the blends and straight parts it
+    has in one certifier call. known: per segment, whether it is certified already (then so is its straight part).
+    give_up: a straight part that fails ends the proof (for a caller that will prove the path another way or
+    change it, rather than time it uncertified)."""
+    line, tiny = _Polyline(W, tangent, arc), 1e-12 * max(arc[-1], 1.0)
     radii, halvings, done = radii.copy(), np.zeros(len(W), int), set()
-    cost = {"distance_queries": 0, "seconds": 0.0, "rounds": 0}
+    proved = np.tile([np.inf, -np.inf], (len(W) - 1, 1))  # per segment, the span of its straight part proved
+    refused: set[int] = set()
+    cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
     while True:
+        straight = []  # (segment, s0, s1): what its straight part has gained since the last round
+        for j in np.flatnonzero(~known):
+            s0, s1, (lo, hi) = arc[j] + radii[j], arc[j + 1] - radii[j + 1], proved[j]
+            if j in refused or s1 - s0 <= tiny:
+                continue
+            gained = [(s0, s1)] if lo > hi else [(a, b) for a, b in ((s0, lo), (hi, s1)) if b - a > tiny]
+            straight += [(int(j), *span) for span in gained]
         curve = _Curve(_legs(W, tangent, arc, radii))
-        todo = [p for leg in curve.legs for p in leg.pieces if p not in done and not (edges_proved and p[2] is None)]
-        _, stats = certifier.certify(curve.position, curve.variation, [(p[0], p[1]) for p in todo])
-        cost["distance_queries"] += stats["distance_queries"]
-        cost["seconds"] += stats["seconds"]
+        todo = [p for leg in curve.legs for p in leg.pieces if p[2] is not None and p not in done]
+        failed = _certify(
+            certifier, _Both(line, curve), [(s0, s1) for _, s0, s1 in straight] + [(-s1, -s0) for s0, s1, _ in todo]
+        )
+        for key in ("pieces", "distance_queries", "seconds"):
+            cost[key] += failed[key]
+        failed_straight = {k for k in failed["failed"] if k < len(straight)}
+        failed_blends = {k - len(straight) for k in failed["failed"] if k >= len(straight)}
         cost["rounds"] += 1
-        failed = [todo[k] for k in stats["failed"]]
-        done.update(p for p in todo if p not in failed)
-        corners = {p[2] for p in failed if p[2] is not None}
-        if not corners:
-            return radii, not failed, cost
+        for k, (j, s0, s1) in enumerate(straight):
+            if k in failed_straight:
+                refused.add(j)
+            else:
+                proved[j] = min(proved[j, 0], s0), max(proved[j, 1], s1)
+        done.update(p for k, p in enumerate(todo) if k not in failed_blends)
+        corners = {todo[k][2] for k in failed_blends}
+        if not corners or refused and give_up:
+            return radii, sorted(refused), cost
         for i in corners:
             halvings[i] += 1
             radii[i] = radii[i] / 2 if halvings[i] <= tighten else 0.0
+
+
+def _certify(certifier: Certifier, curve, intervals: list) -> dict:
+    """The certifier's stats on the intervals of `curve` (none asked for: no cost)."""
+    if not intervals:
+        return {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0}
+    return certifier.certify(curve.position, curve.variation, intervals)[1]
+
+
+class _Both:
+    """The polyline at s >= 0 and the blended curve at -s, so that one certifier call proves pieces of both (its
+    rounds batch their distance queries together); negating s is exact, and both curves are W[0] at s = 0."""
+
+    def __init__(self, line: _Polyline, curve: _Curve):
+        self.line, self.curve = line, curve
+
+    def position(self, s: float) -> np.ndarray:
+        return self.line.position(s) if s >= 0 else self.curve.position(-s)
+
+    def variation(self, s0: float, s1: float) -> np.ndarray:
+        return self.line.variation(s0, s1) if s0 + s1 >= 0 else self.curve.variation(-s1, -s0)
 
 
 def _first_radii(lengths: np.ndarray) -> np.ndarray:
@@ -301,18 +365,59 @@ def _sample(timed: list, W: np.ndarray, waypoint_times: np.ndarray, dt: float, j
 
 def _prepare(waypoints, velocity_limits, acceleration_limits, weights):
     """Waypoints without repeats, unit tangents and arc lengths in the weighted metric, finite positive limits."""
-    W = dedupe(np.atleast_2d(np.asarray(waypoints, float)))
+    W, tangent, arc, _ = _geometry(waypoints, weights)
     v = np.asarray(velocity_limits, float)
     a = np.asarray(acceleration_limits, float)
     if not (np.all(v > 0) and np.all(a > 0)):
         raise ValueError("velocity and acceleration limits must be positive")
     # An unlimited joint is limited by the others; Toppra wants finite bounds.
     v, a = np.where(np.isfinite(v), v, 1e9), np.where(np.isfinite(a), a, 1e9)
+    return W, v, a, tangent, arc
+
+
+def _geometry(waypoints, weights):
+    """Waypoints without repeats, unit tangents, arc lengths in the weighted metric, and which waypoints were kept."""
+    P = np.atleast_2d(np.asarray(waypoints, float))
+    kept = distinct(P)
+    W = P[kept]
     steps = np.diff(W, axis=0)
     lengths = np.linalg.norm(steps * weights, axis=1)
     tangent = steps / lengths[:, None] if len(W) > 1 else np.zeros((0, W.shape[1]))
     arc = np.concatenate([[0.0], np.cumsum(lengths)])
-    return W, v, a, np.vstack([tangent, tangent[-1:]]) if len(W) > 1 else tangent, arc
+    return W, np.vstack([tangent, tangent[-1:]]) if len(W) > 1 else tangent, arc, kept
+
+
+@dataclass(frozen=True)
+class BlendProof:
+    """The curve a path's trajectory follows, certified ahead of its timing (prove_blends): its blend radii, and the
+    path's edges whose straight part could not be proved (none: the whole curve is certified)."""
+
+    path: np.ndarray
+    radii: np.ndarray
+    failed: list[int]
+    cost: dict
+
+    def reversed(self) -> BlendProof:
+        """The proof of the same curve run backwards (a blend is symmetric about its corner)."""
+        failed = sorted(len(self.path) - 2 - i for i in self.failed)
+        return BlendProof(self.path[::-1].copy(), self.radii[::-1].copy(), failed, self.cost)
+
+
+def prove_blends(certifier: Certifier, path: np.ndarray, known=(), tighten: int = TIGHTEN) -> BlendProof:
+    """The curve time_path makes of `path` (a path of the certifier's checker, wrapped) certified: its blends, and
+    the straight parts of its edges between them -- not the corners the blends cut off, so the polyline itself
+    is not proved (proving it as well asked about a third more distance queries on the window cell's answers:
+    benchmark pages). Stops at the first straight part that fails. known: indices of the path's edges certified
+    already, whose straight parts are not proved again."""
+    space = certifier.checker.space
+    W, tangent, arc, kept = _geometry(space.unwrap(path), space.weights)
+    edge = kept[1:] - 1  # each of W's segments as an edge of the path (repeated waypoints are skipped)
+    if len(W) < 2:
+        return BlendProof(path.copy(), np.zeros(len(W)), [], {"pieces": 0, "distance_queries": 0, "seconds": 0.0})
+    radii, failed, cost = _certified_radii(
+        certifier, W, tangent, arc, _first_radii(np.diff(arc)), tighten, np.isin(edge, list(known)), give_up=True
+    )
+    return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost)
 
 
 def parameterize(
@@ -347,11 +452,13 @@ def time_path(
     *,
     certifier=None,
     edges_proved: bool = False,
+    proof: BlendProof | None = None,
     velocity_scale: float = 1.0,
     acceleration_scale: float = 1.0,
 ) -> Trajectory:
     """A path of the oracle's scene (wrapped waypoints) timed by parameterize_smooth under the scene's limits, scaled
-    by velocity_scale and acceleration_scale (see scaled_limits); it carries the scene's mimic joints."""
+    by velocity_scale and acceleration_scale (see scaled_limits); it carries the scene's mimic joints. proof: the
+    path's curve certified already (prove_blends), whose radii are then used as they are."""
     trajectory = parameterize_smooth(
         oracle,
         oracle.space.unwrap(path),
@@ -360,6 +467,7 @@ def time_path(
         oracle.space.names,
         certifier=certifier,
         edges_proved=edges_proved,
+        proof=proof,
     )
     return dataclasses.replace(trajectory, position_map=oracle.scene.position_map)
 
@@ -376,24 +484,31 @@ def parameterize_smooth(
     stats: dict | None = None,
     certifier: Certifier | None = None,
     edges_proved: bool = False,
+    proof: BlendProof | None = None,
 ) -> Trajectory:
     """Blended corners, certified (see the module doc), timed with Toppra.
 
     The trajectory is `certified` when the whole executed curve is (blends and straight pieces); if a straight
     piece of the polyline itself cannot be certified, the curve is still timed and returned, uncertified.
     floor: the certificate's bisection floor (default: app.checking.certify's); tighten: halvings of a failing blend
-    before its corner becomes a stop. stats, if given, receives: stops (corners the robot stops at), distance_queries
-    and seconds (certification), rounds (of blend tightening). certifier: one to reuse (its distances are cached).
-    edges_proved: every straight edge of the waypoints' polyline is certified already (the planner's certificate):
-    then only the blends are.
+    before its corner becomes a stop. stats, if given, receives: stops (corners the robot stops at), pieces,
+    distance_queries and seconds (certification), rounds (of blend tightening). certifier: one to reuse (its
+    distances are cached). edges_proved: every straight edge of the waypoints' polyline is certified already (the
+    planner's certificate): then only the blends are. proof: the curve certified already (prove_blends on the
+    wrapped waypoints these are unwrapped from): its radii are used.
     """
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, oracle.space.weights)
+    known = np.full(max(len(W) - 1, 0), edges_proved)
     radii = np.zeros(len(W))
-    certified, cost = False, {"distance_queries": 0, "seconds": 0.0, "rounds": 0}
-    if len(W) > 1:
-        radii = _first_radii(np.diff(arc))
+    certified, cost = False, {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
+    if proof is not None:
+        if len(proof.radii) != len(W):
+            raise ValueError("the blend proof is of other waypoints")
+        radii, certified = proof.radii.copy(), not proof.failed
+    elif len(W) > 1:
         certifier = certifier or Certifier(oracle, floor)
-        radii, certified, cost = _certified_radii(certifier, W, tangent, arc, radii, tighten, edges_proved)
+        radii, failed, cost = _certified_radii(certifier, W, tangent, arc, _first_radii(np.diff(arc)), tighten, known)
+        certified = not failed
     while True:
         legs = _legs(W, tangent, arc, radii) if len(W) > 1 else []
         try:
@@ -401,13 +516,18 @@ def parameterize_smooth(
             break
         except _LegNotTimed as failed:
             # Toppra fails on a blend of extreme curvature (seen: a corner 2e-5 from the next one, left by a partial
-            # shortcut): the failing leg's tightest blend becomes a stop, which the certified polyline allows, and
-            # the path is timed again (a rare case); a leg with no blend left fails the query.
+            # shortcut): the failing leg's tightest blend becomes a stop, and the path is timed again (a rare
+            # case); a leg with no blend left fails the query.
             corners = np.arange(failed.leg.first + 1, failed.leg.last)
             corners = corners[radii[corners] > 0]
             if not len(corners):
                 raise
             radii[corners[np.argmin(radii[corners])]] = 0.0
+            if certified and not edges_proved:  # the polyline by that corner was cut off by its blend: prove it
+                certifier = certifier or Certifier(oracle, floor)
+                radii, refused, more = _certified_radii(certifier, W, tangent, arc, radii, tighten, known)
+                cost = {k: cost[k] + more[k] for k in cost}
+                certified = not refused
     if stats is not None:
         stats.update(cost, stops=int(np.sum(radii[1:-1] == 0)))
     return trajectory

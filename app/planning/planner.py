@@ -23,7 +23,7 @@ from app.checking.budget import Budget, BudgetSpent, Stop
 from app.checking.oracle import CONTACT
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.motion.path import FINE, Shortcuts, path_length, shortcut, unwind, verify
-from app.motion.timing import time_path
+from app.motion.timing import BlendProof, prove_blends, time_path
 from app.motion.trajectory import Trajectory, TrajectoryFile
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy: imported when planning, not when the CLI starts
@@ -159,6 +159,9 @@ class PlanResult:
     # for viewers; not part of the JSON.
     graph: Roadmap | None = field(default=None, repr=False)
     path_nodes: list = field(default_factory=list, repr=False)
+    # The certified curve of the trajectory where that, and not the polyline `path`, is what was proved
+    # (smoothing["certificate"]["blended"]); for timing the path again the same way.
+    blends: BlendProof | None = field(default=None, repr=False)
 
     def narrow_samples(self) -> tuple[np.ndarray, np.ndarray]:
         """The narrow-passage samples in the roadmap (M, dim), and which of them the roadmap path used (M,)."""
@@ -447,6 +450,7 @@ class Query:
             certifier.checker = checker
         self.unproved_edges = 0  # roadmap edges fine-checked free that the certificate could not prove
         self.proof_unfinished = False  # the budget ended the proof or timing of a path found
+        self.blends: BlendProof | None = None  # the curve of the last path whose blends were proved (certify_blends)
 
     # ---- bookkeeping ----------------------------------------------------------------------------------------------
     def _timed(self, phase: str, fn, *args, **kwargs):
@@ -563,12 +567,27 @@ class Query:
         pairs = self.roadmap.edge_pairs(path)
         edges = [i for i in (range(len(path) - 1) if edges is None else edges) if pairs[i] not in self.roadmap.proved]
         if not edges:
-            return True, {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0}
+            return True, {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0, "blended": False}
         position, variation = polyline(self.checker.space, path)
         proved, stats = self._timed("certify", self.certifier.certify, position, variation, [(i, i + 1) for i in edges])
         failed = [edges[k] for k in stats["failed"]]
         self.roadmap.proved.update(pairs[i] for i in edges if pairs[i] is not None and i not in failed)
-        return proved, {**stats, "failed": failed}
+        return proved, {**stats, "failed": failed, "blended": False}
+
+    def certify_blends(self, path: np.ndarray) -> tuple[bool, dict]:
+        """Whether the curve the robot will follow along `path` is free in the continuous sense: its corners blended
+        as timing blends them (a blend that cannot be proved tightened, at last a stop), the straight parts between
+        them proved, the corners the blends cut off not (app.motion.timing.prove_blends). stats["failed"] lists the
+        edges whose straight part could not be proved; the proof is kept for `time`. For a path that is timed:
+        without timing the polyline itself is the answer, and `certify` proves it."""
+        from app.checking.certify import Certifier
+
+        if self.certifier is None:
+            self.certifier = Certifier(self.checker)
+        pairs = self.roadmap.edge_pairs(path)
+        known = [i for i, pair in enumerate(pairs) if pair in self.roadmap.proved]
+        self.blends = self._timed("certify", prove_blends, self.certifier, path, known)
+        return not self.blends.failed, {**self.blends.cost, "failed": self.blends.failed, "blended": True}
 
     def smooth_and_prove(self, nodes: list[int], proof: dict | None = None) -> tuple[np.ndarray, dict, dict | None]:
         """(smoothed path, smoothing stats, its certificate or None when it could not be proved; `proof`: the roadmap
@@ -583,11 +602,19 @@ class Query:
             stats["repairs"] = repairs
             if proof is not None and np.array_equal(path, self.roadmap.Q[nodes]):
                 return path, stats, proof
-            keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
-            with self._proving():  # edges the replay kept were proved already
-                proved, certificate = self.certify(path, [i for i, k in enumerate(keys) if k not in proved_edges])
-            proved_edges.update(k for i, k in enumerate(keys) if i not in certificate["failed"])
-            work = {k: work[k] + certificate[k] for k in work}
+            with self._proving():
+                # The curve the robot follows first. A path it refuses grazes something: from then on the
+                # polyline, which a blended proof spends blends on before it finds the failing edges (single
+                # queries: benchmark pages); where it passes, timing proves the blends, or makes stops of them.
+                proved = False
+                if self.settings.timing and repairs == 0 and not self.fine_only:
+                    proved, certificate = self.certify_blends(path)
+                    work = {k: work[k] + certificate[k] for k in work}
+                if not proved:  # edges the replay kept were proved already
+                    keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
+                    proved, certificate = self.certify(path, [i for i, k in enumerate(keys) if k not in proved_edges])
+                    proved_edges.update(k for i, k in enumerate(keys) if i not in certificate["failed"])
+                    work = {k: work[k] + certificate[k] for k in work}
             if proved:
                 return path, stats, {**certificate, **work}
             if repairs == SMOOTHING_REPAIRS or not memo.ban_carriers(self.checker.space, path, certificate["failed"]):
@@ -643,7 +670,11 @@ class Query:
 
     def time(self, path: np.ndarray, proved: bool = False) -> Trajectory:
         """Toppra along the path with its corners blended where the blends can be proved free (app.motion.timing);
-        proved: the path's edges are certified already (by this query's certifier), so only the blends need to be."""
+        proved: the path's edges are certified already (by this query's certifier), so only the blends need to be,
+        unless its blended curve is (certify_blends), whose radii are then used."""
+        blends = self.blends
+        if blends is None or blends.failed or not np.array_equal(blends.path, path):
+            blends = None
         try:
             return self._timed(
                 "timing",
@@ -652,7 +683,8 @@ class Query:
                 path,
                 self.settings.dt,
                 certifier=self.certifier,
-                edges_proved=proved,
+                edges_proved=proved and blends is None,
+                proof=blends,
                 velocity_scale=self.settings.velocity_scale,
                 acceleration_scale=self.settings.acceleration_scale,
             )
@@ -809,4 +841,5 @@ class Query:
             distance_queries=self.checker.distance_queries,
             workspace_on_path=int(sum(roadmap.kinds[i] == WORKSPACE for i in nodes)),
             point_queries=self.checker.point_queries,
+            blends=self.blends if stats["certificate"].get("blended") else None,
         )
