@@ -968,19 +968,24 @@ def certify_curve(oracle, position, variation, knots, floor: float | None = None
 
 
 def polyline(space, P: np.ndarray):
-    """(position, variation) of the polyline P with parameter s = i + t on edge i (straight, the short way)."""
-    W = space.unwrap(P)
-    D = np.diff(W, axis=0)
+    """(position, variation) of the polyline P (straight edges, the short way) with parameter s = i + t on edge i."""
+    return straight_edges(space.unwrap(P), np.arange(len(P), dtype=float))
+
+
+def straight_edges(W: np.ndarray, knots: np.ndarray):
+    """(position, variation) of the polyline W (unwrapped: straight from each waypoint to the next) with edge i
+    running from s = knots[i] to knots[i + 1] (increasing)."""
+    rate = np.diff(W, axis=0) / np.diff(knots)[:, None]
 
     def edge(s: float) -> int:
-        return min(max(int(s), 0), len(D) - 1)
+        return min(max(int(np.searchsorted(knots, s, side="right")) - 1, 0), len(rate) - 1)
 
     def position(s: float) -> np.ndarray:
         i = edge(s)
-        return W[i] + (s - i) * D[i]
+        return W[i] + (s - knots[i]) * rate[i]
 
     def variation(s0: float, s1: float) -> np.ndarray:
-        return np.abs(D[edge(0.5 * (s0 + s1))]) * (s1 - s0)
+        return np.abs(rate[edge(0.5 * (s0 + s1))]) * (s1 - s0)
 
     return position, variation
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
-from app.checking.certify import Certifier
+from app.checking.certify import Certifier, straight_edges
 from app.errors import UserError
 from app.motion.path import distinct
 from app.motion.trajectory import Trajectory
@@ -113,23 +113,6 @@ class _Curve:
         return mean * (s1 - s0) * _SLACK
 
 
-class _Polyline:
-    """position(s) and variation(s0, s1) along the waypoints' polyline, over the curve's s, for the certifier."""
-
-    def __init__(self, W, tangent, arc):
-        self.W, self.tangent, self.arc = W, tangent, arc
-
-    def segment(self, s: float) -> int:
-        return int(np.clip(np.searchsorted(self.arc, s, side="right") - 1, 0, len(self.arc) - 2))
-
-    def position(self, s: float) -> np.ndarray:
-        j = self.segment(s)
-        return self.W[j] + (s - self.arc[j]) * self.tangent[j]
-
-    def variation(self, s0: float, s1: float) -> np.ndarray:
-        return np.abs(self.tangent[self.segment(0.5 * (s0 + s1))]) * (s1 - s0) * _SLACK
-
-
 def _certified_radii(
     certifier: Certifier, W, tangent, arc, radii, tighten: int, known: np.ndarray, give_up: bool = False
 ) -> tuple[np.ndarray, list[int], dict]:
@@ -141,7 +124,7 @@ def _certified_radii(
     has in one certifier call. known: per segment, whether it is certified already (then so is its straight part).
     give_up: a straight part that fails ends the proof (for a caller that will prove the path another way or
     change it, rather than time it uncertified)."""
-    line, tiny = _Polyline(W, tangent, arc), 1e-12 * max(arc[-1], 1.0)
+    line, tiny = straight_edges(W, arc), 1e-12 * max(arc[-1], 1.0)
     radii, halvings, done = radii.copy(), np.zeros(len(W), int), set()
     proved = np.tile([np.inf, -np.inf], (len(W) - 1, 1))  # per segment, the span of its straight part proved
     refused: set[int] = set()
@@ -186,17 +169,18 @@ def _certify(certifier: Certifier, curve, intervals: list) -> dict:
 
 
 class _Both:
-    """The polyline at s >= 0 and the blended curve at -s, so that one certifier call proves pieces of both (its
-    rounds batch their distance queries together); negating s is exact, and both curves are W[0] at s = 0."""
+    """The polyline (`line`: position, variation) at s >= 0 and the blended curve at -s, so that one certifier call
+    proves pieces of both (its rounds batch their distance queries together); negating s is exact, and both curves
+    are W[0] at s = 0."""
 
-    def __init__(self, line: _Polyline, curve: _Curve):
+    def __init__(self, line: tuple, curve: _Curve):
         self.line, self.curve = line, curve
 
     def position(self, s: float) -> np.ndarray:
-        return self.line.position(s) if s >= 0 else self.curve.position(-s)
+        return self.line[0](s) if s >= 0 else self.curve.position(-s)
 
     def variation(self, s0: float, s1: float) -> np.ndarray:
-        return self.line.variation(s0, s1) if s0 + s1 >= 0 else self.curve.variation(-s1, -s0)
+        return self.line[1](s0, s1) if s0 + s1 >= 0 else self.curve.variation(-s1, -s0)
 
 
 def _first_radii(lengths: np.ndarray) -> np.ndarray:

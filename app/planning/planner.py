@@ -558,10 +558,9 @@ class Query:
         """Whether every straight edge of `path` (or those of `edges`, indices into it) is free in the continuous
         sense (app.checking.certify: signed distances at the ends exceed how far any point of the robot can travel
         along the edge, bisected where they do not); stats["failed"] lists the edges that could not be proved."""
-        from app.checking.certify import Certifier, polyline
+        from app.checking.certify import polyline
 
-        if self.certifier is None:
-            self.certifier = Certifier(self.checker)
+        self._make_certifier()
         # A segment that is a roadmap edge proved before (by this query, or by an earlier one on a persistent
         # roadmap) is not proved again; one proved now is remembered as such.
         pairs = self.roadmap.edge_pairs(path)
@@ -580,14 +579,18 @@ class Query:
         them proved, the corners the blends cut off not (app.motion.timing.prove_blends). stats["failed"] lists the
         edges whose straight part could not be proved; the proof is kept for `time`. For a path that is timed:
         without timing the polyline itself is the answer, and `certify` proves it."""
-        from app.checking.certify import Certifier
-
-        if self.certifier is None:
-            self.certifier = Certifier(self.checker)
+        self._make_certifier()
         pairs = self.roadmap.edge_pairs(path)
         known = [i for i, pair in enumerate(pairs) if pair in self.roadmap.proved]
         self.blends = self._timed("certify", prove_blends, self.certifier, path, known)
         return not self.blends.failed, {**self.blends.cost, "failed": self.blends.failed, "blended": True}
+
+    def _make_certifier(self) -> None:
+        """The query's certifier, made when the first path is to be proved (it sets up per-geometry bounds)."""
+        from app.checking.certify import Certifier
+
+        if self.certifier is None:
+            self.certifier = Certifier(self.checker)
 
     def smooth_and_prove(self, nodes: list[int], proof: dict | None = None) -> tuple[np.ndarray, dict, dict | None]:
         """(smoothed path, smoothing stats, its certificate or None when it could not be proved; `proof`: the roadmap
