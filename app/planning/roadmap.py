@@ -381,10 +381,12 @@ class Roadmap:
     def _recount_components(self) -> None:
         """The skip-connected rule's components from scratch, from the edges decided free: after edges or nodes
         left, which union-find cannot undo."""
-        self._components = _UnionFind()
-        self._components.grow(len(self.Q))
-        for a, b in self._ends[self._alive & self._checked].tolist():
-            self._components.union(a, b)
+        n, ends = len(self.Q), self._ends[self._alive & self._checked]
+        graph = csr_matrix((np.ones(len(ends), bool), (ends[:, 0], ends[:, 1])), shape=(n, n))
+        count, labels = connected_components(graph, directed=False)
+        roots = np.full(count, n)
+        np.minimum.at(roots, labels, np.arange(n))  # each component's least node is its root, as union() keeps it
+        self._components = _UnionFind(roots[labels].tolist())
 
     def edge_pairs(self, P: np.ndarray) -> list[tuple[int, int] | None]:
         """For each straight segment of the polyline P, the roadmap edge (node pair, smaller first) not known to
@@ -512,8 +514,8 @@ def _drop(matrix: csr_matrix, u: int, v: int) -> None:
 class _UnionFind:
     """Connected components under edge insertion, for the skip-connected rule."""
 
-    def __init__(self):
-        self.parent: list[int] = []
+    def __init__(self, parent: list[int] | None = None):
+        self.parent: list[int] = parent if parent is not None else []
 
     def grow(self, n: int) -> None:
         self.parent.extend(range(len(self.parent), n))
