@@ -320,6 +320,17 @@ def test_the_full_speed_bound_is_below_every_timing_of_the_same_path(checkers):
     assert 0 < metrics["duration_full_speed"] <= metrics["duration_rest_to_rest"]
 
 
+def test_the_certificates_time_holds_its_distance_queries_and_lies_within_the_plans(checkers):
+    """bench certify's cost per configuration: the certificate's own time includes the Drake distance queries it
+    asked (timed apart by the oracle) and is part of the plan's time."""
+    from app.bench.certification import run_trial_spec
+    from app.bench.store import TrialSpec
+
+    metrics = run_trial_spec(checkers("bar").oracle, TrialSpec("certify", "bar", "default", 10.0, 0))
+    assert metrics["success"] and metrics["distance_queries"] > 0
+    assert 0 < metrics["seconds_distances"] < metrics["seconds_certificate"] < metrics["seconds"]
+
+
 def test_a_pair_drake_leaves_out_is_bounded_along_drakes_direction(checkers):
     """The UR3's upper arm and torch side by side, 9.8 mm apart: the alternating projections alone bounded them at
     -2.4 mm, and every piece of motion there failed down to the floor. Drake's direction for the pair (asked for

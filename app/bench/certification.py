@@ -1,12 +1,13 @@
 """`bench certify`: what continuous certification and smooth timing cost, and what the smooth timing gains.
 
-Per scene and seed, one default query (`plan SCENE --seed S`): its phase timings say how long certifying the path
-(phase "certify") and timing it smoothly with certified blends (phase "timing") took. What a planner without
-certification would do instead is then done to the same path: re-check it at the fine resolution (FINE x the
-scene's, the discrete check the certificate replaced) and time it rest to rest at every waypoint
-(`app.motion.timing.parameterize`); that time stands in for both phases in the plan time "without". So the two plan
-times compare the same query, in one run. Per UR3 job and seed (`run window --seed S`): the joined trajectory's duration
-against each leg's path timed rest to rest at every waypoint.
+Per scene and seed, one default query (`plan SCENE --seed S`): its phase timings say how long certifying the path (phase
+"certify") and timing it smoothly with certified blends (phase "timing") took. What a planner without certification
+would do instead is then done to the same path: re-check it at the fine resolution (FINE x the scene's, the discrete
+check the certificate replaced) and time it rest to rest at every waypoint (`app.motion.timing.parameterize`); that time
+stands in for both phases in the plan time "without". So the two plan times compare the same query, in one run. The
+certificate's cost per configuration is its own time (set-up and every proof, of the path and of its blends) over the
+distance queries it asked Drake, beside the time of those queries alone. Per UR3 job and seed (`run window --seed S`):
+the joined trajectory's duration against each leg's path timed rest to rest at every waypoint.
 
 Trials are experiments "certify" (scenes) and "certify-job" in the results store, so a killed run resumes.
 """
@@ -46,12 +47,12 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One default query on a scene: plan seconds with certification and smooth timing, and without (the phases
     replaced by a fine re-check and rest-to-rest timing), the seconds of the query in Drake's queries, and the
     smooth and rest-to-rest durations."""
-    drake = drake_seconds(oracle)
+    drake, distances = drake_seconds(oracle), oracle.seconds["distances"]
     try:
         r = plan(oracle, PlanSettings(seed=spec.seed, step=spec.step))
     except NoPath:
         return {"success": False}
-    drake = drake_seconds(oracle) - drake
+    drake, distances = drake_seconds(oracle) - drake, oracle.seconds["distances"] - distances
     duration, seconds = _rest_to_rest(oracle, r.path)
     clock = time.perf_counter()
     verify(oracle.context(), r.path)
@@ -66,6 +67,8 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         "seconds_without": s["total"] - s["certify"] - s["timing"] + seconds,
         "certified": bool(r.trajectory.certified),
         "distance_queries": r.distance_queries,
+        "seconds_certificate": r.certificate_seconds,
+        "seconds_distances": distances,
         "duration": r.trajectory.duration,
         "duration_rest_to_rest": duration,
         "duration_full_speed": _full_speed(oracle, r.path),
@@ -115,6 +118,12 @@ def summarise(rows: list[dict], cells: list[tuple[str, str]]) -> list[dict]:
             # rows stored before the time in Drake's queries was measured have none
             shares = [m["seconds_drake"] / m["seconds"] for m in ok if "seconds_drake" in m and m["seconds"] > 0]
             row["median_drake_share"] = float(np.median(shares)) if shares else None
+            # The certificate's cost per configuration it asks Drake about, all its work included, beside Drake's
+            # distance query alone (rows stored before these were measured have none).
+            asked = [m for m in ok if m.get("seconds_certificate") is not None and m["distance_queries"] > 0]
+            for key, seconds in (("certificate", "seconds_certificate"), ("drake", "seconds_distances")):
+                per = [1e3 * m[seconds] / m["distance_queries"] for m in asked]
+                row[f"median_{key}_ms_per_configuration"] = float(np.median(per)) if per else None
         ratio_of = {"median_duration_ratio": "duration", "median_full_speed_ratio": "duration_full_speed"}
         for key, duration in ratio_of.items():
             # rows stored before the full-speed bound was measured have none

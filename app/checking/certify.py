@@ -568,6 +568,7 @@ class Certifier:
     def __init__(self, checker: Checker, floor: float | None = None):
         from pydrake.geometry import Role
 
+        clock = time.perf_counter()
         oracle = checker.oracle
         self.checker = checker
         self.bound = motion_bound(oracle)
@@ -619,6 +620,7 @@ class Certifier:
             self._inside[i] += vertices.mean(axis=0)
         self._anchors = self._p + np.einsum("gij,gj->gi", self._R, self._inside)
         self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
+        self.seconds = time.perf_counter() - clock  # all this certifier's work: set-up, then every certify()
 
     def certify(self, position, variation, intervals) -> tuple[bool, dict]:
         """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
@@ -691,6 +693,7 @@ class Certifier:
             "distance_queries": self.checker.distance_queries - queries,
             "seconds": time.perf_counter() - clock,
         }
+        self.seconds += stats["seconds"]
         return not failed, stats
 
     def _certain_shortfall(self, Q: np.ndarray, by_end: np.ndarray, travel: np.ndarray) -> np.ndarray:

@@ -155,6 +155,7 @@ class PlanResult:
     distance_queries: int = 0  # signed-distance queries of the certificates (apart from collision_checks)
     workspace_on_path: int = 0  # roadmap path nodes placed in workspace gaps
     point_queries: int = 0  # workspace points asked for their distances to obstacles, finding gaps
+    certificate_seconds: float = 0.0  # the certificates' own time (set-up and every proof), Drake's queries included
     # The roadmap itself (nodes `Q`, provenance `kinds`, `edges()`) and the roadmap path's node indices,
     # for viewers; not part of the JSON.
     graph: Roadmap | None = field(default=None, repr=False)
@@ -205,6 +206,7 @@ class PlanResult:
             "distance_queries": self.distance_queries,
             "workspace_on_path": self.workspace_on_path,
             "point_queries": self.point_queries,
+            "certificate_seconds": self.certificate_seconds,
             "certified": self.trajectory.certified if self.trajectory else self.smoothing["certificate"]["proved"],
         }
 
@@ -844,5 +846,6 @@ class Query:
             distance_queries=self.checker.distance_queries,
             workspace_on_path=int(sum(roadmap.kinds[i] == WORKSPACE for i in nodes)),
             point_queries=self.checker.point_queries,
+            certificate_seconds=self.certifier.seconds if self.certifier is not None else 0.0,
             blends=self.blends if stats["certificate"].get("blended") else None,
         )
