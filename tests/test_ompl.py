@@ -183,10 +183,17 @@ def test_rrtconnect_through_the_oracle_counts_checks_and_returns_a_fine_checked_
     spec = TrialSpec(
         "ompl", SCENE, "ompl:RRTConnect", default_step(oracle.scene), 0, {"budget": BUDGET, "protocol": PROTOCOL}
     )
-    answered = []  # configurations Drake answered, counted at the oracle's two entry points
-    single, batch = oracle.free, oracle.free_batch
+    answered = []  # configurations Drake answered, counted at the oracle's three entry points
+    single, batch, edges = oracle.free, oracle.free_batch, oracle.first_hits
+
+    def first_hits(*args):
+        passed, checked = edges(*args)
+        answered.append(checked)
+        return passed, checked
+
     monkeypatch.setattr(oracle, "free", lambda q: answered.append(1) or single(q))
     monkeypatch.setattr(oracle, "free_batch", lambda Q: answered.append(len(Q)) or batch(Q))
+    monkeypatch.setattr(oracle, "first_hits", first_hits)
     m = run_trial_spec(oracle, spec)
     assert m["success"] == 1.0 and m["space"] == "compound", m
     # every check OMPL asked for went through the oracle: first solution + smoothing + our verification

@@ -206,14 +206,35 @@ def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(m
     assert 1 <= len(set(smoothed)) <= 2 and smoothed[-1] == tuple(result.path_nodes)
 
 
+class _PredicateOracle:
+    """Stands in for a CollisionOracle in a query context: collision answers from `collides(Q)` on configurations
+    (n, dim), for the path code, which needs only the metric and the context's checks."""
+
+    def __init__(self, space, collides):
+        self.space, self.scene, self.collides = space, None, collides
+
+    def free_batch(self, Q):
+        return ~self.collides(np.atleast_2d(Q))
+
+    def first_hits(self, Q, owner, hit, until_one):
+        checked = 0
+        for i, (q, edge) in enumerate(zip(Q, owner.tolist()), 1):
+            if not hit[edge]:
+                checked += 1
+                if self.collides(q[None])[0]:
+                    hit[edge] = True
+                    if until_one:
+                        return i, checked
+        return len(Q), checked
+
+
 def _wall_oracle():
     """A 2-D checker with a thin wall between the fine points of the test path's first edge, and a block that leaves
-    no direct line from the start to the end (the path code needs only the metric and are_free)."""
+    no direct line from the start to the end."""
     from app.checking.context import QueryContext
     from app.scene.cspace import ConfigurationSpace
 
-    oracle = QueryContext.__new__(QueryContext)
-    oracle.space = ConfigurationSpace(
+    space = ConfigurationSpace(
         lower=np.full(2, -20.0),
         upper=np.full(2, 20.0),
         weights=np.ones(2),
@@ -221,17 +242,14 @@ def _wall_oracle():
         continuous=np.zeros(2, bool),
         resolution=1.0,
     )
-    oracle.checks = 0
 
-    def are_free(Q):
-        oracle.checks += len(np.atleast_2d(Q))
-        x, y = np.atleast_2d(Q).T
+    def collides(Q):
+        x, y = Q.T
         wall = (x >= 4.1) & (x <= 4.15) & (y >= -0.5) & (y <= 0.3)
         block = (x >= 4.5) & (x <= 9.0) & (y >= 0.2) & (y <= 9.0)
-        return ~(wall | block)
+        return wall | block
 
-    oracle.are_free = are_free
-    return oracle, np.array([[0.0, 0.0], [9.5, 0.0], [9.5, 10.0]])
+    return QueryContext(_PredicateOracle(space, collides)), np.array([[0.0, 0.0], [9.5, 0.0], [9.5, 10.0]])
 
 
 def test_every_edge_of_a_shortened_path_lies_on_the_path_or_on_a_shortcut_checked_free():
@@ -284,8 +302,7 @@ def test_an_angle_wound_a_whole_turn_along_the_path_is_turned_the_short_way():
     from app.motion.path import shortcut
     from app.scene.cspace import ConfigurationSpace
 
-    oracle = QueryContext.__new__(QueryContext)
-    oracle.space = ConfigurationSpace(
+    space = ConfigurationSpace(
         lower=np.array([-20.0, -np.pi]),
         upper=np.array([20.0, np.pi]),
         weights=np.ones(2),
@@ -293,14 +310,12 @@ def test_an_angle_wound_a_whole_turn_along_the_path_is_turned_the_short_way():
         continuous=np.array([False, True]),
         resolution=0.05,
     )
-    oracle.checks = 0
 
-    def are_free(Q):
-        oracle.checks += len(np.atleast_2d(Q))
-        x, theta = np.atleast_2d(Q).T
-        return ~((np.abs(x) <= 1.0) & (theta >= -0.2) & (theta <= -0.1))
+    def collides(Q):
+        x, theta = Q.T
+        return (np.abs(x) <= 1.0) & (theta >= -0.2) & (theta <= -0.1)
 
-    oracle.are_free = are_free
+    oracle = QueryContext(_PredicateOracle(space, collides))
     P = oracle.space.wrap(np.array([[0.0, 0.0], [10.0, 2.0], [10.0, 4.0], [0.0, 6.0]]))
     assert oracle.edges_free(P[:-1], P[1:]).all()
     assert not oracle.edges_free(P[:1], P[2:3]).any() and not oracle.edges_free(P[1:2], P[3:]).any()

@@ -113,8 +113,8 @@ class QueryContext:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
 
         Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
-        its first collision, so colliding edges cost few checks and every round is one batched call (split into
-        batches of at most _MAX_BATCH, so a stop is polled often). Only the points a round checks are computed.
+        its first collision, so colliding edges cost few checks; Drake is called once per _MAX_BATCH points, so a
+        stop is polled often.
         ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
         """
         return self.edges_status(Q1, Q2, resolution, ends_free)[0]
@@ -128,38 +128,58 @@ class QueryContext:
         until_one_collides: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(free, decided) flags for the edges, checked as `edges_free` does. With `until_one_collides` the check
-        ends after the first coarse-to-fine round in which any edge collides (the edges of one candidate path: one
-        collision condemns the path, and finishing its free edges would be wasted); edges not finished by then are
-        not decided."""
+        ends at the first collision (the edges of one candidate path: one collision condemns the path, and
+        finishing its free edges would be wasted); edges not finished by then are not decided."""
         space = self.space
         Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
         D = space.difference(Q1, Q2)
-        n = space.segments(Q1, Q2, resolution)
+        n = space.pieces(D, resolution)
+        # Every edge's points in coarse-to-fine order, and the order they are asked in: round by round (an edge's
+        # first point, then its next 2, 4, 8...), edge by edge within a round, so every edge is looked at coarsely
+        # before any is finished. Drake answers them in that order in one loop that skips the points of an edge
+        # already hit (a round trip per round cost more than its checks on short edges).
         skip = 2 if ends_free else 0
-        length = np.maximum(n + 1 - skip, 0)
-        # Every edge's fractions in coarse-to-fine order, one row each (NaN past its end): a round takes the same
-        # columns of every edge still live, in edge order, so that it costs a few array operations however many.
-        fractions = np.full((len(Q1), int(length.max(initial=0))), np.nan)
-        for i, k in enumerate(n.tolist()):
-            fractions[i, : length[i]] = _coarse_to_fine(k + 1)[skip:] / k
-        free = np.ones(len(Q1), bool)
-        live = np.flatnonzero(length > 0)
-        begin, chunk = 0, 1
-        while len(live):
-            t = fractions[live, begin : begin + chunk]
-            taken = ~np.isnan(t)
-            owner = np.repeat(live, taken.sum(axis=1))
-            points = space.wrap(Q1[owner] + t[taken][:, None] * D[owner])
-            batches = range(0, len(points), _MAX_BATCH)
-            ok = np.concatenate([self.are_free(points[b : b + _MAX_BATCH]) for b in batches])
-            hit = owner[~ok]
-            free[hit] = False
-            begin += chunk
-            if until_one_collides and len(hit):
-                return free, ~free | (length <= begin)
-            live = live[free[live] & (length[live] > begin)]
-            chunk *= 2  # few points first (endpoints, midpoints), then ever finer
-        return free, np.ones(len(Q1), bool)
+        ladders = [_ladder(k, skip) for k in n.tolist()]
+        sizes = np.array([len(t) for t, _ in ladders], int)
+        owner = np.repeat(np.arange(len(Q1)), sizes)
+        free, decided = np.ones(len(Q1), bool), np.ones(len(Q1), bool)
+        if not len(owner):
+            return free, decided
+        if len(ladders) == 1:  # one edge (most calls): its ladder is in order already
+            t, rounds = ladders[0]
+        else:
+            t, rounds = np.concatenate([t for t, _ in ladders]), np.concatenate([r for _, r in ladders])
+            order = np.lexsort((owner, rounds))
+            owner, t, rounds = owner[order], t[order], rounds[order]
+        hit = [False] * len(Q1)
+        # Points are made a slice at a time, the first up to each edge's 7th point, then twice as many each time:
+        # a path's colliding edge usually shows in its first points, and the rest need not be made.
+        passed, size = 0, max(int(np.searchsorted(rounds, 3)), 1)
+        while passed < len(owner):
+            more = min(len(owner) - passed, size, _MAX_BATCH)
+            allowed = self.stop.allow(more) if self.stop is not None else more
+            part = slice(passed, passed + allowed)
+            points = space.wrap(Q1[owner[part]] + t[part, None] * D[owner[part]])
+            inside = space.within_bounds(points)
+            if not inside.all():  # out of bounds: collides, unasked (edges leave the bounds only where an end does)
+                for edge in owner[part][~inside].tolist():
+                    hit[edge] = True
+                if until_one_collides:
+                    break
+            reached, asked = self.oracle.first_hits(points, owner[part], hit, until_one_collides)
+            self.checks += asked
+            passed += reached
+            if until_one_collides and any(hit):
+                break
+            if allowed < more:
+                raise BudgetSpent("checks")
+            size *= 2
+        free[:] = np.logical_not(hit)
+        if passed < len(owner):  # an edge is decided when hit or when every point of it was passed
+            last = np.zeros(len(Q1), int)
+            np.maximum.at(last, owner, np.arange(len(owner)))
+            decided = ~free | (last < passed) | (sizes == 0)
+        return free, decided
 
     def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
         return bool(self.edges_free(q1, q2, resolution)[0])
@@ -193,6 +213,17 @@ class QueryContext:
             pace = (time.perf_counter() - clock) / len(batch)
             b, size = b + len(batch), int(np.clip(_POINT_SECONDS / max(pace, 1e-9), _POINT_BATCH, _MAX_BATCH))
         return gap
+
+
+@functools.lru_cache(maxsize=4096)
+def _ladder(k: int, skip: int) -> tuple[np.ndarray, np.ndarray]:
+    """An edge of k segments: its points' fractions in coarse-to-fine order, the first `skip` left out, and the round
+    each is asked in (0 for the first, 1 for the next 2, 2 for the next 4...)."""
+    fractions = _coarse_to_fine(k + 1)[skip:] / k
+    rounds = np.floor(np.log2(np.arange(1, len(fractions) + 1))).astype(int)
+    for array in (fractions, rounds):
+        array.flags.writeable = False  # shared by every caller through the cache
+    return fractions, rounds
 
 
 @functools.lru_cache(maxsize=4096)

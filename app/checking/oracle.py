@@ -10,6 +10,8 @@ Two Drake paths (their costs per configuration are measured by `python -m app be
 So no fixed choice fits both a walker's batches (mostly colliding proposals) and a roadmap's edge points (mostly
 free): `are_free` keeps a running cost per configuration for each path, takes the cheaper, and re-measures the
 other now and then, so it follows the caller's phase and the machine's load. Both paths give the same answers.
+Edge checks (`first_hits`) take the raw loop: their points come in coarse-to-fine order, and an edge's points after
+its first collision are skipped, which a batch cannot do.
 Both see the same collision pairs: the scene's policy is applied to the checker (body pairs) and to the raw
 query context (geometry filter), and a test holds them to agreement. An SRDF's disabled pairs need neither: the
 Scene filters them on the SceneGraph model, which the checker and every context start from.
@@ -151,6 +153,30 @@ class CollisionOracle:
             set_positions(context, q)
             free[i] = not evaluate(context).HasCollisions()
         return free
+
+    def first_hits(self, Q: np.ndarray, owner: np.ndarray, hit: list, until_one: bool) -> tuple[int, int]:
+        """Collision answers for configurations (n, dim), within bounds, in order: Q[i] is a point of edge owner[i],
+        skipped once hit[owner[i]] is True (a point found colliding sets it). With until_one, stops after the first
+        collision. Returns (points passed, configurations checked). The edge checks' loop (QueryContext.edges_status):
+        one call for points that free_batch would take in a call per coarse-to-fine round."""
+        set_positions, evaluate, context = self.plant.SetPositions, self._query_port.Eval, self._ctx
+        positions, edges = self._positions(Q), owner.tolist()
+        checked, passed = 0, len(edges)
+        with self._lock:
+            start = time.perf_counter()
+            for i, edge in enumerate(edges):
+                if hit[edge]:
+                    continue
+                checked += 1
+                set_positions(context, positions[i])
+                if evaluate(context).HasCollisions():
+                    hit[edge] = True
+                    if until_one:
+                        passed = i + 1
+                        break
+            self.answered += checked
+            self.seconds["checks"] += time.perf_counter() - start
+        return passed, checked
 
     def free(self, q: np.ndarray) -> bool:
         """Whether the configuration q (within bounds) is collision-free under the scene's policy."""

@@ -110,7 +110,11 @@ class ConfigurationSpace:
     # ---- straight motions ---------------------------------------------------------------------------------------
     def segments(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
         """How many pieces each edge Q1[i] -> Q2[i] is cut into so that points are at most `resolution` apart."""
-        d = self.difference(np.atleast_2d(Q1), np.atleast_2d(Q2)) * self.weights
+        return self.pieces(self.difference(np.atleast_2d(Q1), np.atleast_2d(Q2)), resolution)
+
+    def pieces(self, D: np.ndarray, resolution: float | None = None) -> np.ndarray:
+        """`segments` of edges given by their differences D (n, dim)."""
+        d = D * self.weights
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         return np.maximum(1, np.ceil(length / (resolution or self.resolution))).astype(int)
 
