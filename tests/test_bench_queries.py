@@ -45,6 +45,11 @@ def test_fresh_and_cell_answer_the_same_queries_and_the_cell_is_built_once(oracl
     assert cell["total_checks"] == sum(a["checks"] for a in cell["answers"])
     (ratio,) = scene["ratios"]
     assert ratio["over"] == "fresh" and ratio["checks"] == pytest.approx(cell["total_checks"] / fresh["total_checks"])
+    both = [(c, f) for c, f in zip(cell["answers"], fresh["answers"]) if c["success"] and f["success"]]
+    assert ratio["both_answered"] == len(both) > 0
+    assert ratio["seconds_both_answered"] == pytest.approx(
+        sum(c["seconds"] for c, _ in both) / sum(f["seconds"] for _, f in both)
+    )
 
     again, reuse = measure(["bar-3link"], ["fresh", "cell"], TINY, tmp_path / "q.sqlite")
     assert reuse.reused == 2 and again["scenes"][0]["methods"] == scene["methods"]

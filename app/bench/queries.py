@@ -403,9 +403,16 @@ def _over(a, b):
     return a / b if b else None
 
 
+def _both_answered(a: dict, b: dict, key: str) -> tuple[int, float | None]:
+    """(how many queries both rows answered, a's total `key` over b's on those queries)."""
+    pairs = [(x[key], y[key]) for x, y in zip(a["answers"], b["answers"]) if x["success"] and y["success"]]
+    return len(pairs), _over(sum(x for x, _ in pairs), sum(y for _, y in pairs))
+
+
 def ratios(rows: list[dict]) -> list[dict]:
     """The cell's totals over fresh's and ompl-prm's, queries only and with each build added (None when a method
-    is missing)."""
+    is missing); and over the queries both answered (a query neither can answer costs each its whole budget, which
+    bounds the ratio of the totals from below)."""
     by = {r["method"]: r for r in rows}
     cell = by.get("cell")
     out = []
@@ -421,6 +428,9 @@ def ratios(rows: list[dict]) -> list[dict]:
                 "seconds": _over(cell["total_seconds"], o["total_seconds"]),
                 "checks_with_builds": _over(_with_build(cell, "checks"), _with_build(o, "checks")),
                 "seconds_with_builds": _over(_with_build(cell, "seconds"), _with_build(o, "seconds")),
+                "both_answered": _both_answered(cell, o, "seconds")[0],
+                "checks_both_answered": _both_answered(cell, o, "checks")[1],
+                "seconds_both_answered": _both_answered(cell, o, "seconds")[1],
                 "goal_seconds": goal,
             }
         )

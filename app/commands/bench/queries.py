@@ -129,6 +129,8 @@ def table(report: dict) -> str:
             lines.append(
                 f"\n{q['of']} / {q['over']} total: checks {_num(q['checks'], '.3g')}x, seconds "
                 f"{_num(q['seconds'], '.3g')}x (goal <= {q['goal_seconds']:g}x); with the builds: checks "
-                f"{_num(q['checks_with_builds'], '.3g')}x, seconds {_num(q['seconds_with_builds'], '.3g')}x"
+                f"{_num(q['checks_with_builds'], '.3g')}x, seconds {_num(q['seconds_with_builds'], '.3g')}x; over "
+                f"the {q['both_answered']} queries both answered: checks {_num(q['checks_both_answered'], '.3g')}x, "
+                f"seconds {_num(q['seconds_both_answered'], '.3g')}x"
             )
     return "\n".join(lines)
