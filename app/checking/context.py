@@ -126,10 +126,14 @@ class QueryContext:
         resolution: float | None = None,
         ends_free: bool = False,
         until_one_collides: bool = False,
+        progress: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(free, decided) flags for the edges, checked as `edges_free` does. With `until_one_collides` the check
-        ends at the first collision (the edges of one candidate path: one collision condemns the path, and
-        finishing its free edges would be wasted); edges not finished by then are not decided."""
+        ends with the coarse-to-fine round of the first collision (the edges of one candidate path: one collision
+        condemns the path, and finishing its free edges would be wasted); edges not finished by then are not decided.
+        progress: per edge, how many of its points (in coarse-to-fine order) an earlier check found free: they are
+        not checked again, and the array is updated with what this check found (a lazy roadmap keeps it per
+        undecided edge)."""
         space = self.space
         Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
         D = space.difference(Q1, Q2)
@@ -140,6 +144,8 @@ class QueryContext:
         # already hit (a round trip per round cost more than its checks on short edges).
         skip = 2 if ends_free else 0
         ladders = [_ladder(k, skip) for k in n.tolist()]
+        if progress is not None:
+            ladders = [(t[done:], r[done:]) for (t, r), done in zip(ladders, progress.tolist())]
         sizes = np.array([len(t) for t, _ in ladders], int)
         owner = np.repeat(np.arange(len(Q1)), sizes)
         free, decided = np.ones(len(Q1), bool), np.ones(len(Q1), bool)
@@ -154,9 +160,10 @@ class QueryContext:
         hit = [False] * len(Q1)
         # Points are made a slice at a time, the first up to each edge's 7th point, then twice as many each time:
         # a path's colliding edge usually shows in its first points, and the rest need not be made.
-        passed, size = 0, max(int(np.searchsorted(rounds, 3)), 1)
-        while passed < len(owner):
-            more = min(len(owner) - passed, size, _MAX_BATCH)
+        passed, end, size = 0, len(owner), max(int(np.searchsorted(rounds, 3)), 1)
+        stop_at_hit = until_one_collides
+        while passed < end:
+            more = min(end - passed, size, _MAX_BATCH)
             allowed = self.stop.allow(more) if self.stop is not None else more
             part = slice(passed, passed + allowed)
             points = space.wrap(Q1[owner[part]] + t[part, None] * D[owner[part]])
@@ -166,14 +173,23 @@ class QueryContext:
                     hit[edge] = True
                 if until_one_collides:
                     break
-            reached, asked = self.oracle.first_hits(points, owner[part], hit, until_one_collides)
+            reached, asked = self.oracle.first_hits(points, owner[part], hit, stop_at_hit)
             self.checks += asked
             passed += reached
-            if until_one_collides and any(hit):
-                break
+            if stop_at_hit and any(hit):
+                # The check ends with the round of this collision: the other edges' points in that round are still
+                # asked, so that whatever else of the path collides as early is found in the same call (deciding
+                # fewer edges per call made the search try many more candidate paths).
+                stop_at_hit, end = False, int(np.searchsorted(rounds, rounds[passed - 1], side="right"))
+                size = end - passed
+                continue
             if allowed < more:
+                if progress is not None:
+                    progress += np.bincount(owner[:passed], minlength=len(Q1))
                 raise BudgetSpent("checks")
             size *= 2
+        if progress is not None:  # an edge's points passed were found free, unless the edge was hit
+            progress += np.bincount(owner[:passed], minlength=len(Q1))
         free[:] = np.logical_not(hit)
         if passed < len(owner):  # an edge is decided when hit or when every point of it was passed
             last = np.zeros(len(Q1), int)

@@ -42,6 +42,7 @@ class Checker(Protocol):
         resolution: float | None = None,
         ends_free: bool = False,
         until_one_collides: bool = False,
+        progress: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]: ...
 
     def signed_distances(self, q: np.ndarray, max_distance: float) -> list: ...

@@ -47,7 +47,7 @@ from app.scene.meshes import hull_vertices
 
 # The roadmap graph pulls in scipy: imported when a cell roadmap is made, not when the package is.
 
-FORMAT, FORMAT_VERSION = "narrow-passage-planner cell roadmap", 1
+FORMAT, FORMAT_VERSION = "narrow-passage-planner cell roadmap", 2
 # The largest roadmap file read: far above any roadmap a cell needs (10^6 nodes of 9 coordinates are 70 MB).
 MAX_FILE_BYTES = 2 << 30
 # Samples drawn and connected per build round: the budget is looked at between rounds.
@@ -275,7 +275,19 @@ def read(path) -> tuple[dict, dict]:
 def _check_arrays(path, arrays: dict) -> None:
     """The arrays a roadmap file must hold, with shapes that agree: a file altered by hand or by a bug is refused
     here rather than failing somewhere in a query."""
-    needed = {"Q", "kind_names", "kinds", "ends", "alive", "checked", "proved", "k", "resolution", "counters"}
+    needed = {
+        "Q",
+        "kind_names",
+        "kinds",
+        "ends",
+        "alive",
+        "checked",
+        "proved",
+        "progress",
+        "k",
+        "resolution",
+        "counters",
+    }
     missing = needed - set(arrays)
     if missing:
         raise UserError(f"roadmap {path} lacks {', '.join(sorted(missing))}")
@@ -289,6 +301,9 @@ def _check_arrays(path, arrays: dict) -> None:
         and ends.shape == (m, 2)
         and (m == 0 or (ends.min() >= 0 and ends.max() < n and (ends[:, 0] < ends[:, 1]).all()))
         and all(arrays[key].shape == (m,) and arrays[key].dtype == bool for key in ("alive", "checked", "proved"))
+        and arrays["progress"].shape == (m,)
+        and arrays["progress"].dtype.kind in "iu"
+        and (m == 0 or arrays["progress"].min() >= 0)
     )
     if not fine:
         raise UserError(f"roadmap {path} is inconsistent (its nodes, kinds and edges do not agree)")

@@ -78,6 +78,9 @@ class Roadmap:
         self._lengths = np.empty(0)
         self._alive = np.empty(0, bool)  # not known to collide
         self._checked = np.empty(0, bool)  # decided free
+        # Of an edge not yet decided: how many of its points (coarse to fine) a check found free before it stopped
+        # at another edge's collision; the next check of the edge starts after them.
+        self._progress = np.empty(0, np.int64)
         self.edges_tried = 0  # decided: checked in full, or found to collide
         self.edges_proposed = 0  # lazy candidates ever added
         self._tried: set[int] = set()  # `_key`s of the pairs ever proposed
@@ -197,6 +200,7 @@ class Roadmap:
         self._lengths = np.concatenate([self._lengths, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]])])
         self._alive = np.concatenate([self._alive, np.zeros(len(P), bool)])
         self._checked = np.concatenate([self._checked, np.ones(len(P), bool)])
+        self._progress = np.concatenate([self._progress, np.zeros(len(P), np.int64)])
 
     def _connect_chunk(self, nodes: np.ndarray) -> int:
         P = self.candidates(nodes)
@@ -227,6 +231,7 @@ class Roadmap:
         self._lengths = np.concatenate([self._lengths, lengths])
         self._alive = np.concatenate([self._alive, np.ones(len(P), bool)])
         self._checked = np.concatenate([self._checked, np.full(len(P), checked)])
+        self._progress = np.concatenate([self._progress, np.zeros(len(P), np.int64)])
         if checked:
             for a, b in P:
                 self._components.union(int(a), int(b))
@@ -338,10 +343,16 @@ class Roadmap:
         rows = rows[~self._checked[rows]]
         if not len(rows):
             return True
-        P = self._ends[rows]
+        P, progress = self._ends[rows], self._progress[rows]
         free, decided = self.checker.edges_status(
-            self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True, until_one_collides=True
+            self.Q[P[:, 0]],
+            self.Q[P[:, 1]],
+            self.resolution,
+            ends_free=True,
+            until_one_collides=True,
+            progress=progress,
         )
+        self._progress[rows] = progress
         self.edges_tried += int(decided.sum())
         for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
             if ok:
@@ -370,7 +381,7 @@ class Roadmap:
         self.Q, self.kinds, self._embedded, self._tree = self.Q[:n], self.kinds[:n], self._embedded[:n], None
         self._nodes = {key: i for key, i in self._nodes.items() if i < n}
         self._ends, self._lengths = self._ends[keep], self._lengths[keep]
-        self._alive, self._checked = self._alive[keep], self._checked[keep]
+        self._alive, self._checked, self._progress = self._alive[keep], self._checked[keep], self._progress[keep]
         self._rows = dict(zip(_key(self._ends[:, 0], self._ends[:, 1]).tolist(), range(len(self._ends))))
         self._tried = {key for key in self._tried if key & 0xFFFFFFFF < n}  # the larger node is the low bits
         self.proved = {pair for pair in self.proved if pair[1] < n}
@@ -412,6 +423,7 @@ class Roadmap:
             "ends": self._ends.astype(np.int64),
             "alive": self._alive,
             "checked": self._checked,
+            "progress": self._progress,
             "proved": proved,
             "k": np.array(self.k or 0),
             "resolution": np.array(self.resolution),
@@ -435,6 +447,7 @@ class Roadmap:
         alive, checked, proved = (np.asarray(data[key], bool) for key in ("alive", "checked", "proved"))
         graph._add_edges(ends[alive], checked=False)
         graph._checked[:] = checked[alive]
+        graph._progress[: int(alive.sum())] = np.asarray(data["progress"], np.int64)[alive]
         graph._add_dead(ends[~alive])
         graph._recount_components()
         graph._tried = set(_key(ends[:, 0], ends[:, 1]).tolist())
