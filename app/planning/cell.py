@@ -6,11 +6,11 @@ between them. `solve(start, goal)` then runs a query's phases (app.planning.plan
 goal join it, the search uses what is known, smoothing, the certificate and timing follow. `goal` may be several
 configurations (every IK solution of a tool pose): the query reaches whichever it can.
 
-Nothing a query learns is forgotten: an edge checked free or found colliding is never checked again, an edge the
-certificate proved is never proved again (nor one it could not prove tried again), and the samples a hard query had
-to add stay for the next one, so a cell gets cheaper the more it is used (a query that fails takes its samples away
-again, and leaves its edge verdicts). OMPL's PRM keeps its graph the same way
-across `clearQuery()`.
+Nothing a query learns is forgotten: an edge checked free or found colliding is never checked again (nor the points of
+an edge a check found free before it stopped), an edge the certificate proved is never proved again (nor one it could
+not prove tried again), and the samples a hard query had to add stay for the next one, so a cell gets cheaper the more
+it is used (a query that fails takes its samples away again, and leaves its edge verdicts). OMPL's PRM keeps its graph
+the same way across `clearQuery()`.
 
 `save(path)` writes one file; `CellRoadmap.load(path, oracle)` reads it back only into the cell it was built for: the
 file holds a fingerprint of everything its verdicts depend on (`fingerprint`), and a file whose fingerprint differs
