@@ -113,8 +113,8 @@ class QueryContext:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
 
         Points go to Drake in coarse-to-fine rounds across all edges at once, and an edge stops being checked at
-        its first collision, so colliding edges cost few checks; Drake is called once per _MAX_BATCH points, so a
-        stop is polled often.
+        its first collision, so colliding edges cost few checks; they are made and asked a slice at a time (at most
+        _MAX_BATCH), and the stop is polled before each.
         ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
         """
         return self.edges_status(Q1, Q2, resolution, ends_free)[0]
