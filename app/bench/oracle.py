@@ -20,11 +20,20 @@ from app.checking.oracle import CollisionOracle
 from app.scene.custom import load_scene
 
 
-def _raw_loop(oracle: CollisionOracle, Q: np.ndarray) -> np.ndarray:
+def raw_loop(oracle: CollisionOracle, Q: np.ndarray) -> np.ndarray:
+    """Free flags by HasCollisions in a plain Python loop: what Drake does per configuration, nothing around it."""
     out = np.empty(len(Q), bool)
     for i, q in enumerate(Q):
         out[i] = not oracle.query_object(q).HasCollisions()
     return out
+
+
+def raw_checks_per_second(oracle: CollisionOracle, n: int = 500, seed: int = 0) -> float:
+    """How many configurations per second `raw_loop` answers on this machine now (n uniform ones): the limit a
+    planner's checks per second is measured against."""
+    Q = oracle.space.uniform(np.random.default_rng(seed), n)
+    seconds, _ = _timed(raw_loop, oracle, Q)
+    return n / seconds
 
 
 def _timed(fn, *args):
@@ -48,7 +57,7 @@ def _bench_scene(name: str, cache: Path, n: int, repeats: int, seed: int) -> dic
     times = {"raw": [], "one": [], "two": []}
     in_drake = one.seconds["checks"]
     for _ in tqdm(range(repeats), desc=f"bench oracle {name}", leave=False):
-        t_raw, raw = _timed(_raw_loop, one, Q)
+        t_raw, raw = _timed(raw_loop, one, Q)
         t_one, free_one = _timed(one.context().are_free, Q)
         t_two, free_two = _timed(two.context().are_free, Q)
         if not (np.array_equal(raw, free_one) and np.array_equal(raw, free_two)):

@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from app.bench.oracle import raw_checks_per_second
 from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
@@ -84,10 +85,13 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
             "rounds": d.get("rounds"),
         }
     s = r.seconds
+    drake = drake_seconds(oracle) - drake
     return {
         "success": 1.0,
         "seconds": s["total"],
-        "seconds_drake": drake_seconds(oracle) - drake,
+        "seconds_drake": drake,
+        # beside the plan, so that its ratio is to Drake's pace on this machine at this moment
+        "raw_checks_per_second": raw_checks_per_second(oracle, seed=spec.seed),
         "seconds_sampling": s["sampling"],
         "seconds_to_path": s["sampling"] + s["roadmap"] + s["search"],
         "collision_checks": r.collision_checks,
@@ -131,6 +135,11 @@ def summarise(rows) -> list[dict]:
         placed = [m["workspace_on_path"] for m in metrics if m["success"] and "workspace_on_path" in m]
         # rows stored before the time in Drake's queries was measured have none
         shares = [m["seconds_drake"] / m["seconds"] for m in metrics if "seconds_drake" in m and m["seconds"] > 0]
+        of_raw = [
+            m["collision_checks"] / m["seconds"] / m["raw_checks_per_second"]
+            for m in metrics
+            if m["success"] and m.get("raw_checks_per_second") and m["seconds"] > 0
+        ]
         table.append(
             {
                 "scene": scene,
@@ -146,6 +155,9 @@ def summarise(rows) -> list[dict]:
                 "median_workspace_on_path": float(np.median(placed)) if placed else None,
                 "median_checks_per_second": float(np.median(checks / seconds)),
                 "median_drake_share": float(np.median(shares)) if shares else None,
+                # a plan's checks per second over a raw HasCollisions loop's beside it (rows stored before this
+                # was measured have none)
+                "median_of_raw": float(np.median(of_raw)) if of_raw else None,
             }
         )
     return table

@@ -105,16 +105,17 @@ def run(args) -> int:
     )
     print(
         f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
-        f"{'median checks':>14} {'narrow on path':>15} {'checks/s':>9} {'in Drake':>9}"
+        f"{'median checks':>14} {'narrow on path':>15} {'checks/s':>9} {'in Drake':>9} {'of raw':>7}"
     )
     for r in table:
         to_path = f"{r['median_seconds_to_path']:.2f}" if r["median_seconds_to_path"] is not None else "-"
         narrow = f"{r['median_narrow_on_path']:.0f}" if r["median_narrow_on_path"] is not None else "-"
         drake = f"{r['median_drake_share']:.0%}" if r["median_drake_share"] is not None else "-"
+        of_raw = f"{r['median_of_raw']:.2f}" if r.get("median_of_raw") is not None else "-"
         print(
             f"{r['scene']:<9} {r['sampler']:<9} {r['roadmap']:<8} {r['success_rate']:>8.0%} "
             f"{r['median_seconds']:>9.2f} {to_path:>10} {r['median_checks']:>14.0f} {narrow:>15} "
-            f"{r['median_checks_per_second']:>9.0f} {drake:>9}"
+            f"{r['median_checks_per_second']:>9.0f} {drake:>9} {of_raw:>7}"
         )
     cells = {(r["scene"], r["sampler"], r["roadmap"]): r for r in table}
     for (scene, sampler, mode), r in cells.items():
