@@ -65,6 +65,15 @@ def test_the_same_query_again_costs_fewer_checks_and_decides_no_edge_twice(oracl
     assert cell.graph.edges_tried == decided  # every edge the second query used was decided by the first
 
 
+def test_a_query_reports_its_own_certificate_time_not_the_cells(oracles, bar_file):
+    """The cell's certifier (its cached distances) serves every query on it; each answer's certificate_seconds is
+    what its own proofs took, within its certify and timing phases."""
+    cell = CellRoadmap.load(bar_file, oracles("bar"))
+    for _ in range(3):
+        r = cell.solve(settings=QUERY)
+        assert 0 < r.certificate_seconds <= r.seconds["certify"] + r.seconds["timing"]
+
+
 def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
     oracle = oracles("bar")
     cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))  # far too few to cross the wall

@@ -420,6 +420,7 @@ def ratios(rows: list[dict]) -> list[dict]:
         if cell is None or other not in by:
             continue
         o = by[other]
+        both, seconds_both = _both_answered(cell, o, "seconds")
         out.append(
             {
                 "of": "cell",
@@ -428,9 +429,9 @@ def ratios(rows: list[dict]) -> list[dict]:
                 "seconds": _over(cell["total_seconds"], o["total_seconds"]),
                 "checks_with_builds": _over(_with_build(cell, "checks"), _with_build(o, "checks")),
                 "seconds_with_builds": _over(_with_build(cell, "seconds"), _with_build(o, "seconds")),
-                "both_answered": _both_answered(cell, o, "seconds")[0],
+                "both_answered": both,
                 "checks_both_answered": _both_answered(cell, o, "checks")[1],
-                "seconds_both_answered": _both_answered(cell, o, "seconds")[1],
+                "seconds_both_answered": seconds_both,
                 "goal_seconds": goal,
             }
         )

@@ -397,7 +397,9 @@ def prove_blends(certifier: Certifier, path: np.ndarray, known=(), tighten: int 
     W, tangent, arc, kept = _geometry(space.unwrap(path), space.weights)
     edge = kept[1:] - 1  # each of W's segments as an edge of the path (repeated waypoints are skipped)
     if len(W) < 2:
-        return BlendProof(path.copy(), np.zeros(len(W)), [], {"pieces": 0, "distance_queries": 0, "seconds": 0.0})
+        return BlendProof(
+            path.copy(), np.zeros(len(W)), [], {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
+        )
     radii, failed, cost = _certified_radii(
         certifier, W, tangent, arc, _first_radii(np.diff(arc)), tighten, np.isin(edge, list(known)), give_up=True
     )

@@ -450,6 +450,8 @@ class Query:
         self.certifier = certifier
         if certifier is not None:
             certifier.checker = checker
+        # What the shared certifier had spent before this query: the answer reports only this query's share.
+        self._certificate_before = certifier.seconds if certifier is not None else 0.0
         self.unproved_edges = 0  # roadmap edges fine-checked free that the certificate could not prove
         self.proof_unfinished = False  # the budget ended the proof or timing of a path found
         self.blends: BlendProof | None = None  # the curve of the last path whose blends were proved (certify_blends)
@@ -588,11 +590,12 @@ class Query:
         return not self.blends.failed, {**self.blends.cost, "failed": self.blends.failed, "blended": True}
 
     def _make_certifier(self) -> None:
-        """The query's certifier, made when the first path is to be proved (it sets up per-geometry bounds)."""
+        """The query's certifier, made when the first path is to be proved (it sets up per-geometry bounds: time of
+        the "certify" phase)."""
         from app.checking.certify import Certifier
 
         if self.certifier is None:
-            self.certifier = Certifier(self.checker)
+            self.certifier = self._timed("certify", Certifier, self.checker)
 
     def smooth_and_prove(self, nodes: list[int], proof: dict | None = None) -> tuple[np.ndarray, dict, dict | None]:
         """(smoothed path, smoothing stats, its certificate or None when it could not be proved; `proof`: the roadmap
@@ -846,6 +849,6 @@ class Query:
             distance_queries=self.checker.distance_queries,
             workspace_on_path=int(sum(roadmap.kinds[i] == WORKSPACE for i in nodes)),
             point_queries=self.checker.point_queries,
-            certificate_seconds=self.certifier.seconds if self.certifier is not None else 0.0,
+            certificate_seconds=0.0 if self.certifier is None else self.certifier.seconds - self._certificate_before,
             blends=self.blends if stats["certificate"].get("blended") else None,
         )
