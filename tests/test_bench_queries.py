@@ -19,14 +19,21 @@ TINY = Settings(queries=3, seed=0, budget=Budget(checks=50_000), build_nodes=60,
 
 
 def _answers_follow_their_queries(scene: dict) -> None:
-    """Every successful answer's path starts at its query's start and ends at one of its goals."""
-    goals = [q["goals"] for q in scene["query_set"]["queries"]]
+    """Every successful answer's path starts at its query's start and ends at one of its goals; a chained query
+    starts where the previous answer left the robot."""
+    queries = scene["query_set"]["queries"]
     for row in scene["methods"]:
-        assert len(row["answers"]) == len(goals), row["method"]
-        for answer, query_goals in zip(row["answers"], goals):
+        assert len(row["answers"]) == len(queries), row["method"]
+        robot = None
+        for answer, query in zip(row["answers"], queries):
+            expected = query["start"] if query["start"] is not None else robot
+            assert np.allclose(answer["start"], expected), row["method"]
             if answer["success"]:
                 assert answer["from_start"] is True, row["method"]
-                assert answer["reached"] is not None and answer["reached"] < len(query_goals), row["method"]
+                assert answer["reached"] is not None and answer["reached"] < len(query["goals"]), row["method"]
+                robot = query["goals"][answer["reached"]]
+            else:
+                robot = answer["start"]
 
 
 def test_fresh_and_cell_answer_the_same_queries_and_the_cell_is_built_once(oracles, tmp_path):
@@ -74,16 +81,28 @@ def test_methods_are_checked_before_anything_runs():
 
 @pytest.mark.slow
 def test_a_work_cells_queries_chain_tool_poses_with_every_ik_solution(oracles):
-    """window: each query starts where the last one's first goal is (home first), alternately in the hard region,
-    and its goals are distinct free IK solutions of one tool pose."""
-    from app.planning.ik import tool_pose
+    """window: the first query starts at home, each later one where the robot is (the goal reached, or the start
+    of a query that failed); alternately in the hard region; the goals are distinct free IK solutions of one tool
+    pose, a hard one's among them the solution IK reaches from the job's posture for its named pose."""
+    from app.bench.queries import answer_all
+    from app.planning.ik import solve_poses, tool_pose
 
     oracle = oracles("window")
     queries = make_queries(oracle, 4, 0)
-    assert np.allclose(queries.starts[0], oracle.scene.start)
-    for i in range(1, len(queries)):
-        assert np.allclose(queries.starts[i], queries.goals[i - 1][0])
+    assert queries.chained and np.allclose(queries.starts, [oracle.scene.start])
+    starts = []
+
+    def answer(i, start, goals):  # a method that reaches the last goal of the first query and fails the rest
+        starts.append(start)
+        return {"success": i == 0, "reached": len(goals) - 1 if i == 0 else None}
+
+    answers = answer_all(queries, answer, lambda: None)
+    assert np.allclose(starts[0], oracle.scene.start) and np.allclose(starts[1], queries.goals[0][-1])
+    assert np.allclose(starts[2], starts[1]) and [a["start"] for a in answers] == [s.tolist() for s in starts]
     assert queries.hard.tolist() == [True, False, True, False]
+    postures = np.array(list(solve_poses(oracle, np.random.default_rng(0), reference=oracle.scene.start).values()))
+    for goals in queries.goals[0::2]:  # hard: one goal in the branch of a named pose's posture
+        assert oracle.space.distance(postures[:, None], goals[None]).min() < 1.0
     assert any(len(g) > 1 for g in queries.goals)
     checker = oracle.context()
     for goals in queries.goals:

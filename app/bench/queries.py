@@ -3,11 +3,16 @@ OMPL's multi-query PRM and by OMPL's RRTConnect, all through the same collision 
 
 The query set (`make_queries`), deterministic from the seed, is made once per scene and every method answers it:
 - a scene with a tool frame and named poses (the UR3 cells window, welding) is a work cell's sequence of tool poses:
-  query i goes from query i-1's goal (the first query from home, the scene's start) to a tool pose, alternately
+  query i goes from where the robot is -- home (the scene's start) for the first, then the goal the method reached
+  in query i-1, or that query's start when it failed: a cell's robot waits where it is -- to a tool pose, alternately
   one in the hard region -- a named pose of the scene (the hatch, the part behind it, the weld seam) moved by up to
   HARD_SHIFT and turned by up to HARD_TURN -- and one outside it: the tool pose of a random free configuration.
-  Its goal is every distinct IK solution found for the pose (`ik_solutions`), any of which will do; the next query
-  starts from the first of them (the one nearest this query's start), whichever one a method reached.
+  Its goal is every distinct IK solution found for the pose (`ik_solutions`), any of which will do. A hard pose is
+  kept only if the arm reaches it in the posture the scene's job uses for the named pose (IK from that posture,
+  `solve_poses`): moved and turned, a seam can leave the arm only postures wedged among the obstacles, from
+  which no method found a way out (bench pages, "Many queries in one cell"). A fixed start per query (the previous
+  query's first goal) chained such a posture, or a posture beyond an obstacle the robot never reached, into the
+  next query, which then no method could answer either.
 - any other scene: independent random free start/goal pairs (uniform samples the oracle finds free).
 
 Methods (`METHODS`), on a per-query budget (`--budget`: a CHECK budget, so ours are machine-independent; OMPL only
@@ -63,22 +68,29 @@ GOALS = {"cell vs fresh": 0.1, "cell vs ompl-prm": 0.5}  # the issue's goals for
 
 @dataclass
 class QuerySet:
-    """The queries of one scene: starts (n, dim), goals (each (k, dim): any will do), whether each is in the hard
-    region, and how they were made (`kind`)."""
+    """The queries of one scene: goals (each (k, dim): any will do), whether each is in the hard region, how they
+    were made (`kind`), and their starts: every query's (n, dim), or when `chained` the first query's only (1, dim),
+    each later query starting where the method left the robot (`start`)."""
 
     kind: str
     starts: np.ndarray
     goals: list
     hard: np.ndarray
+    chained: bool = False
 
     def __len__(self) -> int:
-        return len(self.starts)
+        return len(self.goals)
+
+    def start(self, i: int, robot) -> np.ndarray:
+        """Query i's start, `robot` being where the method left the robot after query i-1."""
+        return robot if self.chained and i > 0 else self.starts[i]
 
     def digest(self) -> str:
         """A hash of the queries (to 1e-9): what a stored trial's key holds."""
         h = hashlib.sha256(self.kind.encode())
-        for start, goals in zip(self.starts, self.goals):
-            h.update(np.round(np.concatenate([start[None], goals]), 9).tobytes())
+        h.update(np.round(self.starts, 9).tobytes())
+        for goals in self.goals:
+            h.update(np.round(goals, 9).tobytes())
         return h.hexdigest()[:16]
 
     def to_json(self) -> dict:
@@ -87,11 +99,30 @@ class QuerySet:
             "count": len(self),
             "hard": int(self.hard.sum()),
             "digest": self.digest(),
+            "chained": self.chained,
             "queries": [
-                {"start": s.tolist(), "goals": g.tolist(), "hard": bool(h)}
-                for s, g, h in zip(self.starts, self.goals, self.hard)
+                {
+                    "start": self.starts[i].tolist() if i < len(self.starts) else None,
+                    "goals": g.tolist(),
+                    "hard": bool(h),
+                }
+                for i, (g, h) in enumerate(zip(self.goals, self.hard))
             ],
         }
+
+
+def answer_all(queries: QuerySet, answer, progress) -> list[dict]:
+    """answer(i, start, goals) -> dict for every query in order, each starting where `queries.start` says: where the
+    previous answer left the robot (the goal it reached; its start when it failed). Each answer records its start."""
+    answers, robot = [], None
+    for i, goals in enumerate(queries.goals):
+        start = queries.start(i, robot)
+        a = answer(i, start, goals)
+        a["start"] = np.asarray(start, float).tolist()
+        robot = goals[a["reached"]] if a["success"] and a["reached"] is not None else start
+        answers.append(a)
+        progress()
+    return answers
 
 
 def make_queries(oracle, n: int, seed: int, progress=None) -> QuerySet:
@@ -121,50 +152,59 @@ def _free_configurations(oracle, n: int, rng, batch: int = 256, tries: int = 100
 def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
     from pydrake.math import RigidTransform, RotationMatrix
 
-    from app.planning.ik import tool_pose
+    from app.planning.ik import solve_poses, tool_pose
 
     names = list(oracle.scene.poses)
-    starts, goals, hard = [], [], []
-    start = np.asarray(oracle.scene.start, float)
+    home = np.asarray(oracle.scene.start, float)
+    # The job's postures for the named poses (the same for every seed, as in the job): a hard pose's own posture.
+    postures = solve_poses(oracle, np.random.default_rng(0), reference=home)
+    goals, hard = [], []
+    reference = home  # IK solutions are sorted by distance from here: the previous query's nearest goal
     for i in range(n):
         in_hard = i % 2 == 0
         for _ in range(POSE_ATTEMPTS):
-            known = []
             if in_hard:
-                X = oracle.scene.poses[names[rng.integers(len(names))]]
+                name = names[rng.integers(len(names))]
+                X = oracle.scene.poses[name]
                 axis = rng.normal(size=3)
                 turn = RotationMatrix.MakeFromOneVector(axis / np.linalg.norm(axis), 2)  # any frame with z = axis
                 spin = RotationMatrix.MakeZRotation(rng.uniform(-HARD_TURN, HARD_TURN))
                 turn = turn.multiply(spin).multiply(turn.inverse())  # a turn about `axis`
                 pose = RigidTransform(turn.multiply(X.rotation()), X.translation() + rng.uniform(-1, 1, 3) * HARD_SHIFT)
+                found = ik_solutions(oracle, pose, rng, reference, posture=postures[name])
             else:
                 q = _free_configurations(oracle, 1, rng)[0]
-                pose, known = tool_pose(oracle, q), [q]
-            found = ik_solutions(oracle, pose, rng, start, known)
+                found = ik_solutions(oracle, tool_pose(oracle, q), rng, reference, known=[q])
             if len(found):
                 break
         else:
             raise UserError(f"scene {oracle.scene.name}: no reachable tool pose in {POSE_ATTEMPTS} tries")
-        starts.append(start)
         goals.append(found)
         hard.append(in_hard)
-        start = found[0]
+        reference = found[0]
         progress()
     kind = (
-        "tool poses, a work cell's sequence: each query from the previous query's first goal (home first) to every "
-        f"IK solution found for a tool pose, alternately a named pose moved <= {HARD_SHIFT * 100:g} cm and turned "
-        f"<= {math.degrees(HARD_TURN):g} deg (hard) and the pose of a random free configuration"
+        "tool poses, a work cell's sequence: each query from where the robot is (home first; then the goal it "
+        f"reached, or where it waited) to every IK solution found for a tool pose, alternately a named pose moved "
+        f"<= {HARD_SHIFT * 100:g} cm and turned <= {math.degrees(HARD_TURN):g} deg that the arm reaches in the "
+        "job's posture for it (hard), and the pose of a random free configuration"
     )
-    return QuerySet(kind, np.array(starts), goals, np.array(hard))
+    return QuerySet(kind, home[None], goals, np.array(hard), chained=True)
 
 
-def ik_solutions(oracle, pose, rng, reference, known=()) -> np.ndarray:
+def ik_solutions(oracle, pose, rng, reference, known=(), posture=None) -> np.ndarray:
     """Distinct free IK solutions of `pose` (k, dim), the one nearest `reference` first: solve_pose from the
     reference, then from IK_REFERENCES random references (solve_pose returns one solution per call, the nearest
-    its reference of those it found), plus `known` solutions. Empty when none is found."""
+    its reference of those it found), plus `known` solutions. With `posture`, first the solution SNOPT reaches
+    from that posture, and none at all when it reaches none. Empty when none is found."""
     from app.planning.ik import solve_pose
 
     found = [np.asarray(q, float) for q in known]
+    if posture is not None:
+        try:
+            found.append(solve_pose(oracle, pose, rng, posture, seeds=1, keep=1))
+        except InvalidEndpoint:
+            return np.empty((0, oracle.space.dim))
     references = [reference] + list(oracle.space.uniform(rng, IK_REFERENCES))
     for k, ref in enumerate(references):
         try:
@@ -237,11 +277,10 @@ def _fresh(oracle, queries: QuerySet, settings: Settings, progress, build_second
     def solve(start, goals, plan_settings):
         return plan(oracle, plan_settings, start=start, goal=goals)
 
-    answers = []
-    for i, (start, goals) in enumerate(zip(queries.starts, queries.goals)):
-        answers.append(_ours(oracle, solve, start, goals, settings.seed + i, settings.budget))
-        progress()
-    return {"build": None, "answers": answers}
+    def answer(i, start, goals):
+        return _ours(oracle, solve, start, goals, settings.seed + i, settings.budget)
+
+    return {"build": None, "answers": answer_all(queries, answer, progress)}
 
 
 def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
@@ -272,11 +311,12 @@ def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds
         "ended": record["ended"],
         "workers": settings.workers,
     }
-    answers = []
-    for i, (start, goals) in enumerate(zip(queries.starts, queries.goals)):
-        answers.append(_ours(oracle, cell.solve, start, goals, settings.seed + i, settings.budget))
-        answers[-1]["nodes"] = len(cell)  # the roadmap after this query: it keeps what the query added
-        progress()
+
+    def answer(i, start, goals):
+        out = _ours(oracle, cell.solve, start, goals, settings.seed + i, settings.budget)
+        return {**out, "nodes": len(cell)}  # the roadmap after this query: it keeps what the query added
+
+    answers = answer_all(queries, answer, progress)
     return {"build": build, "answers": answers, "builds": len(cell.provenance["builds"])}
 
 
@@ -313,23 +353,22 @@ def _ompl_prm(oracle, queries: QuerySet, settings: Settings, progress, build_sec
         "ended": "seconds (the cell build's)",
         "workers": 1,
     }
-    answers = []
-    for start, goals in zip(queries.starts, queries.goals):
-        answers.append(_ompl_answer(oracle, problem, start, goals, settings.ompl_seconds))
-        answers[-1]["nodes"] = int(problem.planner.milestoneCount())
-        progress()
-    return {"build": build, "answers": answers}
+
+    def answer(i, start, goals):
+        out = _ompl_answer(oracle, problem, start, goals, settings.ompl_seconds)
+        return {**out, "nodes": int(problem.planner.milestoneCount())}
+
+    return {"build": build, "answers": answer_all(queries, answer, progress)}
 
 
 def _ompl_rrtconnect(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
     from app.ompl_bridge import OmplProblem
 
-    answers = []
-    for i, (start, goals) in enumerate(zip(queries.starts, queries.goals)):
+    def answer(i, start, goals):
         problem = OmplProblem(oracle, seed=settings.seed + i, planner="RRTConnect")  # a fresh tree per query
-        answers.append(_ompl_answer(oracle, problem, start, goals, settings.ompl_seconds))
-        progress()
-    return {"build": None, "answers": answers}
+        return _ompl_answer(oracle, problem, start, goals, settings.ompl_seconds)
+
+    return {"build": None, "answers": answer_all(queries, answer, progress)}
 
 
 RUNNERS = {"fresh": _fresh, "cell": _cell, "ompl-prm": _ompl_prm, "ompl-rrtconnect": _ompl_rrtconnect}
