@@ -87,6 +87,36 @@ def test_the_search_graph_kept_between_searches_is_the_graph_of_the_edges_not_kn
         assert np.array_equal(kept.data, fresh.data)
 
 
+def test_nodes_kept_are_numbered_again_with_every_verdict_between_them(oracles):
+    """keep_nodes drops some nodes and every edge touching one; between the nodes kept, each edge keeps its verdict
+    (free, colliding, unchecked) and proof under the new numbering, and a pair once tried is never proposed again."""
+    oracle = oracles("bar")
+    rng = np.random.default_rng(3)
+    roadmap = Roadmap(oracle.context(), k=8, lazy=True)
+    roadmap.add(oracle.space.uniform(rng, 200), "uniform")
+    roadmap.shortest_path(0, len(roadmap) - 1)  # decides some edges: free ones checked, colliding ones dead
+    roadmap.proved.update(tuple(e) for e in roadmap.edges(checked=True)[:5].tolist())
+
+    def verdicts(graph, names):
+        rows = zip(graph._ends.tolist(), graph._alive.tolist(), graph._checked.tolist())
+        return {(names[a], names[b]): (alive, checked) for (a, b), alive, checked in rows}
+
+    before = verdicts(roadmap, range(len(roadmap)))
+    keep = rng.random(len(roadmap)) < 0.6
+    Q, proved, tried = roadmap.Q.copy(), set(roadmap.proved), len(roadmap._tried)
+    index = roadmap.keep_nodes(keep)
+    old = np.flatnonzero(keep)  # the old name of each node kept
+    assert np.array_equal(roadmap.Q, Q[keep]) and len(roadmap.kinds) == keep.sum()
+    assert np.array_equal(index[old], np.arange(len(old))) and (index[~keep] == -1).all()
+    after = verdicts(roadmap, old)
+    assert after == {pair: v for pair, v in before.items() if keep[pair[0]] and keep[pair[1]]} and after
+    assert {(old[a], old[b]) for a, b in roadmap.proved} == {p for p in proved if keep[p[0]] and keep[p[1]]}
+    assert 0 < len(roadmap._tried) < tried
+    assert not {tuple(e) for e in roadmap.candidates(np.arange(len(roadmap))).tolist()} & {
+        (index[a], index[b]) for a, b in before if keep[a] and keep[b]
+    }
+
+
 # ---- planned paths -------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["bar", "joint3d"])
 def test_path_is_collision_free_under_an_independent_fine_check(oracles, planned, name):

@@ -373,21 +373,39 @@ class Roadmap:
             self._recount_components()
 
     def truncate(self, n: int) -> None:
-        """Drop the nodes from index n on, with every edge that touches one; what was decided between the nodes
-        kept stays (verdicts, proofs, pairs tried)."""
-        if n >= len(self):
-            return
-        keep = (self._ends < n).all(axis=1)
-        self.Q, self.kinds, self._embedded, self._tree = self.Q[:n], self.kinds[:n], self._embedded[:n], None
-        self._nodes = {key: i for key, i in self._nodes.items() if i < n}
-        self._ends, self._lengths = self._ends[keep], self._lengths[keep]
-        self._alive, self._checked, self._progress = self._alive[keep], self._checked[keep], self._progress[keep]
+        """Drop the nodes from index n on (see `keep_nodes`)."""
+        self.keep_nodes(np.arange(len(self)) < n)
+
+    def keep_nodes(self, keep: np.ndarray) -> np.ndarray:
+        """Keep only the nodes where `keep` (a mask over the nodes), numbered again in their order, and drop every
+        edge that touches another; what was decided between the nodes kept stays (verdicts, proofs, pairs tried).
+        Returns each node's new index (-1: dropped)."""
+        keep = np.asarray(keep, bool)
+        index = np.where(keep, np.cumsum(keep) - 1, -1)
+        if keep.all():
+            return index
+        rows = keep[self._ends].all(axis=1)
+        self.Q, self._embedded, self._tree = self.Q[keep], self._embedded[keep], None
+        self.kinds = list(itertools.compress(self.kinds, keep.tolist()))
+        self._nodes = {key: int(index[i]) for key, i in self._nodes.items() if keep[i]}
+        self._ends, self._lengths = index[self._ends[rows]], self._lengths[rows]
+        self._alive, self._checked, self._progress = self._alive[rows], self._checked[rows], self._progress[rows]
         self._rows = dict(zip(_key(self._ends[:, 0], self._ends[:, 1]).tolist(), range(len(self._ends))))
-        self._tried = {key for key in self._tried if key & 0xFFFFFFFF < n}  # the larger node is the low bits
-        self.proved = {pair for pair in self.proved if pair[1] < n}
+        tried = np.fromiter(self._tried, np.int64, len(self._tried))
+        a, b = tried >> 32, tried & 0xFFFFFFFF
+        kept = keep[a] & keep[b]
+        self._tried = set(_key(index[a[kept]], index[b[kept]]).tolist())
+        self.proved = {(int(index[a]), int(index[b])) for a, b in self.proved if keep[a] and keep[b]}
         self._search, self._search_synced = tuple(column[:0] for column in self._search), 0
         self._labelled = None
         self._recount_components()
+        return index
+
+    def joined_nodes(self) -> np.ndarray:
+        """Which nodes have an edge decided free (a mask over the nodes)."""
+        joined = np.zeros(len(self), bool)
+        joined[self._ends[self._alive & self._checked].ravel()] = True
+        return joined
 
     def _recount_components(self) -> None:
         """The skip-connected rule's components from scratch, from the edges decided free: after edges or nodes
