@@ -75,17 +75,17 @@ def test_a_query_reports_its_own_certificate_time_not_the_cells(oracles, bar_fil
 
 
 def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
-    """Its narrow-passage samples and the nodes it joined by free edges stay; its uniform samples never joined
-    leave (the answer's nodes are those of the roadmap kept)."""
-    from app.planning.roadmap import NARROW, UNIFORM
+    """The samples it joined by free edges stay, with its start and goal; those it never joined leave (the answer's
+    nodes are those of the roadmap kept)."""
+    from app.planning.roadmap import GOAL, START
 
     oracle = oracles("bar")
     cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))  # far too few to cross the wall
     result = cell.solve(settings=QUERY)
     assert result.success and result.rounds > 0 and len(cell) > 22
     kinds, joined = np.array(cell.graph.kinds[20:]), cell.graph.joined_nodes()[20:]
-    assert (kinds == NARROW).any() and joined[kinds == UNIFORM].all()
-    assert result.roadmap["uniform_nodes"] > (np.array(cell.graph.kinds) == UNIFORM).sum()  # some left
+    assert {START, GOAL} <= set(kinds) and joined[~np.isin(kinds, [START, GOAL])].all()
+    assert result.roadmap["nodes"] > len(cell)  # some left
     assert np.array_equal(cell.graph.Q[result.path_nodes], result.roadmap_path)
     size = len(cell)
     again = cell.solve(settings=QUERY)

@@ -8,10 +8,10 @@ configurations (every IK solution of a tool pose): the query reaches whichever i
 
 Nothing a query learns is forgotten: an edge checked free or found colliding is never checked again (nor the points of
 an edge a check found free before it stopped), an edge the certificate proved is never proved again (nor one it could
-not prove tried again), and the narrow-passage samples a hard query had to add stay for the next one, with every node
-it joined by free edges, so a cell gets cheaper the more it is used. Its uniform samples never joined leave (a hard
-query draws thousands; kept, they made every later search dearer: benchmark pages), and a query that fails takes all
-its samples away again, leaving its edge verdicts. OMPL's PRM keeps its graph across `clearQuery()` the same way.
+not prove tried again), and the samples a hard query had to add and joined to the roadmap by free edges stay for the
+next one, with its start and goals, so a cell gets cheaper the more it is used. The samples it never joined leave (a
+hard query draws thousands; kept, they made every later search dearer: benchmark pages), and a query that fails takes
+all its samples away again, leaving its edge verdicts. OMPL's PRM keeps its graph across `clearQuery()` the same way.
 
 `save(path)` writes one file; `CellRoadmap.load(path, oracle)` reads it back only into the cell it was built for: the
 file holds a fingerprint of everything its verdicts depend on (`fingerprint`), and a file whose fingerprint differs
@@ -170,10 +170,10 @@ class CellRoadmap:
     ) -> PlanResult:
         """Plan from start to goal (default: the scene's; `goal` may be several configurations, any of which will
         do) on this roadmap, with `settings` (default: PlanSettings()). What the query learns stays in the roadmap:
-        its verdicts on edges, and the nodes it joined to others by edges decided free. The nodes it added and never
-        joined (samples, a goal not reached) leave again, and when it fails every node it added does: a query that
-        spends its whole budget where no path is found adds thousands of samples there, and every later search
-        would pay for them. Raises as app.plan does."""
+        its verdicts on edges, its start and goals, and the samples it joined to other nodes by edges decided free.
+        Its samples never joined leave again, and when it fails every node it added does: a query that spends its
+        whole budget where no path is found adds thousands of samples there, and every later search would pay for
+        them. Raises as app.plan does."""
         size = len(self.graph)
         query = Query(
             self.oracle,
@@ -193,12 +193,12 @@ class CellRoadmap:
         finally:
             self._certifier = query.certifier
             self.provenance["queries"] += 1
-        # Of the nodes an answered query added, the narrow-passage samples stay, and the others it joined by edges
-        # decided free; its uniform samples never joined (most of a hard query's thousands) leave: the build has
-        # covered the open space, and every later search would pay for them and try their edges again.
-        from app.planning.roadmap import UNIFORM
+        # Of the nodes an answered query added, its start and goals stay (few, and where queries go: often the hard
+        # region), and the samples it joined by edges decided free; the samples it never joined (nearly all of a
+        # hard query's thousands) leave: every later search would pay for them and try their edges again.
+        from app.planning.roadmap import GOAL, START
 
-        keep = self.graph.joined_nodes() | (np.array(self.graph.kinds) != UNIFORM)
+        keep = self.graph.joined_nodes() | np.isin(self.graph.kinds, [START, GOAL])
         keep[:size] = True
         result.path_nodes = self.graph.keep_nodes(keep)[result.path_nodes].tolist()
         return result
