@@ -137,8 +137,11 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
     joined = {i for a, b in zip(stops[:-1], stops[1:]) if b - a > 1 for i in range(a, b)}
     from app.planning.roadmap import NARROW, WORKSPACE  # (scipy: loaded when a job runs)
 
+    def narrow_in_cell() -> int:
+        return sum(kind in (NARROW, WORKSPACE) for kind in cell.graph.kinds)
+
     legs, planned_checks = [], 0
-    narrow_seen = sum(kind in (NARROW, WORKSPACE) for kind in cell.graph.kinds)
+    narrow_seen = narrow_in_cell()
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
         qa, qb = configurations[a], configurations[b]
         t = time.perf_counter()
@@ -176,9 +179,11 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
         if result.smoothing.get("straight"):
             method = "tool line" if result.smoothing["via"] else "straight"
         samples, on_path = result.narrow_samples()
+        # The samples this leg drew: the roadmap it answered on (a cell's before the samples it never joined left)
+        # against the cell's before it.
         narrow_total = result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"]
-        narrow_count = narrow_total - (0 if settings.full_roadmap else narrow_seen)  # the samples this leg added
-        narrow_seen = narrow_total
+        narrow_count = narrow_total - (0 if settings.full_roadmap else narrow_seen)
+        narrow_seen = narrow_in_cell()
         used = result.narrow_on_path + result.workspace_on_path
         legs.append(
             Leg(
