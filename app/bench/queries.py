@@ -314,7 +314,7 @@ def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds
 
     def answer(i, start, goals):
         out = _ours(oracle, cell.solve, start, goals, settings.seed + i, settings.budget)
-        return {**out, "nodes": len(cell)}  # the roadmap after this query: it keeps what the query added
+        return {**out, "nodes": len(cell)}  # the roadmap after this query, with what the query added and kept
 
     answers = answer_all(queries, answer, progress)
     return {"build": build, "answers": answers, "builds": len(cell.provenance["builds"])}

@@ -196,11 +196,12 @@ class CellRoadmap:
         # Of the nodes an answered query added, its start and goals stay (few, and where queries go: often the hard
         # region), and the samples it joined by edges decided free; the samples it never joined (nearly all of a
         # hard query's thousands) leave: every later search would pay for them and try their edges again.
-        from app.planning.roadmap import GOAL, START
+        if len(self.graph) > size:
+            from app.planning.roadmap import GOAL, START
 
-        keep = self.graph.joined_nodes() | np.isin(self.graph.kinds, [START, GOAL])
-        keep[:size] = True
-        result.path_nodes = self.graph.keep_nodes(keep)[result.path_nodes].tolist()
+            keep = self.graph.joined_nodes() | np.isin(self.graph.kinds, [START, GOAL])
+            keep[:size] = True
+            result.path_nodes = self.graph.keep_nodes(keep)[result.path_nodes].tolist()
         return result
 
     # ---- saving and loading ---------------------------------------------------------------------------------------

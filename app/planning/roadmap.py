@@ -395,7 +395,7 @@ class Roadmap:
         a, b = tried >> 32, tried & 0xFFFFFFFF
         kept = keep[a] & keep[b]
         self._tried = set(_key(index[a[kept]], index[b[kept]]).tolist())
-        self.proved = {(int(index[a]), int(index[b])) for a, b in self.proved if keep[a] and keep[b]}
+        self.proved = {(int(index[u]), int(index[v])) for u, v in self.proved if keep[u] and keep[v]}
         self._search, self._search_synced = tuple(column[:0] for column in self._search), 0
         self._labelled = None
         self._recount_components()
