@@ -287,10 +287,11 @@ def test_a_blended_curves_variation_is_each_coordinates_travel():
     looser = 0
     for s0, s1 in blends + [(a + 0.3 * (b - a), a + 0.6 * (b - a)) for a, b in blends]:
         s = np.linspace(s0, s1, 20001)
-        travel = np.abs(np.diff([curve.position(x) for x in s], axis=0)).sum(axis=0)
-        bound = curve.variation(s0, s1)
+        travel = np.abs(np.diff(curve.position(s), axis=0)).sum(axis=0)
+        bound = curve.variation(np.array([s0]), np.array([s1]))[0]
         assert np.all(bound >= travel * (1 - 1e-9))
         assert np.allclose(bound, travel, rtol=1e-6, atol=1e-12)
-        rates = np.abs([curve.variation(x, x + 1e-9) / 1e-9 for x in (s0, s1 - 1e-9)]).max(axis=0)
+        x = np.array([s0, s1 - 1e-9])
+        rates = np.abs(curve.variation(x, x + 1e-9) / 1e-9).max(axis=0)
         looser += np.any(rates * (s1 - s0) > bound * 1.01)
     assert looser  # the travel is tighter than the old bound somewhere

@@ -89,28 +89,39 @@ def _legs(W, tangent, arc, radii) -> list[_Leg]:
 
 
 class _Curve:
-    """position(s) and variation(s0, s1) over the global s of all legs, for the certifier."""
+    """position(s) and variation(s0, s1) over the global s of all legs, for the certifier: each for arrays of s,
+    with one Drake call per leg they fall on."""
 
     def __init__(self, legs: list[_Leg]):
         self.legs = legs
         self.starts = np.array([leg.offset for leg in legs])
+        self.rates = [leg.path.MakeDerivative(1) for leg in legs]
 
-    def _at(self, s: float) -> _Leg:
-        return self.legs[max(0, int(np.searchsorted(self.starts, s, side="right")) - 1)]
+    def _leg_of(self, s: np.ndarray) -> np.ndarray:
+        return np.maximum(np.searchsorted(self.starts, s, side="right") - 1, 0)
 
-    def position(self, s: float) -> np.ndarray:
-        leg = self._at(s)
-        return leg.path.value(s - leg.offset).ravel()
+    def _values(self, paths: list, s: np.ndarray, leg_of: np.ndarray) -> np.ndarray:
+        """paths[leg_of[i]] at s[i] (global s), rows of the result."""
+        out = np.empty((len(s), self.legs[0].path.rows()))
+        for k in np.unique(leg_of).tolist():
+            rows = np.flatnonzero(leg_of == k)
+            out[rows] = paths[k].vector_values(s[rows] - self.legs[k].offset).T
+        return out
 
-    def variation(self, s0: float, s1: float) -> np.ndarray:
+    def position(self, s: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, float)
+        return self._values([leg.path for leg in self.legs], s, self._leg_of(s))
+
+    def variation(self, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
         # Within a piece the derivative is linear in s, so each coordinate's travel, the integral of its magnitude,
         # is in closed form: the mean of the two ends' magnitudes, or where it changes sign, the two triangles
         # either side of its zero, (d0^2 + d1^2) / (2 (|d0| + |d1|)).
-        leg = self._at(0.5 * (s0 + s1))
-        d0, d1 = (leg.path.EvalDerivative(s - leg.offset, 1).ravel() for s in (s0, s1))
+        s0, s1 = np.asarray(s0, float), np.asarray(s1, float)
+        leg = self._leg_of(0.5 * (s0 + s1))
+        d0, d1 = self._values(self.rates, s0, leg), self._values(self.rates, s1, leg)
         a, b = np.abs(d0), np.abs(d1)
         mean = np.where(d0 * d1 >= 0, 0.5 * (a + b), (a * a + b * b) / (2 * np.maximum(a + b, 1e-300)))
-        return mean * (s1 - s0) * _SLACK
+        return mean * (s1 - s0)[:, None] * _SLACK
 
 
 def _certified_radii(
@@ -139,9 +150,8 @@ def _certified_radii(
             straight += [(int(j), *span) for span in gained]
         curve = _Curve(_legs(W, tangent, arc, radii))
         todo = [p for leg in curve.legs for p in leg.pieces if p[2] is not None and p not in done]
-        failed = _certify(
-            certifier, _Both(line, curve), [(s0, s1) for _, s0, s1 in straight] + [(-s1, -s0) for s0, s1, _ in todo]
-        )
+        intervals = [(s0, s1) for _, s0, s1 in straight] + [(-s1, -s0) for s0, s1, _ in todo]
+        failed = _certify(certifier, _Both(line, curve, W.shape[1]), intervals)
         for key in ("pieces", "distance_queries", "seconds"):
             cost[key] += failed[key]
         failed_straight = {k for k in failed["failed"] if k < len(straight)}
@@ -173,14 +183,20 @@ class _Both:
     proves pieces of both (its rounds batch their distance queries together); negating s is exact, and both curves
     are W[0] at s = 0."""
 
-    def __init__(self, line: tuple, curve: _Curve):
-        self.line, self.curve = line, curve
+    def __init__(self, line: tuple, curve: _Curve, dim: int):
+        self.line, self.curve, self.dim = line, curve, dim
 
-    def position(self, s: float) -> np.ndarray:
-        return self.line[0](s) if s >= 0 else self.curve.position(-s)
+    def position(self, s: np.ndarray) -> np.ndarray:
+        out, curved = np.empty((len(s), self.dim)), s < 0
+        out[~curved] = self.line[0](s[~curved])
+        out[curved] = self.curve.position(-s[curved])
+        return out
 
-    def variation(self, s0: float, s1: float) -> np.ndarray:
-        return self.line[1](s0, s1) if s0 + s1 >= 0 else self.curve.variation(-s1, -s0)
+    def variation(self, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+        out, curved = np.empty((len(s0), self.dim)), s0 + s1 < 0
+        out[~curved] = self.line[1](s0[~curved], s1[~curved])
+        out[curved] = self.curve.variation(-s1[curved], -s0[curved])
+        return out
 
 
 def _first_radii(lengths: np.ndarray) -> np.ndarray:
@@ -262,21 +278,29 @@ def _excess(leg: _Leg, s_of_t, v: np.ndarray, a: np.ndarray) -> float:
     knots = np.array(s_of_t.get_segment_times())
     breaks = _when(s_of_t, np.array([p[0] - leg.offset for p in leg.pieces[1:]]))
     inside = knots[:-1, None] + np.diff(knots)[:, None] * (np.arange(1, SPEED_POINTS) / SPEED_POINTS)
-    times = np.concatenate([knots, inside.ravel(), breaks])
-    times = np.clip(np.concatenate([times - 1e-9, times + 1e-9]), 0.0, trajectory.end_time())
-    speed = np.abs(trajectory.MakeDerivative(1).vector_values(times)) / v[:, None]
-    push = np.abs(trajectory.MakeDerivative(2).vector_values(times)) / a[:, None]
+    edges = np.concatenate([knots, breaks])
+    edges = np.clip(np.concatenate([edges - 1e-9, edges + 1e-9]), 0.0, trajectory.end_time())
+    speed = np.abs(trajectory.MakeDerivative(1).vector_values(np.concatenate([edges, inside.ravel()]))) / v[:, None]
+    push = np.abs(trajectory.MakeDerivative(2).vector_values(edges)) / a[:, None]  # linear between edges
     return max(speed.max(), math.sqrt(push.max()))
 
 
 def _when(s_of_t, s: np.ndarray) -> np.ndarray:
-    """The times at which the increasing s(t) reaches each s (bisection, to rounding)."""
-    lo, hi = np.full(len(s), s_of_t.start_time()), np.full(len(s), s_of_t.end_time())
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        below = s_of_t.vector_values(mid).ravel() < s
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    return 0.5 * (lo + hi)
+    """The times at which the increasing s(t) reaches each s. Toppra's s(t) is piecewise quadratic, so each time is
+    the root of its segment's quadratic, fitted through s at the segment's ends and middle (two evaluations in all,
+    where bisection to rounding took sixty)."""
+    knots = np.asarray(s_of_t.get_segment_times())
+    at_knots = s_of_t.vector_values(knots).ravel()
+    at_middle = s_of_t.vector_values(0.5 * (knots[:-1] + knots[1:])).ravel()
+    segment = np.clip(np.searchsorted(at_knots, s, side="right") - 1, 0, len(knots) - 2)
+    s0, s1, sm = at_knots[segment], at_knots[segment + 1], at_middle[segment]
+    # s = s0 + b u + c u^2 over the segment's u in [0, 1]; the root in the form that stays exact as c -> 0.
+    b = 4 * (sm - s0) - (s1 - s0)
+    c = (s1 - s0) - b
+    rise = np.clip(s - s0, 0.0, s1 - s0)
+    denominator = b + np.sqrt(np.maximum(b * b + 4 * c * rise, 0.0))
+    u = np.where(denominator > 0, 2 * rise / np.where(denominator > 0, denominator, 1.0), 0.0)
+    return knots[segment] + np.clip(u, 0.0, 1.0) * np.diff(knots)[segment]
 
 
 def _timed_leg(plant, leg: _Leg, v: np.ndarray, a: np.ndarray):
