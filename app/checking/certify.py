@@ -62,6 +62,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 import time
 import weakref
 from types import SimpleNamespace
@@ -553,9 +554,9 @@ class Certifier:
     depend on the order (every piece of its subdivision must pass), but a failing interval stops at its first
     failure, and this order dives to where the motion comes nearest an obstacle, where leftmost first would prove
     everything before it (a factor of several in distance queries on a grazing edge: benchmark pages).
-    WIDTH pieces of every interval are taken at a time and their ends bounded together: Drake is asked per
-    configuration, but the gaps (numpy) run once over all those configurations and pairs, where one configuration
-    at a time spent most of its time in numpy's call overhead."""
+    WIDTH pieces of every interval (more where few intervals are left: ROUND_MIN) are taken at a time and their
+    ends bounded together: Drake is asked per configuration, but the gaps (numpy) run once over all those
+    configurations and pairs, where one configuration at a time spent most of its time in numpy's call overhead."""
 
     # Pieces taken from each interval at a time: more batches more, but may do more work past a failure.
     WIDTH = 16
@@ -568,6 +569,11 @@ class Certifier:
     # cell queries this asked 15-20 % more queries in about half the rounds, for a quarter less time (benchmark
     # pages).
     FIRST_PIECE = 4
+    # A round takes more than WIDTH pieces of an interval when fewer than ROUND_MIN would be taken in all (a single
+    # straight move otherwise needs a round per WIDTH of its pieces), unless a piece of that interval fell short by
+    # SPLIT_MAX or more in the round before: it may be closing on a contact, and a failing interval stops at its
+    # first failure, so it keeps to WIDTH pieces nearest to contact.
+    ROUND_MIN = 64
 
     # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
     BATCH_ROWS = 1 << 17
@@ -649,9 +655,13 @@ class Certifier:
             for i, ((a, b), n) in enumerate(zip(intervals.tolist(), parts.tolist())):
                 heaps[i] = [(0.0, s0, s1) for s0, s1 in itertools.pairwise(_cuts(a, b, n))]
         failed, pieces = [], 0
+        closing: set[int] = set()  # intervals with a piece that fell SPLIT_MAX short or more in the last round
         while heaps:
+            wide = max(self.WIDTH, math.ceil(self.ROUND_MIN / len(heaps)))
             todo = [
-                (i, heapq.heappop(heap)[1:]) for i, heap in heaps.items() for _ in range(min(self.WIDTH, len(heap)))
+                (i, heapq.heappop(heap)[1:])
+                for i, heap in heaps.items()
+                for _ in range(min(self.WIDTH if i in closing else wide, len(heap)))
             ]
             spans = np.array([ab for _, ab in todo])
             variations = variation(spans[:, 0], spans[:, 1]).reshape(len(todo), -1)
@@ -687,6 +697,8 @@ class Certifier:
             clear, short = _clear([ends.get(a) for _, (a, b) in todo], [ends.get(b) for _, (a, b) in todo], travel)
             parts = np.clip(np.ceil(np.maximum(short, certain)), 2, self.SPLIT_MAX).astype(int)
             doomed = (certain > 1.0).tolist()
+            far = (np.maximum(short, certain) >= self.SPLIT_MAX).tolist()
+            closing = {i for (i, _), f in zip(todo, far) if f}
             for (i, (a, b)), passed, length, n, unasked in zip(
                 todo, clear.tolist(), lengths.tolist(), parts.tolist(), doomed
             ):
