@@ -295,3 +295,18 @@ def test_a_blended_curves_variation_is_each_coordinates_travel():
         rates = np.abs(curve.variation(x, x + 1e-9) / 1e-9).max(axis=0)
         looser += np.any(rates * (s1 - s0) > bound * 1.01)
     assert looser  # the travel is tighter than the old bound somewhere
+
+
+def test_the_time_at_a_path_parameter_is_where_toppras_s_of_t_reaches_it():
+    """_when inverts Toppra's s(t) (piecewise quadratic) in closed form: at the times it gives, s(t) is the asked s
+    to rounding, all along a blended leg, and the times rise with s from the leg's start."""
+    from app.motion.timing import _first_radii, _legs, _prepare, _sliders, _toppra, _when
+
+    W = np.array([[0.0, 0.0], [1.0, 0.2], [0.4, 1.0], [1.3, 1.4]])
+    W, v, a, tangent, arc = _prepare(W, np.ones(2), np.ones(2), np.ones(2))
+    (leg,) = _legs(W, tangent, arc, _first_radii(np.diff(arc)))
+    s_of_t = _toppra(_sliders(2), leg, v, a)
+    s = np.linspace(0.0, arc[-1], 301)
+    t = _when(s_of_t, s)
+    assert t[0] == 0.0 and np.all(np.diff(t) > 0) and t[-1] <= s_of_t.end_time()
+    assert np.allclose(s_of_t.vector_values(t).ravel(), s, rtol=0, atol=1e-12 * arc[-1])
