@@ -203,6 +203,21 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.roadmap_path, 0.5))
 
 
+def test_a_careful_query_fine_checks_roadmap_paths_once_the_certificate_refused_an_edge(oracles):
+    """The fine check filters roadmap edges that slip between checked points; until the certificate has refused one,
+    a careful query proves the path's edges directly and the fine check would be work for nothing."""
+    from app.planning.planner import Query
+
+    query = Query(oracles("bar"), PlanSettings(**BAR))
+    query.solve()
+    query.fine_only = True
+    before = query.checker.checks
+    nodes = query.search()
+    assert nodes is not None and query.checker.checks == before
+    query.unproved_edges = 1
+    assert query.search() == nodes and query.checker.checks > before
+
+
 def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
     from app.checking.oracle import CollisionOracle
     from app.scene.model import Scene
@@ -212,7 +227,8 @@ def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
     oracle = CollisionOracle(Scene("maze"))
     oracle.space = dataclasses.replace(oracle.space, resolution=4.0)
     result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
-    assert result.smoothing["certificate"]["unproved_edges_dropped"] > 0
+    # Hundreds of edges step over a wall; after the first refusal the fine check finds most of them first.
+    assert 0 < result.smoothing["certificate"]["unproved_edges_dropped"] <= 20
     assert result.trajectory.certified
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.05))
 

@@ -514,12 +514,14 @@ class Query:
 
     # ---- solve ------------------------------------------------------------------------------------------------------
     def search(self) -> list[int] | None:
-        """Node indices of the shortest start-goal path whose edges are checked free (fine-only: at the fine
-        resolution too; edges failing it are dropped), or None while start and goal are apart."""
+        """Node indices of the shortest start-goal path whose edges are checked free, or None while start and goal
+        are apart. Once the certificate has refused a roadmap edge of a careful (fine-only) query, the path's edges
+        are checked at the fine resolution too and those failing it are dropped: a cheap filter where many edges
+        slip between checked points, work for nothing where the certificate proves them all (benchmark pages)."""
         roadmap = self.roadmap
         while True:
             nodes = self._timed("search", roadmap.shortest_path, self.start_node, self.goal_nodes)
-            if nodes is None or not self.fine_only:
+            if nodes is None or not (self.fine_only and self.unproved_edges):
                 return nodes
             ok = self._timed("search", verify, self.checker, roadmap.Q[nodes], self.fine)
             if ok.all():
@@ -635,8 +637,9 @@ class Query:
         result proved by the certificate (continuous, app.checking.certify) -- a discrete re-check at a finer
         resolution would only repeat part of its work. If the certificate refuses it, something grazes an obstacle
         between checked points, as in a narrow passage: the query turns careful (fine-only). From then on a roadmap
-        path is fine-checked and then proved before any smoothing is spent on it; an edge the certificate cannot prove
-        is treated as colliding, leaves the roadmap, and the search goes on (more rounds if need be). Proved edges are
+        path is proved before any smoothing is spent on it (and fine-checked first once an edge has been refused:
+        `search`); an edge the certificate cannot prove is treated as colliding, leaves the roadmap, and the search
+        goes on (more rounds if need be). Proved edges are
         remembered, so the next candidate pays only for its new ones. The proved path is then shortened with
         shortcuts checked at the fine resolution, and if that cannot be proved either, the roadmap path is the answer.
         Paths are never returned unproved: the audit found that such paths can really collide (benchmark pages,
