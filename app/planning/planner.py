@@ -639,9 +639,9 @@ class Query:
         between checked points, as in a narrow passage: the query turns careful (fine-only). From then on a roadmap
         path is proved before any smoothing is spent on it (and fine-checked first once an edge has been refused:
         `search`); an edge the certificate cannot prove is treated as colliding, leaves the roadmap, and the search
-        goes on (more rounds if need be). Proved edges are
-        remembered, so the next candidate pays only for its new ones. The proved path is then shortened with
-        shortcuts checked at the fine resolution, and if that cannot be proved either, the roadmap path is the answer.
+        goes on (more rounds if need be). Proved edges are remembered, so the next candidate pays only for its new
+        ones. The proved path is then shortened with shortcuts checked at the fine resolution, and if that cannot be
+        proved either, the roadmap path is the answer.
         Paths are never returned unproved: the audit found that such paths can really collide (benchmark pages,
         "Tuning notes"). Certificates keep to the query's time limit, not to its check limit (`_proving`)."""
         while True:
