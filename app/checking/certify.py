@@ -87,6 +87,8 @@ _EXACT = {
 PROJECTIONS = 2
 # Pair key: smaller geometry index * _KEY + larger.
 _KEY = 1 << 31
+# Slack on bounds computed from derivatives and rotations, for their rounding.
+_SLACK = 1 + 1e-9
 
 
 class MotionBound:
@@ -153,6 +155,12 @@ class MotionBound:
         axis to the farthest point of the geometry there (inf for other coordinates and the environment row), for
         pair_travel_from; None where this robot has no such bound (mimic joints, joints other than revolute,
         prismatic and weld): its pieces take the bound anywhere in the space."""
+        local = self.local(Q)
+        return None if local is None else local.levers
+
+    def local(self, Q: np.ndarray) -> _Local | None:
+        """The levers (see `levers`) and, per row, the velocity of its centre and its angular velocity per unit of
+        each coordinate (see _Local), at the configurations Q; None where `levers` is."""
         return None if self._levers is None else self._levers(Q)
 
     def piece_rates(self, variation: np.ndarray, levers_a: np.ndarray, levers_b: np.ndarray) -> np.ndarray:
@@ -166,8 +174,40 @@ class MotionBound:
 
     def pair_travel_from(self, variation: np.ndarray, levers_a: np.ndarray, levers_b: np.ndarray) -> np.ndarray:
         """pair_travel for pieces of motion (n, dim) with their ends' levers (n, rows, dim) (see piece_rates)."""
-        moved = self.piece_rates(variation, levers_a, levers_b) * variation[:, None, :]
+        return self.pair_travel_of(variation, self.piece_rates(variation, levers_a, levers_b))
+
+    def pair_travel_of(self, variation: np.ndarray, rates: np.ndarray) -> np.ndarray:
+        """pair_travel for pieces of motion (n, dim) whose rates all along them are `rates` (n, rows, dim)."""
+        moved = rates * variation[:, None, :]
         return np.einsum("npj,pqj->npq", moved, self._unshared) + np.einsum("nqj,pqj->npq", moved, self._unshared)
+
+    def pair_travel_along(self, rates: np.ndarray, at_a: _Local, at_b: _Local, da, db, dd) -> np.ndarray:
+        """Bounds (n, rows, rows) on how much each pair's distance changes along pieces of a curve, from the curve's
+        velocity at the pieces' ends, da and db (n, dim), and a bound dd (n, dim) on its acceleration, all per unit
+        of a parameter tau running from 0 to 1 along each piece; at_a, at_b: the local kinematics at the ends (see
+        `local`), rates: as piece_rates (every point of the row's geometry lies within rates[j] of axis j all along
+        the piece).
+
+        Where the bound from the travel sums every joint's share of the motion, this one starts from the motion
+        itself: at an end, a point x of a geometry moves at |v_c + w x (x - c)| <= |v_c| + |w| rho (centre c, radius
+        rho about it), and along the piece its speed changes at most M = sum_j rates_j (|q_j'| (|q_j'| [j revolute] +
+        2 sum_{k revolute, inboard of j} |q_k'|) + |q_j''|) per unit of tau -- the derivative of joint j's column of
+        the Jacobian along joint k is w_k x J_j for k inboard of or at j and w_j x J_k outboard of it, each at most
+        the outboard one's rate. So by tau a point has moved at most tau V_a + tau^2 M / 2 <= tau (V_a + M / 2) from
+        end a, and as much the other way from end b: two points (one per geometry) move their distance by at most
+        the larger of the two sums. Joints that turn the arm both ways about parallel axes (the UR3's shoulder,
+        elbow and wrist) cancel here; the travel adds them up."""
+        arms = self._levers
+        speed = 0.5 * (np.abs(da) + np.abs(db) + dd)  # |q'| all along the piece: q' changes by at most dd
+        turning = speed * arms.revolute
+        inboard = np.einsum("nk,rkj->nrj", turning, arms.below)
+        change = np.einsum(
+            "nrj,nrj->nr", rates, speed[:, None, :] * (turning[:, None, :] + 2 * inboard) + dd[:, None, :]
+        )
+        reach_a = at_a.speed(da) + 0.5 * change
+        reach_b = at_b.speed(db) + 0.5 * change
+        pairs = np.maximum(reach_a[:, :, None] + reach_a[:, None, :], reach_b[:, :, None] + reach_b[:, None, :])
+        return pairs * _SLACK
 
     @staticmethod
     def max_distance(pair_travel: np.ndarray) -> np.ndarray:
@@ -181,14 +221,17 @@ class _LeverArms:
     MotionBound.levers): from each axis (a line through its joint frame's origin) to the geometry's centre, plus
     the geometry's radius about that centre."""
 
-    def __init__(self, kinematics: TreeKinematics, axes, columns, centres, radius, below, rates):
+    def __init__(self, kinematics: TreeKinematics, axes, columns, centres, radius, below, rates, slides, chain):
         self._kinematics = kinematics
         self._axes = axes  # unit axis per revolute joint, in its frame on the child body
         self._columns = columns  # its coordinate
         self._centres = centres  # frames (after the axes' frames) of the robot rows' centres
         self._radius = radius  # per robot row, about its centre
-        self._below = below  # (rows, dim, dim): coordinate k moves a row's geometry relative to coordinate j's axis
+        self.below = below  # (rows, dim, dim): coordinate k moves a row's geometry relative to coordinate j's axis
         self._rates = rates
+        self._slides = slides  # per prismatic joint: (frame after the centres', unit axis in it, coordinate)
+        self._chain = chain  # (rows, dim): the coordinates that move each row
+        self.revolute = np.isin(np.arange(rates.shape[1]), columns)
 
     @classmethod
     def of(cls, oracle, inboard: dict, rows: dict, rates: np.ndarray) -> _LeverArms | None:
@@ -205,6 +248,7 @@ class _LeverArms:
                 axes.append(joint.revolute_axis())
                 columns.append(joint.position_start())
         radius, below = np.zeros(len(rows)), np.zeros((len(rows) + 1, dim, dim), bool)
+        chain = np.zeros((len(rows) + 1, dim), bool)
         for geometry, row in rows.items():
             body = plant.GetBodyFromFrameId(inspector.GetFrameId(geometry))
             _, _, centre, radius[row] = _centred(*_describe(inspector, geometry))
@@ -214,29 +258,77 @@ class _LeverArms:
             for joint in _chain(inboard, body.index()):
                 below[row, joint.position_start() : joint.position_start() + joint.num_positions()] = moved
                 moved[joint.position_start() : joint.position_start() + joint.num_positions()] = True
+            chain[row] = moved
+        slides = []
+        for index in plant.GetJointIndices():
+            joint = plant.get_joint(index)
+            if joint.type_name() == "prismatic":
+                frames.append((joint.child_body(), joint.frame_on_child().GetFixedPoseInBodyFrame()))
+                axis = np.asarray(joint.translation_axis(), float)
+                slides.append((len(frames) - 1, axis / np.linalg.norm(axis), joint.position_start()))
         kinematics = TreeKinematics.of(plant, frames)
         if kinematics is None:
             return None
         centres = np.zeros(len(rows), int)
         centres[list(rows.values())] = len(axes) + np.arange(len(rows))
-        return cls(kinematics, np.array(axes).reshape(-1, 3), np.array(columns, int), centres, radius, below, rates)
+        return cls(
+            kinematics,
+            np.array(axes).reshape(-1, 3),
+            np.array(columns, int),
+            centres,
+            radius,
+            below,
+            rates,
+            slides,
+            chain,
+        )
 
-    def __call__(self, Q: np.ndarray) -> np.ndarray:
+    def __call__(self, Q: np.ndarray) -> _Local:
         R, p = self._kinematics.poses(Q)
-        n, count = len(Q), len(self._columns)
+        n, count, dim = len(Q), len(self._columns), self._rates.shape[1]
         u = R[:, :count] @ self._axes[:, :, None]  # world axes (n, axes, 3, 1)
         v = p[:, None, self._centres] - p[:, :count, None]  # axis point to centre (n, axes, rows, 3)
         along = (v @ u)[..., 0]
         off = np.sqrt(np.maximum((v * v).sum(axis=3) - along**2, 0.0))
-        levers = np.full((n, len(self._radius) + 1, self._rates.shape[1]), np.inf)
+        levers = np.full((n, len(self._radius) + 1, dim), np.inf)
         levers[:, :-1, self._columns] = off.transpose(0, 2, 1) + self._radius[:, None]
-        return levers
+        # Per row and coordinate, the centre's velocity and the angular velocity per unit of it (the environment
+        # row and the coordinates that do not move a row: 0).
+        linear, angular = np.zeros((n, len(self._radius) + 1, dim, 3)), np.zeros((n, len(self._radius) + 1, dim, 3))
+        axes = u[..., 0]
+        linear[:, :-1, self._columns] = np.cross(axes[:, :, None, :], v).transpose(0, 2, 1, 3)
+        angular[:, :-1, self._columns] = axes[:, None]
+        for frame, axis, column in self._slides:
+            linear[:, :-1, column] = (R[:, frame] @ axis)[:, None]
+        chain = self._chain[None, :, :, None]
+        return _Local(levers, linear * chain, angular * chain, np.append(self._radius, 0.0))
 
     def slack(self, variation: np.ndarray) -> np.ndarray:
         """How much each row's lever arm about each coordinate's axis can grow over a piece of motion (n, dim):
         what the coordinates between that axis and the geometry move the geometry's points, (n, rows, dim)."""
         moved = self._rates[None] * variation[:, None, :]  # (n, rows, k)
-        return np.einsum("nrk,rjk->nrj", moved, self._below)
+        return np.einsum("nrk,rjk->nrj", moved, self.below)
+
+
+class _Local(NamedTuple):
+    """A robot's kinematics at configurations (n): lever arms (see MotionBound.levers), and per row (the environment's
+    last) and coordinate, the velocity of the row's centre and the geometry's angular velocity per unit of the
+    coordinate, (n, rows, dim, 3); the rows' radii about their centres."""
+
+    levers: np.ndarray
+    linear: np.ndarray
+    angular: np.ndarray
+    radius: np.ndarray
+
+    def rows(self, k: np.ndarray) -> _Local:
+        return _Local(self.levers[k], self.linear[k], self.angular[k], self.radius)
+
+    def speed(self, velocity: np.ndarray) -> np.ndarray:
+        """The largest speed of a point of each row's geometry, (n, rows), with the coordinates' velocities (n, dim)
+        at these configurations: |v_c| + |w| rho."""
+        v = np.einsum("nrjx,nj->nrx", self.linear, velocity)
+        w = np.einsum("nrjx,nj->nrx", self.angular, velocity)
+        return np.sqrt((v * v).sum(axis=2)) + np.sqrt((w * w).sum(axis=2)) * self.radius
 
 
 def _chain(inboard: dict, body_index) -> list:
@@ -549,8 +641,9 @@ class Certifier:
     """Certifies pieces of motion on one checker's oracle, keeping the distances it has asked for across calls (and
     across queries: a caller may hand it another query's checker, whose `distance_queries` it then counts in).
 
-    Each interval's pieces are cut nearest to contact first: the parts of a piece that failed its test go
-    by the least distance at its ends, the leftmost first among equals. Whether an interval is proved does not
+    Each interval's pieces are cut nearest to contact first: the parts of a piece that failed its test go by the
+    distance at its ends, interpolated to each part's middle (the parts beside its nearer end first), the leftmost
+    first among equals. Whether an interval is proved does not
     depend on the order (every piece of its subdivision must pass), but a failing interval stops at its first
     failure, and this order dives to where the motion comes nearest an obstacle, where leftmost first would prove
     everything before it (a factor of several in distance queries on a grazing edge: benchmark pages).
@@ -571,9 +664,10 @@ class Certifier:
     FIRST_PIECE = 4
     # A round takes more than WIDTH pieces of an interval when fewer than ROUND_MIN would be taken in all (a single
     # straight move otherwise needs a round per WIDTH of its pieces), unless a piece of that interval fell short by
-    # SPLIT_MAX or more in the round before: it may be closing on a contact, and a failing interval stops at its
+    # CLOSING or more in the round before: it may be closing on a contact, and a failing interval stops at its
     # first failure, so it keeps to WIDTH pieces nearest to contact.
     ROUND_MIN = 64
+    CLOSING = 4
 
     # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
     BATCH_ROWS = 1 << 17
@@ -635,14 +729,19 @@ class Certifier:
         self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
         self.seconds = time.perf_counter() - clock  # all this certifier's work: set-up, then every certify()
 
-    def certify(self, position, variation, intervals) -> tuple[bool, dict]:
-        """Whether the curve `position(s)` is free over each interval (s0, s1) of `intervals`.
+    def certify(self, curve, intervals) -> tuple[bool, dict]:
+        """Whether the curve is free over each interval (s0, s1) of `intervals`.
 
-        variation(s0, s1) bounds each coordinate's travel between s0 and s1, for s0 < s1 within one interval. Both
+        The curve (a Motion, or any object with the same methods) gives position(s), and variation(s0, s1), a bound
+        on each coordinate's travel between s0 and s1, for s0 < s1 within one interval; and, if it has them,
+        derivatives(s0, s1): the velocity dq/ds at s0 and at s1 and a bound on |d2q/ds2| between them, each
+        coordinate's (then pieces are also bounded from the motion itself: MotionBound.pair_travel_along). All
         take arrays of s, (n,), and give rows, (n, dim): a round asks for all its pieces in one call.
         The curve must stay within the space's bounds between in-bound ends (a straight edge or a blend does).
         stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds.
         """
+        position, variation = curve.position, curve.variation
+        derivatives = getattr(curve, "derivatives", None)
         clock, queries = time.perf_counter(), self.checker.distance_queries
         # Per interval, a heap of its pieces still to prove, as (distance at the ends of the piece they halve, start,
         # end): nearest to contact first.
@@ -655,7 +754,7 @@ class Certifier:
             for i, ((a, b), n) in enumerate(zip(intervals.tolist(), parts.tolist())):
                 heaps[i] = [(0.0, s0, s1) for s0, s1 in itertools.pairwise(_cuts(a, b, n))]
         failed, pieces = [], 0
-        closing: set[int] = set()  # intervals with a piece that fell SPLIT_MAX short or more in the last round
+        closing: set[int] = set()  # intervals with a piece that fell CLOSING short or more in the last round
         while heaps:
             wide = max(self.WIDTH, math.ceil(self.ROUND_MIN / len(heaps)))
             todo = [
@@ -669,11 +768,18 @@ class Certifier:
             slot = {s: j for j, s in enumerate(ends)}
             by_end = np.array([slot[s] for _, ab in todo for s in ab])  # piece p's ends are rows 2p and 2p + 1
             Q = position(np.array(ends))
-            levers = self.bound.levers(Q)
-            if levers is None:
+            local = self.bound.local(Q)
+            if local is None:
                 travel = self.bound.pair_travel(variations)
             else:
-                travel = self.bound.pair_travel_from(variations, levers[by_end[0::2]], levers[by_end[1::2]])
+                at_a, at_b = local.rows(by_end[0::2]), local.rows(by_end[1::2])
+                rates = self.bound.piece_rates(variations, at_a.levers, at_b.levers)
+                travel = self.bound.pair_travel_of(variations, rates)
+                if derivatives is not None:  # both bounds hold: the lesser (per unit of tau = (s - s0) / span)
+                    span = (spans[:, 1] - spans[:, 0])[:, None]
+                    da, db, dd = derivatives(spans[:, 0], spans[:, 1])
+                    along = self.bound.pair_travel_along(rates, at_a, at_b, da * span, db * span, dd * span**2)
+                    travel = np.minimum(travel, along)
             # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
             # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
             certain = self._certain_shortfall(Q, by_end, travel)
@@ -697,7 +803,7 @@ class Certifier:
             clear, short = _clear([ends.get(a) for _, (a, b) in todo], [ends.get(b) for _, (a, b) in todo], travel)
             parts = np.clip(np.ceil(np.maximum(short, certain)), 2, self.SPLIT_MAX).astype(int)
             doomed = (certain > 1.0).tolist()
-            far = (np.maximum(short, certain) >= self.SPLIT_MAX).tolist()
+            far = (np.maximum(short, certain) >= self.CLOSING).tolist()
             closing = {i for (i, _), f in zip(todo, far) if f}
             for (i, (a, b)), passed, length, n, unasked in zip(
                 todo, clear.tolist(), lengths.tolist(), parts.tolist(), doomed
@@ -710,9 +816,9 @@ class Certifier:
                     failed.append(i)
                     del heaps[i]
                 else:
-                    nearest = 0.0 if unasked else min(ends[a].nearest(), ends[b].nearest())
-                    for s0, s1 in itertools.pairwise(_cuts(a, b, n)):
-                        heapq.heappush(heaps[i], (nearest, s0, s1))
+                    near_a, near_b = (0.0, 0.0) if unasked else (ends[a].nearest(), ends[b].nearest())
+                    for j, (s0, s1) in enumerate(itertools.pairwise(_cuts(a, b, n))):
+                        heapq.heappush(heaps[i], (near_a + (near_b - near_a) * (j + 0.5) / n, s0, s1))
             heaps = {i: heap for i, heap in heaps.items() if heap}
         stats = {
             "failed": sorted(failed),
@@ -995,22 +1101,29 @@ def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndar
     return ok, short
 
 
-def certify_curve(oracle, position, variation, knots, floor: float | None = None) -> tuple[bool, dict]:
-    """Certify the curve position(s) over [knots[0], knots[-1]]; variation(s0, s1) bounds each coordinate's
-    travel for s0 < s1 between two consecutive knots (both over arrays of s, see Certifier.certify).
-    stats["failed"]: indices of the knot intervals that failed."""
+class Motion(NamedTuple):
+    """A curve for Certifier.certify: position(s), variation(s0, s1) and derivatives(s0, s1) (see there)."""
+
+    position: object
+    variation: object
+    derivatives: object = None
+
+
+def certify_curve(oracle, curve, knots, floor: float | None = None) -> tuple[bool, dict]:
+    """Certify the curve (see Certifier.certify) over [knots[0], knots[-1]], its variation and derivatives holding
+    between two consecutive knots. stats["failed"]: indices of the knot intervals that failed."""
     knots = np.asarray(knots, float)
-    return Certifier(oracle, floor).certify(position, variation, itertools.pairwise(knots))
+    return Certifier(oracle, floor).certify(curve, itertools.pairwise(knots))
 
 
-def polyline(space, P: np.ndarray):
-    """(position, variation) of the polyline P (straight edges, the short way) with parameter s = i + t on edge i."""
+def polyline(space, P: np.ndarray) -> Motion:
+    """The polyline P (straight edges, the short way) with parameter s = i + t on edge i."""
     return straight_edges(space.unwrap(P), np.arange(len(P), dtype=float))
 
 
-def straight_edges(W: np.ndarray, knots: np.ndarray):
-    """(position, variation) of the polyline W (unwrapped: straight from each waypoint to the next) with edge i
-    running from s = knots[i] to knots[i + 1] (increasing)."""
+def straight_edges(W: np.ndarray, knots: np.ndarray) -> Motion:
+    """The polyline W (unwrapped: straight from each waypoint to the next) with edge i running from s = knots[i] to
+    knots[i + 1] (increasing)."""
     rate = np.diff(W, axis=0) / np.diff(knots)[:, None]
 
     def edge(s: np.ndarray) -> np.ndarray:
@@ -1025,7 +1138,11 @@ def straight_edges(W: np.ndarray, knots: np.ndarray):
         s0, s1 = np.asarray(s0, float), np.asarray(s1, float)
         return np.abs(rate[edge(0.5 * (s0 + s1))]) * (s1 - s0)[:, None]
 
-    return position, variation
+    def derivatives(s0: np.ndarray, s1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        velocity = rate[edge(0.5 * (np.asarray(s0, float) + np.asarray(s1, float)))]
+        return velocity, velocity, np.zeros_like(velocity)
+
+    return Motion(position, variation, derivatives)
 
 
 def certify_path(oracle, P: np.ndarray, floor: float | None = None) -> tuple[bool, dict]:
@@ -1033,5 +1150,4 @@ def certify_path(oracle, P: np.ndarray, floor: float | None = None) -> tuple[boo
     P = np.atleast_2d(np.asarray(P, float))
     if len(P) < 2:
         P = np.vstack([P, P])
-    position, variation = polyline(oracle.space, P)
-    return certify_curve(oracle, position, variation, np.arange(len(P)), floor)
+    return certify_curve(oracle, polyline(oracle.space, P), np.arange(len(P)), floor)

@@ -123,6 +123,13 @@ class _Curve:
         mean = np.where(d0 * d1 >= 0, 0.5 * (a + b), (a * a + b * b) / (2 * np.maximum(a + b, 1e-300)))
         return mean * (s1 - s0)[:, None] * _SLACK
 
+    def derivatives(self, s0: np.ndarray, s1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # Within a piece the derivative is linear in s: the second derivative is its change over the span.
+        s0, s1 = np.asarray(s0, float), np.asarray(s1, float)
+        leg = self._leg_of(0.5 * (s0 + s1))
+        d0, d1 = self._values(self.rates, s0, leg), self._values(self.rates, s1, leg)
+        return d0, d1, np.abs(d1 - d0) / np.maximum(s1 - s0, 1e-300)[:, None] * _SLACK
+
 
 def _certified_radii(
     certifier: Certifier, W, tangent, arc, radii, tighten: int, known: np.ndarray, give_up: bool = False
@@ -175,7 +182,7 @@ def _certify(certifier: Certifier, curve, intervals: list) -> dict:
     """The certifier's stats on the intervals of `curve` (none asked for: no cost)."""
     if not intervals:
         return {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0}
-    return certifier.certify(curve.position, curve.variation, intervals)[1]
+    return certifier.certify(curve, intervals)[1]
 
 
 class _Both:
@@ -188,15 +195,25 @@ class _Both:
 
     def position(self, s: np.ndarray) -> np.ndarray:
         out, curved = np.empty((len(s), self.dim)), s < 0
-        out[~curved] = self.line[0](s[~curved])
+        out[~curved] = self.line.position(s[~curved])
         out[curved] = self.curve.position(-s[curved])
         return out
 
     def variation(self, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
         out, curved = np.empty((len(s0), self.dim)), s0 + s1 < 0
-        out[~curved] = self.line[1](s0[~curved], s1[~curved])
+        out[~curved] = self.line.variation(s0[~curved], s1[~curved])
         out[curved] = self.curve.variation(-s1[curved], -s0[curved])
         return out
+
+    def derivatives(self, s0: np.ndarray, s1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # On the curve, q(s) = curve(-s): the velocities change sign, and s0 is the curve's later end.
+        out = [np.empty((len(s0), self.dim)) for _ in range(3)]
+        curved = s0 + s1 < 0
+        for o, x in zip(out, self.line.derivatives(s0[~curved], s1[~curved])):
+            o[~curved] = x
+        at_1, at_0, dd = self.curve.derivatives(-s1[curved], -s0[curved])
+        out[0][curved], out[1][curved], out[2][curved] = -at_0, -at_1, dd
+        return tuple(out)
 
 
 def _first_radii(lengths: np.ndarray) -> np.ndarray:

@@ -573,8 +573,8 @@ class Query:
         edges = [i for i in (range(len(path) - 1) if edges is None else edges) if pairs[i] not in self.roadmap.proved]
         if not edges:
             return True, {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0, "blended": False}
-        position, variation = polyline(self.checker.space, path)
-        proved, stats = self._timed("certify", self.certifier.certify, position, variation, [(i, i + 1) for i in edges])
+        curve = polyline(self.checker.space, path)
+        proved, stats = self._timed("certify", self.certifier.certify, curve, [(i, i + 1) for i in edges])
         failed = [edges[k] for k in stats["failed"]]
         self.roadmap.proved.update(pairs[i] for i in edges if pairs[i] is not None and i not in failed)
         return proved, {**stats, "failed": failed, "blended": False}
