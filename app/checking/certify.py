@@ -51,11 +51,13 @@ Every distance is lowered by a rounding allowance (1e-9 of the resolution).
 max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
 at that end. Each end is queried with D just above half the largest B_PQ of the pieces it bounds: a pair
 unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
-count as unreported when their own bound is at least D). Where no counted pair is of a kind Drake computes exactly
-and some has a mesh, Drake is asked only whether anything is in contact (HasCollisions): GJK on a hull costs time
-per vertex, and our bounds cover every pair anyway, Drake's direction being asked per pair where needed. (A pair
-in contact cannot pass a piece even unasked: its lower bound is at most 0.) Distances are cached per
-configuration, so ends shared by adjacent pieces, and by rounds of a caller that retries, are asked once.
+count as unreported when their own bound is at least D). Where no counted pair is of a kind Drake computes exactly,
+the pairwise query is not asked at all: it has a fixed cost (some 60 us a configuration on the UR3, with nothing
+within D), GJK on a mesh's hull costs time per vertex besides, and our bounds cover every pair anyway, Drake's
+direction being asked per pair where needed. A pair in contact cannot pass a piece even then: its lower bound is at
+most 0, and only a configuration with such a bound is asked whether it is in contact (HasCollisions), so that its
+pieces fail at once. Distances are cached per configuration, so ends shared by adjacent pieces, and by rounds of a
+caller that retries, are asked once.
 """
 
 from __future__ import annotations
@@ -285,23 +287,29 @@ class _LeverArms:
 
     def __call__(self, Q: np.ndarray) -> _Local:
         R, p = self._kinematics.poses(Q)
-        n, count, dim = len(Q), len(self._columns), self._rates.shape[1]
-        u = R[:, :count] @ self._axes[:, :, None]  # world axes (n, axes, 3, 1)
+        n, count, dim, rows = len(Q), len(self._columns), self._rates.shape[1], len(self._radius)
+        u = np.einsum("naij,aj->nai", R[:, :count], self._axes)[:, :, None, :]  # world axes (n, axes, 1, 3)
         v = p[:, None, self._centres] - p[:, :count, None]  # axis point to centre (n, axes, rows, 3)
-        along = (v @ u)[..., 0]
-        off = np.sqrt(np.maximum((v * v).sum(axis=3) - along**2, 0.0))
-        levers = np.full((n, len(self._radius) + 1, dim), np.inf)
-        levers[:, :-1, self._columns] = off.transpose(0, 2, 1) + self._radius[:, None]
+        # u x v: the centre's velocity per unit turn of the axis; its length, the centre's distance from the axis.
+        turn = np.stack(
+            [
+                u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
+            ],
+            axis=3,
+        )
+        levers = np.full((n, rows + 1, dim), np.inf)
+        levers[:, :-1, self._columns] = np.sqrt((turn * turn).sum(axis=3)).transpose(0, 2, 1) + self._radius[:, None]
         # Per row and coordinate, the centre's velocity and the angular velocity per unit of it (the environment
         # row and the coordinates that do not move a row: 0).
-        linear, angular = np.zeros((n, len(self._radius) + 1, dim, 3)), np.zeros((n, len(self._radius) + 1, dim, 3))
-        axes = u[..., 0]
-        linear[:, :-1, self._columns] = np.cross(axes[:, :, None, :], v).transpose(0, 2, 1, 3)
-        angular[:, :-1, self._columns] = axes[:, None]
+        linear, angular = np.zeros((n, rows + 1, dim, 3)), np.zeros((n, rows + 1, dim, 3))
+        moves = self._chain[:-1, self._columns].T[None, :, :, None]  # (1, axes, rows, 1)
+        linear[:, :-1, self._columns] = (turn * moves).transpose(0, 2, 1, 3)
+        angular[:, :-1, self._columns] = (u * moves).transpose(0, 2, 1, 3)
         for frame, axis, column in self._slides:
-            linear[:, :-1, column] = (R[:, frame] @ axis)[:, None]
-        chain = self._chain[None, :, :, None]
-        return _Local(levers, linear * chain, angular * chain, np.append(self._radius, 0.0))
+            linear[:, :-1, column] = (R[:, frame] @ axis)[:, None] * self._chain[None, :-1, column, None]
+        return _Local(levers, linear, angular, np.append(self._radius, 0.0))
 
     def slack(self, variation: np.ndarray) -> np.ndarray:
         """How much each row's lever arm about each coordinate's axis can grow over a piece of motion (n, dim):
@@ -691,18 +699,19 @@ class Certifier:
         kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
         self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
         self._gaps = _gaps(oracle, geometries, self._rows >= 0, self._exact)
-        # What Drake's pairwise query is asked for. Every pair within the limit, with its direction, where a counted
-        # pair is of a kind Drake computes exactly (its distance is used) or no counted pair has a mesh (GJK between
-        # primitives costs little). Otherwise only whether anything is in contact (HasCollisions: a configuration in
-        # contact still fails at once): GJK on a mesh's hull costs time per vertex, and most pairs are settled by
-        # our bounds alone, so Drake is asked for the direction of the others only, one pair at a time (_ends).
+        # Whether Drake's pairwise query is asked, for every pair within the limit with its direction: where a
+        # counted pair is of a kind Drake computes exactly (its distance is used). Otherwise most pairs are settled
+        # by our bounds alone, and Drake is asked for the direction of the others, one pair at a time, and where a
+        # bound comes out at or below 0 whether anything is in contact (see the module doc and _ends).
         robot = self._rows >= 0
         counted = np.triu(robot[:, None] | robot[None, :], 1) & self._exact
         if not oracle.scene.self_collisions:
             counted &= ~(robot[:, None] & robot[None, :])
-        self._ask_all = self._gaps.is_hull.sum() == 0 or any(
+        self._ask_all = any(
             not inspector.CollisionFiltered(geometries[i], geometries[j]) for i, j in zip(*np.nonzero(counted))
         )
+        # Pieces that certainly fail are cut unasked where asking costs most: on mesh scenes (see _certain_shortfall).
+        self._cut_unasked = not self._ask_all and bool(self._gaps.hulls)
         # The direction Drake last gave for each pair of the gaps (world frame), NaN before it gave one.
         self._recent = np.full((len(self._gaps.pairs), 3), np.nan)
         # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in
@@ -834,8 +843,8 @@ class Certifier:
         certainly exceeds its ends' distances for some pair of the gaps: the largest B_PQ / (U_a + U_b), with U an
         upper bound on the pair's distance at an end -- the distance between a point inside each shape (its centre,
         a hull's mean vertex). Our lower bounds are at most U, so a piece with a factor above 1 fails its test, and
-        by at least that factor (0 without pairs)."""
-        if self._ask_all or not len(self._gaps.pairs):
+        by at least that factor (0 without pairs, and where pieces are not cut unasked)."""
+        if not self._cut_unasked or not len(self._gaps.pairs):
             return np.zeros(len(travel))
         rotations, centres = self._robot_poses(Q)
         anchors = np.repeat(self._anchors[None], len(Q), axis=0)
@@ -881,26 +890,27 @@ class Certifier:
     def _ends(self, todo: list) -> None:
         """Into the cache: the certificate's distances at each (key, q, limit, pair travel) of `todo` -- Drake's for
         the pairs it computes exactly, our lower bound for the others (a pair left out is at least `limit` apart);
-        None where q is out of bounds or Drake finds a pair touching."""
+        None where q is out of bounds or in contact."""
         for key, *_ in todo:
             self._cache[key] = None
         inside = self.checker.space.within_bounds(np.array([q for _, q, *_ in todo]))
         todo = [item for item, keep in zip(todo, inside.tolist()) if keep]
         # Drake's pairs of every configuration as rows (configuration, first, second geometry, distance); reading a
         # GeometryId costs more than the distance, so each is read once and mapped through its integer value.
+        # Otherwise Drake is asked nothing yet: where every pair's lower bound comes out positive nothing touches,
+        # and only a configuration with a bound at or below 0 is asked whether it is in contact (at the end).
         if self._ask_all:
             answers = [self.checker.signed_distances(q, limit) for _, q, limit, _ in todo]
-            in_contact = []
-        else:  # Drake is asked only whether anything is in contact (see __init__)
+        else:
             answers = [[] for _ in todo]
-            in_contact = [k for k, (_, q, _, _) in enumerate(todo) if self.checker.in_contact(q)]
+            self.checker.count_bounded(len(todo))
         value = self._index_of_value
         found = np.array(
             [(value[p.id_A.get_value()], value[p.id_B.get_value()], p.distance) for pairs in answers for p in pairs],
             float,
         ).reshape(-1, 3)
         config = np.repeat(np.arange(len(answers)), [len(pairs) for pairs in answers])
-        touching = np.unique(np.concatenate([config[found[:, 2] <= 0], in_contact]).astype(np.int64))
+        touching = np.unique(config[found[:, 2] <= 0])
         kept = np.setdiff1d(np.arange(len(answers)), touching)
         if not len(kept):
             return
@@ -976,6 +986,10 @@ class Certifier:
                 for r in np.flatnonzero(near_k[rows] == k).tolist():
                     asked[r] = self._recent[near_pair[rows[r]]] = self._direction(query, near_pair[rows[r]])
             tighten(rows, asked)
+        # A configuration in contact stays None: its pieces fail at once (a bound at or below 0 could only fail them
+        # by cutting them down to the floor).
+        doubtful = np.unique(near_k[bounds <= 0]).tolist()
+        touching = {k for k in doubtful if self.checker.in_contact(Q[k])}
         # Every configuration's distances -- Drake's exact ones and our bounds below the limit -- sorted by
         # configuration, then key.
         below = bounds < limits[near_k]
@@ -988,8 +1002,9 @@ class Certifier:
         rows = self._rows[index[order]]
         split = np.cumsum(np.bincount(config, minlength=len(drake)))[:-1]
         parts = zip(*(np.split(array, split) for array in (keys[order], distance[order], rows[:, 0], rows[:, 1])))
-        for (key, _, limit, _), part in zip(drake, parts):
-            self._cache[key] = _End(limit, *part)
+        for k, ((key, _, limit, _), part) in enumerate(zip(drake, parts)):
+            if k not in touching:
+                self._cache[key] = _End(limit, *part)
 
     def _direction(self, query, pair: int) -> np.ndarray:
         """Drake's separating direction for one pair of the gaps, from its second geometry to its first."""

@@ -209,9 +209,14 @@ class QueryContext:
 
     def in_contact(self, q: np.ndarray) -> bool:
         """Whether a pair the scene's policy counts penetrates at q (CollisionOracle.in_contact); the certificate's
-        question in place of a signed-distance query, counted as one in `distance_queries`, not in `checks`."""
-        self.distance_queries += 1
+        question about a configuration it bounds itself, counted there (count_bounded), not in `checks`."""
         return self.oracle.in_contact(q)
+
+    def count_bounded(self, n: int) -> None:
+        """The certificate bounded the distances at n configurations itself (asking Drake per pair where it needed
+        a direction, and in_contact where a bound came out at or below 0): counted as n `distance_queries`, one a
+        configuration, as signed_distances counts."""
+        self.distance_queries += n
 
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`
