@@ -513,6 +513,14 @@ class _Gaps:
         bound[live] = np.maximum(bound[live], self._gap(A, B, nhat[live], settle[live]))
         return bound
 
+    def along(self, k, pair, rotation, centre, d: np.ndarray) -> np.ndarray:
+        """The gaps of rows (configuration k, pair) along directions d (unit, from the pair's second shape to its
+        first), hulls by their vertices: a lower bound on each row's distance (see bounds for rotation and centre)."""
+        a, b = self.pairs[pair].T
+        A = self._posed(a, rotation(k, a), centre(k, a))
+        B = self._posed(b, rotation(k, b), centre(k, b))
+        return self._along(A, B, d, exact=True)
+
     def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
         return _Posed(R, p, self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
 
@@ -971,8 +979,7 @@ class Certifier:
         def tighten(rows, directions):
             """Bound rows again along these directions; the rows still not settled."""
             k, pair = near_k[rows], near_pair[rows]
-            again = self._gaps.bounds(k, pair, rotation, centre, directions, limits[k], need[k, pair])
-            bounds[rows] = np.maximum(bounds[rows], again)
+            bounds[rows] = np.maximum(bounds[rows], self._gaps.along(k, pair, rotation, centre, directions))
             return rows[bounds[rows] < need[k, pair]]
 
         rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
