@@ -335,6 +335,28 @@ def test_a_robot_pairs_distance_changes_no_more_than_its_relative_motion_bound(c
     assert tighter > 0
 
 
+def test_a_configuration_in_contact_has_no_distances_and_only_doubtful_ones_are_asked_about_contact(
+    checkers, monkeypatch
+):
+    """On the UR3 (no counted pair of a kind Drake computes exactly) the certificate asks Drake no pairwise distance
+    query: a configuration in contact still comes out with no distances, and Drake is asked whether one is in
+    contact only where a pair's lower bound came out at or below 0 -- every configuration in contact, and few free
+    ones."""
+    oracle = checkers("window")
+    certifier = Certifier(oracle)
+    asked = []
+    in_contact = type(oracle).in_contact
+    monkeypatch.setattr(type(oracle), "in_contact", lambda self, q: asked.append(q) or in_contact(self, q))
+    monkeypatch.setattr(type(oracle), "signed_distances", lambda *_: pytest.fail("pairwise query asked"))
+    Q = oracle.space.uniform(np.random.default_rng(5), 200)
+    colliding = 0
+    for q in Q:
+        free = raw_free(oracle, q)
+        colliding += not free
+        assert (certifier.distances(q, 0.05) is None) == (not free)
+    assert colliding >= 20 and colliding <= len(asked) < colliding + 0.2 * (len(Q) - colliding)
+
+
 def test_each_interval_is_judged_on_its_own(checkers):
     """A path whose middle edge grazes an obstacle: that edge alone fails, the free edges around it are proved."""
     oracle = checkers("maze")
