@@ -989,9 +989,13 @@ class Certifier:
         if len(rows):
             asked = np.empty((len(rows), 3))
             for k in np.unique(near_k[rows]).tolist():
-                query = self.checker.query_object(Q[k])
-                for r in np.flatnonzero(near_k[rows] == k).tolist():
-                    asked[r] = self._recent[near_pair[rows[r]]] = self._direction(query, near_pair[rows[r]])
+                mine = np.flatnonzero(near_k[rows] == k)
+                pairs = self._gaps.pairs[near_pair[rows[mine]]].tolist()
+                replies = self.checker.pair_distances(Q[k], [(self._ids[i], self._ids[j]) for i, j in pairs])
+                for r, (i, _), answer in zip(mine.tolist(), pairs, replies):
+                    # Drake's direction from the pair's second geometry to its first, in our order.
+                    direction = answer.nhat_BA_W if answer.id_A == self._ids[i] else -answer.nhat_BA_W
+                    asked[r] = self._recent[near_pair[rows[r]]] = direction
             tighten(rows, asked)
         # A configuration in contact stays None: its pieces fail at once (a bound at or below 0 could only fail them
         # by cutting them down to the floor).
@@ -1012,12 +1016,6 @@ class Certifier:
         for k, ((key, _, limit, _), part) in enumerate(zip(drake, parts)):
             if k not in touching:
                 self._cache[key] = _End(limit, *part)
-
-    def _direction(self, query, pair: int) -> np.ndarray:
-        """Drake's separating direction for one pair of the gaps, from its second geometry to its first."""
-        i, j = self._gaps.pairs[pair]
-        found = query.ComputeSignedDistancePairClosestPoints(self._ids[i], self._ids[j])
-        return found.nhat_BA_W if found.id_A == self._ids[i] else -found.nhat_BA_W
 
     def _robot_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rotations (n, robots, 3, 3) and centres (n, robots, 3) of the robot geometries at configurations Q."""

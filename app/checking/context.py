@@ -212,6 +212,11 @@ class QueryContext:
         question about a configuration it bounds itself, counted there (count_bounded), not in `checks`."""
         return self.oracle.in_contact(q)
 
+    def pair_distances(self, q: np.ndarray, pairs: list) -> list:
+        """SceneGraph's SignedDistancePair at q of each given pair (CollisionOracle.pair_distances): the
+        certificate's question about a configuration it bounds itself, counted there (count_bounded)."""
+        return self.oracle.pair_distances(q, pairs)
+
     def count_bounded(self, n: int) -> None:
         """The certificate bounded the distances at n configurations itself (asking Drake per pair where it needed
         a direction, and in_contact where a bound came out at or below 0): counted as n `distance_queries`, one a

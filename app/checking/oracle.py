@@ -333,6 +333,16 @@ class CollisionOracle:
             self.seconds["distances"] += time.perf_counter() - start
             return bool(hit)
 
+    def pair_distances(self, q: np.ndarray, pairs: list) -> list:
+        """SceneGraph's SignedDistancePair at q of each given pair of GeometryIds, however far apart (the
+        certificate's direction for a pair it bounds itself); timed as a distance query."""
+        with self._lock:
+            start = time.perf_counter()
+            query = self.query_object(q)
+            found = [query.ComputeSignedDistancePairClosestPoints(a, b) for a, b in pairs]
+            self.seconds["distances"] += time.perf_counter() - start
+            return found
+
     def signed_distance_pairs(self, q: np.ndarray, max_distance: float) -> list:
         """SceneGraph's SignedDistancePairs at q of the pairs the scene's policy counts that lie within
         `max_distance` (farther pairs are left out)."""
