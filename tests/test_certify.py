@@ -205,7 +205,7 @@ def test_the_bound_from_a_pieces_ends_holds_all_along_it_and_is_tighter(checkers
     assert np.mean(ratios) < 0.9
 
 
-@pytest.mark.parametrize("name", ["bar", "window", "joint3d"])
+@pytest.mark.parametrize("name", ["bar", "window", "joint3d", "maze"])
 def test_the_bound_from_a_pieces_motion_holds_all_along_it_and_is_tighter_on_the_arm(checkers, name):
     """The bound from the velocities at a piece's ends and its acceleration (MotionBound.pair_travel_along), on
     straight pieces and on curved ones (q'' constant, as on a blend): by tau every point of a robot geometry has moved
