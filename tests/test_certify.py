@@ -186,9 +186,10 @@ def test_the_bound_from_a_pieces_ends_holds_all_along_it_and_is_tighter(checkers
         for q in oracle.space.uniform(rng, 8):
             qb = np.clip(q + rng.normal(size=oracle.space.dim) * scale, oracle.space.lower, oracle.space.upper)
             variation = np.abs(qb - q)
-            levers = bound.levers(np.array([q, qb]))
-            travel = bound.pair_travel_from(variation[None], levers[:1], levers[1:])[0]
-            rates = bound.piece_rates(variation[None], levers[:1], levers[1:])[0]
+            levers = bound.local(np.array([q, qb])).levers
+            rates = bound.piece_rates(variation[None], levers[:1], levers[1:])
+            travel = bound.pair_travel_of(variation[None], rates)[0]
+            rates = rates[0]
             anywhere = bound.pair_travel(variation)
             assert np.all(travel <= anywhere * (1 + 1e-12))
             start = world_points(q)

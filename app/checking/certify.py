@@ -158,17 +158,13 @@ class MotionBound:
         in the space."""
         return np.einsum("pqj,...j->...pq", self.pair_rates, variation)
 
-    def levers(self, Q: np.ndarray) -> np.ndarray | None:
-        """Per configuration of Q (n, dim), geometry row and coordinate: the distance from the coordinate's revolute
-        axis to the farthest point of the geometry there (inf for other coordinates and the environment row), for
-        pair_travel_from; None where this robot has no such bound (mimic joints, joints other than revolute,
-        prismatic and weld): its pieces take the bound anywhere in the space."""
-        local = self.local(Q)
-        return None if local is None else local.levers
-
     def local(self, Q: np.ndarray) -> _Local | None:
-        """The levers (see `levers`) and, per row, the velocity of its centre and its angular velocity per unit of
-        each coordinate (see _Local), at the configurations Q; None where `levers` is."""
+        """The robot's kinematics at the configurations Q (n, dim), for the bounds of pieces with known ends: per
+        configuration, geometry row and coordinate, the lever arm -- the distance from the coordinate's revolute
+        axis to the farthest point of the geometry there (inf for other coordinates and the environment row) --
+        and the velocity of the row's centre and its angular velocity per unit of the coordinate (see _Local).
+        None where this robot has no such bounds (mimic joints, joints other than revolute, prismatic and weld):
+        its pieces take the bound anywhere in the space."""
         return None if self._levers is None else self._levers(Q)
 
     def piece_rates(self, variation: np.ndarray, levers_a: np.ndarray, levers_b: np.ndarray) -> np.ndarray:
@@ -179,10 +175,6 @@ class MotionBound:
         and never more than the rate anywhere in the space."""
         slack = self._levers.slack(variation)
         return np.minimum(self.rates, np.minimum(levers_a, levers_b) + slack)
-
-    def pair_travel_from(self, variation: np.ndarray, levers_a: np.ndarray, levers_b: np.ndarray) -> np.ndarray:
-        """pair_travel for pieces of motion (n, dim) with their ends' levers (n, rows, dim) (see piece_rates)."""
-        return self.pair_travel_of(variation, self.piece_rates(variation, levers_a, levers_b))
 
     def pair_travel_of(self, variation: np.ndarray, rates: np.ndarray) -> np.ndarray:
         """pair_travel for pieces of motion (n, dim) whose rates all along them are `rates` (n, rows, dim)."""
@@ -226,7 +218,7 @@ class MotionBound:
 
 class _LeverArms:
     """Lever arms of a robot's geometries about its revolute axes, at given configurations (see
-    MotionBound.levers): from each axis (a line through its joint frame's origin) to the geometry's centre, plus
+    MotionBound.local): from each axis (a line through its joint frame's origin) to the geometry's centre, plus
     the geometry's radius about that centre; and with them each geometry's Jacobian columns at its centre (see
     _Local), for MotionBound.pair_travel_along."""
 
@@ -326,7 +318,7 @@ class _LeverArms:
 
 
 class _Local(NamedTuple):
-    """A robot's kinematics at configurations (n): lever arms (see MotionBound.levers), and per row (the environment's
+    """A robot's kinematics at configurations (n): lever arms (see MotionBound.local), and per row (the environment's
     last) and coordinate, the velocity of the row's centre and the geometry's angular velocity per unit of the
     coordinate, (n, rows, dim, 3); the rows' radii about their centres."""
 

@@ -89,13 +89,14 @@ def _legs(W, tangent, arc, radii) -> list[_Leg]:
 
 
 class _Curve:
-    """position(s) and variation(s0, s1) over the global s of all legs, for the certifier: each for arrays of s,
-    with one Drake call per leg they fall on."""
+    """position(s), variation(s0, s1) and derivatives(s0, s1) over the global s of all legs, for the certifier: each
+    for arrays of s, with one Drake call per leg they fall on."""
 
     def __init__(self, legs: list[_Leg]):
         self.legs = legs
         self.starts = np.array([leg.offset for leg in legs])
         self.rates = [leg.path.MakeDerivative(1) for leg in legs]
+        self._last = None  # see _end_rates
 
     def _leg_of(self, s: np.ndarray) -> np.ndarray:
         return np.maximum(np.searchsorted(self.starts, s, side="right") - 1, 0)
@@ -116,19 +117,25 @@ class _Curve:
         # Within a piece the derivative is linear in s, so each coordinate's travel, the integral of its magnitude,
         # is in closed form: the mean of the two ends' magnitudes, or where it changes sign, the two triangles
         # either side of its zero, (d0^2 + d1^2) / (2 (|d0| + |d1|)).
-        s0, s1 = np.asarray(s0, float), np.asarray(s1, float)
-        leg = self._leg_of(0.5 * (s0 + s1))
-        d0, d1 = self._values(self.rates, s0, leg), self._values(self.rates, s1, leg)
+        s0, s1, d0, d1 = self._end_rates(s0, s1)
         a, b = np.abs(d0), np.abs(d1)
         mean = np.where(d0 * d1 >= 0, 0.5 * (a + b), (a * a + b * b) / (2 * np.maximum(a + b, 1e-300)))
         return mean * (s1 - s0)[:, None] * _SLACK
 
     def derivatives(self, s0: np.ndarray, s1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # Within a piece the derivative is linear in s: the second derivative is its change over the span.
-        s0, s1 = np.asarray(s0, float), np.asarray(s1, float)
-        leg = self._leg_of(0.5 * (s0 + s1))
-        d0, d1 = self._values(self.rates, s0, leg), self._values(self.rates, s1, leg)
+        s0, s1, d0, d1 = self._end_rates(s0, s1)
         return d0, d1, np.abs(d1 - d0) / np.maximum(s1 - s0, 1e-300)[:, None] * _SLACK
+
+    def _end_rates(self, s0, s1) -> tuple[np.ndarray, ...]:
+        """(s0, s1, dq/ds at s0, at s1) of pieces within one leg piece each. The certifier asks variation and
+        derivatives of the same pieces in each round: the last answer is kept, so Drake evaluates them once."""
+        s0, s1 = np.asarray(s0, float), np.asarray(s1, float)
+        key = (s0.tobytes(), s1.tobytes())
+        if self._last is None or self._last[0] != key:
+            leg = self._leg_of(0.5 * (s0 + s1))
+            self._last = key, (s0, s1, self._values(self.rates, s0, leg), self._values(self.rates, s1, leg))
+        return self._last[1]
 
 
 def _certified_radii(
