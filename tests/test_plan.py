@@ -65,7 +65,11 @@ def test_roadmap_neighbours_are_exact_under_the_wrapping_metric(oracles):
 
 
 def test_the_search_graph_kept_between_searches_is_the_graph_of_the_edges_not_known_to_collide(oracles):
+    """The kept search graph, with the entries of edges found colliding since it was compacted left at an infinite
+    length, is the graph of the edges not known to collide; and the labels that let a search skip start and goal
+    apart never part two nodes that edges not known to collide join."""
     from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
 
     oracle = oracles("bar")
     rng = np.random.default_rng(6)
@@ -75,16 +79,25 @@ def test_the_search_graph_kept_between_searches_is_the_graph_of_the_edges_not_kn
         roadmap.shortest_path(0, len(roadmap) - 1)
         for a, b in roadmap.edges()[rng.choice(len(roadmap.edges()), 20, replace=False)].tolist():
             roadmap.remove_edge(a, b)
-        kept = roadmap._search_graph()
         E = roadmap.edges()
         lengths = oracle.space.distance(roadmap.Q[E[:, 0]], roadmap.Q[E[:, 1]])
         fresh = csr_matrix(
-            (np.r_[lengths, lengths], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=kept.shape
+            (np.r_[lengths, lengths], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(len(roadmap),) * 2
         )
         fresh.sort_indices()
-        assert kept.has_sorted_indices and len(E) > 0
-        assert np.array_equal(kept.indptr, fresh.indptr) and np.array_equal(kept.indices, fresh.indices)
-        assert np.array_equal(kept.data, fresh.data)
+        kept = roadmap._search_graph().tocoo()
+        usable = np.isfinite(kept.data)
+        assert (~usable).sum() >= 40  # the removed edges both ways, and those the search found colliding
+        found = csr_matrix((kept.data[usable], (kept.row[usable], kept.col[usable])), shape=fresh.shape)
+        assert dict(found.todok().items()) == dict(fresh.todok().items())
+        compact = roadmap._search_graph(compact=True)
+        assert compact.has_sorted_indices and len(E) > 0
+        assert np.array_equal(compact.indptr, fresh.indptr) and np.array_equal(compact.indices, fresh.indices)
+        assert np.array_equal(compact.data, fresh.data)
+        _, components = connected_components(fresh, directed=False)
+        same = components[:, None] == components[None, :]
+        assert not (same & (roadmap._reach[:, None] != roadmap._reach[None, :])).any()
+        assert len(np.unique(roadmap._reach)) > 1  # the labels do part nodes
 
 
 def test_nodes_kept_are_numbered_again_with_every_verdict_between_them(oracles):

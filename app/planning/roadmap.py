@@ -72,28 +72,38 @@ class Roadmap:
         self.Q = np.empty((0, checker.space.dim))
         self.kinds: list[str] = []
         # The edges, as arrays (the search builds its sparse matrix from them, in C): rows in insertion order, every
-        # pair ever decided or proposed, (a, b) with a < b -> row; a row stays when its edge is found to collide.
-        self._rows: dict[int, int] = {}  # keyed by `_key(a, b)`
-        self._ends = np.empty((0, 2), int)
-        self._lengths = np.empty(0)
-        self._alive = np.empty(0, bool)  # not known to collide
-        self._checked = np.empty(0, bool)  # decided free
-        # Of an edge not yet decided: how many of its points (coarse to fine) a check found free before it stopped
-        # at another edge's collision; the next check of the edge starts after them.
-        self._progress = np.empty(0, np.int64)
+        # pair ever decided or proposed, (a, b) with a < b; `_rows` finds a pair's row by its `_key(a, b)`. A row
+        # stays when its edge is found to collide. Columns per row: `_ends` (a, b); `_lengths`; `_alive`, not known
+        # to collide; `_checked`, decided free (or known to collide); `_progress`, of an edge not yet decided, how
+        # many of its points (coarse to fine) a check found free before it stopped at another edge's collision (its
+        # next check starts after them). Each is a view of the first rows of a larger array (`_set_rows`), so that
+        # adding a round's edges does not copy every edge before them.
+        empty = np.empty(0)
+        self._set_rows(np.empty((0, 2), int), empty, empty.astype(bool), empty.astype(bool), empty.astype(np.int64))
         self.edges_tried = 0  # decided: checked in full, or found to collide
         self.edges_proposed = 0  # lazy candidates ever added
         self._tried: set[int] = set()  # `_key`s of the pairs ever proposed
         self.proved: set[tuple[int, int]] = set()  # edges the certificate proved free, (smaller, larger)
         self._labelled = None  # (graph sizes, connected components) of the last `_labels`
         self._nodes: dict[bytes, int] = {}  # a configuration's bytes -> its node, so a repeated one is not added twice
-        self._tree: cKDTree | None = None  # built when next asked for neighbours (None: nodes added since)
-        # The search's graph, kept from one search to the next so that a search only merges in the edges added and
-        # drops those that died since (sorting every edge again cost more than the search on large roadmaps): each
-        # edge not known to collide in both directions, ordered by (from, to) as a sorted CSR matrix wants them.
-        # Per entry: from << 32 | to (the order), the edge's row, `to` (the matrix's column) and the edge's length.
-        self._search = (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0))
+        # Neighbour search (`_trees`): a k-d tree over the first `_tree_size` nodes, and one over the nodes since.
+        self._tree: cKDTree | None = None
+        self._tree_size = 0
+        self._recent: cKDTree | None = None
+        # The search's graph, kept from one search to the next so that a search only merges in the edges added
+        # (sorting every edge again cost more than the search on large roadmaps): each edge in both directions,
+        # ordered by (from, to) as a sorted CSR matrix wants them. Per entry: from << 32 | to (the order), `to` (the
+        # matrix's column) and the edge's length, infinite once the edge is known to collide (the search's
+        # matrix shares the lengths, so that what it finds colliding stays out); such entries are dropped when
+        # they are many.
+        self._search = (np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0))
         self._search_synced = 0  # edge rows merged in so far
+        self._search_dead = 0  # entries of edges known to collide still in `_search`
+        # A label per node such that nodes joined by edges not known to collide share it: different labels are
+        # certainly apart, so a search between them is not run. Edges that die later are not undone here (they
+        # would need the components counted again), but each search's tree from the start sets its component's
+        # labels exactly. A label is one of its nodes' indices.
+        self._reach = np.empty(0, np.int64)
         # Periodic axes for continuous angles, flat (0) elsewhere; the scaled embedding lives in [0, box).
         w = checker.space.weights
         self._box = np.where(checker.space.continuous, 2 * np.pi * w, 0.0)
@@ -117,10 +127,28 @@ class Roadmap:
     def neighbours(self, Q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(distances, indices) of the k nearest roadmap nodes to each row of Q (fewer columns if the map is small)."""
         k = min(k, len(self))
-        if self._tree is None:
-            self._tree = cKDTree(self._embedded, boxsize=self._box)
-        d, i = self._tree.query(self.embed(Q), k=k)
-        return np.asarray(d).reshape(len(Q), k), np.asarray(i).reshape(len(Q), k)
+        X = self.embed(Q)
+        found = [_query(tree, X, k, first) for tree, first in self._trees()]
+        if len(found) == 1:
+            return found[0]
+        d, i = np.hstack([f[0] for f in found]), np.hstack([f[1] for f in found])
+        nearest = np.argsort(d, axis=1, kind="stable")[:, :k]
+        return np.take_along_axis(d, nearest, axis=1), np.take_along_axis(i, nearest, axis=1)
+
+    def _trees(self) -> list[tuple[cKDTree, int]]:
+        """k-d trees over all the nodes, each with its first node: one over the nodes up to `_tree_size`, and one
+        over the nodes added since, rebuilt as they come. A round's few new nodes then cost a small tree, not the
+        whole roadmap's (a hard query grows a cell roadmap tenfold in a hundred rounds); the large tree is rebuilt
+        when the newer nodes are half as many as it holds, so each node is built into it a few times in all."""
+        n, size = len(self), self._tree_size
+        if self._tree is None or n - size > size // 2:
+            self._tree, self._tree_size, self._recent = cKDTree(self._embedded, boxsize=self._box), n, None
+        elif n > size and (self._recent is None or self._recent.n != n - size):
+            self._recent = cKDTree(self._embedded[size:], boxsize=self._box)
+        trees = [(self._tree, 0)]
+        if n > self._tree_size:
+            trees.append((self._recent, self._tree_size))
+        return trees
 
     # ---- building -----------------------------------------------------------------------------------------------
     def add(self, Q: np.ndarray, kind: str, connect: bool = True) -> np.ndarray:
@@ -139,7 +167,7 @@ class Roadmap:
         self._nodes.update((q.tobytes(), int(i)) for q, i in zip(wrapped, new))
         self._components.grow(len(self.Q))
         self._embedded = np.vstack([self._embedded, self.embed(Q)])
-        self._tree = None
+        self._reach = np.concatenate([self._reach, new])
         if connect:
             self.connect(new)
         return new
@@ -194,13 +222,7 @@ class Roadmap:
         """Rows for edges known to collide: out of the graph, remembered (and saved) so they are never tried again."""
         if not len(P):
             return
-        first = len(self._ends)
-        self._rows.update(zip(_key(P[:, 0], P[:, 1]).tolist(), range(first, first + len(P))))
-        self._ends = np.vstack([self._ends, P])
-        self._lengths = np.concatenate([self._lengths, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]])])
-        self._alive = np.concatenate([self._alive, np.zeros(len(P), bool)])
-        self._checked = np.concatenate([self._checked, np.ones(len(P), bool)])
-        self._progress = np.concatenate([self._progress, np.zeros(len(P), np.int64)])
+        self._append_rows(P, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]), alive=False, checked=True)
 
     def _connect_chunk(self, nodes: np.ndarray) -> int:
         P = self.candidates(nodes)
@@ -225,16 +247,43 @@ class Roadmap:
     def _add_edges(self, P: np.ndarray, checked: bool) -> None:
         """Add edges (node index pairs, smaller index first) of the given state, to the graph and the arrays."""
         lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else np.empty(0)
-        first = len(self._ends)
-        self._rows.update(zip(_key(P[:, 0], P[:, 1]).tolist(), range(first, first + len(P))))
-        self._ends = np.vstack([self._ends, P])
-        self._lengths = np.concatenate([self._lengths, lengths])
-        self._alive = np.concatenate([self._alive, np.ones(len(P), bool)])
-        self._checked = np.concatenate([self._checked, np.full(len(P), checked)])
-        self._progress = np.concatenate([self._progress, np.zeros(len(P), np.int64)])
+        self._append_rows(P, lengths, alive=True, checked=checked)
+        self._join(P)
         if checked:
             for a, b in P:
                 self._components.union(int(a), int(b))
+
+    def _set_rows(self, ends, lengths, alive, checked, progress) -> None:
+        """The edge rows, whole (as `keep_nodes` leaves them), and `_rows` to find them."""
+        self._columns = [ends, lengths, alive, checked, progress]
+        self._ends, self._lengths, self._alive, self._checked, self._progress = self._columns
+        self._rows = dict(zip(_key(ends[:, 0], ends[:, 1]).tolist(), range(len(ends))))
+
+    def _append_rows(self, P: np.ndarray, lengths: np.ndarray, alive: bool, checked: bool) -> None:
+        """New edge rows after the others, in arrays that double when full."""
+        first, last = len(self._ends), len(self._ends) + len(P)
+        if last > len(self._columns[0]):
+            size = max(2 * last, 1024)
+            self._columns = [np.resize(column, (size, *column.shape[1:])) for column in self._columns]
+        for column, new in zip(self._columns, (P, lengths, alive, checked, 0)):
+            column[first:last] = new
+        self._ends, self._lengths, self._alive, self._checked, self._progress = (c[:last] for c in self._columns)
+        self._rows.update(zip(_key(P[:, 0], P[:, 1]).tolist(), range(first, last)))
+
+    def _join(self, P: np.ndarray) -> None:
+        """Give the nodes that edges P (not known to collide) join one label: the least of their labels."""
+        if not len(P):
+            return
+        values, inverse = np.unique(self._reach[P], return_inverse=True)
+        inverse = inverse.reshape(P.shape)
+        joins = csr_matrix((np.ones(len(P), bool), (inverse[:, 0], inverse[:, 1])), shape=(len(values),) * 2)
+        count, group = connected_components(joins, directed=False)
+        least = np.full(count, len(self))
+        np.minimum.at(least, group, values)
+        if (least[group] != values).any():
+            relabel = np.arange(len(self))
+            relabel[values] = least[group]
+            self._reach = relabel[self._reach]
 
     # ---- queries ------------------------------------------------------------------------------------------------
     def edges(self, checked: bool | None = None) -> np.ndarray:
@@ -251,7 +300,8 @@ class Roadmap:
         # transposed copy an undirected count makes.
         state = (len(self), len(self._ends), int(self._alive.sum()))
         if self._labelled is None or self._labelled[0] != state:
-            self._labelled = (state, connected_components(self._search_graph(), directed=True, connection="strong"))
+            graph = self._search_graph(compact=True)
+            self._labelled = (state, connected_components(graph, directed=True, connection="strong"))
         return self._labelled[1]
 
     def connected(self, a: int, b: int) -> bool:
@@ -282,10 +332,14 @@ class Roadmap:
         targets = [int(t) for t in np.atleast_1d(b)]
         if not 0 <= a < len(self) or not any(0 <= t < len(self) for t in targets):
             return None
+        if not (self._reach[targets] == self._reach[a]).any():
+            return None
         matrix = self._search_graph()
         while True:
             dist_a, pred_a = dijkstra(matrix, indices=a, return_predecessors=True)
-            if not np.isfinite(dist_a[targets]).any():  # apart: the second tree is not needed
+            reached = np.isfinite(dist_a)
+            self._label_component(a, reached)
+            if not reached[targets].any():  # apart: the second tree is not needed
                 return None
             # The tree from the targets is a forest, one tree per target (min_only: each node under its nearest).
             dist_b, pred_b, _ = dijkstra(matrix, indices=targets, return_predecessors=True, min_only=True)
@@ -312,28 +366,37 @@ class Roadmap:
                 if self._check_path(matrix, rows, trees):
                     return nodes
 
-    def _search_graph(self) -> csr_matrix:
+    def _label_component(self, a: int, reached: np.ndarray) -> None:
+        """Node a's component is exactly `reached` (a mask): it gets a label of its own, and the rest of its label's
+        nodes another."""
+        label = self._reach[a]
+        rest = (self._reach == label) & ~reached
+        self._reach[reached] = np.argmax(reached)
+        if rest.any():
+            self._reach[rest] = np.argmax(rest)
+
+    def _search_graph(self, compact: bool = False) -> csr_matrix:
         """The edges not known to collide as a symmetric CSR matrix of their lengths, with sorted indices (`_drop`
-        looks entries up by bisection): the kept graph with the edges added since merged in and those that died
-        since dropped, both in C."""
-        n, fresh = len(self), np.arange(self._search_synced, len(self._ends))
+        looks entries up by bisection): the kept graph with the edges added since merged in, in C. Its lengths are
+        the kept ones: an edge the search drops stays dropped. compact: without entries of edges known to collide
+        (a structural count, such as components, needs that)."""
+        n, search = len(self), self._search
+        if self._search_dead > (0 if compact else len(search[0]) // 8):
+            search = tuple(column[np.isfinite(search[2])] for column in search)
+            self._search_dead = 0
+        fresh = np.arange(self._search_synced, len(self._ends))
         fresh = fresh[self._alive[fresh]]
-        search = self._search
-        keep = self._alive[search[1]]
-        if not keep.all():
-            search = tuple(column[keep] for column in search)
         if len(fresh):
             U, V = self._ends[fresh, 0].astype(np.int64), self._ends[fresh, 1].astype(np.int64)
             keys = np.concatenate([U << 32 | V, V << 32 | U])
             order = np.argsort(keys)
-            rows = np.concatenate([fresh, fresh])[order]
-            added = (keys[order], rows, (keys[order] & 0xFFFFFFFF).astype(np.int32), self._lengths[rows])
-            at = np.searchsorted(search[0], added[0])
+            keys = keys[order]
+            added = (keys, (keys & 0xFFFFFFFF).astype(np.int32), self._lengths[np.concatenate([fresh, fresh])[order]])
+            at = np.searchsorted(search[0], keys)
             search = tuple(np.insert(column, at, new) for column, new in zip(search, added))
         self._search, self._search_synced = search, len(self._ends)
         indptr = np.searchsorted(search[0], np.arange(n + 1, dtype=np.int64) << 32).astype(np.int32)
-        # The lengths are copied: the search marks the edges it finds colliding in its matrix (`_drop`).
-        matrix = csr_matrix((search[3].copy(), search[2], indptr), shape=(n, n))
+        matrix = csr_matrix((search[2], search[1], indptr), shape=(n, n), copy=False)
         matrix.has_sorted_indices = True
         return matrix
 
@@ -361,6 +424,7 @@ class Roadmap:
                 self._alive[row] = False
                 _drop(matrix, u, v)
                 _drop(matrix, v, u)
+                self._search_dead += 2
                 for tree in trees:
                     tree.cut(int(u), int(v))
         return bool(decided.all() and free.all())
@@ -370,6 +434,11 @@ class Roadmap:
         row = self._rows.get(_key(a, b))
         if row is not None and self._alive[row]:
             self._alive[row] = False
+            if row < self._search_synced:  # merged into the search's graph: out of it too
+                keys, lengths = self._search[0], self._search[2]
+                for key in (int(a) << 32 | int(b), int(b) << 32 | int(a)):
+                    lengths[np.searchsorted(keys, key)] = np.inf
+                self._search_dead += 2
             self._recount_components()
 
     def truncate(self, n: int) -> None:
@@ -385,18 +454,22 @@ class Roadmap:
         if keep.all():
             return index
         rows = keep[self._ends].all(axis=1)
-        self.Q, self._embedded, self._tree = self.Q[keep], self._embedded[keep], None
+        self.Q, self._embedded, self._tree = self.Q[keep], self._embedded[keep], None  # (`_trees` builds anew)
         self.kinds = list(itertools.compress(self.kinds, keep.tolist()))
         self._nodes = {key: int(index[i]) for key, i in self._nodes.items() if keep[i]}
-        self._ends, self._lengths = index[self._ends[rows]], self._lengths[rows]
-        self._alive, self._checked, self._progress = self._alive[rows], self._checked[rows], self._progress[rows]
-        self._rows = dict(zip(_key(self._ends[:, 0], self._ends[:, 1]).tolist(), range(len(self._ends))))
+        ends = index[self._ends[rows]]
+        self._set_rows(ends, self._lengths[rows], self._alive[rows], self._checked[rows], self._progress[rows])
         tried = np.fromiter(self._tried, np.int64, len(self._tried))
         a, b = tried >> 32, tried & 0xFFFFFFFF
         kept = keep[a] & keep[b]
         self._tried = set(_key(index[a[kept]], index[b[kept]]).tolist())
         self.proved = {(int(index[u]), int(index[v])) for u, v in self.proved if keep[u] and keep[v]}
-        self._search, self._search_synced = tuple(column[:0] for column in self._search), 0
+        self._search, self._search_synced, self._search_dead = tuple(column[:0] for column in self._search), 0, 0
+        # Each label's nodes kept stay together, under the least of them (labels may only join more than is true).
+        groups = self._reach[keep]
+        least = np.full(len(keep), len(keep))
+        np.minimum.at(least, groups, np.arange(len(groups)))
+        self._reach = least[groups]
         self._labelled = None
         self._recount_components()
         return index
@@ -457,10 +530,10 @@ class Roadmap:
         kinds = np.asarray(data["kinds"], int)
         Q = np.asarray(data["Q"], float).reshape(-1, checker.space.dim)
         graph.Q = checker.space.wrap(Q)
+        graph._reach = np.arange(len(Q))
         graph.kinds = [names[c] for c in kinds]
         graph._nodes = {q.tobytes(): i for i, q in enumerate(graph.Q)}
         graph._embedded = graph.embed(graph.Q) if len(Q) else np.empty((0, checker.space.dim))
-        graph._tree = cKDTree(graph._embedded, boxsize=graph._box) if len(Q) else None
         ends = np.asarray(data["ends"], int).reshape(-1, 2)
         alive, checked, proved = (np.asarray(data[key], bool) for key in ("alive", "checked", "proved"))
         graph._add_edges(ends[alive], checked=False)
@@ -533,6 +606,14 @@ def _key(a, b):
         return np.minimum(a, b).astype(np.int64) << 32 | np.maximum(a, b)
     a, b = int(a), int(b)
     return min(a, b) << 32 | max(a, b)
+
+
+def _query(tree: cKDTree, X: np.ndarray, k: int, first: int) -> tuple[np.ndarray, np.ndarray]:
+    """(distances, node indices) of the k nearest of a tree's points (fewer if it holds fewer), its first point
+    being node `first`."""
+    k = min(k, tree.n)
+    d, i = tree.query(X, k=k)
+    return np.asarray(d).reshape(len(X), k), np.asarray(i).reshape(len(X), k) + first
 
 
 def _drop(matrix: csr_matrix, u: int, v: int) -> None:
