@@ -50,18 +50,25 @@ def test_budget_is_spent_by_either_limit():
 
 
 def test_roadmap_neighbours_are_exact_under_the_wrapping_metric(oracles):
+    """Exact k nearest under the metric, across the +-pi seam, whether the nodes sit in one k-d tree or in the large
+    one and the one over nodes added since (nodes come in batches, asked for neighbours between them)."""
     oracle = oracles("bar")
     rng = np.random.default_rng(3)
     Q = oracle.space.uniform(rng, 600)
     Q[:100, 2:] = rng.choice([-np.pi + 1e-3, np.pi - 1e-3], size=(100, 7))  # crowd the +-pi seam
+    Q = Q[rng.permutation(len(Q))]
     roadmap = Roadmap(oracle.context())
-    roadmap.add(Q, "uniform", connect=False)
-    probes = np.vstack([oracle.space.uniform(rng, 30), Q[:20] * np.r_[1, 1, [-1] * 7]])
-    distances, indices = roadmap.neighbours(probes, 10)
-    for p, d, i in zip(probes, distances, indices):
-        truth = oracle.space.distance(p, Q)
-        assert np.allclose(np.sort(truth)[:10], d)
-        assert np.allclose(truth[i], d)
+    trees = []
+    for begin, end in ((0, 300), (300, 400), (400, 480), (480, 600)):
+        roadmap.add(Q[begin:end], "uniform", connect=False)
+        probes = np.vstack([oracle.space.uniform(rng, 30), Q[:20] * np.r_[1, 1, [-1] * 7]])
+        distances, indices = roadmap.neighbours(probes, 10)
+        trees.append(len(roadmap._trees()))
+        for p, d, i in zip(probes, distances, indices):
+            truth = oracle.space.distance(p, Q[:end])
+            assert np.allclose(np.sort(truth)[:10], d)
+            assert np.allclose(truth[i], d)
+    assert trees == [1, 2, 1, 2]  # the large tree rebuilt once the nodes since are more than half of it (480)
 
 
 def test_the_search_graph_kept_between_searches_is_the_graph_of_the_edges_not_known_to_collide(oracles):
