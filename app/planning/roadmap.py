@@ -139,7 +139,7 @@ class Roadmap:
         """k-d trees over all the nodes, each with its first node: one over the nodes up to `_tree_size`, and one
         over the nodes added since, rebuilt as they come. A round's few new nodes then cost a small tree, not the
         whole roadmap's (a hard query grows a cell roadmap tenfold in a hundred rounds); the large tree is rebuilt
-        when the newer nodes are half as many as it holds, so each node is built into it a few times in all."""
+        once the newer nodes are more than half as many as it holds, so each node is built into it a few times."""
         n, size = len(self), self._tree_size
         if self._tree is None or n - size > size // 2:
             self._tree, self._tree_size, self._recent = cKDTree(self._embedded, boxsize=self._box), n, None
