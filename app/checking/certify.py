@@ -999,7 +999,7 @@ class Certifier:
         # A configuration in contact stays None: its pieces fail at once (a bound at or below 0 could only fail them
         # by cutting them down to the floor).
         doubtful = np.unique(near_k[bounds <= 0]).tolist()
-        touching = {k for k in doubtful if self.checker.in_contact(Q[k])}
+        in_contact = {k for k in doubtful if self.checker.in_contact(Q[k])}
         # Every configuration's distances -- Drake's exact ones and our bounds below the limit -- sorted by
         # configuration, then key.
         below = bounds < limits[near_k]
@@ -1013,7 +1013,7 @@ class Certifier:
         split = np.cumsum(np.bincount(config, minlength=len(drake)))[:-1]
         parts = zip(*(np.split(array, split) for array in (keys[order], distance[order], rows[:, 0], rows[:, 1])))
         for k, ((key, _, limit, _), part) in enumerate(zip(drake, parts)):
-            if k not in touching:
+            if k not in in_contact:
                 self._cache[key] = _End(limit, *part)
 
     def _robot_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
