@@ -121,24 +121,23 @@ def test_an_edge_known_to_collide_is_never_used_or_checked_again(oracles, bar_fi
 def test_components_counted_again_after_an_edge_leaves_are_those_the_free_edges_make(oracles, bar_file):
     """The skip-connected rule's components, rebuilt in one pass after an edge leaves, partition the nodes as joining
     the remaining free edges one by one does; and later joins keep working on them."""
-    from app.planning.roadmap import _UnionFind
+    from app.planning.roadmap import _joined
 
     cell = CellRoadmap.load(bar_file, oracles("bar"))
     graph, edges = cell.graph, cell.graph.edges(checked=True)
     a, b = edges[len(edges) // 2]
     graph.remove_edge(a, b)
-    joined = _UnionFind()
-    joined.grow(len(graph.Q))
+    joined = np.arange(len(graph.Q))
     for u, v in graph.edges(checked=True).tolist():
-        joined.union(u, v)
-    recounted = graph._components
+        joined = _joined(joined, np.array([[u, v]]))
+    recounted = graph._free
     partition = {}
     for node in range(len(graph.Q)):
-        partition.setdefault(recounted.find(node), set()).add(joined.find(node))
+        partition.setdefault(recounted[node], set()).add(joined[node])
     assert all(len(roots) == 1 for roots in partition.values())
-    assert len(partition) == len({joined.find(node) for node in range(len(graph.Q))}) > 1
-    recounted.union(int(a), int(b))
-    assert recounted.same(int(a), int(b))
+    assert len(partition) == len(set(joined.tolist())) > 1
+    later = _joined(recounted, np.array([[a, b]]))
+    assert later[a] == later[b]
 
 
 def test_any_of_several_goals_may_be_reached_and_bad_ones_are_left_out(oracles, bar_file):

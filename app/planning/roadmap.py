@@ -67,7 +67,8 @@ class Roadmap:
         # k-nearest edge is checked, a denser graph with shorter raw paths for many more collision checks.
         self.skip_connected = skip_connected
         self.chunk = max(1, int(chunk))
-        self._components = _UnionFind()
+        # That rule's components: a label per node, shared by the nodes edges decided free join (see `_joined`).
+        self._free = np.empty(0, np.int64)
         self.resolution = resolution or checker.space.resolution
         self.Q = np.empty((0, checker.space.dim))
         self.kinds: list[str] = []
@@ -99,10 +100,10 @@ class Roadmap:
         self._search = (np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0))
         self._search_synced = 0  # edge rows merged in so far
         self._search_dead = 0  # entries of edges known to collide still in `_search`
-        # A label per node such that nodes joined by edges not known to collide share it: different labels are
-        # certainly apart, so a search between them is not run. Edges that die later are not undone here (they
-        # would need the components counted again), but each search's tree from the start sets its component's
-        # labels exactly. A label is one of its nodes' indices.
+        # A label per node such that nodes joined by edges not known to collide share it (`_joined`): different
+        # labels are certainly apart, so a search between them is not run. Edges that die later are not undone here
+        # (they would need the components counted again), but each search's tree from the start sets its
+        # component's labels exactly.
         self._reach = np.empty(0, np.int64)
         # Periodic axes for continuous angles, flat (0) elsewhere; the scaled embedding lives in [0, box).
         w = checker.space.weights
@@ -165,7 +166,7 @@ class Roadmap:
         self.Q = np.vstack([self.Q, wrapped])
         self.kinds.extend([kind] * len(Q))
         self._nodes.update((q.tobytes(), int(i)) for q, i in zip(wrapped, new))
-        self._components.grow(len(self.Q))
+        self._free = np.concatenate([self._free, new])
         self._embedded = np.vstack([self._embedded, self.embed(Q)])
         self._reach = np.concatenate([self._reach, new])
         if connect:
@@ -205,8 +206,7 @@ class Roadmap:
         P, keys = P[first], keys[first].tolist()
         new = np.array([key not in self._tried for key in keys], bool)
         if self.skip_connected and not self.lazy:
-            same = self._components.same
-            new &= np.array([not same(u, v) for u, v in P.tolist()], bool)
+            new &= self._free[P[:, 0]] != self._free[P[:, 1]]
         self._tried.update(itertools.compress(keys, new))
         return P[new].reshape(-1, 2)
 
@@ -248,10 +248,9 @@ class Roadmap:
         """Add edges (node index pairs, smaller index first) of the given state, to the graph and the arrays."""
         lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else np.empty(0)
         self._append_rows(P, lengths, alive=True, checked=checked)
-        self._join(P)
+        self._reach = _joined(self._reach, P)
         if checked:
-            for a, b in P:
-                self._components.union(int(a), int(b))
+            self._free = _joined(self._free, P)
 
     def _set_rows(self, ends, lengths, alive, checked, progress) -> None:
         """The edge rows, whole (as `keep_nodes` leaves them), and `_rows` to find them."""
@@ -269,21 +268,6 @@ class Roadmap:
             column[first:last] = new
         self._ends, self._lengths, self._alive, self._checked, self._progress = (c[:last] for c in self._columns)
         self._rows.update(zip(_key(P[:, 0], P[:, 1]).tolist(), range(first, last)))
-
-    def _join(self, P: np.ndarray) -> None:
-        """Give the nodes that edges P (not known to collide) join one label: the least of their labels."""
-        if not len(P):
-            return
-        values, inverse = np.unique(self._reach[P], return_inverse=True)
-        inverse = inverse.reshape(P.shape)
-        joins = csr_matrix((np.ones(len(P), bool), (inverse[:, 0], inverse[:, 1])), shape=(len(values),) * 2)
-        count, group = connected_components(joins, directed=False)
-        least = np.full(count, len(self))
-        np.minimum.at(least, group, values)
-        if (least[group] != values).any():
-            relabel = np.arange(len(self))
-            relabel[values] = least[group]
-            self._reach = relabel[self._reach]
 
     # ---- queries ------------------------------------------------------------------------------------------------
     def edges(self, checked: bool | None = None) -> np.ndarray:
@@ -482,13 +466,13 @@ class Roadmap:
 
     def _recount_components(self) -> None:
         """The skip-connected rule's components from scratch, from the edges decided free: after edges or nodes
-        left, which union-find cannot undo."""
+        left, which joining labels cannot undo."""
         n, ends = len(self.Q), self._ends[self._alive & self._checked]
         graph = csr_matrix((np.ones(len(ends), bool), (ends[:, 0], ends[:, 1])), shape=(n, n))
         count, labels = connected_components(graph, directed=False)
-        roots = np.full(count, n)
-        np.minimum.at(roots, labels, np.arange(n))  # each component's least node is its root, as union() keeps it
-        self._components = _UnionFind(roots[labels].tolist())
+        least = np.full(count, n)
+        np.minimum.at(least, labels, np.arange(n))  # each component's least node is its label, as `_joined` keeps it
+        self._free = least[labels]
 
     def edge_pairs(self, P: np.ndarray) -> list[tuple[int, int] | None]:
         """For each straight segment of the polyline P, the roadmap edge (node pair, smaller first) not known to
@@ -623,26 +607,19 @@ def _drop(matrix: csr_matrix, u: int, v: int) -> None:
     matrix.data[k] = np.inf
 
 
-class _UnionFind:
-    """Connected components under edge insertion, for the skip-connected rule."""
-
-    def __init__(self, parent: list[int] | None = None):
-        self.parent: list[int] = parent if parent is not None else []
-
-    def grow(self, n: int) -> None:
-        self.parent.extend(range(len(self.parent), n))
-
-    def find(self, a: int) -> int:
-        parent = self.parent
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    def union(self, a: int, b: int) -> None:
-        ra, rb = self.find(a), self.find(b)
-        if ra != rb:
-            self.parent[max(ra, rb)] = min(ra, rb)
-
-    def same(self, a: int, b: int) -> bool:
-        return self.find(a) == self.find(b)
+def _joined(labels: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Component labels (one per node, each the index of one of its component's nodes) after the edges P (node
+    index pairs) join their components: each joined group under the least of its labels."""
+    if not len(P):
+        return labels
+    values, inverse = np.unique(labels[P], return_inverse=True)
+    inverse = inverse.reshape(P.shape)
+    joins = csr_matrix((np.ones(len(P), bool), (inverse[:, 0], inverse[:, 1])), shape=(len(values),) * 2)
+    count, group = connected_components(joins, directed=False)
+    least = np.full(count, len(labels))
+    np.minimum.at(least, group, values)
+    if (least[group] == values).all():
+        return labels
+    relabel = np.arange(len(labels))
+    relabel[values] = least[group]
+    return relabel[labels]
