@@ -556,7 +556,16 @@ class _Tree:
 
     def __init__(self, pred: np.ndarray):
         self.pred = pred
-        self._up = np.where(pred >= 0, pred, np.arange(len(pred)))  # the root (and nodes off the tree): themselves
+        # Each node's ancestor 1, 2, 4... levels up (the root, and nodes off the tree, are their own), to the table
+        # where every node has reached its root: a cut marks the subtree below it in that many fancy-index steps.
+        up = np.where(pred >= 0, pred, np.arange(len(pred)))
+        self._ups = [up]
+        while True:
+            higher = up[up]
+            if np.array_equal(higher, up):
+                break
+            self._ups.append(higher)
+            up = higher
         self._cut = np.zeros(len(pred), bool)  # the edge from a node to its parent is gone
         self.dead = self._cut.copy()  # a node's tree path to the root has lost an edge
 
@@ -573,14 +582,10 @@ class _Tree:
         if child is None:
             return
         self._cut[child] = True
-        # Pointer doubling: after k rounds a node has looked at the 2^k edges above it (a few rounds in all).
-        dead, up = self._cut.copy(), self._up
-        while True:
+        # Pointer doubling: after the step with the 2^k-th ancestors a node has looked at the 2^(k+1) - 1 edges above.
+        dead = self._cut.copy()
+        for up in self._ups:
             dead |= dead[up]
-            higher = up[up]
-            if np.array_equal(higher, up):
-                break
-            up = higher
         self.dead = dead
 
 
