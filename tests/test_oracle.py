@@ -188,48 +188,123 @@ def test_every_shipped_scene_is_listed():
     assert set(SAMPLING_SCENES) <= set(scene_names())
 
 
-def test_both_batch_paths_give_the_same_answers_and_the_cheaper_is_chosen():
+def test_every_batch_path_gives_the_same_answers_and_the_cheapest_is_chosen():
     from app.checking.oracle import CollisionOracle
     from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar"), threads=2)
+    assert oracle.start_helpers()
     Q = oracle.space.uniform(np.random.default_rng(5), 400)
+    choice = oracle.paths_for(len(Q))
+    assert set(choice.cost) == {"batch", "raw", "split"}
     answers = {}
-    for path in ("batch", "raw"):
-        oracle._cost = {"batch": None, "raw": None}
-        oracle._cost["raw" if path == "batch" else "batch"] = 1.0  # the other path looks dear: this one is taken
+    for path in choice.cost:
+        choice.cost = dict.fromkeys(choice.cost, 1.0)
+        choice.cost[path] = None  # not measured yet: this one is taken
         answers[path] = oracle.free_batch(Q)
-    assert np.array_equal(answers["batch"], answers["raw"])
-    oracle._cost = {"batch": 5e-6, "raw": 2e-5}
-    oracle._batch_calls, oracle._next_probe, oracle._probe_wait = 1, 16, 16
-    assert oracle._choose_path() == "batch"
-    oracle._cost = {"batch": 9e-5, "raw": 2e-5}
-    assert oracle._choose_path() == "raw"
+        assert choice.cost[path] < 1.0  # and measured
+    assert 0 < answers["raw"].sum() < len(Q)
+    assert np.array_equal(answers["batch"], answers["raw"]) and np.array_equal(answers["split"], answers["raw"])
+    choice.cost, choice.calls, choice.next_probe = {"batch": 5e-6, "raw": 2e-5, "split": 1e-5}, 1, 16
+    assert choice.choose() == "batch"
+    choice.cost = {"batch": 9e-5, "raw": 2e-5, "split": 1e-5}
+    assert choice.choose() == "split"
+    assert oracle.paths_for(8) is not choice and set(oracle.paths_for(8).cost) == {"batch", "raw"}  # too small to split
 
 
-def test_a_path_found_dearer_again_is_probed_less_often():
-    from app.checking.oracle import CollisionOracle
-    from app.scene.model import Scene
+def test_a_path_found_dearer_again_is_probed_less_often_and_probes_take_turns():
+    from app.checking.oracle import _Paths
 
-    oracle = CollisionOracle(Scene("bar"), threads=2)
-    oracle._cost = {"batch": 9e-5, "raw": 2e-5}
+    choice = _Paths(("batch", "raw"))
+    choice.cost = {"batch": 9e-5, "raw": 2e-5}
     probes = []
     for _ in range(200):
-        path = oracle._choose_path()
+        path = choice.choose()
         if path == "batch":
-            probes.append(oracle._batch_calls)
-            oracle._cost["batch"] = 8e-5  # measured dearer again
-        if oracle._batch_calls == oracle._next_probe:
-            oracle._settle_probe(path)
+            probes.append(choice.calls)
+        choice.measured(path, 8e-5 if path == "batch" else 2e-5)  # batch measured dearer again
     assert probes == [16, 48, 112]  # waits of 32, then 64
-    oracle._cost = {"batch": 9e-5, "raw": 2e-5}
+    choice.cost = {"batch": 9e-5, "raw": 2e-5}
     path = None
     while path != "batch":
-        path = oracle._choose_path()
-    oracle._cost["batch"] = 1e-5  # the probe finds batch cheaper now: it is chosen, and probing starts over
-    oracle._settle_probe(path)
-    assert oracle._choose_path() == "batch"
-    assert oracle._next_probe == oracle._batch_calls - 1 + 16
+        path = choice.choose()
+    choice.cost["batch"] = None  # (forget its old cost)
+    choice.measured(path, 1e-6)  # the probe finds batch cheaper now: it is chosen, and probing starts over
+    assert choice.choose() == "batch"
+    assert choice.next_probe == choice.calls - 1 + 16
+    three = _Paths(("batch", "raw", "split"))
+    three.cost = {"batch": 9e-5, "raw": 2e-5, "split": 1e-5}
+    probed = []
+    for _ in range(200):
+        path = three.choose()
+        if path != "split":
+            probed.append(path)
+        three.measured(path, three.cost[path])
+    assert probed[:2] in (["raw", "batch"], ["batch", "raw"])  # each other path in turn
+
+
+def test_helpers_start_after_half_a_second_of_large_batches_and_a_lost_one_is_answered_for(monkeypatch):
+    import app.checking.oracle as module
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
+
+    oracle = CollisionOracle(Scene("bar"), threads=2)
+    Q = oracle.space.uniform(np.random.default_rng(6), 64)
+    truth = oracle.free_batch(Q[:15])
+    assert oracle._helpers.state == "idle"  # small batches never start them
+    monkeypatch.setattr(module, "_HELPERS_AFTER", 0.0)
+    expected = CollisionOracle(Scene("bar"), threads=1).free_batch(Q)
+    assert np.array_equal(oracle.free_batch(Q), expected) and np.array_equal(truth, expected[:15])
+    assert oracle._helpers.state == "starting"
+    oracle._helpers.wait()
+    choice = oracle.paths_for(len(Q))
+    oracle.free_batch(Q)  # the split path joins the choices once the helpers are ready
+    assert "split" in choice.cost
+    for process in oracle._helpers._processes:
+        process.kill()
+        process.wait()
+    choice.cost = {"batch": 1.0, "raw": 1.0, "split": None}
+    assert np.array_equal(oracle.free_batch(Q), expected)  # the lost helper's part is answered here
+    assert oracle._helpers.state == "failed"
+    oracle.free_batch(Q)
+    assert "split" not in choice.cost
+
+
+def test_a_helper_that_cannot_load_the_scene_leaves_the_oracle_answering_alone(tmp_path):
+    import functools
+
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
+
+    oracle = CollisionOracle(Scene("bar"), threads=2)
+    oracle._helpers._recipe = functools.partial(Scene, str(tmp_path / "gone.yaml"))  # a scene no helper can load
+    assert not oracle.start_helpers()
+    assert oracle._helpers.state == "failed"
+    Q = oracle.space.uniform(np.random.default_rng(7), 64)
+    assert "split" not in oracle.paths_for(len(Q)).cost
+    assert np.array_equal(oracle.free_batch(Q), CollisionOracle(Scene("bar"), threads=1).free_batch(Q))
+
+
+def test_helpers_do_not_run_the_users_script_again(tmp_path):
+    """A script without a __main__ guard (as most pydrake scripts are) plans with helpers: it runs once."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "script.py"
+    script.write_text(
+        "import numpy as np\n"
+        "from app.checking.oracle import CollisionOracle\n"
+        "from app.scene.model import Scene\n"
+        "print('run', flush=True)\n"
+        "oracle = CollisionOracle(Scene('bar'), threads=2)\n"
+        "print('ready', oracle.start_helpers(), flush=True)\n"
+        "print('free', int(oracle.free_batch(oracle.space.uniform(np.random.default_rng(0), 100)).sum()))\n"
+    )
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.split("\n")
+    assert lines.count("run") == 1 and "ready True" in lines
+    assert done.stderr == ""
 
 
 def test_two_contexts_on_one_oracle_keep_their_own_counts_and_budgets(oracles):

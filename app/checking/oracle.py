@@ -1,18 +1,21 @@
 """The collision oracle: the one object samplers and planners talk to. It owns every Drake query and counts them.
 
-Two Drake paths (their costs per configuration are measured by `python -m app bench oracle`):
+Three paths for a batch (their costs per configuration are measured by `python -m app bench oracle`):
 - raw SceneGraph `QueryObject.HasCollisions` from a Python loop: the same cost free or not; always used for one
   configuration (`CheckConfigCollisionFree` computes distances and costs several times more);
-- `SceneGraphCollisionChecker.CheckConfigsCollisionFree`, whose C++ loop spreads a batch over threads (pydrake
-  holds the GIL in `HasCollisions`, so Python threads cannot parallelise the raw path). It is cheaper than the raw
-  loop per *free* configuration but dearer per *colliding* one (it computes signed distances of penetrating
-  pairs), and it suffers most when other processes hold the cores.
+- `SceneGraphCollisionChecker.CheckConfigsCollisionFree`, whose C++ loop spreads a batch over threads. It is cheaper
+  than the raw loop per *free* configuration but dearer per *colliding* one (it computes signed distances of
+  penetrating pairs), and it suffers most when other processes hold the cores;
+- split: the raw loop here on part of the batch while helper processes, each with its own oracle of the scene, run
+  it on the rest (`_Helpers`). pydrake holds the GIL in `HasCollisions`, so threads cannot parallelise the raw loop;
+  processes can. The helpers start once large batches have taken about half a second (`_HELPERS_AFTER`), so a short
+  run never pays for them.
 So no fixed choice fits both a walker's batches (mostly colliding proposals) and a roadmap's edge points (mostly
-free): `are_free` keeps a running cost per configuration for each path, takes the cheaper, and re-measures the
-other now and then, so it follows the caller's phase and the machine's load. Both paths give the same answers.
+free): `are_free` keeps a running cost per configuration for each path, takes the cheapest, and re-measures the
+others now and then, so it follows the caller's phase and the machine's load. Every path gives the same answers.
 Edge checks (`first_hits`) take the raw loop: their points come in coarse-to-fine order, and an edge's points after
 its first collision are skipped, which a batch cannot do.
-Both see the same collision pairs: the scene's policy is applied to the checker (body pairs) and to the raw
+Every path sees the same collision pairs: the scene's policy is applied to the checker (body pairs) and to the raw
 query context (geometry filter), and a test holds them to agreement. An SRDF's disabled pairs need neither: the
 Scene filters them on the SceneGraph model, which the checker and every context start from.
 
@@ -45,6 +48,12 @@ from app.scene.model import Scene
 CONTACT = 1e-9
 # Below this many configurations the checker's batch set-up costs more than the raw loop saves.
 _BATCH_MIN = 8
+# Batches of at least this many configurations may be split with helper processes; below it the pipe's round trip
+# costs more than the half batch saves.
+_SPLIT_MIN = 16
+# Helper processes start once such batches have taken this many seconds: a short run never pays for their start
+# (about half a second of the other core, more for a scene's first mesh decomposition), a long one gets every core.
+_HELPERS_AFTER = 0.5
 # Batch calls before the path not in favour is measured again: at first 16; each time it is found dearer still, twice
 # as many, up to 1024. On the UR3 scenes the checker's batch costs 4x the raw loop per configuration (it lists every
 # penetrating pair where HasCollisions stops at the first), and a probe every 16 calls spent a third of a welding
@@ -69,10 +78,11 @@ class CollisionOracle:
         self._positions = scene.positions  # configurations -> the plant's positions (mimic joints follow)
         self.threads = threads or default_threads()
         self._parallelism = Parallelism(self.threads)
-        self._cost = {"batch": None, "raw": None}  # running seconds per configuration of each are_free path
-        self._batch_calls = 0
-        self._probe_wait = _PROBE_FIRST  # batch calls from one probe to the next
-        self._next_probe = _PROBE_FIRST  # the batch call that probes
+        # Which batch path to take, per size class of batch (`_Paths`): a split's round trip and the checker's batch
+        # set-up are costs per call, so a path's cost per configuration depends on the batch's size.
+        self._paths: dict[int, _Paths] = {}
+        self._helpers = _Helpers(scene.recipe, self.threads - 1) if self.threads > 1 else None
+        self._split_seconds = 0.0  # spent on batches large enough to split, until the helpers start
         self._lock = threading.RLock()  # held by every query on the shared Drake contexts
         # Configurations answered for every query since the oracle was made: for a progress display that watches
         # the oracle from another thread. A query's own count is its context's `checks`.
@@ -188,7 +198,8 @@ class CollisionOracle:
             return free
 
     def free_batch(self, Q: np.ndarray) -> np.ndarray:
-        """Free flags for configurations (n, dim), all within bounds, by the cheaper of the two Drake paths."""
+        """Free flags for configurations (n, dim), all within bounds, by the cheapest path so far (module
+        docstring)."""
         Q = np.atleast_2d(np.asarray(Q, float))
         free = np.zeros(len(Q), bool)
         if not len(Q):
@@ -196,43 +207,62 @@ class CollisionOracle:
         with self._lock:
             self.answered += len(Q)
             if self.threads == 1 or len(Q) < _BATCH_MIN:
-                path = "raw"
+                path, choice = "raw", None
             else:
-                path = self._choose_path()
+                self._follow_helpers()
+                choice = self.paths_for(len(Q))
+                path = choice.choose()
             start = time.perf_counter()
             if path == "raw":
                 free = self._raw_free(Q)
+            elif path == "split":
+                free = self._helpers.free(Q, self._raw_free)
             else:
                 free[:] = self.checker.CheckConfigsCollisionFree(
                     list(self._positions(Q)), parallelize=self._parallelism
                 )
             spent = time.perf_counter() - start
             self.seconds["checks"] += spent
-            if len(Q) >= _BATCH_MIN:
-                cost = spent / len(Q)
-                old = self._cost[path]
-                self._cost[path] = cost if old is None else 0.7 * old + 0.3 * cost
-                if self._batch_calls == self._next_probe:
-                    self._settle_probe(path)
+            if len(Q) >= _SPLIT_MIN and self._helpers is not None and self._helpers.state == "idle":
+                self._split_seconds += spent
+                if self._split_seconds >= _HELPERS_AFTER:
+                    self._helpers.start()
+            if choice is not None:
+                choice.measured(path, spent / len(Q))
         return free
 
-    def _choose_path(self) -> str:
-        """The batch path with the lower running cost per configuration; each is tried first, and the other one
-        is measured again at the probe's call (see _PROBE_FIRST)."""
-        self._batch_calls += 1
-        for path, cost in self._cost.items():
-            if cost is None:
-                return path
-        best = min(self._cost, key=self._cost.get)
-        if self._batch_calls == self._next_probe:
-            return "batch" if best == "raw" else "raw"
-        return best
+    def paths_for(self, n: int) -> _Paths:
+        """The path choice for batches of n configurations (n >= _BATCH_MIN): one per power of two up to 4096."""
+        size = min(n.bit_length(), 13)
+        if size not in self._paths:
+            split = self._helpers is not None and self._helpers.state == "ready" and _splits(size)
+            self._paths[size] = _Paths(("batch", "raw", "split") if split else ("batch", "raw"))
+        return self._paths[size]
 
-    def _settle_probe(self, probed: str) -> None:
-        """After a probe of `probed`: wait twice as long for the next one if it is still the dearer path."""
-        dearer = self._cost[probed] > min(self._cost.values())
-        self._probe_wait = min(2 * self._probe_wait, _PROBE_MAX) if dearer else _PROBE_FIRST
-        self._next_probe = self._batch_calls + self._probe_wait
+    def start_helpers(self) -> bool:
+        """Start the helper processes now, not after half a second of batches, and wait until they are ready (or have
+        failed: the oracle then answers alone). Whether they are ready."""
+        if self._helpers is None:
+            return False
+        with self._lock:
+            if self._helpers.state == "idle":
+                self._helpers.start()
+            self._helpers.wait()
+            self._follow_helpers()
+            return self._helpers.state == "ready"
+
+    def _follow_helpers(self) -> None:
+        """The split path joins the choices of batches large enough once the helpers are ready, and leaves them if a
+        helper has failed since."""
+        if self._helpers is None or self._helpers.state not in ("starting", "ready", "failed"):
+            return
+        if self._helpers.ready():
+            for size, choice in self._paths.items():
+                if _splits(size):
+                    choice.cost.setdefault("split", None)
+        else:
+            for choice in self._paths.values():
+                choice.cost.pop("split", None)
 
     # ---- geometry (not counted: these are measurements, not collision answers) ------------------------------
     def clearance(self, q: np.ndarray, max_distance: float = 10.0) -> float:
@@ -506,3 +536,170 @@ def half_extent(shape, rotation: np.ndarray) -> np.ndarray:
         points = hull_vertices(shape) @ rotation.T
         return np.abs(points).max(axis=0)
     return np.zeros(3)
+
+
+def _splits(size: int) -> bool:
+    """Whether batches of a size class (n.bit_length() == size) are large enough to split."""
+    return 1 << (size - 1) >= _SPLIT_MIN
+
+
+class _Paths:
+    """The running cost per configuration of each batch path, for one size class of batch, and which path to take:
+    the cheapest so far; each is tried first, and the others are measured again in turn at the probe's calls (see
+    _PROBE_FIRST)."""
+
+    def __init__(self, paths):
+        self.cost: dict[str, float | None] = dict.fromkeys(paths)
+        self.calls = 0
+        self.probes = 0
+        self.probe_wait = _PROBE_FIRST  # calls from one probe to the next
+        self.next_probe = _PROBE_FIRST  # the call that probes
+
+    def choose(self) -> str:
+        self.calls += 1
+        for path, cost in self.cost.items():
+            if cost is None:
+                return path
+        best = min(self.cost, key=self.cost.get)
+        if self.calls == self.next_probe:
+            others = [path for path in self.cost if path != best]
+            self.probes += 1
+            return others[self.probes % len(others)]
+        return best
+
+    def measured(self, path: str, cost: float) -> None:
+        """A call on `path` cost `cost` seconds per configuration. After a probe: wait twice as long for the next one
+        if the probed path is still the dearer, else start probing over."""
+        old = self.cost.get(path)
+        self.cost[path] = cost if old is None else 0.7 * old + 0.3 * cost
+        if self.calls == self.next_probe:
+            dearer = self.cost[path] > min(self.cost.values())
+            self.probe_wait = min(2 * self.probe_wait, _PROBE_MAX) if dearer else _PROBE_FIRST
+            self.next_probe = self.calls + self.probe_wait
+
+
+class _Helpers:
+    """Processes, each with its own oracle of the same scene (`Scene.recipe`), that answer part of a batch by the raw
+    loop while this process answers the rest: the raw loop's way onto more cores. Threads cannot share it (pydrake
+    holds the GIL in HasCollisions), and Drake's threaded batch asks for signed distances
+    (SceneGraphCollisionChecker's DoCheckContextConfigCollisionFree), which cost several times HasCollisions on mesh
+    robots. They start in the background and are used once all are ready; one that fails (or dies) is given up, and
+    this process answers alone. Their answers are the raw loop's, so the split changes no answer, only the time."""
+
+    def __init__(self, recipe, count: int):
+        self._recipe, self._count = recipe, count
+        self._pipes: list = []
+        self._processes: list = []
+        self.state = "idle"  # then "starting", then "ready" or "failed"
+
+    def start(self) -> None:
+        import pickle
+        import socket
+        import subprocess
+        import sys
+        import weakref
+        from multiprocessing.connection import Connection
+
+        # A fresh interpreter, not multiprocessing's spawn: spawn runs the user's main script again in the child,
+        # which a script without a `__main__` guard (most pydrake scripts) cannot survive. Its own session keeps a
+        # terminal's Ctrl-C for the parent; a closed pipe (the parent gone) ends it.
+        try:
+            for _ in range(self._count):
+                ours, theirs = socket.socketpair()
+                self._processes.append(
+                    subprocess.Popen(
+                        [sys.executable, "-c", f"from app.checking.oracle import _serve; _serve({theirs.fileno()})"],
+                        pass_fds=(theirs.fileno(),),
+                        stdin=subprocess.DEVNULL,
+                        stdout=subprocess.DEVNULL,
+                        stderr=subprocess.DEVNULL,
+                        env={**os.environ, "PYTHONPATH": os.pathsep.join(path for path in sys.path if path)},
+                        start_new_session=True,
+                    )
+                )
+                theirs.close()
+                self._pipes.append(Connection(ours.detach()))
+                self._pipes[-1].send_bytes(pickle.dumps(self._recipe))
+        except (OSError, pickle.PicklingError):  # no processes to be had here, or a scene without a recipe
+            self.state = "failed"
+        else:
+            self.state = "starting"
+        weakref.finalize(self, _stop, list(self._pipes), list(self._processes))
+
+    def ready(self) -> bool:
+        """Whether every helper has said it is ready (without waiting)."""
+        if self.state == "starting" and all(pipe.poll() for pipe in self._pipes):
+            self.wait()
+        return self.state == "ready"
+
+    def wait(self) -> None:
+        """Wait until every helper is ready or one has failed."""
+        if self.state != "starting":
+            return
+        try:
+            ok = all(pipe.recv_bytes() == b"ready" for pipe in self._pipes)
+        except (EOFError, OSError):
+            ok = False
+        self.state = "ready" if ok else "failed"
+        if not ok:
+            self._close()
+
+    def free(self, Q: np.ndarray, raw_free) -> np.ndarray:
+        """Free flags of Q (n, dim): the first part by raw_free here, the others in the helpers at the same time. A
+        helper found gone has its part answered here, and the helpers are given up."""
+        parts = np.array_split(np.arange(len(Q)), len(self._pipes) + 1)
+        sent = []
+        for pipe, part in zip(self._pipes, parts[1:]):
+            try:
+                pipe.send_bytes(np.ascontiguousarray(Q[part]).tobytes())
+                sent.append(True)
+            except OSError:
+                sent.append(False)
+        free = np.empty(len(Q), bool)
+        free[parts[0]] = raw_free(Q[parts[0]])
+        for pipe, part, ok in zip(self._pipes, parts[1:], sent):
+            try:
+                if not ok:
+                    raise EOFError
+                free[part] = np.frombuffer(pipe.recv_bytes(), bool)
+            except (EOFError, OSError, ValueError):
+                self.state = "failed"
+                free[part] = raw_free(Q[part])
+        if self.state == "failed":
+            self._close()
+        return free
+
+    def _close(self) -> None:
+        for pipe in self._pipes:
+            pipe.close()
+        self._pipes = []
+
+
+def _stop(pipes: list, processes: list) -> None:
+    """End the helpers: a closed pipe ends a helper's loop; one that does not end within a second is killed."""
+    import subprocess
+
+    for pipe in pipes:
+        pipe.close()
+    for process in processes:
+        try:
+            process.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            process.kill()
+
+
+def _serve(fd: int) -> None:
+    """A helper's loop on the pipe at file descriptor fd: the scene's recipe first, then configurations in and free
+    flags out, until the pipe closes."""
+    import pickle
+    from multiprocessing.connection import Connection
+
+    pipe = Connection(fd)
+    try:
+        oracle = CollisionOracle(pickle.loads(pipe.recv_bytes())(), threads=1)
+        pipe.send_bytes(b"ready")
+        while True:
+            Q = np.frombuffer(pipe.recv_bytes()).reshape(-1, oracle.space.dim)
+            pipe.send_bytes(oracle._raw_free(Q).tobytes())
+    except Exception:  # the pipe closed, or the scene did not load here: the parent answers alone
+        return
