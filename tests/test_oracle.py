@@ -285,6 +285,34 @@ def test_a_helper_that_cannot_load_the_scene_leaves_the_oracle_answering_alone(t
     assert np.array_equal(oracle.free_batch(Q), CollisionOracle(Scene("bar"), threads=1).free_batch(Q))
 
 
+def test_helpers_that_load_another_scene_are_never_used(tmp_path):
+    """A helper loads the scene anew from its files: one changed since (here every obstacle moved away) must not
+    answer for this oracle."""
+    import functools
+    import re
+
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import SCENES_DIR, Scene
+
+    def far(match):
+        numbers = match.group(1).split()
+        return f"<pose>{float(numbers[0]) + 1000} {' '.join(numbers[1:])}</pose>"
+
+    (tmp_path / "obstacles.sdf").write_text(
+        re.sub(r"<pose>([^<]+)</pose>", far, (SCENES_DIR / "bar_obstacles.sdf").read_text())
+    )
+    dmd = (SCENES_DIR / "bar.dmd.yaml").read_text()
+    (tmp_path / "bar.dmd.yaml").write_text(
+        dmd.replace("package://npp_scenes/bar_obstacles.sdf", f"file://{tmp_path}/obstacles.sdf")
+    )
+    (tmp_path / "bar.yaml").write_text((SCENES_DIR / "bar.yaml").read_text())
+    oracle = CollisionOracle(Scene("bar"), threads=2)
+    oracle._helpers._recipe = functools.partial(Scene, str(tmp_path / "bar.yaml"))
+    assert not oracle.start_helpers()
+    assert oracle._helpers.state == "failed"
+    assert "split" not in oracle.paths_for(64).cost
+
+
 def test_helpers_do_not_run_the_users_script_again(tmp_path):
     """A script without a __main__ guard (as most pydrake scripts are) plans with helpers: it runs once."""
     import subprocess

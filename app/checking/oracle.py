@@ -51,6 +51,8 @@ _BATCH_MIN = 8
 # Batches of at least this many configurations may be split with helper processes; below it the pipe's round trip
 # costs more than the half batch saves.
 _SPLIT_MIN = 16
+# Configurations the helpers must answer as this process does before they are used (uniform, uncounted).
+_PROBE_BATCH = 64
 # Helper processes start once such batches have taken this many seconds: a short run never pays for their start
 # (about half a second of the other core, more for a scene's first mesh decomposition), a long one gets every core.
 _HELPERS_AFTER = 0.5
@@ -252,11 +254,18 @@ class CollisionOracle:
             return self._helpers.state == "ready"
 
     def _follow_helpers(self) -> None:
-        """The split path joins the choices of batches large enough once the helpers are ready, and leaves them if a
-        helper has failed since."""
-        if self._helpers is None or self._helpers.state not in ("starting", "ready", "failed"):
+        """The split path joins the choices of batches large enough once the helpers are ready and answer a probe
+        batch as this process does (they load the scene anew: a scene file changed since must not split answers
+        between two scenes); it leaves them if a helper has failed since."""
+        helpers = self._helpers
+        if helpers is None or helpers.state == "idle":
             return
-        if self._helpers.ready():
+        if helpers.ready() and not helpers.checked:
+            helpers.checked = True
+            probe = self.space.uniform(np.random.default_rng(0), _PROBE_BATCH)
+            if not np.array_equal(helpers.free(probe, self._raw_free), self._raw_free(probe)):
+                helpers.give_up()
+        if helpers.state == "ready":
             for size, choice in self._paths.items():
                 if _splits(size):
                     choice.cost.setdefault("split", None)
@@ -591,6 +600,7 @@ class _Helpers:
         self._pipes: list = []
         self._processes: list = []
         self.state = "idle"  # then "starting", then "ready" or "failed"
+        self.checked = False  # the oracle has held the ready helpers' answers to its own
 
     def start(self) -> None:
         import pickle
@@ -640,9 +650,10 @@ class _Helpers:
             ok = all(pipe.recv_bytes() == b"ready" for pipe in self._pipes)
         except (EOFError, OSError):
             ok = False
-        self.state = "ready" if ok else "failed"
-        if not ok:
-            self._close()
+        if ok:
+            self.state = "ready"
+        else:
+            self.give_up()
 
     def free(self, Q: np.ndarray, raw_free) -> np.ndarray:
         """Free flags of Q (n, dim): the first part by raw_free here, the others in the helpers at the same time. A
@@ -666,10 +677,12 @@ class _Helpers:
                 self.state = "failed"
                 free[part] = raw_free(Q[part])
         if self.state == "failed":
-            self._close()
+            self.give_up()
         return free
 
-    def _close(self) -> None:
+    def give_up(self) -> None:
+        """Never use the helpers again: their pipes close, which ends them."""
+        self.state = "failed"
         for pipe in self._pipes:
             pipe.close()
         self._pipes = []
