@@ -152,10 +152,25 @@ def test_any_of_several_goals_may_be_reached_and_bad_ones_are_left_out(oracles, 
     assert np.allclose(oracle.space.difference(result.path[-1], result.goal), 0)
 
 
-def test_a_roadmap_is_the_same_built_on_one_process_or_two(oracles):
+def test_a_roadmap_is_the_same_built_on_one_process_or_two(oracles, monkeypatch):
+    import app.checking.oracle as module
+
     oracle = oracles("bar")
-    one = CellRoadmap.build(oracle, SMALL, workers=1).graph.arrays()
-    two = CellRoadmap.build(oracle, SMALL, workers=2).graph.arrays()
+    one = CellRoadmap.build(oracle, SMALL, workers=1)
+    shared = []  # the helper's share of each round's edges: (edges, checks)
+    spread = module._Helpers.edges_free
+
+    def counted(self, Q1, Q2, resolution, here):
+        mine = []
+        free, checks = spread(self, Q1, Q2, resolution, lambda A, B: mine.append(len(A)) or here(A, B))
+        shared.append((len(Q1) - sum(mine), checks))
+        return free, checks
+
+    monkeypatch.setattr(module._Helpers, "edges_free", counted)
+    two = CellRoadmap.build(oracle, SMALL, workers=2)
+    assert sum(edges for edges, _ in shared) > 0 and sum(checks for _, checks in shared) > 0  # the helper took part
+    assert two.provenance["builds"][-1]["collision_checks"] == one.provenance["builds"][-1]["collision_checks"]
+    one, two = one.graph.arrays(), two.graph.arrays()
     for key in one:
         assert np.array_equal(one[key], two[key]), key
 

@@ -480,7 +480,7 @@ def ratios(rows: list[dict]) -> list[dict]:
 def measure(scenes: list[str], methods: list[str], settings: Settings, store_path, fresh: bool = False):
     """Every scene's query set answered by every method (trials the store holds are reused). Returns (report,
     Reuse): {"scenes": [{"scene", "query_set", "methods": summarise rows, "ratios"}], settings...}."""
-    from app.checking.oracle import CollisionOracle
+    from app.checking.oracle import CollisionOracle, default_threads
     from app.scene.model import Scene
 
     methods = check_methods(methods)
@@ -492,7 +492,7 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
     out, reused = [], []
     try:
         for name in scenes:
-            oracle = CollisionOracle(Scene(name))
+            oracle = CollisionOracle(Scene(name), threads=max(settings.workers, default_threads()))
             step = default_step(oracle.scene)
             with tqdm(total=settings.queries, desc=f"{name} queries", unit="query", dynamic_ncols=True) as bar:
                 queries = make_queries(oracle, settings.queries, settings.seed, bar.update)

@@ -53,6 +53,13 @@ _BATCH_MIN = 8
 _SPLIT_MIN = 16
 # Configurations the helpers must answer as this process does before they are used (uniform, uncounted).
 _PROBE_BATCH = 64
+# A helper's messages: a batch of configurations (their bytes), or a piece of edges to check (pickled).
+_CONFIGURATIONS, _EDGES = b"Q", b"E"
+# Pieces per process a call's edges are cut into and handed out as each process finishes its last (a piece with
+# colliding edges is quick, and no process should wait long on another).
+_PIECES = 8
+# Pieces a helper holds at once (one it checks, the next waiting).
+_IN_FLIGHT = 2
 # Helper processes start once such batches have taken this many seconds: a short run never pays for their start
 # (about half a second of the other core, more for a scene's first mesh decomposition), a long one gets every core.
 _HELPERS_AFTER = 0.5
@@ -252,6 +259,19 @@ class CollisionOracle:
             self._helpers.wait()
             self._follow_helpers()
             return self._helpers.state == "ready"
+
+    def spread_edges(self, checker: QueryContext, Q1: np.ndarray, Q2: np.ndarray, resolution: float) -> np.ndarray:
+        """Free flags of straight edges whose ends are free, checked by `checker` here and by the helpers (started
+        and waited for if need be), their checks added to checker's. An edge's verdict and check count do not depend
+        on which process checked it or with which other edges."""
+        with self._lock:  # the pipes carry one conversation at a time
+            if self._helpers is None or not self.start_helpers():
+                return checker.edges_free(Q1, Q2, resolution, ends_free=True)
+            free, checks = self._helpers.edges_free(
+                Q1, Q2, resolution, lambda A, B: checker.edges_free(A, B, resolution, ends_free=True)
+            )
+        checker.checks += checks
+        return free
 
     def _follow_helpers(self) -> None:
         """The split path joins the choices of batches large enough once the helpers are ready and answer a probe
@@ -662,7 +682,7 @@ class _Helpers:
         sent = []
         for pipe, part in zip(self._pipes, parts[1:]):
             try:
-                pipe.send_bytes(np.ascontiguousarray(Q[part]).tobytes())
+                pipe.send_bytes(_CONFIGURATIONS + np.ascontiguousarray(Q[part]).tobytes())
                 sent.append(True)
             except OSError:
                 sent.append(False)
@@ -679,6 +699,59 @@ class _Helpers:
         if self.state == "failed":
             self.give_up()
         return free
+
+    def edges_free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float, here) -> tuple[np.ndarray, int]:
+        """Free flags of the edges Q1[i] -> Q2[i], in pieces handed to whoever is idle: the helpers, and
+        `here(Q1, Q2)`, this process's own check. Returns (flags, the helpers' checks). A helper found gone has its
+        pieces checked here, and the helpers are given up once every piece is in."""
+        import pickle
+
+        pieces = np.array_split(np.arange(len(Q1)), min(len(Q1), (len(self._pipes) + 1) * _PIECES))[::-1]
+        free, checks = np.empty(len(Q1), bool), 0
+        # Each helper's pieces in flight, oldest first: it holds the next while it checks one, so it does not idle
+        # while this process finishes a piece of its own.
+        busy: dict[int, list] = {i: [] for i in range(len(self._pipes))}
+
+        def hand(i: int) -> None:
+            piece = pieces.pop()
+            busy[i].append(piece)
+            try:
+                self._pipes[i].send_bytes(_EDGES + pickle.dumps((Q1[piece], Q2[piece], resolution)))
+            except OSError:
+                collect(i)
+
+        def collect(i: int) -> int:
+            piece = busy[i].pop(0)
+            try:
+                free[piece], count = pickle.loads(self._pipes[i].recv_bytes())
+                return count
+            except (EOFError, OSError, pickle.UnpicklingError):
+                self.state = "failed"
+                pieces.append(piece)
+                return 0
+
+        try:
+            while True:
+                for i in busy:
+                    while len(busy[i]) < _IN_FLIGHT and pieces and self.state == "ready":
+                        hand(i)
+                if pieces:
+                    piece = pieces.pop()
+                    free[piece] = here(Q1[piece], Q2[piece])
+                elif any(busy.values()):
+                    checks += collect(next(i for i in busy if busy[i]))  # nothing left here: wait for a helper
+                else:
+                    break
+                for i in busy:
+                    while busy[i] and self._pipes[i].poll():
+                        checks += collect(i)
+        finally:  # (here() may end the check early): every answer is read, so that the pipes stay in step
+            for i in busy:
+                while busy[i]:
+                    collect(i)
+            if self.state == "failed":
+                self.give_up()
+        return free, checks
 
     def give_up(self) -> None:
         """Never use the helpers again: their pipes close, which ends them."""
@@ -702,8 +775,8 @@ def _stop(pipes: list, processes: list) -> None:
 
 
 def _serve(fd: int) -> None:
-    """A helper's loop on the pipe at file descriptor fd: the scene's recipe first, then configurations in and free
-    flags out, until the pipe closes."""
+    """A helper's loop on the pipe at file descriptor fd: the scene's recipe first, then batches of configurations
+    (free flags back) or pieces of edges whose ends are free (free flags and checks back), until the pipe closes."""
     import pickle
     from multiprocessing.connection import Connection
 
@@ -712,7 +785,14 @@ def _serve(fd: int) -> None:
         oracle = CollisionOracle(pickle.loads(pipe.recv_bytes())(), threads=1)
         pipe.send_bytes(b"ready")
         while True:
-            Q = np.frombuffer(pipe.recv_bytes()).reshape(-1, oracle.space.dim)
-            pipe.send_bytes(oracle._raw_free(Q).tobytes())
+            message = pipe.recv_bytes()
+            if message[:1] == _CONFIGURATIONS:
+                Q = np.frombuffer(message, offset=1).reshape(-1, oracle.space.dim)
+                pipe.send_bytes(oracle._raw_free(Q).tobytes())
+            else:
+                Q1, Q2, resolution = pickle.loads(message[1:])
+                checker = oracle.context()
+                free = checker.edges_free(Q1, Q2, resolution, ends_free=True)
+                pipe.send_bytes(pickle.dumps((free, checker.checks)))
     except Exception:  # the pipe closed, or the scene did not load here: the parent answers alone
         return

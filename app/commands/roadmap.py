@@ -3,7 +3,7 @@
 
 import sys
 
-from app.checking.oracle import CollisionOracle
+from app.checking.oracle import CollisionOracle, default_threads
 from app.commands import custom, plan
 from app.commands.common import (
     check_outputs,
@@ -72,7 +72,7 @@ def build(args) -> int:
         budget=args.budget,
     )
     check_outputs(args.out)
-    oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
+    oracle = CollisionOracle(custom.scene_from_args(args, args.scene), threads=max(args.workers, default_threads()))
     with _progress(settings.nodes) as progress:
         cell = CellRoadmap.build(oracle, settings, workers=args.workers, progress=progress)
     cell.save(args.out)

@@ -21,10 +21,11 @@ The file is numpy's .npz, a zip of arrays read without pickle: nodes and edges a
 in milliseconds; loading a file from elsewhere cannot run code; and the zip's checksums reveal a damaged file. A
 JSON header inside it holds the format version, the fingerprint and where the roadmap came from.
 
-Building on several processes (`workers`): samples are drawn in this process and each round's candidate edges are
-checked in worker processes, each with its own oracle of the same scene (`Scene.recipe`). An edge's verdict and its
-check count do not depend on which process checked it or with which other edges, and the budget is looked at only
-between rounds, so the roadmap is the same for any worker count.
+Building on several processes (`workers`, at most the oracle's `threads`): samples are drawn in this process and
+each round's candidate edges are shared between it and the oracle's helper processes, each with its own oracle of
+the same scene (`CollisionOracle.spread_edges`). An edge's verdict and its check count do not depend on which process
+checked it or with which other edges, and the budget is looked at only between rounds, so the roadmap is the same
+for any worker count.
 """
 
 from __future__ import annotations
@@ -136,26 +137,29 @@ class CellRoadmap:
         seeds = np.random.SeedSequence(settings.seed, spawn_key=(len(graph),) if len(graph) else ()).spawn(4)
         samples = Samples(checker, settings.sampler, step, seeds, settings.workspace, settings.sampler_params)
         clock, ended = time.perf_counter(), "nodes"
-        with EdgeChecks(oracle, checker, workers) as edges:
-            while len(graph) < settings.nodes:
-                if settings.budget.spent(time.perf_counter() - clock, checker.checks):
-                    ended = "budget"
-                    break
-                count = min(ROUND, settings.nodes - len(graph))
-                narrow = round(settings.narrow * count)
-                try:
-                    drawn = samples.draw(narrow, count - narrow)
-                except SamplerBudgetExceeded:
-                    ended = "sampler"  # the sampler found no more samples within its own cap
-                    break
-                new = np.concatenate([graph.add(Q, kind, connect=False) for kind, Q in drawn])
-                P = graph.candidates(new)
-                graph.record(P, edges.free(graph.Q[P[:, 0]], graph.Q[P[:, 1]], graph.resolution))
-                if progress is not None:
-                    progress(len(graph), settings.nodes, checker.checks)
+        while len(graph) < settings.nodes:
+            if settings.budget.spent(time.perf_counter() - clock, checker.checks):
+                ended = "budget"
+                break
+            count = min(ROUND, settings.nodes - len(graph))
+            narrow = round(settings.narrow * count)
+            try:
+                drawn = samples.draw(narrow, count - narrow)
+            except SamplerBudgetExceeded:
+                ended = "sampler"  # the sampler found no more samples within its own cap
+                break
+            new = np.concatenate([graph.add(Q, kind, connect=False) for kind, Q in drawn])
+            P = graph.candidates(new)
+            A, B = graph.Q[P[:, 0]], graph.Q[P[:, 1]]
+            if workers > 1:
+                graph.record(P, oracle.spread_edges(checker, A, B, graph.resolution))
+            else:
+                graph.record(P, checker.edges_free(A, B, graph.resolution, ends_free=True))
+            if progress is not None:
+                progress(len(graph), settings.nodes, checker.checks)
         record = {
             "settings": {**asdict(settings), "budget": str(settings.budget)},
-            "workers": int(workers),
+            "workers": int(min(workers, oracle.threads)),
             "ended": ended,
             "nodes": len(graph),
             "collision_checks": int(checker.checks),
@@ -342,61 +346,6 @@ def summary(arrays: dict, header: dict) -> dict:
         "fingerprint": header.get("fingerprint"),
         "provenance": header.get("provenance"),
     }
-
-
-# ---- edge checks on several processes -----------------------------------------------------------------------------
-class EdgeChecks:
-    """Free flags of straight edges whose ends are free, checked in this process (workers <= 1, counted in
-    `checker`) or spread over worker processes (their checks added to `checker.checks`)."""
-
-    # Pieces per worker a round's edges are split into, so a slow piece does not hold the others up for long.
-    PIECES = 4
-
-    def __init__(self, oracle, checker, workers: int):
-        self.oracle, self.checker, self.workers = oracle, checker, max(1, int(workers))
-        self._pool = None
-
-    def __enter__(self) -> EdgeChecks:
-        if self.workers > 1:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            # spawn, not fork: a forked copy of a process holding Drake's threads and contexts is not safe.
-            self._pool = ProcessPoolExecutor(
-                self.workers,
-                mp_context=multiprocessing.get_context("spawn"),
-                initializer=_start_worker,
-                initargs=(self.oracle.scene.recipe,),
-            )
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(cancel_futures=True)
-
-    def free(self, Q1: np.ndarray, Q2: np.ndarray, resolution: float) -> np.ndarray:
-        if self._pool is None or len(Q1) < 2:
-            return self.checker.edges_free(Q1, Q2, resolution, ends_free=True)
-        pieces = np.array_split(np.arange(len(Q1)), min(len(Q1), self.workers * self.PIECES))
-        answers = list(self._pool.map(_check_edges, [(Q1[p], Q2[p], resolution) for p in pieces]))
-        self.checker.checks += sum(checks for _, checks in answers)
-        return np.concatenate([free for free, _ in answers])
-
-
-_worker_oracle = None
-
-
-def _start_worker(recipe) -> None:
-    global _worker_oracle
-    from app.checking.oracle import CollisionOracle
-
-    _worker_oracle = CollisionOracle(recipe(), threads=1)
-
-
-def _check_edges(job) -> tuple[np.ndarray, int]:
-    Q1, Q2, resolution = job
-    checker = _worker_oracle.context()
-    return checker.edges_free(Q1, Q2, resolution, ends_free=True), checker.checks
 
 
 # ---- the fingerprint ----------------------------------------------------------------------------------------------
