@@ -34,6 +34,9 @@ START, GOAL, UNIFORM, NARROW, WORKSPACE = "start", "goal", "uniform", "narrow", 
 
 # Candidate paths a lazy search tries per pair of shortest-path trees (see Roadmap.shortest_path).
 CANDIDATES = 16
+# Query points x tree nodes from which a k-nearest query is spread over the oracle's threads: a periodic 9-D query
+# of 125 points takes two threads 1.7x less time on 2,000 nodes, and a smaller one does not pay for starting them.
+_THREADED_QUERY = 100_000
 
 
 def prm_star_k(n: int, dim: int) -> int:
@@ -129,7 +132,11 @@ class Roadmap:
         """(distances, indices) of the k nearest roadmap nodes to each row of Q (fewer columns if the map is small)."""
         k = min(k, len(self))
         X = self.embed(Q)
-        found = [_query(tree, X, k, first) for tree, first in self._trees()]
+        threads = self.checker.threads  # scipy spreads a large query over threads (it releases the GIL)
+        found = [
+            _query(tree, X, k, first, threads if len(X) * tree.n >= _THREADED_QUERY else 1)
+            for tree, first in self._trees()
+        ]
         if len(found) == 1:
             return found[0]
         d, i = np.hstack([f[0] for f in found]), np.hstack([f[1] for f in found])
@@ -597,11 +604,11 @@ def _key(a, b):
     return min(a, b) << 32 | max(a, b)
 
 
-def _query(tree: cKDTree, X: np.ndarray, k: int, first: int) -> tuple[np.ndarray, np.ndarray]:
+def _query(tree: cKDTree, X: np.ndarray, k: int, first: int, workers: int) -> tuple[np.ndarray, np.ndarray]:
     """(distances, node indices) of the k nearest of a tree's points (fewer if it holds fewer), its first point
-    being node `first`."""
+    being node `first`; on `workers` threads."""
     k = min(k, tree.n)
-    d, i = tree.query(X, k=k)
+    d, i = tree.query(X, k=k, workers=workers)
     return np.asarray(d).reshape(len(X), k), np.asarray(i).reshape(len(X), k) + first
 
 
