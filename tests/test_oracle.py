@@ -313,6 +313,35 @@ def test_helpers_that_load_another_scene_are_never_used(tmp_path):
     assert "split" not in oracle.paths_for(64).cost
 
 
+def test_a_forked_copy_of_the_oracle_does_not_talk_to_its_parents_helpers():
+    import os
+
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
+
+    oracle = CollisionOracle(Scene("bar"), threads=2)
+    assert oracle.start_helpers()
+    Q = oracle.space.uniform(np.random.default_rng(8), 64)
+    choice = oracle.paths_for(len(Q))
+    assert "split" in choice.cost
+    read, write = os.pipe()
+    child = os.fork()
+    if child == 0:  # the copy: no split path, and it answers alone
+        try:
+            oracle._follow_helpers()
+            ok = not oracle._helpers.ready() and "split" not in choice.cost
+            choice.cost = {"batch": 1.0, "raw": None}
+            ok = ok and np.array_equal(oracle.free_batch(Q), oracle._raw_free(Q))
+            os.write(write, b"1" if ok else b"0")
+        finally:
+            os._exit(0)
+    os.close(write)
+    assert os.read(read, 1) == b"1"
+    os.waitpid(child, 0)
+    choice.cost = {"batch": 1.0, "raw": 1.0, "split": None}
+    assert np.array_equal(oracle.free_batch(Q), oracle._raw_free(Q)) and oracle._helpers.ready()  # the parent's work on
+
+
 def test_helpers_do_not_run_the_users_script_again(tmp_path):
     """A script without a __main__ guard (as most pydrake scripts are) plans with helpers: it runs once."""
     import subprocess

@@ -244,7 +244,7 @@ class CollisionOracle:
         """The path choice for batches of n configurations (n >= _BATCH_MIN): one per power of two up to 4096."""
         size = min(n.bit_length(), 13)
         if size not in self._paths:
-            split = self._helpers is not None and self._helpers.state == "ready" and _splits(size)
+            split = self._helpers is not None and self._helpers.ready() and _splits(size)
             self._paths[size] = _Paths(("batch", "raw", "split") if split else ("batch", "raw"))
         return self._paths[size]
 
@@ -258,7 +258,7 @@ class CollisionOracle:
                 self._helpers.start()
             self._helpers.wait()
             self._follow_helpers()
-            return self._helpers.state == "ready"
+            return self._helpers.ready()
 
     def spread_edges(self, checker: QueryContext, Q1: np.ndarray, Q2: np.ndarray, resolution: float) -> np.ndarray:
         """Free flags of straight edges whose ends are free, checked by `checker` here and by the helpers (started
@@ -285,7 +285,7 @@ class CollisionOracle:
             probe = self.space.uniform(np.random.default_rng(0), _PROBE_BATCH)
             if not np.array_equal(helpers.free(probe, self._raw_free), self._raw_free(probe)):
                 helpers.give_up()
-        if helpers.state == "ready":
+        if helpers.ready():
             for size, choice in self._paths.items():
                 if _splits(size):
                     choice.cost.setdefault("split", None)
@@ -621,6 +621,7 @@ class _Helpers:
         self._processes: list = []
         self.state = "idle"  # then "starting", then "ready" or "failed"
         self.checked = False  # the oracle has held the ready helpers' answers to its own
+        self._owner = os.getpid()  # the process that started them (set again by `start`)
 
     def start(self) -> None:
         import pickle
@@ -633,6 +634,7 @@ class _Helpers:
         # A fresh interpreter, not multiprocessing's spawn: spawn runs the user's main script again in the child,
         # which a script without a `__main__` guard (most pydrake scripts) cannot survive. Its own session keeps a
         # terminal's Ctrl-C for the parent; a closed pipe (the parent gone) ends it.
+        self._owner = os.getpid()
         try:
             for _ in range(self._count):
                 ours, theirs = socket.socketpair()
@@ -650,17 +652,17 @@ class _Helpers:
                 theirs.close()
                 self._pipes.append(Connection(ours.detach()))
                 self._pipes[-1].send_bytes(pickle.dumps(self._recipe))
-        except (OSError, pickle.PicklingError):  # no processes to be had here, or a scene without a recipe
-            self.state = "failed"
-        else:
             self.state = "starting"
+        except (OSError, pickle.PicklingError, AttributeError, TypeError):  # no processes here, or a recipe that
+            self.give_up()  # does not pickle: the helpers started see their pipes close
         weakref.finalize(self, _stop, list(self._pipes), list(self._processes))
 
     def ready(self) -> bool:
-        """Whether every helper has said it is ready (without waiting)."""
+        """Whether every helper has said it is ready (without waiting), and they are this process's: a forked copy of
+        the parent must not talk on its pipes."""
         if self.state == "starting" and all(pipe.poll() for pipe in self._pipes):
             self.wait()
-        return self.state == "ready"
+        return self.state == "ready" and os.getpid() == self._owner
 
     def wait(self) -> None:
         """Wait until every helper is ready or one has failed."""
@@ -714,11 +716,13 @@ class _Helpers:
 
         def hand(i: int) -> None:
             piece = pieces.pop()
-            busy[i].append(piece)
             try:
                 self._pipes[i].send_bytes(_EDGES + pickle.dumps((Q1[piece], Q2[piece], resolution)))
             except OSError:
-                collect(i)
+                self.state = "failed"
+                pieces.append(piece)
+            else:
+                busy[i].append(piece)
 
         def collect(i: int) -> int:
             piece = busy[i].pop(0)
