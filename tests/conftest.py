@@ -24,6 +24,16 @@ os.environ["XDG_CACHE_HOME"] = str(offline_drake_cache(Path(tempfile.mkdtemp(pre
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 
+_CPU_COUNT = os.cpu_count() or 1
+
+
+@pytest.fixture
+def two_cores(monkeypatch):
+    """At least two cores as an oracle made in the test sees them, so that its helper processes are tested on any
+    machine (an oracle starts no more of them than there are cores)."""
+    monkeypatch.setattr(os, "cpu_count", lambda: max(2, _CPU_COUNT))
+
+
 @pytest.fixture(scope="session")
 def oracles():
     """One oracle per scene, built once per test session (building is the slow part)."""

@@ -152,10 +152,12 @@ def test_any_of_several_goals_may_be_reached_and_bad_ones_are_left_out(oracles, 
     assert np.allclose(oracle.space.difference(result.path[-1], result.goal), 0)
 
 
-def test_a_roadmap_is_the_same_built_on_one_process_or_two(oracles, monkeypatch):
+def test_a_roadmap_is_the_same_built_on_one_process_or_two(monkeypatch, two_cores):
     import app.checking.oracle as module
+    from app.checking.oracle import CollisionOracle
+    from app.scene.model import Scene
 
-    oracle = oracles("bar")
+    oracle = CollisionOracle(Scene("bar"), threads=2)
     one = CellRoadmap.build(oracle, SMALL, workers=1)
     shared = []  # the helper's share of each round's edges: (edges, checks)
     spread = module._Helpers.edges_free

@@ -1,5 +1,6 @@
 """The collision oracle against an independent SceneGraph reference, and its counters."""
 
+import os
 import time
 
 import numpy as np
@@ -188,7 +189,7 @@ def test_every_shipped_scene_is_listed():
     assert set(SAMPLING_SCENES) <= set(scene_names())
 
 
-def test_every_batch_path_gives_the_same_answers_and_the_cheapest_is_chosen():
+def test_every_batch_path_gives_the_same_answers_and_the_cheapest_is_chosen(two_cores):
     from app.checking.oracle import CollisionOracle
     from app.scene.model import Scene
 
@@ -243,7 +244,7 @@ def test_a_path_found_dearer_again_is_probed_less_often_and_probes_take_turns():
     assert probed[:2] in (["raw", "batch"], ["batch", "raw"])  # each other path in turn
 
 
-def test_helpers_start_after_half_a_second_of_large_batches_and_a_lost_one_is_answered_for(monkeypatch):
+def test_helpers_start_after_half_a_second_of_large_batches_and_a_lost_one_is_answered_for(monkeypatch, two_cores):
     import app.checking.oracle as module
     from app.checking.oracle import CollisionOracle
     from app.scene.model import Scene
@@ -270,7 +271,7 @@ def test_helpers_start_after_half_a_second_of_large_batches_and_a_lost_one_is_an
     assert "split" not in choice.cost
 
 
-def test_a_helper_that_cannot_load_the_scene_leaves_the_oracle_answering_alone(tmp_path):
+def test_a_helper_that_cannot_load_the_scene_leaves_the_oracle_answering_alone(tmp_path, two_cores):
     import functools
 
     from app.checking.oracle import CollisionOracle
@@ -285,7 +286,7 @@ def test_a_helper_that_cannot_load_the_scene_leaves_the_oracle_answering_alone(t
     assert np.array_equal(oracle.free_batch(Q), CollisionOracle(Scene("bar"), threads=1).free_batch(Q))
 
 
-def test_helpers_that_load_another_scene_are_never_used(tmp_path):
+def test_helpers_that_load_another_scene_are_never_used(tmp_path, two_cores):
     """A helper loads the scene anew from its files: one changed since (here every obstacle moved away) must not
     answer for this oracle."""
     import functools
@@ -313,9 +314,7 @@ def test_helpers_that_load_another_scene_are_never_used(tmp_path):
     assert "split" not in oracle.paths_for(64).cost
 
 
-def test_a_forked_copy_of_the_oracle_does_not_talk_to_its_parents_helpers():
-    import os
-
+def test_a_forked_copy_of_the_oracle_does_not_talk_to_its_parents_helpers(two_cores):
     from app.checking.oracle import CollisionOracle
     from app.scene.model import Scene
 
@@ -342,6 +341,7 @@ def test_a_forked_copy_of_the_oracle_does_not_talk_to_its_parents_helpers():
     assert np.array_equal(oracle.free_batch(Q), oracle._raw_free(Q)) and oracle._helpers.ready()  # the parent's work on
 
 
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="an oracle starts helpers only on a machine of two cores or more")
 def test_helpers_do_not_run_the_users_script_again(tmp_path):
     """A script without a __main__ guard (as most pydrake scripts are) plans with helpers: it runs once."""
     import subprocess

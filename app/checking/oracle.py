@@ -90,7 +90,10 @@ class CollisionOracle:
         # Which batch path to take, per size class of batch (`_Paths`): a split's round trip and the checker's batch
         # set-up are costs per call, so a path's cost per configuration depends on the batch's size.
         self._paths: dict[int, _Paths] = {}
-        self._helpers = _Helpers(scene.recipe, self.threads - 1) if self.threads > 1 else None
+        # Processes a batch or a cell build's edges may be spread over: this one and its helpers, no more than the
+        # machine's cores (more would only take turns on them).
+        self.processes = max(1, min(self.threads, os.cpu_count() or 1))
+        self._helpers = _Helpers(scene.recipe, self.processes - 1) if self.processes > 1 else None
         self._split_seconds = 0.0  # spent on batches large enough to split, until the helpers start
         self._lock = threading.RLock()  # held by every query on the shared Drake contexts
         # Configurations answered for every query since the oracle was made: for a progress display that watches

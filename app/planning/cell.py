@@ -21,7 +21,7 @@ The file is numpy's .npz, a zip of arrays read without pickle: nodes and edges a
 in milliseconds; loading a file from elsewhere cannot run code; and the zip's checksums reveal a damaged file. A
 JSON header inside it holds the format version, the fingerprint and where the roadmap came from.
 
-Building on several processes (`workers`, at most the oracle's `threads`): samples are drawn in this process and
+Building on several processes (`workers`, at most the oracle's `processes`): samples are drawn in this process and
 each round's candidate edges are shared between it and the oracle's helper processes, each with its own oracle of
 the same scene (`CollisionOracle.spread_edges`). An edge's verdict and its check count do not depend on which process
 checked it or with which other edges, and the budget is looked at only between rounds, so the roadmap is the same
@@ -159,7 +159,7 @@ class CellRoadmap:
                 progress(len(graph), settings.nodes, checker.checks)
         record = {
             "settings": {**asdict(settings), "budget": str(settings.budget)},
-            "workers": int(min(workers, oracle.threads)),
+            "workers": int(min(workers, oracle.processes)),
             "ended": ended,
             "nodes": len(graph),
             "collision_checks": int(checker.checks),
