@@ -169,6 +169,8 @@ def test_a_roadmap_is_the_same_built_on_one_process_or_two(monkeypatch, two_core
         return free, checks
 
     monkeypatch.setattr(module._Helpers, "edges_free", counted)
+    nothing = np.empty((0, oracle.space.dim))
+    assert oracle.spread_edges(oracle.context(), nothing, nothing, oracle.space.resolution).shape == (0,)  # a round
     two = CellRoadmap.build(oracle, SMALL, workers=2)
     assert sum(edges for edges, _ in shared) > 0 and sum(checks for _, checks in shared) > 0  # the helper took part
     assert two.provenance["builds"][-1]["collision_checks"] == one.provenance["builds"][-1]["collision_checks"]

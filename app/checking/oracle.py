@@ -268,7 +268,7 @@ class CollisionOracle:
         and waited for if need be), their checks added to checker's. An edge's verdict and check count do not depend
         on which process checked it or with which other edges."""
         with self._lock:  # the pipes carry one conversation at a time
-            if self._helpers is None or not self.start_helpers():
+            if len(Q1) < 2 or self._helpers is None or not self.start_helpers():
                 return checker.edges_free(Q1, Q2, resolution, ends_free=True)
             free, checks = self._helpers.edges_free(
                 Q1, Q2, resolution, lambda A, B: checker.edges_free(A, B, resolution, ends_free=True)

@@ -24,6 +24,7 @@ class Checker(Protocol):
     distance_queries: int  # signed-distance queries (the certificate's)
     point_queries: int  # workspace points asked for their distances to obstacles
     stop: Stop | None  # the budget every counted answer polls
+    threads: int  # the cores the shared oracle may use (a large k-nearest query is spread over them)
 
     def poll(self) -> None: ...
 

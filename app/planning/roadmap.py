@@ -457,10 +457,7 @@ class Roadmap:
         self.proved = {(int(index[u]), int(index[v])) for u, v in self.proved if keep[u] and keep[v]}
         self._search, self._search_synced, self._search_dead = tuple(column[:0] for column in self._search), 0, 0
         # Each label's nodes kept stay together, under the least of them (labels may only join more than is true).
-        groups = self._reach[keep]
-        least = np.full(len(keep), len(keep))
-        np.minimum.at(least, groups, np.arange(len(groups)))
-        self._reach = least[groups]
+        self._reach = _by_least(self._reach[keep])
         self._labelled = None
         self._recount_components()
         return index
@@ -476,10 +473,7 @@ class Roadmap:
         left, which joining labels cannot undo."""
         n, ends = len(self.Q), self._ends[self._alive & self._checked]
         graph = csr_matrix((np.ones(len(ends), bool), (ends[:, 0], ends[:, 1])), shape=(n, n))
-        count, labels = connected_components(graph, directed=False)
-        least = np.full(count, n)
-        np.minimum.at(least, labels, np.arange(n))  # each component's least node is its label, as `_joined` keeps it
-        self._free = least[labels]
+        self._free = _by_least(connected_components(graph, directed=False)[1])  # as `_joined` keeps them
 
     def edge_pairs(self, P: np.ndarray) -> list[tuple[int, int] | None]:
         """For each straight segment of the polyline P, the roadmap edge (node pair, smaller first) not known to
@@ -617,6 +611,14 @@ def _drop(matrix: csr_matrix, u: int, v: int) -> None:
     row = slice(matrix.indptr[u], matrix.indptr[u + 1])
     k = row.start + np.searchsorted(matrix.indices[row], v)
     matrix.data[k] = np.inf
+
+
+def _by_least(groups: np.ndarray) -> np.ndarray:
+    """Per node, the least node of its group (groups: a non-negative int per node): component labels as `_joined`
+    keeps them."""
+    least = np.full(int(groups.max()) + 1 if len(groups) else 0, len(groups))
+    np.minimum.at(least, groups, np.arange(len(groups)))
+    return least[groups]
 
 
 def _joined(labels: np.ndarray, P: np.ndarray) -> np.ndarray:
