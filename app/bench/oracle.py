@@ -57,9 +57,9 @@ def _bench_scene(name: str, cache: Path, n: int, repeats: int, seed: int) -> dic
     load_cached, two = _timed(lambda: CollisionOracle(load_scene(name, cache_dir=cache), threads=2))
     helpers_start, helpers_ready = _timed(two.start_helpers)  # at once, not after half a second of batches
     Q = one.space.uniform(np.random.default_rng(seed), n)
-    # The 2-core oracle tries every batch path once before it settles on the cheapest: those calls are not timed.
-    warm = one.space.uniform(np.random.default_rng(seed + 1), n)
-    for _ in range(len(two.paths_for(n).cost)):
+    # The 2-core oracle tries every batch path before it settles on the cheapest: those calls are not timed.
+    warm, choice = one.space.uniform(np.random.default_rng(seed + 1), n), two.paths_for(n)
+    while not choice.settled:
         two.context().are_free(warm)
     times = {"raw": [], "one": [], "two": []}
     in_drake = one.seconds["checks"]
