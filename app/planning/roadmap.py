@@ -508,7 +508,8 @@ class Roadmap:
 
     @classmethod
     def from_arrays(cls, checker, data) -> Roadmap:
-        """The roadmap `arrays()` described, on `checker`'s space (lazy: later edges are checked when used)."""
+        """The roadmap `arrays()` described, on `checker`'s space (lazy: later edges are checked when used), with no
+        edge proved."""
         k = int(data["k"])
         graph = cls(checker, k=k or None, resolution=float(data["resolution"]), skip_connected=False, lazy=True)
         names = [str(n) for n in data["kind_names"]]
@@ -520,14 +521,15 @@ class Roadmap:
         graph._nodes = {q.tobytes(): i for i, q in enumerate(graph.Q)}
         graph._embedded = graph.embed(graph.Q) if len(Q) else np.empty((0, checker.space.dim))
         ends = np.asarray(data["ends"], int).reshape(-1, 2)
-        alive, checked, proved = (np.asarray(data[key], bool) for key in ("alive", "checked", "proved"))
+        alive, checked = (np.asarray(data[key], bool) for key in ("alive", "checked"))
         graph._add_edges(ends[alive], checked=False)
         graph._checked[:] = checked[alive]
         graph._progress[: int(alive.sum())] = np.asarray(data["progress"], np.int64)[alive]
         graph._add_dead(ends[~alive])
         graph._recount_components()
         graph._tried = set(_key(ends[:, 0], ends[:, 1]).tolist())
-        graph.proved = {tuple(edge) for edge in ends[proved].tolist()}
+        # The file's `proved` flags are not read: a certified answer rests only on proofs made in this process
+        # (anyone can write a file; its checked verdicts only steer the search, which the certificate then decides).
         graph.edges_tried, graph.edges_proposed = (int(c) for c in data["counters"])
         return graph
 
