@@ -11,7 +11,7 @@ import re
 import sys
 
 from app import commands
-from app.commands.common import print_json
+from app.commands.common import INTERRUPTED_WHILE_ANSWERING, answer_written, answering, forget_answer, print_json
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 
 # The one map from a failure to the process's exit code (0: success). An exception takes the code of its nearest
@@ -82,8 +82,11 @@ def exit_code(exc: BaseException) -> int:
 
 def main(argv=None) -> int:
     """Run one command. A failure is one line on stderr and its exit code; with --json also one JSON object on
-    stdout: {"success": false, "error": {"code", "message"}, "exit_code"}."""
+    stdout: {"success": false, "error": {"code", "message"}, "exit_code"}. A command writes its answer inside
+    app.commands.common.answering(): an interrupt that comes once it has begun no longer stops the command (exit 0,
+    one line on stderr saying so), and --json prints exactly one object on every path."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    forget_answer()
     try:
         refuse_empty_values(argv)
         args = build_parser().parse_args(join_negative_values(argv))
@@ -94,19 +97,30 @@ def main(argv=None) -> int:
         # Nobody reads the rest: end quietly. Later writes (and the final flush) go nowhere instead of raising again.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return exit_code(exc)
-    except (UserError, KeyboardInterrupt) as exc:
-        message = str(exc) if isinstance(exc, UserError) else "interrupted"
-        code = exit_code(exc)
-        print(f"error: {message}", file=sys.stderr)
-        if "--json" in argv:
-            _print_failure(getattr(exc, "code", "PREEMPTED"), message, code)
-        return code
+    except KeyboardInterrupt as exc:
+        if answer_written():  # the answer is out whole: the interrupt came too late to matter
+            print(INTERRUPTED_WHILE_ANSWERING, file=sys.stderr, flush=True)
+            return 0
+        return _fail(argv, "interrupted", exit_code(exc), "PREEMPTED")
+    except UserError as exc:
+        return _fail(argv, str(exc), exit_code(exc), exc.code)
     except Exception as exc:
-        # A bug, not bad input: the traceback stays (it is what a report needs), and a --json reader still gets its
-        # one answer, with MoveIt's generic FAILURE and Python's exit code for an uncaught exception.
-        if "--json" in argv:
+        # A bug, not bad input (or an error raised in Drake's C++, which pydrake raises as RuntimeError): the
+        # traceback stays, on stderr (it is what a report needs), and a --json reader still gets its one answer on
+        # stdout, with MoveIt's generic FAILURE and Python's exit code for an uncaught exception.
+        if "--json" in argv and not answer_written():
             _print_failure("FAILURE", f"internal error: {type(exc).__name__}: {exc}", status=1)
         raise
+
+
+def _fail(argv: list[str], message: str, code: int, error: str) -> int:
+    """A failure's one line on stderr and, with --json, its one JSON object (none if the command's answer is out
+    already: --json prints one object); returns its exit code."""
+    with answering():  # a second Ctrl-C does not cut the failure's answer either
+        print(f"error: {message}", file=sys.stderr, flush=True)
+        if "--json" in argv and not answer_written():
+            _print_failure(error, message, code)
+    return code
 
 
 def _print_failure(code: str, message: str, status: int) -> None:

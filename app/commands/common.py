@@ -1,5 +1,5 @@
 """What the commands share: one argparse type per kind of value, so a value is checked the same way wherever it is
-given, and the one-line JSON answer.
+given, the one-line JSON answer, and `answering()`, inside which a command writes its answer whole.
 
 A type raises argparse.ArgumentTypeError; the parser turns that into one line naming the flag (exit code 2).
 """
@@ -10,11 +10,13 @@ import json
 import math
 import os
 import re
+import signal
 import sys
 import threading
 import time
 
 from app.checking.budget import Budget
+from app.checking.certify import CLEARANCE
 from app.errors import UserError
 from app.io import check_output
 from app.samplers import check_name
@@ -113,7 +115,8 @@ def fraction(text: str) -> float:
 
 
 def add_scaling_arguments(p) -> None:
-    """--velocity-scale and --acceleration-scale, as MoveIt's scaling factors, for a command that times motion."""
+    """--velocity-scale and --acceleration-scale, as MoveIt's scaling factors, and --clearance, for a command that
+    times motion."""
     for kind in ("velocity", "acceleration"):
         p.add_argument(
             f"--{kind}-scale",
@@ -122,6 +125,15 @@ def add_scaling_arguments(p) -> None:
             metavar="S",
             help=f"time the motion with this fraction (0, 1] of the {kind} limits (default 1)",
         )
+    p.add_argument(
+        "--clearance",
+        type=positive_float,
+        default=CLEARANCE,
+        metavar="D",
+        help=f"the distance the certified motion keeps from everything (scene length units: metres for the robots; "
+        f"default {CLEARANCE:g}); the straight lines between its samples and the path's waypoints keep half of it, "
+        "so a controller that interpolates linearly between them stays clear",
+    )
 
 
 def comma_list(text: str) -> list[str]:
@@ -269,11 +281,67 @@ def announce(*files: str | None) -> None:
             print(f"wrote {file}", file=sys.stderr)
 
 
+# What `answering()` says on stderr when an interrupt came while the answer was being written.
+INTERRUPTED_WHILE_ANSWERING = "interrupt received while writing the answer; finished it"
+_DEFERRED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class _Answer(threading.local):
+    signals: list[int] | None = None  # inside the outermost answering() block: the signals received there
+    written = False  # an answering() block has ended: the command's answer is out
+
+
+_answer = _Answer()
+
+
+def answer_written() -> bool:
+    """Whether the running command has written its answer (an answering() block of it has ended)."""
+    return _answer.written
+
+
+def forget_answer() -> None:
+    """A new command starts (cli.main): it has written no answer yet."""
+    _answer.written = False
+
+
+@contextlib.contextmanager
+def answering():
+    """The block in which a command writes its answer: its output files (app.io.all_or_nothing) and what it prints
+    on stdout. A command enters it once it has its answer; inside it SIGINT (Ctrl-C) and SIGTERM wait until the
+    block ends, so the answer is written whole, and the command then ends as it would have (exit 0 on success),
+    with one line on stderr saying an interrupt came too late to matter. Before the block an interrupt stops the
+    command as before (exit 130, nothing written). stdout is flushed before the block ends (a pipe's buffer would
+    otherwise be written at exit, where an interrupt could cut it).
+
+    Only the main thread receives signals: in another thread (or inside an outer block) the block just runs."""
+    if threading.current_thread() is not threading.main_thread() or _answer.signals is not None:
+        yield
+        return
+    received: list[int] = []
+    _answer.signals, previous = received, {}
+    try:
+        for number in _DEFERRED_SIGNALS:
+            previous[number] = signal.signal(number, lambda signum, frame: received.append(signum))
+        yield
+        sys.stdout.flush()
+        _answer.written = True
+        if received:
+            print(INTERRUPTED_WHILE_ANSWERING, file=sys.stderr, flush=True)
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, signal.SIG_DFL if handler is None else handler)
+        _answer.signals = None
+
+
 def print_json(obj: dict) -> None:
-    """A command's answer as one line of JSON on stdout; every answer says whether it is a success. JSON has no
-    NaN or infinity (Python's json would print them anyway): they become null, e.g. a median over no successes."""
-    json.dump(_finite({"success": True, **obj}), sys.stdout, indent=None, separators=(",", ":"), allow_nan=False)
-    sys.stdout.write("\n")
+    """A command's answer as one line of JSON on stdout, in one write and flushed (inside `answering()`, so that an
+    interrupt cannot cut it); every answer says whether it is a success. The whole line is made before anything is
+    written: a value JSON cannot hold fails the call with nothing printed. JSON has no NaN or infinity (Python's
+    json would print them anyway): they become null, e.g. a median over no successes."""
+    text = json.dumps(_finite({"success": True, **obj}), indent=None, separators=(",", ":"), allow_nan=False)
+    with answering():
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
 
 
 def _finite(value):

@@ -11,7 +11,7 @@ import sys
 
 from app.checking.oracle import CollisionOracle
 from app.commands import custom, plan
-from app.commands.common import announce, check_outputs, non_negative_float, print_json, whole_number
+from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json, whole_number
 from app.panel import Panel
 from app.viewer import check_meshcat_allowed
 
@@ -49,18 +49,22 @@ def run(args) -> int:
     print(f"gui: serving the planning panel {how}", file=sys.stderr, flush=True)
     previous = signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM stops it as Ctrl-C does
     try:
-        try:
-            panel.serve(args.wait)
-        except KeyboardInterrupt:
-            pass
-        finally:
-            signal.signal(signal.SIGTERM, previous)
-        if args.html:
-            panel.export_html(args.html)
-        answer = {"html": args.html, **panel.state()}
-    finally:
+        panel.serve(args.wait)
+    except KeyboardInterrupt:
+        pass
+    except BaseException:
         panel.close()
-    announce(args.state, args.html)
-    if args.json:
-        print_json(answer)
+        raise
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    with answering():  # stopping the panel ends its work: from here on its answer is written whole
+        try:
+            if args.html:
+                panel.export_html(args.html)
+            answer = {"html": args.html, **panel.state()}
+        finally:
+            panel.close()
+        announce(args.state, args.html)
+        if args.json:
+            print_json(answer)
     return 0

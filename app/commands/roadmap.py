@@ -6,6 +6,7 @@ import sys
 from app.checking.oracle import CollisionOracle, default_threads
 from app.commands import custom, plan
 from app.commands.common import (
+    answering,
     check_outputs,
     parse_budget,
     print_json,
@@ -75,23 +76,25 @@ def build(args) -> int:
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene), threads=max(args.workers, default_threads()))
     with _progress(settings.nodes) as progress:
         cell = CellRoadmap.build(oracle, settings, workers=args.workers, progress=progress)
-    cell.save(args.out)
-    print(f"roadmap: wrote {args.out}", file=sys.stderr)
     answer = {"file": args.out, **cell.info()}
-    if args.json:
-        print_json(answer)
-    else:
-        print(_describe(answer))
+    with answering():  # the roadmap file and what it holds are the answer
+        cell.save(args.out)
+        print(f"roadmap: wrote {args.out}", file=sys.stderr)
+        if args.json:
+            print_json(answer)
+        else:
+            print(_describe(answer))
     return 0
 
 
 def info(args) -> int:
     header, arrays = read(args.file)
     answer = {"file": args.file, **summary(arrays, header)}
-    if args.json:
-        print_json(answer)
-    else:
-        print(_describe(answer))
+    with answering():
+        if args.json:
+            print_json(answer)
+        else:
+            print(_describe(answer))
     return 0
 
 

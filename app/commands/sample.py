@@ -4,6 +4,7 @@ from app.bench.sampling import run_trial
 from app.checking.oracle import CollisionOracle
 from app.commands.common import (
     announce,
+    answering,
     check_outputs,
     positive_float,
     print_json,
@@ -48,42 +49,43 @@ def run(args) -> int:
             f"{args.sampler}: no {args.k} samples within {result['collision_checks']} collision checks"
         )
     samples = result["samples"]
-    if args.png:
-        from app.draw import draw_samples  # loads matplotlib: only when a picture is asked for
+    with answering():  # the picture and the samples are the answer
+        if args.png:
+            from app.draw import draw_samples  # loads matplotlib: only when a picture is asked for
 
-        draw_samples(
-            oracle,
-            samples,
-            args.png,
-            title=f"{oracle.scene.name}: {args.sampler}, k={args.k}, step {step:g}, seed {args.seed}",
-        )
-        announce(args.png)
-    out = {
-        "scene": oracle.scene.name,
-        "sampler": args.sampler,
-        "k": args.k,
-        "step": step,
-        "seed": args.seed,
-        "samples": samples.tolist(),
-        "collision_checks": result["collision_checks"],
-        "seconds": result["seconds"],
-        "passage_fraction": result["passage_fraction"],
-        "gave_up": result["gave_up"],
-        "attempts": result["attempts"],
-    }
-    bridges = result["bridges"]
-    if bridges is not None:
-        out["bridges"] = bridges.tolist()
-    if args.json:
-        print_json(out)
-    else:
-        passage = (
-            f"{100 * out['passage_fraction']:.0f} % in the passage"
-            if oracle.scene.passage_boxes
-            else "no passage region declared"
-        )
-        print(
-            f"{out['scene']} {out['sampler']}: {args.k} samples in {out['seconds']:.3f} s, "
-            f"{out['collision_checks']} collision checks, {passage}, {out['gave_up']} gave up"
-        )
+            draw_samples(
+                oracle,
+                samples,
+                args.png,
+                title=f"{oracle.scene.name}: {args.sampler}, k={args.k}, step {step:g}, seed {args.seed}",
+            )
+            announce(args.png)
+        out = {
+            "scene": oracle.scene.name,
+            "sampler": args.sampler,
+            "k": args.k,
+            "step": step,
+            "seed": args.seed,
+            "samples": samples.tolist(),
+            "collision_checks": result["collision_checks"],
+            "seconds": result["seconds"],
+            "passage_fraction": result["passage_fraction"],
+            "gave_up": result["gave_up"],
+            "attempts": result["attempts"],
+        }
+        bridges = result["bridges"]
+        if bridges is not None:
+            out["bridges"] = bridges.tolist()
+        if args.json:
+            print_json(out)
+        else:
+            passage = (
+                f"{100 * out['passage_fraction']:.0f} % in the passage"
+                if oracle.scene.passage_boxes
+                else "no passage region declared"
+            )
+            print(
+                f"{out['scene']} {out['sampler']}: {args.k} samples in {out['seconds']:.3f} s, "
+                f"{out['collision_checks']} collision checks, {passage}, {out['gave_up']} gave up"
+            )
     return 0

@@ -1,7 +1,7 @@
 """`scenes` lists the shipped scenes; `show` draws one to a PNG."""
 
 from app.checking.oracle import CollisionOracle
-from app.commands.common import announce, check_outputs, print_json
+from app.commands.common import announce, answering, check_outputs, print_json
 from app.scene.custom import load_scene
 from app.scene.model import Scene, scene_names
 
@@ -20,12 +20,13 @@ def register(subparsers) -> None:
 
 def run_scenes(args) -> int:
     scenes = [Scene(name).summary() for name in scene_names()]
-    if args.json:
-        print_json({"scenes": scenes})
-    else:
-        width = max(len(s["name"]) for s in scenes)
-        for s in scenes:
-            print(f"{s['name']:<{width}}  {s['dof']} DOF  {s['description']}")
+    with answering():
+        if args.json:
+            print_json({"scenes": scenes})
+        else:
+            width = max(len(s["name"]) for s in scenes)
+            for s in scenes:
+                print(f"{s['name']:<{width}}  {s['dof']} DOF  {s['description']}")
     return 0
 
 
@@ -34,8 +35,9 @@ def run_show(args) -> int:
 
     check_outputs(args.png)
     oracle = CollisionOracle(load_scene(args.scene))
-    draw_scene(oracle, args.png)
-    announce(args.png)
-    if args.json:
-        print_json({"scene": oracle.scene.name, "png": args.png})
+    with answering():  # the picture is the answer
+        draw_scene(oracle, args.png)
+        announce(args.png)
+        if args.json:
+            print_json({"scene": oracle.scene.name, "png": args.png})
     return 0

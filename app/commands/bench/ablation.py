@@ -5,7 +5,7 @@ from pathlib import Path
 
 from app.bench.ablation import DEFAULT_CHECKS, VARIANTS, figure, markdown, measure
 from app.commands.bench import results
-from app.commands.common import check_count, check_outputs, comma_list, print_json, processes, repetitions
+from app.commands.common import answering, check_count, check_outputs, comma_list, print_json, processes, repetitions
 from app.io import write_atomically
 from app.scene.model import scene_names
 
@@ -45,12 +45,13 @@ def run(args) -> int:
     results.say_reused(reuse)
     planned = len(args.scenes) * len(args.variants) * args.seeds
     text = markdown(table, held, planned, args.checks, args.seeds)
-    out.mkdir(parents=True, exist_ok=True)
-    if table:
-        figure(table, str(png_path), args.checks)
-    write_atomically(table_path, text)
-    if args.json:
-        print_json({"ablation": table, "trials": held, "planned": planned, "reused": reuse.to_json()})
-    else:
-        print(text)
-    return 0
+    with answering():  # the table, the figure and what is printed are the answer
+        out.mkdir(parents=True, exist_ok=True)
+        if table:
+            figure(table, str(png_path), args.checks)
+        write_atomically(table_path, text)
+        if args.json:
+            print_json({"ablation": table, "trials": held, "planned": planned, "reused": reuse.to_json()})
+        else:
+            print(text)
+        return 0

@@ -14,6 +14,7 @@ from app.bench.audit import (
 )
 from app.commands.bench import results
 from app.commands.common import (
+    answering,
     check_count,
     check_outputs,
     names_from,
@@ -65,50 +66,51 @@ def run(args) -> int:
     if args.bad_input:
         cases, case_reuse = measure_bad_input(args.store, workers=args.workers, fresh=args.fresh)
         results.say_reused(case_reuse)
-    if args.json:
-        print_json(
-            {
-                "audit": table,
-                "problems": args.problems,
-                "seed": args.seed,
-                "checks": args.checks,
-                "reused": reuse.to_json(),
-                "bad_input": cases,
-                "bad_input_counts": None if cases is None else bad_input_counts(cases),
-            }
-        )
-        return 0
-    print(
-        f"{args.problems} problems (seed {args.seed}), at most {args.checks} collision checks each; every solved "
-        f"trajectory re-checked at 1/{DIVISOR} of the scene's resolution by a Drake checker of its own"
-    )
-    print(
-        f"{'scene':<10} {'problems':>8} {'solved':>7} {'certified':>9} {'colliding':>9} {'coll. states':>12} "
-        f"{'max pen.':>9} {'limit viol.':>11} {'worst v/a':>9} {'bad ends':>8} {'states':>10} {'median s':>8}"
-    )
-    for r in table:
-        seconds = "-" if r["median_seconds"] is None else f"{r['median_seconds']:.2f}"
-        worst = "-" if r["worst_limit_ratio"] is None else f"{r['worst_limit_ratio']:.6f}"
-        print(
-            f"{r['scene']:<10} {r['problems']:>8} {r['solved']:>7} {r['certified']:>9} "
-            f"{r['colliding_trajectories']:>9} {r['colliding_states']:>12} {r['max_penetration']:>9.2g} "
-            f"{r['limit_violations']:>11} {worst:>9} {r['inexact_endpoints']:>8} "
-            f"{r['states_checked']:>10} {seconds:>8}"
-        )
-    if cases is not None:
-        counts = bad_input_counts(cases)
-        print(
-            f"\nbad input: {counts['behaved']} of {counts['cases']} cases behaved (expected exit code, one line on "
-            f"stderr, answered within {ANSWER_SECONDS:g} s, nothing written); {counts['tracebacks']} tracebacks, "
-            f"{counts['hangs']} hangs, {counts['slow']} slow, {counts['wrong_exit_code']} wrong exit codes, "
-            f"{counts['wrote_files']} wrote files"
-        )
-        print(f"{'ok':<3} {'exit':>4} {'s':>5}  command  ->  first stderr line [files written]")
-        for c in cases:
-            code = "hung" if c["exit_code"] is None else c["exit_code"]
-            written = f" [{', '.join(c['written'])}]" if c["written"] else ""
-            print(
-                f"{'ok' if c['behaved'] else 'BAD':<3} {code:>4} {c['seconds']:>5.1f}  {c['command']}  ->  "
-                f"{c['first_line']}{written}"
+    with answering():
+        if args.json:
+            print_json(
+                {
+                    "audit": table,
+                    "problems": args.problems,
+                    "seed": args.seed,
+                    "checks": args.checks,
+                    "reused": reuse.to_json(),
+                    "bad_input": cases,
+                    "bad_input_counts": None if cases is None else bad_input_counts(cases),
+                }
             )
-    return 0
+            return 0
+        print(
+            f"{args.problems} problems (seed {args.seed}), at most {args.checks} collision checks each; every solved "
+            f"trajectory re-checked at 1/{DIVISOR} of the scene's resolution by a Drake checker of its own"
+        )
+        print(
+            f"{'scene':<10} {'problems':>8} {'solved':>7} {'certified':>9} {'colliding':>9} {'coll. states':>12} "
+            f"{'max pen.':>9} {'limit viol.':>11} {'worst v/a':>9} {'bad ends':>8} {'states':>10} {'median s':>8}"
+        )
+        for r in table:
+            seconds = "-" if r["median_seconds"] is None else f"{r['median_seconds']:.2f}"
+            worst = "-" if r["worst_limit_ratio"] is None else f"{r['worst_limit_ratio']:.6f}"
+            print(
+                f"{r['scene']:<10} {r['problems']:>8} {r['solved']:>7} {r['certified']:>9} "
+                f"{r['colliding_trajectories']:>9} {r['colliding_states']:>12} {r['max_penetration']:>9.2g} "
+                f"{r['limit_violations']:>11} {worst:>9} {r['inexact_endpoints']:>8} "
+                f"{r['states_checked']:>10} {seconds:>8}"
+            )
+        if cases is not None:
+            counts = bad_input_counts(cases)
+            print(
+                f"\nbad input: {counts['behaved']} of {counts['cases']} cases behaved (expected exit code, one line on "
+                f"stderr, answered within {ANSWER_SECONDS:g} s, nothing written); {counts['tracebacks']} tracebacks, "
+                f"{counts['hangs']} hangs, {counts['slow']} slow, {counts['wrong_exit_code']} wrong exit codes, "
+                f"{counts['wrote_files']} wrote files"
+            )
+            print(f"{'ok':<3} {'exit':>4} {'s':>5}  command  ->  first stderr line [files written]")
+            for c in cases:
+                code = "hung" if c["exit_code"] is None else c["exit_code"]
+                written = f" [{', '.join(c['written'])}]" if c["written"] else ""
+                print(
+                    f"{'ok' if c['behaved'] else 'BAD':<3} {code:>4} {c['seconds']:>5.1f}  {c['command']}  ->  "
+                    f"{c['first_line']}{written}"
+                )
+        return 0

@@ -4,6 +4,7 @@ from app.bench.jobs import JOBS, measure
 from app.bench.plan import MODES
 from app.commands.bench import results
 from app.commands.common import (
+    answering,
     budget_seconds,
     check_outputs,
     names_from,
@@ -42,31 +43,32 @@ def run(args) -> int:
         args.jobs, args.samplers, args.seeds, modes, args.narrow, args.uniform, args.budget, args.store, args.fresh
     )
     results.say_reused(reuse, args.store)
-    if args.json:
-        print_json({"jobs": result, "seeds": args.seeds, "reused": reuse.to_json()})
-        return 0
-    print(
-        f"{args.seeds} seeds; per planned leg up to {args.narrow} narrow + {args.uniform} uniform samples, "
-        f"{args.budget:g} s budget; seconds are IK + planning + smoothing + Toppra, medians (min-max) of successes"
-    )
-    print(
-        f"{'job':<8} {'sampler':<8} {'roadmap':<8} {'success':>8} {'median s':>9} {'min-max s':>12} {'IK s':>6} "
-        f"{'checks':>8}"
-    )
-    cells = {(r["job"], r["sampler"], r["roadmap"]): r for r in result}
-    for r in result:
-        total = "-" if r["median_total"] is None else f"{r['median_total']:.2f}"
-        spread = "-" if r["min_total"] is None else f"{r['min_total']:.2f}-{r['max_total']:.2f}"
-        ik = "-" if r["median_ik"] is None else f"{r['median_ik']:.2f}"
+    with answering():
+        if args.json:
+            print_json({"jobs": result, "seeds": args.seeds, "reused": reuse.to_json()})
+            return 0
         print(
-            f"{r['job']:<8} {r['sampler']:<8} {r['roadmap']:<8} {r['successes']:>4}/{r['runs']:<3} {total:>9} "
-            f"{spread:>12} {ik:>6} {r['median_checks']:>8.0f}"
+            f"{args.seeds} seeds; per planned leg up to {args.narrow} narrow + {args.uniform} uniform samples, "
+            f"{args.budget:g} s budget; seconds are IK + planning + smoothing + Toppra, medians (min-max) of successes"
         )
-    for (job, sampler, mode), r in cells.items():
-        full = cells.get((job, sampler, "full"))
-        if mode == "query" and full and r["median_total"] and full["median_total"]:
+        print(
+            f"{'job':<8} {'sampler':<8} {'roadmap':<8} {'success':>8} {'median s':>9} {'min-max s':>12} {'IK s':>6} "
+            f"{'checks':>8}"
+        )
+        cells = {(r["job"], r["sampler"], r["roadmap"]): r for r in result}
+        for r in result:
+            total = "-" if r["median_total"] is None else f"{r['median_total']:.2f}"
+            spread = "-" if r["min_total"] is None else f"{r['min_total']:.2f}-{r['max_total']:.2f}"
+            ik = "-" if r["median_ik"] is None else f"{r['median_ik']:.2f}"
             print(
-                f"{job} {sampler}: the query mode takes {r['median_total'] / full['median_total']:.2f}x the full "
-                f"roadmap's median time and {r['median_checks'] / full['median_checks']:.2f}x its checks"
+                f"{r['job']:<8} {r['sampler']:<8} {r['roadmap']:<8} {r['successes']:>4}/{r['runs']:<3} {total:>9} "
+                f"{spread:>12} {ik:>6} {r['median_checks']:>8.0f}"
             )
-    return 0
+        for (job, sampler, mode), r in cells.items():
+            full = cells.get((job, sampler, "full"))
+            if mode == "query" and full and r["median_total"] and full["median_total"]:
+                print(
+                    f"{job} {sampler}: the query mode takes {r['median_total'] / full['median_total']:.2f}x the full "
+                    f"roadmap's median time and {r['median_checks'] / full['median_checks']:.2f}x its checks"
+                )
+        return 0

@@ -7,6 +7,7 @@ from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure,
 from app.commands.bench import results
 from app.commands.common import (
     announce,
+    answering,
     budget_seconds,
     check_outputs,
     comma_list,
@@ -80,63 +81,64 @@ def run(args) -> int:
         fresh=args.fresh,
     )
     results.say_reused(reuse, args.store)
-    if args.png:
-        figure(report, args.png)
-        announce(args.png)
-    if args.json:
-        print_json({**report, "reused": reuse.to_json()})
-        return 0
-    print(
-        f"{args.seeds} runs per scene and method, {args.budget:g} s budget each, one Drake oracle counting every "
-        f"check. success: a path within the budget, free at 1/4 of the scene's resolution after smoothing (with "
-        f"its 95 % binomial interval). Medians over successful runs: checks and seconds to the first solution, "
-        f"smoothing checks, path length after smoothing (our metric)"
-    )
-    for s in report["scenes"]:
-        print(f"\n{s['scene']}")
-        for m in s["motion_checks"]:
-            fractions = m["fractions"]
-            told = (
-                f"fraction {fractions[0]:.3g}"
-                if len(fractions) == 1
-                else f"fractions {min(fractions):.3g}-{max(fractions):.3g} over {len(fractions)} subspaces"
-            )
-            users = ", ".join(u.split(":", 1)[1] for u in m["methods"])
-            print(
-                f"  OMPL motion checks, {m['space']} space ({users}): {told}; on {m['edges']} random edges the "
-                f"largest spacing is {m['max_spacing_over_resolution']:.3f} r and OMPL checks "
-                f"{m['checks_over_exact_median']:.2f}x (median; p90 {m['checks_over_exact_p90']:.2f}x) the states "
-                f"of an exact r spacing"
-            )
+    with answering():  # the figure and what is printed are the answer
+        if args.png:
+            figure(report, args.png)
+            announce(args.png)
+        if args.json:
+            print_json({**report, "reused": reuse.to_json()})
+            return 0
         print(
-            f"  {'method':<22} {'success':>7} {'95 % CI':>11} {'checks':>9} {'seconds':>8} {'checks/s':>9} "
-            f"{'smoothing':>10} {'length':>9}  notes"
+            f"{args.seeds} runs per scene and method, {args.budget:g} s budget each, one Drake oracle counting every "
+            f"check. success: a path within the budget, free at 1/4 of the scene's resolution after smoothing (with "
+            f"its 95 % binomial interval). Medians over successful runs: checks and seconds to the first solution, "
+            f"smoothing checks, path length after smoothing (our metric)"
         )
-        for r in s["methods"]:
-            lo, hi = r["success_ci"]
-            notes = []
-            if r["failed_fine_check"]:
-                notes.append(
-                    f"{r['failed_fine_check']} failed the fine check "
-                    f"({r['failed_fine_check_after_smoothing']} only after smoothing)"
+        for s in report["scenes"]:
+            print(f"\n{s['scene']}")
+            for m in s["motion_checks"]:
+                fractions = m["fractions"]
+                told = (
+                    f"fraction {fractions[0]:.3g}"
+                    if len(fractions) == 1
+                    else f"fractions {min(fractions):.3g}-{max(fractions):.3g} over {len(fractions)} subspaces"
                 )
-            if r["late"]:
-                notes.append(f"{r['late']} solved after the budget")
+                users = ", ".join(u.split(":", 1)[1] for u in m["methods"])
+                print(
+                    f"  OMPL motion checks, {m['space']} space ({users}): {told}; on {m['edges']} random edges the "
+                    f"largest spacing is {m['max_spacing_over_resolution']:.3f} r and OMPL checks "
+                    f"{m['checks_over_exact_median']:.2f}x (median; p90 {m['checks_over_exact_p90']:.2f}x) the states "
+                    f"of an exact r spacing"
+                )
             print(
-                f"  {r['method']:<22} {str(r['successes']) + '/' + str(r['runs']):>7} "
-                f"{f'{lo:.0%}-{hi:.0%}':>11} {_num(r['median_checks'], '.0f'):>9} "
-                f"{_num(r['median_seconds'], '.2f'):>8} {_num(r['median_checks_per_second'], '.0f'):>9} "
-                f"{_num(r['median_smoothing_checks'], '.0f'):>10} "
-                f"{_num(r['median_path_length'], '.4g'):>9}  {'; '.join(notes)}"
+                f"  {'method':<22} {'success':>7} {'95 % CI':>11} {'checks':>9} {'seconds':>8} {'checks/s':>9} "
+                f"{'smoothing':>10} {'length':>9}  notes"
             )
-        c = s["comparison"]
-        if c["best_ompl"] is None or not any(r["method"] == OURS for r in s["methods"]):
-            continue
-        if c["checks_ratio"] is None:
-            print(f"  {OURS} / best OMPL ({c['best_ompl']}) median checks: - (one of them never succeeded)")
-        else:
-            print(
-                f"  {OURS} / best OMPL ({c['best_ompl']}) median checks to the first solution: "
-                f"{c['checks_ratio']:.3g}x  (best: most successes, ties broken by fewer median checks)"
-            )
-    return 0
+            for r in s["methods"]:
+                lo, hi = r["success_ci"]
+                notes = []
+                if r["failed_fine_check"]:
+                    notes.append(
+                        f"{r['failed_fine_check']} failed the fine check "
+                        f"({r['failed_fine_check_after_smoothing']} only after smoothing)"
+                    )
+                if r["late"]:
+                    notes.append(f"{r['late']} solved after the budget")
+                print(
+                    f"  {r['method']:<22} {str(r['successes']) + '/' + str(r['runs']):>7} "
+                    f"{f'{lo:.0%}-{hi:.0%}':>11} {_num(r['median_checks'], '.0f'):>9} "
+                    f"{_num(r['median_seconds'], '.2f'):>8} {_num(r['median_checks_per_second'], '.0f'):>9} "
+                    f"{_num(r['median_smoothing_checks'], '.0f'):>10} "
+                    f"{_num(r['median_path_length'], '.4g'):>9}  {'; '.join(notes)}"
+                )
+            c = s["comparison"]
+            if c["best_ompl"] is None or not any(r["method"] == OURS for r in s["methods"]):
+                continue
+            if c["checks_ratio"] is None:
+                print(f"  {OURS} / best OMPL ({c['best_ompl']}) median checks: - (one of them never succeeded)")
+            else:
+                print(
+                    f"  {OURS} / best OMPL ({c['best_ompl']}) median checks to the first solution: "
+                    f"{c['checks_ratio']:.3g}x  (best: most successes, ties broken by fewer median checks)"
+                )
+        return 0

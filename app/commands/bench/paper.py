@@ -28,6 +28,7 @@ from app.commands.bench import results
 from app.commands.common import (
     MAX_PROCESSES,
     announce,
+    answering,
     check_count,
     check_outputs,
     comma_list,
@@ -167,25 +168,26 @@ def run(args) -> int:
             results.say_reused(reuse)
             ran += now
         wall = time.perf_counter() - start
-    path = build_report(store, folder, config, wall_seconds=wall, run_nothing=args.report_only)
-    export_trials(store, trials_csv)
-    database = None
-    if args.ompl_db:
-        Path(args.ompl_db).parent.mkdir(parents=True, exist_ok=True)
-        database = str(ompl_db.write(store.rows(), args.ompl_db))
-    figures = sorted(str(p) for p in folder.glob("*.png") if p.stat().st_mtime >= began)
-    announce(str(store.path), str(path), *figures, str(trials_csv), database)
-    if args.json:
-        print_json(
-            {
-                "trials_run": ran,
-                "trials_stored": store.count(),
-                "store": str(store.path),
-                "report": str(path),
-                "trials_csv": str(trials_csv),
-                "ompl_db": database,
-            }
-        )
-    else:
-        print(f"{ran} trials run; {store.count()} in {store.path}")
-    return 0
+    with answering():  # the report, its figures and exports are the answer
+        path = build_report(store, folder, config, wall_seconds=wall, run_nothing=args.report_only)
+        export_trials(store, trials_csv)
+        database = None
+        if args.ompl_db:
+            Path(args.ompl_db).parent.mkdir(parents=True, exist_ok=True)
+            database = str(ompl_db.write(store.rows(), args.ompl_db))
+        figures = sorted(str(p) for p in folder.glob("*.png") if p.stat().st_mtime >= began)
+        announce(str(store.path), str(path), *figures, str(trials_csv), database)
+        if args.json:
+            print_json(
+                {
+                    "trials_run": ran,
+                    "trials_stored": store.count(),
+                    "store": str(store.path),
+                    "report": str(path),
+                    "trials_csv": str(trials_csv),
+                    "ompl_db": database,
+                }
+            )
+        else:
+            print(f"{ran} trials run; {store.count()} in {store.path}")
+        return 0

@@ -3,6 +3,7 @@
 from app.bench.plan import COMPARED_SAMPLERS, MODES, SIZE, measure, trial_params
 from app.commands.bench import results
 from app.commands.common import (
+    answering,
     budget_seconds,
     check_outputs,
     comma_list,
@@ -91,39 +92,42 @@ def run(args) -> int:
         fresh=args.fresh,
     )
     results.say_reused(reuse, args.store)
-    if args.json:
-        print_json({"plan": table, "seeds": args.seeds, "params": params, "reused": reuse.to_json()})
-        return 0
-    settings = f"; with a budget, rounds go on until connected or {args.budget:g} s" if args.budget is not None else ""
-    if args.workspace is not None:
-        settings += f"; {args.workspace:g} of the narrow samples placed in workspace gaps"
-    print(
-        f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
-        f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
-        f"query: lazy edges, a quarter of the samples at a time until connected; full: the whole roadmap, every "
-        f"edge checked{settings}"
-    )
-    print(
-        f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
-        f"{'median checks':>14} {'narrow on path':>15} {'checks/s':>9} {'in Drake':>9} {'of raw':>7}"
-    )
-    for r in table:
-        to_path = f"{r['median_seconds_to_path']:.2f}" if r["median_seconds_to_path"] is not None else "-"
-        narrow = f"{r['median_narrow_on_path']:.0f}" if r["median_narrow_on_path"] is not None else "-"
-        drake = f"{r['median_drake_share']:.0%}" if r["median_drake_share"] is not None else "-"
-        of_raw = f"{r['median_of_raw']:.2f}" if r.get("median_of_raw") is not None else "-"
+    with answering():
+        if args.json:
+            print_json({"plan": table, "seeds": args.seeds, "params": params, "reused": reuse.to_json()})
+            return 0
+        settings = ""
+        if args.budget is not None:
+            settings = f"; with a budget, rounds go on until connected or {args.budget:g} s"
+        if args.workspace is not None:
+            settings += f"; {args.workspace:g} of the narrow samples placed in workspace gaps"
         print(
-            f"{r['scene']:<9} {r['sampler']:<9} {r['roadmap']:<8} {r['success_rate']:>8.0%} "
-            f"{r['median_seconds']:>9.2f} {to_path:>10} {r['median_checks']:>14.0f} {narrow:>15} "
-            f"{r['median_checks_per_second']:>9.0f} {drake:>9} {of_raw:>7}"
+            f"{args.seeds} seeds; up to {args.narrow} narrow + {args.uniform} uniform samples (uniform row: all "
+            f"{args.narrow + args.uniform} uniform), k {args.neighbours or 'k-PRM*'}, {args.smooth} shortcut rounds; "
+            f"query: lazy edges, a quarter of the samples at a time until connected; full: the whole roadmap, every "
+            f"edge checked{settings}"
         )
-    cells = {(r["scene"], r["sampler"], r["roadmap"]): r for r in table}
-    for (scene, sampler, mode), r in cells.items():
-        full = cells.get((scene, sampler, "full"))
-        if mode == "query" and full:
+        print(
+            f"{'scene':<9} {'sampler':<9} {'roadmap':<8} {'success':>8} {'median s':>9} {'s to path':>10} "
+            f"{'median checks':>14} {'narrow on path':>15} {'checks/s':>9} {'in Drake':>9} {'of raw':>7}"
+        )
+        for r in table:
+            to_path = f"{r['median_seconds_to_path']:.2f}" if r["median_seconds_to_path"] is not None else "-"
+            narrow = f"{r['median_narrow_on_path']:.0f}" if r["median_narrow_on_path"] is not None else "-"
+            drake = f"{r['median_drake_share']:.0%}" if r["median_drake_share"] is not None else "-"
+            of_raw = f"{r['median_of_raw']:.2f}" if r.get("median_of_raw") is not None else "-"
             print(
-                f"{scene} {sampler}: query/full median time {r['median_seconds'] / full['median_seconds']:.2f}x, "
-                f"checks {r['median_checks'] / full['median_checks']:.2f}x, success {r['success_rate']:.0%} vs "
-                f"{full['success_rate']:.0%}"
+                f"{r['scene']:<9} {r['sampler']:<9} {r['roadmap']:<8} {r['success_rate']:>8.0%} "
+                f"{r['median_seconds']:>9.2f} {to_path:>10} {r['median_checks']:>14.0f} {narrow:>15} "
+                f"{r['median_checks_per_second']:>9.0f} {drake:>9} {of_raw:>7}"
             )
-    return 0
+        cells = {(r["scene"], r["sampler"], r["roadmap"]): r for r in table}
+        for (scene, sampler, mode), r in cells.items():
+            full = cells.get((scene, sampler, "full"))
+            if mode == "query" and full:
+                print(
+                    f"{scene} {sampler}: query/full median time {r['median_seconds'] / full['median_seconds']:.2f}x, "
+                    f"checks {r['median_checks'] / full['median_checks']:.2f}x, success {r['success_rate']:.0%} vs "
+                    f"{full['success_rate']:.0%}"
+                )
+        return 0

@@ -4,6 +4,7 @@ multi-query PRM and OMPL's RRTConnect (app.bench.queries)."""
 from app.bench.queries import METHODS, Settings, check_methods, figure, measure
 from app.commands.bench import results
 from app.commands.common import (
+    answering,
     check_outputs,
     names_from,
     parse_budget,
@@ -66,15 +67,16 @@ def run(args) -> int:
     )
     report, reuse = measure(args.scenes, methods, settings, args.store, fresh=args.fresh)
     results.say_reused(reuse)
-    if args.png:
-        figure(report, args.png)
-    if args.json:
-        print_json({**report, "reused": reuse.to_json()})
+    with answering():  # the figure and what is printed are the answer
+        if args.png:
+            figure(report, args.png)
+        if args.json:
+            print_json({**report, "reused": reuse.to_json()})
+            return 0
+        print(table(report))
+        if args.png:
+            print(f"\nfigure: {args.png}")
         return 0
-    print(table(report))
-    if args.png:
-        print(f"\nfigure: {args.png}")
-    return 0
 
 
 def table(report: dict) -> str:

@@ -3,6 +3,7 @@
 from app.bench.sampling import STEPS, figure, measure, summarise
 from app.commands.common import (
     announce,
+    answering,
     check_count,
     check_outputs,
     comma_list,
@@ -57,14 +58,15 @@ def run(args) -> int:
         threads=args.threads,
     )
     summary = summarise(rows)
-    if args.png:
-        figure(summary, args.png)
-        announce(args.png)
-    if args.json:
-        print_json({"rows": rows, "summary": summary})
-    else:
-        print_table(summary)
-    return 0
+    with answering():  # the figure and what is printed are the answer
+        if args.png:
+            figure(summary, args.png)
+            announce(args.png)
+        if args.json:
+            print_json({"rows": rows, "summary": summary})
+        else:
+            print_table(summary)
+        return 0
 
 
 def print_table(summary: list[dict]) -> None:
