@@ -7,6 +7,7 @@ from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
 from app.commands.common import (
     add_scaling_arguments,
+    answering,
     float_list,
     neighbours,
     parse_budget,
@@ -198,15 +199,18 @@ def run(args) -> int:
         result = plan(oracle, settings, start=start, goal=goal) if cell is None else cell.solve(start, goal, settings)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     saved = (cell, args.roadmap) if args.update else None
-    viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
-    if args.json:
-        meshes = {"meshes": oracle.scene.info["decompositions"]} if isinstance(oracle.scene, custom.CustomScene) else {}
-        print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool, **meshes})
-    else:
-        lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
-        if tool is not None:
-            lines.append(f"tool      {tool['name']} placed by the pose(s) ({TOOL_CHOSEN[tool['chosen']]})")
-        print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
+    with answering():  # from here an interrupt waits until the files and the answer are written
+        viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
+        if args.json:
+            meshes = (
+                {"meshes": oracle.scene.info["decompositions"]} if isinstance(oracle.scene, custom.CustomScene) else {}
+            )
+            print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool, **meshes})
+        else:
+            lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
+            if tool is not None:
+                lines.append(f"tool      {tool['name']} placed by the pose(s) ({TOOL_CHOSEN[tool['chosen']]})")
+            print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
     view.wait(args, viewer)
     return 0
 

@@ -5,6 +5,7 @@ from dataclasses import replace
 from app.checking.oracle import CollisionOracle
 from app.commands.common import (
     add_scaling_arguments,
+    answering,
     parse_budget,
     positive_float,
     print_json,
@@ -79,21 +80,22 @@ def run(args) -> int:
         result = run_job(oracle, args.job, settings, cell)
     # Files first (all or none), the answer last: a failure writing one leaves no success printed.
     saved = (cell, args.roadmap) if args.update else None
-    viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
-    if args.json:
-        print_json(result.to_json())
-    else:
-        print(f"{result.scene}: {len(result.legs)} legs, sampler {result.sampler}, seed {result.seed}")
-        print(f"{'leg':<20} {'method':<9} {'narrow':>7} {'on path':>8} {'checks':>8} {'plan s':>7} {'move s':>7}")
-        for leg in result.legs:
+    with answering():  # the files and the table are the answer
+        viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
+        if args.json:
+            print_json(result.to_json())
+        else:
+            print(f"{result.scene}: {len(result.legs)} legs, sampler {result.sampler}, seed {result.seed}")
+            print(f"{'leg':<20} {'method':<9} {'narrow':>7} {'on path':>8} {'checks':>8} {'plan s':>7} {'move s':>7}")
+            for leg in result.legs:
+                print(
+                    f"{leg.start + ' -> ' + leg.goal:<20} {leg.method:<9} {leg.narrow_samples:>7} "
+                    f"{leg.narrow_on_path:>8} {leg.collision_checks:>8} {leg.seconds:>7.2f} {leg.duration:>7.2f}"
+                )
+            s = result.seconds
             print(
-                f"{leg.start + ' -> ' + leg.goal:<20} {leg.method:<9} {leg.narrow_samples:>7} "
-                f"{leg.narrow_on_path:>8} {leg.collision_checks:>8} {leg.seconds:>7.2f} {leg.duration:>7.2f}"
+                f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
+                f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)"
             )
-        s = result.seconds
-        print(
-            f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
-            f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)"
-        )
     wait(args, viewer)
     return 0

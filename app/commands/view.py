@@ -14,7 +14,7 @@ import signal
 import sys
 import threading
 
-from app.commands.common import announce, check_outputs, non_negative_float, print_json
+from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json
 from app.errors import UserError
 from app.io import all_or_nothing
 from app.motion.rosbag import write_bag
@@ -67,7 +67,8 @@ def write_outputs(args, scene, file: TrajectoryFile, out: str | None = None, roa
     """The trajectory `file` written and shown as the flags ask: `out` (its JSON file), --bag, --html, --meshcat,
     and `roadmap` (a cell roadmap and its path: written back); the files appear together or not at all, each named
     on stderr. Returns the Meshcat viewer (None without --meshcat/--html). The Meshcat URL also goes to stderr
-    (stdout may carry a command's JSON); `wait` then keeps it served."""
+    (stdout may carry a command's JSON); `wait` then keeps it served. A command calls it inside its
+    common.answering() block, with the answer it prints."""
     viewer = None
     with all_or_nothing():
         if args.meshcat or args.html:
@@ -127,15 +128,16 @@ def run_view(args) -> int:
     scene = load_scene(args.scene)
     file = TrajectoryFile.read_for(args.trajectory, scene)
     check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
-    viewer = write_outputs(args, scene, file)
-    if args.json:
-        print_json(
-            {
-                "scene": scene.name,
-                "html": args.html,
-                "bag": args.bag,
-                "meshcat": viewer.url() if args.meshcat else None,
-            }
-        )
+    with answering():
+        viewer = write_outputs(args, scene, file)
+        if args.json:
+            print_json(
+                {
+                    "scene": scene.name,
+                    "html": args.html,
+                    "bag": args.bag,
+                    "meshcat": viewer.url() if args.meshcat else None,
+                }
+            )
     wait(args, viewer)
     return 0
