@@ -225,6 +225,7 @@ def _timing(settings: PlanSettings, proof: BlendProof | None = None, edges_prove
         "proof": proof,
         "velocity_scale": settings.velocity_scale,
         "acceleration_scale": settings.acceleration_scale,
+        "clearance": settings.clearance,
     }
 
 
@@ -273,9 +274,11 @@ def join(trajectories: list[Trajectory], oracle) -> Trajectory:
         parts["waypoint_times"].append(leg.waypoint_times[skip:] + offset)
         offset += leg.duration
         end = leg.positions[-1] + shift
+    certified = all(t.certified for t in trajectories)
     return Trajectory(
         joint_names=trajectories[0].joint_names,
-        certified=all(t.certified for t in trajectories),
+        certified=certified,
+        clearance=min(t.clearance for t in trajectories) if certified else None,
         position_map=trajectories[0].position_map,
         **{key: np.concatenate(value) for key, value in parts.items()},
     )

@@ -12,8 +12,10 @@ from app.bench.audit import (
     Recheck,
     audit_trajectory,
     bad_input_counts,
+    lines,
     measure,
     measure_bad_input,
+    measure_roadmaps,
     states,
 )
 from app.motion.timing import parameterize
@@ -32,6 +34,9 @@ def test_a_trajectory_through_an_obstacle_is_counted(oracles):
     assert found["colliding_states"] > 0 and found["max_penetration"] > 0
     assert found["limit_violations"] == 0 and found["worst_limit_ratio"] <= 1 + 1e-6 and found["endpoints_exact"]
     assert not recheck.check(start)[0][0]
+    # The straight line a controller would draw from start to goal is checked finely, and collides.
+    line = lines(np.array([start, goal]), oracle.space.weights, oracle.space.resolution / DIVISOR)
+    assert len(line) > DIVISOR and recheck.check(line)[0].any()
     # The same trajectory graded against other endpoints is flagged.
     assert not audit_trajectory(recheck, oracle.space, through, start, start, scene)["endpoints_exact"]
 
@@ -66,14 +71,34 @@ def test_a_short_audit_has_every_field_and_no_colliding_state(tmp_path):
         "limit_violations",
         "inexact_endpoints",
         "states_checked",
+        "sample_lines_states",
+        "colliding_sample_lines_states",
+        "polyline_states",
+        "colliding_polyline_states",
     }
     assert fields <= set(table[-1])
     assert [row["problems"] for row in table] == [1, 1, 2]
     total = table[-1]
     assert total["solved"] >= 1 and total["states_checked"] > 1000 * total["solved"]
     assert total["colliding_states"] == 0 and total["inexact_endpoints"] == 0
+    # What a controller interpolating linearly follows: the lines between 50 Hz samples, and the path polyline.
+    assert total["sample_lines_states"] > 100 * total["solved"] and total["polyline_states"] > 100 * total["solved"]
+    assert total["colliding_sample_lines_states"] == 0 and total["colliding_polyline_states"] == 0
     # Toppra's limits are checked at its grid points (and app.motion.timing's between them): 1e-4 covers what is left.
     assert 0.5 < total["worst_limit_ratio"] <= 1 + 1e-4
+
+
+def test_answers_on_a_stored_and_a_tampered_roadmap_are_clean(tmp_path):
+    """Problems planned on a cell roadmap saved and read back, and on the same file with every colliding edge
+    rewritten as free and proved: every answer certified and clean, and no forged edge on any roadmap path."""
+    table, _ = measure_roadmaps(["bar-3link"], 4, seed=0, checks=CHECKS, store=tmp_path / "audit.sqlite", nodes=200)
+    assert [row["scene"] for row in table] == ["bar-3link saved", "bar-3link tampered", "total"]
+    assert [row["problems"] for row in table] == [2, 2, 4]
+    total = table[-1]
+    assert table[0]["forged_edges"] == 0 and table[1]["forged_edges"] > 100  # every colliding edge of the build
+    assert total["solved"] == total["certified"] >= 3 and total["forged_edges_on_paths"] == 0
+    colliding = ("colliding_states", "colliding_sample_lines_states", "colliding_polyline_states")
+    assert [total[key] for key in colliding] == [0, 0, 0]
 
 
 def test_a_soak_run_again_reuses_its_problems(cli, tmp_path):

@@ -115,7 +115,7 @@ def test_nodes_kept_are_numbered_again_with_every_verdict_between_them(oracles):
     roadmap = Roadmap(oracle.context(), k=8, lazy=True)
     roadmap.add(oracle.space.uniform(rng, 200), "uniform")
     roadmap.shortest_path(0, len(roadmap) - 1)  # decides some edges: free ones checked, colliding ones dead
-    roadmap.proved.update(tuple(e) for e in roadmap.edges(checked=True)[:5].tolist())
+    roadmap.mark_proved([tuple(e) for e in roadmap.edges(checked=True)[:5].tolist()], 1e-3)
 
     def verdicts(graph, names):
         rows = zip(graph._ends.tolist(), graph._alive.tolist(), graph._checked.tolist())
@@ -123,14 +123,16 @@ def test_nodes_kept_are_numbered_again_with_every_verdict_between_them(oracles):
 
     before = verdicts(roadmap, range(len(roadmap)))
     keep = rng.random(len(roadmap)) < 0.6
-    Q, proved, tried = roadmap.Q.copy(), set(roadmap.proved), len(roadmap._tried)
+    Q, proved, tried = roadmap.Q.copy(), dict(roadmap.proved), len(roadmap._tried)
     index = roadmap.keep_nodes(keep)
     old = np.flatnonzero(keep)  # the old name of each node kept
     assert np.array_equal(roadmap.Q, Q[keep]) and len(roadmap.kinds) == keep.sum()
     assert np.array_equal(index[old], np.arange(len(old))) and (index[~keep] == -1).all()
     after = verdicts(roadmap, old)
     assert after == {pair: v for pair, v in before.items() if keep[pair[0]] and keep[pair[1]]} and after
-    assert {(old[a], old[b]) for a, b in roadmap.proved} == {p for p in proved if keep[p[0]] and keep[p[1]]}
+    assert {(old[a], old[b]): c for (a, b), c in roadmap.proved.items()} == {
+        p: c for p, c in proved.items() if keep[p[0]] and keep[p[1]]
+    }
     assert 0 < len(roadmap._tried) < tried
     assert not {tuple(e) for e in roadmap.candidates(np.arange(len(roadmap))).tolist()} & {
         (index[a], index[b]) for a, b in before if keep[a] and keep[b]
@@ -829,6 +831,15 @@ def test_a_scale_outside_zero_to_one_is_bad_input(cli, one_line_error, flag, val
     assert "must be a fraction in (0, 1]" in one_line_error(cli("plan", "bar", flag, value), 2)
 
 
+@pytest.mark.parametrize("flag", ["--velocity-scale", "--acceleration-scale"])
+def test_a_scale_that_would_make_the_motion_last_days_is_refused_before_planning(cli, one_line_error, flag):
+    """Limits scaled by 1e-300 made Drake's own checks fail in C++ after planning, with nothing on stdout."""
+    out = cli("plan", "bar", flag, "1e-300", "--json")
+    assert "more than a day" in one_line_error(out, 2)
+    answer = json.loads(out.stdout)
+    assert answer["success"] is False and answer["error"]["code"] == "INVALID_INPUT"
+
+
 def test_a_start_touching_an_obstacle_is_refused_naming_the_bodies(oracles):
     """maze's x bound 0.35 puts the hull against the outer wall (signed distance 0): the collision check calls that
     free, but no motion out of it can be certified, so it is refused at once instead of spending the budget."""
@@ -842,6 +853,32 @@ def test_a_start_touching_an_obstacle_is_refused_naming_the_bodies(oracles):
     clear = touching.copy()
     clear[0] += 0.01
     assert plan(oracle, PlanSettings(seed=0, budget=Budget(checks=200_000)), start=clear).trajectory.certified
+
+
+def test_the_answer_keeps_the_clearance_it_states_and_an_end_nearer_is_refused(oracles, cli):
+    """The maze's start is 1 cm from the outer wall once moved there: with a clearance of 2 cm it is refused, saying
+    why; with 5 mm the answer is certified and states the clearance, as does the command line's answer, which the
+    samples keep (Drake's own distances)."""
+    oracle = oracles("maze")
+    near = oracle.scene.start.copy()
+    near[0] = oracle.space.lower[0] + 0.01
+    with pytest.raises(InvalidEndpoint, match="start is nearer than the clearance 0.02") as refused:
+        plan(oracle, PlanSettings(seed=0, clearance=0.02), start=near)
+    assert refused.value.code == "START_STATE_IN_COLLISION"
+    result = plan(oracle, PlanSettings(seed=0, clearance=0.005), start=near)
+    assert result.certified and result.trajectory.clearance == result.to_json()["clearance"] == 0.005
+    assert min(oracle.clearance(q, 1.0) for q in oracle.space.wrap(result.trajectory.positions)) >= 0.005
+    answer = json.loads(cli("plan", "maze", "--json", "--clearance", "0.004").stdout)
+    assert answer["certified"] and answer["clearance"] == answer["trajectory"]["clearance"] == 0.004
+    assert "clearance must be" in str(pytest.raises(UserError, PlanSettings, clearance=0).value)
+
+
+def test_an_edge_proved_to_keep_a_smaller_clearance_is_proved_again_for_a_larger_one(oracles):
+    roadmap = Roadmap(oracles("bar").context(), k=8, lazy=True)
+    roadmap.mark_proved([(0, 1), None, (2, 3)], 1e-3)
+    roadmap.mark_proved([(2, 3)], 1e-5)  # the larger proof stands
+    assert roadmap.proved_with([(0, 1), (1, 2), None, (2, 3)], 1e-3).tolist() == [True, False, False, True]
+    assert not roadmap.proved_with([(0, 1), (2, 3)], 1e-2).any()
 
 
 def test_the_default_budget_is_counted_in_checks_so_answers_do_not_depend_on_the_machine():

@@ -10,20 +10,34 @@ That curve is the executed motion itself wherever the path and Toppra's s(t) are
 i.e. almost everywhere; across a break, where the acceleration jumps by J, it is off by about 1e-2 J h^2, a few
 micrometres or microradians at h = SAMPLE_PERIOD. No shape is padded.
 Start and goal must be met exactly, at rest, and velocities and accelerations stay within the scene's limits.
+What a controller that interpolates linearly is given is re-checked too: the same answer timed at the planner's
+default sample period (PlanSettings().dt, the same curve: timing is deterministic), and the straight lines between
+its samples checked at the same spacing; and the path polyline (`path`, the waypoints), edge by edge.
 
 Problems are trials of experiment "audit" in the results store (a killed run resumes); problem i of a scene draws
 its start and goal, free and within bounds, from numpy's generator seeded with (seed, scene's index, i). Each plans
 under a budget of collision checks, not seconds, so the same problem gets the same answer on any machine at any
 load.
 
+Stored roadmaps are audited the same way (experiment "audit-roadmap"): per scene a cell roadmap is built (seeded,
+so every process builds the same one), saved, and read back as it is ("saved") or after every edge it found
+colliding was rewritten in the file as free and proved ("tampered": the forgery an attacker would try; the
+file's fingerprint kept). Problems drawn as above are planned on a fresh load of the file, every answer re-checked,
+and the path's roadmap edges compared with the forged ones: a forged edge may steer the search, never an answer.
+
 With it, the bad-input table (app.bench.bad_input.ROWS): each row run as `python -m app` in a fresh folder, with its
 exit code, first stderr line, files written and seconds, and whether it behaved (`behaved`). Its rows are trials of
 experiment "bad-input" in the same store.
 """
 
+import atexit
+import io
 import math
+import shutil
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -33,6 +47,8 @@ from app.bench.runner import sweep
 from app.bench.store import ResultStore, Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath
+from app.motion.timing import time_path
+from app.planning.cell import BuildSettings, CellRoadmap
 from app.planning.planner import PlanSettings, default_step, plan
 from app.scene.model import Scene, scene_names
 
@@ -49,6 +65,10 @@ ENDPOINT_TOLERANCE = 1e-9
 DRAWS = 1000
 # Collision checks a problem may spend (the default of --checks).
 CHECKS = 100_000
+# Nodes of the cell roadmap each scene's stored-roadmap problems are planned on (its build budget: BuildSettings').
+ROADMAP_NODES = 500
+# How a stored roadmap is read back for its problems.
+ROADMAP_VARIANTS = ("saved", "tampered")
 # A bad-input case must be answered within this many seconds (the issue's "hang" is > 10 s before the first line);
 # one still running after CASE_TIMEOUT is killed and counted as a hang.
 ANSWER_SECONDS = 10.0
@@ -122,6 +142,17 @@ def states(trajectory, weights: np.ndarray, spacing: float) -> np.ndarray:
         if not wide.any():
             return np.vstack(out)
         counts[wide] *= 2
+
+
+def lines(P: np.ndarray, weights: np.ndarray, spacing: float) -> np.ndarray:
+    """The rows of P and points of the straight lines between consecutive rows, no two consecutive ones more than
+    `spacing` apart in the weighted metric."""
+    P = np.atleast_2d(np.asarray(P, float))
+    if len(P) < 2:
+        return P.copy()
+    counts = np.maximum(1, np.ceil(np.linalg.norm(np.diff(P, axis=0) * weights, axis=1) / spacing)).astype(int)
+    out = [P[:1]] + [P[i] + np.arange(1, n + 1)[:, None] / n * (P[i + 1] - P[i]) for i, n in enumerate(counts)]
+    return np.vstack(out)
 
 
 def _quintic(p0, v0, a0, p1, v1, a1, h: float, tau: np.ndarray) -> np.ndarray:
@@ -209,7 +240,8 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         }
     seconds = time.perf_counter() - clock
     trajectory = result.trajectory
-    check = audit_trajectory(_recheck(spec.scene), oracle.space, trajectory, start, goal, oracle.scene)
+    recheck = _recheck(spec.scene)
+    check = audit_trajectory(recheck, oracle.space, trajectory, start, goal, oracle.scene)
     return {
         "drawn": True,
         "solved": True,
@@ -218,7 +250,103 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         "checks": result.collision_checks,
         "duration": trajectory.duration,
         **check,
+        **audit_lines(recheck, oracle, result),
     }
+
+
+# ---- stored roadmaps ------------------------------------------------------------------------------------------------
+_stored: dict = {}
+_folder: list[Path] = []
+
+
+def stored_roadmap(oracle, seed: int, nodes: int, variant: str) -> tuple[Path, set]:
+    """The file of the scene's cell roadmap (built once per process: seeded, the same in every process) as `variant`
+    (ROADMAP_VARIANTS), and the forged edges' ends as pairs of configurations (bytes; none for "saved")."""
+    key = (oracle.scene.name, seed, nodes)
+    if key not in _stored:
+        if not _folder:
+            _folder.append(Path(tempfile.mkdtemp(prefix="npp-audit-")))
+            atexit.register(shutil.rmtree, _folder[0], True)
+        saved = _folder[0] / f"{oracle.scene.name}-{seed}-{nodes}.npz"
+        CellRoadmap.build(oracle, BuildSettings(nodes=nodes, seed=seed)).save(saved)
+        with np.load(saved, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+        # Every edge the build found colliding, rewritten as decided free and proved.
+        dead = ~arrays["alive"]
+        Q, ends = arrays["Q"], arrays["ends"][dead]
+        forged = {frozenset((Q[a].tobytes(), Q[b].tobytes())) for a, b in ends.tolist()}
+        for flag in ("alive", "checked", "proved"):
+            arrays[flag] = arrays[flag] | dead
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, **arrays)
+        tampered = saved.with_name(saved.stem + "-tampered.npz")
+        tampered.write_bytes(buffer.getvalue())
+        _stored[key] = {"saved": (saved, set()), "tampered": (tampered, forged)}
+    return _stored[key][variant]
+
+
+def run_roadmap_trial_spec(oracle, spec: TrialSpec) -> dict:
+    """One stored-roadmap audit problem (experiment "audit-roadmap", method: the variant, seed: problem index;
+    params: base seed, check budget, roadmap nodes): planned on a fresh load of the file, re-checked as
+    run_trial_spec's, with the forged edges its roadmap path used (must be 0)."""
+    p = spec.params
+    endpoints = problem(oracle, int(p["seed"]), spec.seed)
+    if endpoints is None:
+        return {"drawn": False, "solved": False}
+    start, goal = endpoints
+    path, forged = stored_roadmap(oracle, int(p["seed"]), int(p["nodes"]), spec.method)
+    settings = PlanSettings(seed=spec.seed, budget=Budget(checks=int(p["checks"])), dt=SAMPLE_PERIOD, step=spec.step)
+    clock = time.perf_counter()
+    try:
+        result = CellRoadmap.load(path, oracle).solve(start, goal, settings)
+    except NoPath as failure:
+        return {"drawn": True, "solved": False, "checks": getattr(failure, "details", {}).get("collision_checks")}
+    seconds = time.perf_counter() - clock
+    raw = result.roadmap_path
+    used = sum(frozenset((a.tobytes(), b.tobytes())) in forged for a, b in zip(raw[:-1], raw[1:]))
+    recheck = _recheck(spec.scene)
+    return {
+        "drawn": True,
+        "solved": True,
+        "certified": bool(result.trajectory.certified),
+        "seconds": seconds,
+        "checks": result.collision_checks,
+        "forged_edges": len(forged),
+        "forged_edges_on_path": int(used),
+        **audit_trajectory(recheck, oracle.space, result.trajectory, start, goal, oracle.scene),
+        **audit_lines(recheck, oracle, result),
+    }
+
+
+def roadmap_specs(scenes: list[str], problems: int, seed: int, checks: int, nodes: int) -> list[TrialSpec]:
+    """`problems` in all over the scenes and ROADMAP_VARIANTS, in turn as `specs` shares them."""
+    steps = {scene: default_step(Scene(scene)) for scene in scenes}
+    params = {"seed": seed, "checks": checks, "nodes": nodes}
+    turns = [(scene, variant) for scene in scenes for variant in ROADMAP_VARIANTS]
+    order = [(i, *turn) for i in range(math.ceil(problems / len(turns))) for turn in turns][:problems]
+    return [TrialSpec("audit-roadmap", scene, variant, steps[scene], i, params) for i, scene, variant in order]
+
+
+def audit_lines(recheck: Recheck, oracle, result) -> dict:
+    """What a controller that interpolates linearly follows, re-checked: the straight lines between the samples of
+    the answer timed at the default sample period, and the path polyline; states checked and colliding states of
+    each, at 1/DIVISOR of the resolution."""
+    settings = PlanSettings()
+    controller = time_path(
+        oracle.context(),
+        result.path,
+        settings.dt,
+        proof=result.blends,
+        edges_proved=result.blends is None,
+        clearance=result.clearance,
+    )
+    space, spacing = oracle.space, oracle.space.resolution / DIVISOR
+    out = {}
+    for name, P in (("sample_lines", controller.positions), ("polyline", space.unwrap(result.path))):
+        Q = lines(P, space.weights, spacing)
+        colliding, _ = recheck.check(Q)
+        out[f"{name}_states"], out[f"colliding_{name}_states"] = len(Q), int(colliding.sum())
+    return out
 
 
 def specs(scenes: list[str], problems: int, seed: int, checks: int) -> list[TrialSpec]:
@@ -230,12 +358,13 @@ def specs(scenes: list[str], problems: int, seed: int, checks: int) -> list[Tria
     return [TrialSpec("audit", scene, "default", steps[scene], i, params) for i, scene in order]
 
 
-def summarise(rows: list[dict], scenes: list[str]) -> list[dict]:
-    """One row per scene (in `scenes` order) and a total row: problems, solved, certified, colliding trajectories,
-    colliding states, deepest penetration, limit violations, inexact endpoints, states checked."""
+def summarise(rows: list[dict], scenes: list[str], label=lambda row: row["scene"]) -> list[dict]:
+    """One row per scene (in `scenes` order; or per other `label` of a stored row) and a total row: problems,
+    solved, certified, colliding trajectories, colliding states, deepest penetration, limit violations, inexact
+    endpoints, states checked (and of stored roadmaps, the forged edges their paths used)."""
     table = []
     for scene in [*scenes, "total"]:
-        metrics = [r["metrics"] for r in rows if scene in ("total", r["scene"])]
+        metrics = [r["metrics"] for r in rows if scene in ("total", label(r))]
         solved = [m for m in metrics if m["solved"]]
         table.append(
             {
@@ -253,7 +382,25 @@ def summarise(rows: list[dict], scenes: list[str]) -> list[dict]:
                     (m["worst_limit_ratio"] for m in solved if "worst_limit_ratio" in m), default=None
                 ),
                 "inexact_endpoints": sum(not m["endpoints_exact"] for m in solved),
+                # None unless every row has them (rows stored before the audit checked them do not).
+                **{
+                    key: sum(m[key] for m in solved) if solved and all(key in m for m in solved) else None
+                    for key in (
+                        "sample_lines_states",
+                        "colliding_sample_lines_states",
+                        "polyline_states",
+                        "colliding_polyline_states",
+                    )
+                },
                 "states_checked": sum(m["states"] for m in solved),
+                **(
+                    {
+                        "forged_edges": max(m["forged_edges"] for m in solved),
+                        "forged_edges_on_paths": sum(m["forged_edges_on_path"] for m in solved),
+                    }
+                    if solved and all("forged_edges_on_path" in m for m in solved)
+                    else {}
+                ),
                 "median_seconds": float(np.median([m["seconds"] for m in solved])) if solved else None,
             }
         )
@@ -267,6 +414,24 @@ def measure(
     was reused."""
     rows, reuse = sweep(specs(scenes, problems, seed, checks), store, workers=workers, desc="bench audit", fresh=fresh)
     return summarise(rows, scenes), reuse
+
+
+def measure_roadmaps(
+    scenes: list[str],
+    problems: int,
+    seed: int,
+    checks: int,
+    store,
+    nodes: int = ROADMAP_NODES,
+    workers: int = 1,
+    fresh: bool = False,
+) -> tuple[list[dict], Reuse]:
+    """The stored-roadmap problems as `measure` runs the others: one row per scene and variant ("window saved",
+    "window tampered", ...) and a total."""
+    todo = roadmap_specs(scenes, problems, seed, checks, nodes)
+    rows, reuse = sweep(todo, store, workers=workers, desc="bench audit: stored roadmaps", fresh=fresh)
+    labels = [f"{scene} {variant}" for scene in scenes for variant in ROADMAP_VARIANTS]
+    return summarise(rows, labels, label=lambda row: f"{row['scene']} {row['method']}"), reuse
 
 
 # ---- the bad-input table ------------------------------------------------------------------------------------------

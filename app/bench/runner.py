@@ -36,6 +36,7 @@ EXPERIMENTS = {
     "ompl": "app.bench.ompl:run_trial_spec",
     "ur3": "app.bench.jobs:run_trial_spec",
     "audit": "app.bench.audit:run_trial_spec",
+    "audit-roadmap": "app.bench.audit:run_roadmap_trial_spec",
     "certify": "app.bench.certification:run_trial_spec",
     "certify-job": "app.bench.certification:run_job_trial_spec",
 }

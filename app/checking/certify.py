@@ -27,7 +27,8 @@ the upper arm). For a robot-environment pair, B_PQ = B_P.
 
 Certificate. Signed distance changes no faster than that, so if at the ends a, b of a piece of motion
 d_PQ(a) + d_PQ(b) > B_PQ for every pair the scene counts, P and Q never touch in between:
-d(t) >= d(a) - B_PQ(a..t) and d(t) >= d(b) - B_PQ(t..b), and the two add up to at most B_PQ. An interval starts
+d(t) >= d(a) - B_PQ(a..t) and d(t) >= d(b) - B_PQ(t..b), and the two add up to at most B_PQ. With a clearance c,
+d_PQ(a) + d_PQ(b) > B_PQ + 2c leaves d(t) >= c all along the piece, in the same way. An interval starts
 as pieces a few resolutions long (a longer piece seldom passes whole, and a round of pieces costs a fixed part
 besides its distance queries); a piece that fails is cut into parts (as many as its ends' distances fall short,
 2 to 8); one that still fails once its motion is shorter than the floor (in the space's weighted metric) is
@@ -82,6 +83,11 @@ from app.checking.kinematics import TreeKinematics
 from app.checking.protocol import Checker
 from app.scene.meshes import hull_vertices
 
+# What a planned motion is proved to keep from everything by default (scene length units: metres for the robots): a
+# margin for the proofs that the straight lines a controller draws between its samples, and the path polyline, are
+# free too (app.motion.timing), not a safety padding -- a larger one (PlanSettings.clearance) pads the motion, for
+# more collision checks, as the planner's own checks do not pad (benchmark pages).
+CLEARANCE = 1e-5
 # A piece is cut until its motion is shorter than resolution / FLOOR_DIVISOR (weighted metric).
 FLOOR_DIVISOR = 256
 # max_distance slightly above half the largest pair bound, so an unreported pair passes strictly.
@@ -745,8 +751,12 @@ class Certifier:
         self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
         self.seconds = time.perf_counter() - clock  # all this certifier's work: set-up, then every certify()
 
-    def certify(self, curve, intervals) -> tuple[bool, dict]:
-        """Whether the curve is free over each interval (s0, s1) of `intervals`.
+    def certify(self, curve, intervals, clearance=0.0, floor=None) -> tuple[bool, dict]:
+        """Whether the curve keeps at least `clearance` (0: is free; one for all intervals or one per interval)
+        from everything over each interval (s0, s1) of `intervals`: every pair's bound on a piece is taken
+        2 x clearance larger, so that d(a) + d(b) > B + 2c leaves d >= c all along (see the module doc). floor: how
+        short a failing piece may be cut before its interval fails (one for all or one per interval; default the
+        certifier's), for a caller with a cheaper way round a failure than proving it finer.
 
         The curve (a Motion, or any object with the same methods) gives position(s), and variation(s0, s1), a bound
         on each coordinate's travel between s0 and s1, for s0 < s1 within one interval; and, if it has them,
@@ -762,6 +772,8 @@ class Certifier:
         # Per interval, a heap of its pieces still to prove, as (distance at the ends of the piece they halve, start,
         # end): nearest to contact first.
         intervals = np.array(list(intervals), float).reshape(-1, 2)
+        margins = 2 * np.broadcast_to(np.asarray(clearance, float), (len(intervals),))
+        floors = np.broadcast_to(np.asarray(self.floor if floor is None else floor, float), (len(intervals),))
         heaps = {}
         if len(intervals):
             space = self.checker.space
@@ -796,6 +808,7 @@ class Certifier:
                     da, db, dd = derivatives(spans[:, 0], spans[:, 1])
                     along = self.bound.pair_travel_along(rates, at_a, at_b, da * span, db * span, dd * span**2)
                     travel = np.minimum(travel, along)
+            travel = travel + margins[[i for i, _ in todo]][:, None, None]
             # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
             # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
             certain = self._certain_shortfall(Q, by_end, travel)
@@ -828,7 +841,7 @@ class Certifier:
                     continue
                 if passed:
                     pieces += 1
-                elif length <= self.floor or not unasked and (ends[a] is None or ends[b] is None):
+                elif length <= floors[i] or not unasked and (ends[a] is None or ends[b] is None):
                     failed.append(i)
                     del heaps[i]
                 else:
@@ -1128,11 +1141,11 @@ class Motion(NamedTuple):
     derivatives: object = None
 
 
-def certify_curve(oracle, curve, knots, floor: float | None = None) -> tuple[bool, dict]:
+def certify_curve(oracle, curve, knots, floor: float | None = None, clearance: float = 0.0) -> tuple[bool, dict]:
     """Certify the curve (see Certifier.certify) over [knots[0], knots[-1]], its variation and derivatives holding
     between two consecutive knots. stats["failed"]: indices of the knot intervals that failed."""
     knots = np.asarray(knots, float)
-    return Certifier(oracle, floor).certify(curve, itertools.pairwise(knots))
+    return Certifier(oracle, floor).certify(curve, itertools.pairwise(knots), clearance)
 
 
 def polyline(space, P: np.ndarray) -> Motion:
@@ -1164,9 +1177,10 @@ def straight_edges(W: np.ndarray, knots: np.ndarray) -> Motion:
     return Motion(position, variation, derivatives)
 
 
-def certify_path(oracle, P: np.ndarray, floor: float | None = None) -> tuple[bool, dict]:
-    """Certify every straight edge of the polyline P (in oracle.space). stats["failed"]: the edges that failed."""
+def certify_path(oracle, P: np.ndarray, floor: float | None = None, clearance: float = 0.0) -> tuple[bool, dict]:
+    """Certify that every straight edge of the polyline P (in oracle.space) keeps at least `clearance` from
+    everything (0: is free). stats["failed"]: the edges that failed."""
     P = np.atleast_2d(np.asarray(P, float))
     if len(P) < 2:
         P = np.vstack([P, P])
-    return certify_curve(oracle, polyline(oracle.space, P), np.arange(len(P)), floor)
+    return certify_curve(oracle, polyline(oracle.space, P), np.arange(len(P)), floor, clearance)

@@ -16,6 +16,7 @@ import threading
 import time
 
 from app.checking.budget import Budget
+from app.checking.certify import CLEARANCE
 from app.errors import UserError
 from app.io import check_output
 from app.samplers import check_name
@@ -114,7 +115,8 @@ def fraction(text: str) -> float:
 
 
 def add_scaling_arguments(p) -> None:
-    """--velocity-scale and --acceleration-scale, as MoveIt's scaling factors, for a command that times motion."""
+    """--velocity-scale and --acceleration-scale, as MoveIt's scaling factors, and --clearance, for a command that
+    times motion."""
     for kind in ("velocity", "acceleration"):
         p.add_argument(
             f"--{kind}-scale",
@@ -123,6 +125,15 @@ def add_scaling_arguments(p) -> None:
             metavar="S",
             help=f"time the motion with this fraction (0, 1] of the {kind} limits (default 1)",
         )
+    p.add_argument(
+        "--clearance",
+        type=positive_float,
+        default=CLEARANCE,
+        metavar="D",
+        help=f"the distance the certified motion keeps from everything (scene length units: metres for the robots; "
+        f"default {CLEARANCE:g}); the straight lines between its samples and the path's waypoints keep half of it, "
+        "so a controller that interpolates linearly between them stays clear",
+    )
 
 
 def comma_list(text: str) -> list[str]:

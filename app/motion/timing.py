@@ -27,11 +27,12 @@ import itertools
 import logging
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
-from app.checking.certify import Certifier, straight_edges
+from app.checking.certify import CLEARANCE, Certifier, straight_edges
 from app.errors import UserError
 from app.motion.path import distinct
 from app.motion.trajectory import Trajectory
@@ -46,6 +47,10 @@ GRID_STRAIGHT, GRID_BLEND = 32, (16, 12, 20, 24)
 LIMIT_MARGIN = 1e-3
 # Points per Toppra grid interval at which the timed speed is checked (see _excess).
 SPEED_POINTS = 16
+# A straight line between two samples that the certificate cannot prove in this many parts gets a sample between.
+LINE_CUTS = 8
+# The longest motion timed (s): a day. Limits scaled further down are refused (check_duration).
+MAX_DURATION = 86400.0
 # Piece derivatives are linear in s up to rounding of their cubic Hermite form: a little slack on the travel bound.
 _SLACK = 1 + 1e-9
 
@@ -139,19 +144,35 @@ class _Curve:
 
 
 def _certified_radii(
-    certifier: Certifier, W, tangent, arc, radii, tighten: int, known: np.ndarray, give_up: bool = False
+    certifier: Certifier,
+    W,
+    tangent,
+    arc,
+    radii,
+    tighten: int,
+    known: np.ndarray,
+    clearance: float,
+    give_up: bool = False,
 ) -> tuple[np.ndarray, list[int], dict]:
-    """Blend radii tightened until every blend is certified (a corner that never is becomes a stop), the segments
-    whose straight part failed (indices into W's segments; none: the whole curve is certified), and the cost.
+    """Blend radii tightened until every blend keeps `clearance` and the corner of the polyline it cuts off is
+    free (a corner that never is becomes a stop), the segments whose straight part failed (indices into W's
+    segments; none: the whole curve, and the polyline, are certified), and the cost.
 
     A segment's straight part runs between its corners' blends. As a blend shrinks, the straight parts beside it
-    grow and keep their s, so only what they gain is proved. Each round proves the blends and straight parts it
-    has in one certifier call. known: per segment, whether it is certified already (then so is its straight part).
-    give_up: a straight part that fails ends the proof (for a caller that will prove the path another way or
-    change it, rather than time it uncertified)."""
+    grow and keep their s, so only what they gain is proved. The polyline's corner a blend cuts off is within
+    radius / 4 x the change of tangent of the blend, coordinate by coordinate (at the blend's middle), so where
+    that moves no pair more than clearance / 2 the blend's proof covers it; otherwise it is proved itself, to keep
+    clearance / 2 (the path polyline is part of the answer: a controller may follow it). Each round proves the
+    blends, corners and straight parts it has in one certifier call. known: per segment, whether it is certified
+    already (then so is its straight part, and its half of each corner). give_up: a straight part that fails ends
+    the proof (for a caller that will prove the path another way or change it, rather than time it uncertified)."""
     line, tiny = straight_edges(W, arc), 1e-12 * max(arc[-1], 1.0)
+    weights = certifier.checker.space.weights
     radii, halvings, done = radii.copy(), np.zeros(len(W), int), set()
     proved = np.tile([np.inf, -np.inf], (len(W) - 1, 1))  # per segment, the span of its straight part proved
+    cornered = np.zeros(len(W))  # per corner, the radius up to which the polyline it cuts off is proved
+    turn = np.abs(np.diff(tangent[: len(W) - 1], axis=0, prepend=tangent[:1]))  # per corner i, |t_i - t_i-1|
+    covered = certifier.bound.pair_travel(turn / 4).max(axis=(-2, -1))  # per corner, per unit of radius
     refused: set[int] = set()
     cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
     while True:
@@ -164,12 +185,41 @@ def _certified_radii(
             straight += [(int(j), *span) for span in gained]
         curve = _Curve(_legs(W, tangent, arc, radii))
         todo = [p for leg in curve.legs for p in leg.pieces if p[2] is not None and p not in done]
-        intervals = [(s0, s1) for _, s0, s1 in straight] + [(-s1, -s0) for s0, s1, _ in todo]
-        failed = _certify(certifier, _Both(line, curve, W.shape[1]), intervals)
+        # Corners whose cut-off the blend's proof does not cover: their polyline proved, each half apart (the
+        # polyline's variation holds within one segment); a known segment's half is proved already.
+        inside = np.arange(1, len(W) - 1)
+        small = covered[inside] * radii[inside] <= clearance / 2
+        cornered[inside[small]] = np.maximum(cornered[inside[small]], radii[inside[small]])
+        near = inside[~small & (radii[inside] > cornered[inside])].tolist()
+        corners = [
+            (i, s0, s1)
+            for i in near
+            for j, s0, s1 in ((i - 1, arc[i] - radii[i], arc[i]), (i, arc[i], arc[i] + radii[i]))
+            if not known[j]
+        ]
+        intervals = (
+            [(s0, s1) for _, s0, s1 in straight]
+            + [(-s1, -s0) for s0, s1, _ in todo]
+            + [(s0, s1) for _, s0, s1 in corners]
+        )
+        margins = [clearance] * (len(straight) + len(todo)) + [clearance / 2] * len(corners)
+        # A corner that fails once cut in LINE_CUTS is cheaper to tighten (halving its blend) than to prove finer.
+        floors = [certifier.floor] * (len(straight) + len(todo)) + [
+            max(
+                certifier.floor, np.linalg.norm(line.variation(np.array([s0]), np.array([s1]))[0] * weights) / LINE_CUTS
+            )
+            for _, s0, s1 in corners
+        ]
+        failed = _certify(certifier, _Both(line, curve, W.shape[1]), intervals, margins, floors)
         for key in ("pieces", "distance_queries", "seconds"):
             cost[key] += failed[key]
-        failed_straight = {k for k in failed["failed"] if k < len(straight)}
-        failed_blends = {k - len(straight) for k in failed["failed"] if k >= len(straight)}
+        first_blend, first_corner = len(straight), len(straight) + len(todo)
+        failed_straight = {k for k in failed["failed"] if k < first_blend}
+        failed_blends = {k - first_blend for k in failed["failed"] if first_blend <= k < first_corner}
+        failed_corners = {corners[k - first_corner][0] for k in failed["failed"] if k >= first_corner}
+        for i in near:
+            if i not in failed_corners:
+                cornered[i] = radii[i]
         cost["rounds"] += 1
         for k, (j, s0, s1) in enumerate(straight):
             if k in failed_straight:
@@ -177,7 +227,7 @@ def _certified_radii(
             else:
                 proved[j] = min(proved[j, 0], s0), max(proved[j, 1], s1)
         done.update(p for k, p in enumerate(todo) if k not in failed_blends)
-        corners = {todo[k][2] for k in failed_blends}
+        corners = {todo[k][2] for k in failed_blends} | failed_corners
         if not corners or refused and give_up:
             return radii, sorted(refused), cost
         for i in corners:
@@ -185,11 +235,12 @@ def _certified_radii(
             radii[i] = radii[i] / 2 if halvings[i] <= tighten else 0.0
 
 
-def _certify(certifier: Certifier, curve, intervals: list) -> dict:
-    """The certifier's stats on the intervals of `curve` (none asked for: no cost)."""
+def _certify(certifier: Certifier, curve, intervals: list, clearances: list, floors: list) -> dict:
+    """The certifier's stats on the intervals of `curve`, each to keep its clearance, cut no finer than its floor
+    (none asked for: no cost)."""
     if not intervals:
         return {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0}
-    return certifier.certify(curve, intervals)[1]
+    return certifier.certify(curve, intervals, np.array(clearances, float), np.array(floors, float))[1]
 
 
 class _Both:
@@ -346,8 +397,18 @@ class _LegNotTimed(RuntimeError):
         self.leg = leg
 
 
-def _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified) -> Trajectory:
-    """Each leg timed from rest to rest, the legs one after another, sampled every dt (and at the end)."""
+class _Timed(NamedTuple):
+    """A timed leg: when it starts, its q(t) and s(t), and the leg."""
+
+    start: float
+    trajectory: object  # PathParameterizedTrajectory over the leg's own time
+    s_of_t: object
+    leg: _Leg
+
+
+def _time_legs(plant, W, arc, legs, v, a, dt, joint_names, chords: _Chords | None) -> Trajectory:
+    """Each leg timed from rest to rest, the legs one after another, sampled as _sample_times says; chords: the
+    clearance the certified curve keeps, and its motion bound (None: not certified)."""
     timed, waypoint_times, t = [], np.zeros(len(W)), 0.0
     for leg in legs:
         try:
@@ -357,27 +418,95 @@ def _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified) -> Traject
         # When the motion passes each waypoint (a blended corner: the blend's middle, nearest the corner).
         inside = np.arange(leg.first, leg.last + 1)
         waypoint_times[inside] = t + _when(s_of_t, arc[inside] - leg.offset)
-        timed.append((t, trajectory))
+        timed.append(_Timed(t, trajectory, s_of_t, leg))
         t += trajectory.end_time()
-    return _sample(timed, W, waypoint_times, dt, joint_names, certified)
+    return _sample(timed, W, waypoint_times, _sample_times(timed, dt, chords), joint_names, chords)
 
 
-def _sample(timed: list, W: np.ndarray, waypoint_times: np.ndarray, dt: float, joint_names, certified) -> Trajectory:
-    duration = timed[-1][0] + timed[-1][1].end_time() if timed else 0.0
+class _Chords:
+    """How the straight lines between a certified curve's samples are proved: the curve keeps `clearance`, the lines
+    must keep half of it; `certifier` (its motion bound says how far a pair's distance can change over a change of
+    q, and it proves the lines the bound alone does not cover); `cost` sums those proofs."""
+
+    def __init__(self, clearance: float, certifier: Certifier):
+        self.clearance, self.certifier = clearance, certifier
+        self.cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0}
+
+
+def _sample_times(timed: list[_Timed], dt: float, chords: _Chords | None) -> np.ndarray:
+    """Every dt from 0, the end, each stop between legs (the robot rests there; a straight line across one would
+    cut its corner), and, for a certified curve, more wherever the straight line between two samples is not proved
+    to keep half the clearance.
+
+    Within a leg q(s) is C1 with q'' constant on each piece (0 on straight ones, where the line lies on the curve),
+    so the straight line between q(s_a) and q(s_b) lies within (s_b - s_a)^2 / 8 x max |q''| of the curve,
+    coordinate by coordinate (linear interpolation's error); moved that far, a pair's distance changes by at most the
+    motion bound's pair travel. A line where that is at most clearance / 2 keeps half the clearance; the others are
+    proved by the certificate, and one that fails is cut in two at the middle of its s (each half within a quarter
+    of it), until every line is covered. A controller that interpolates linearly between the samples then keeps
+    clearance / 2."""
+    duration = timed[-1].start + timed[-1].trajectory.end_time() if timed else 0.0
     times = np.arange(int(np.floor(duration / dt + 1e-9)) + 1) * dt
-    if duration - times[-1] > 1e-9:
-        times = np.append(times, duration)
+    times = np.union1d(times, [part.start for part in timed[1:]] + [duration])
+    times = times[np.concatenate([[True], np.diff(times) > 1e-9])]
+    if chords is None:
+        return times
+    more = [times]
+    for part in timed:
+        blends = [(s0, s1) for s0, s1, corner in part.leg.pieces if corner is not None]
+        if not blends:
+            continue
+        end = part.trajectory.end_time()
+        local = np.clip(times[(times >= part.start - 1e-9) & (times <= part.start + end + 1e-9)] - part.start, 0, end)
+        s = part.s_of_t.vector_values(local).ravel()
+        spans = np.array(blends) - part.leg.offset
+        bend = np.abs(part.leg.path.MakeDerivative(2).vector_values(spans.mean(axis=1)).T)  # (blends, dim)
+        a, b = s[:-1], s[1:]
+        while len(a):
+            overlap = (a[:, None] < spans[None, :, 1]) & (b[:, None] > spans[None, :, 0])
+            off = (b - a)[:, None] ** 2 / 8 * np.max(np.where(overlap[:, :, None], bend[None], 0.0), axis=1) * _SLACK
+            reach = chords.certifier.bound.pair_travel(off).max(axis=(-2, -1))
+            ask = np.flatnonzero(reach > chords.clearance / 2)
+            failed = _prove_lines(chords, part.leg.path, a[ask], b[ask])
+            a, b = a[ask[failed]], b[ask[failed]]
+            middle = 0.5 * (a + b)
+            more.append(part.start + _when(part.s_of_t, middle))
+            a, b = np.concatenate([a, middle]), np.concatenate([middle, b])
+    return np.unique(np.concatenate(more))
+
+
+def _prove_lines(chords: _Chords, path, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Indices of the straight lines from path(a[i]) to path(b[i]) (a leg's own s) not proved to keep half the
+    clearance."""
+    if not len(a):
+        return np.zeros(0, int)
+    ends = np.empty((2 * len(a), path.rows()))
+    ends[0::2], ends[1::2] = path.vector_values(a).T, path.vector_values(b).T
+    knots = np.arange(len(ends), dtype=float)
+    intervals = [(2.0 * i, 2.0 * i + 1) for i in range(len(a))]
+    # A line that fails once cut in LINE_CUTS is cheaper to split between samples (a quarter of its distance from the
+    # curve each) than to prove finer.
+    weights = chords.certifier.checker.space.weights
+    floor = np.linalg.norm((ends[1::2] - ends[0::2]) * weights, axis=1) / LINE_CUTS
+    _, stats = chords.certifier.certify(straight_edges(ends, knots), intervals, chords.clearance / 2, floor)
+    for key in chords.cost:
+        chords.cost[key] += stats[key]
+    return np.array(stats["failed"], int)
+
+
+def _sample(timed: list[_Timed], W, waypoint_times, times, joint_names, chords: _Chords | None) -> Trajectory:
     dim = W.shape[1]
     positions = np.tile(W[0], (len(times), 1))
     velocities, accelerations = np.zeros((len(times), dim)), np.zeros((len(times), dim))
     if timed:
         # Each leg's samples in one call per quantity (a call per sample cost more than Toppra on short paths).
-        starts = np.array([t0 for t0, _ in timed])
+        starts = np.array([part.start for part in timed])
         leg = np.clip(np.searchsorted(starts, times, side="right") - 1, 0, len(timed) - 1)
-        for k, (t0, trajectory) in enumerate(timed):
+        for k, part in enumerate(timed):
             rows = np.flatnonzero(leg == k)
             if len(rows):
-                local = np.minimum(times[rows] - t0, trajectory.end_time())
+                trajectory = part.trajectory
+                local = np.minimum(times[rows] - part.start, trajectory.end_time())
                 positions[rows] = trajectory.vector_values(local).T
                 velocities[rows] = trajectory.MakeDerivative(1).vector_values(local).T
                 accelerations[rows] = trajectory.MakeDerivative(2).vector_values(local).T
@@ -391,7 +520,8 @@ def _sample(timed: list, W: np.ndarray, waypoint_times: np.ndarray, dt: float, j
         accelerations=accelerations,
         waypoints=W.copy(),
         waypoint_times=waypoint_times,
-        certified=certified,
+        certified=chords is not None,
+        clearance=chords.clearance if chords is not None else None,
     )
 
 
@@ -404,7 +534,41 @@ def _prepare(waypoints, velocity_limits, acceleration_limits, weights):
         raise ValueError("velocity and acceleration limits must be positive")
     # An unlimited joint is limited by the others; Toppra wants finite bounds.
     v, a = np.where(np.isfinite(v), v, 1e9), np.where(np.isfinite(a), a, 1e9)
+    check_duration(W, v, a)
     return W, v, a, tangent, arc
+
+
+def shortest_duration(waypoints, velocity_limits, acceleration_limits) -> float:
+    """A lower bound on how long any motion along the polyline takes from rest to rest under these limits: each
+    segment at least its slowest coordinate's travel over its speed limit, and each coordinate, whose speed can
+    grow by at most a t from the start and must fall to 0 by the end, at least 2 sqrt(total travel / a)."""
+    steps = np.abs(np.diff(np.atleast_2d(np.asarray(waypoints, float)), axis=0))
+    if not len(steps):
+        return 0.0
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        by_speed = np.sum(np.max(steps / velocity_limits, axis=1))
+        by_push = np.max(2 * np.sqrt(steps.sum(axis=0) / acceleration_limits))
+    return float(np.nan_to_num(max(by_speed, by_push), nan=np.inf))
+
+
+def check_duration(waypoints, velocity_limits, acceleration_limits) -> None:
+    """UserError when the motion along the waypoints would take longer than MAX_DURATION under these limits (limits
+    scaled down that far: Toppra's numbers would underflow, and no controller waits that long)."""
+    least = shortest_duration(waypoints, velocity_limits, acceleration_limits)
+    if least > MAX_DURATION:
+        raise UserError(
+            f"under these velocity and acceleration limits the motion would take at least {_spelled(least)}, more "
+            "than a day: use larger limits or scaling factors"
+        )
+
+
+def _spelled(seconds: float) -> str:
+    if not np.isfinite(seconds):
+        return "forever"
+    unit, size = next(
+        (u, k) for u, k in (("years", 365.25 * 86400), ("days", 86400), ("h", 3600), ("s", 1)) if seconds >= k or k == 1
+    )
+    return f"{seconds / size:.3g} {unit}"
 
 
 def _geometry(waypoints, weights):
@@ -421,37 +585,40 @@ def _geometry(waypoints, weights):
 
 @dataclass(frozen=True)
 class BlendProof:
-    """The curve a path's trajectory follows, certified ahead of its timing (prove_blends): its blend radii, and the
-    path's edges whose straight part could not be proved (none: the whole curve is certified)."""
+    """The curve a path's trajectory follows, certified ahead of its timing (prove_blends) to keep `clearance`: its
+    blend radii, and the path's edges whose straight part could not be proved (none: the whole curve is
+    certified)."""
 
     path: np.ndarray
     radii: np.ndarray
     failed: list[int]
     cost: dict
+    clearance: float
 
     def reversed(self) -> BlendProof:
         """The proof of the same curve run backwards (a blend is symmetric about its corner)."""
         failed = sorted(len(self.path) - 2 - i for i in self.failed)
-        return BlendProof(self.path[::-1].copy(), self.radii[::-1].copy(), failed, self.cost)
+        return dataclasses.replace(self, path=self.path[::-1].copy(), radii=self.radii[::-1].copy(), failed=failed)
 
 
-def prove_blends(certifier: Certifier, path: np.ndarray, known=(), tighten: int = TIGHTEN) -> BlendProof:
-    """The curve time_path makes of `path` (a path of the certifier's checker, wrapped) certified: its blends, and
-    the straight parts of its edges between them -- not the corners the blends cut off, so the polyline itself
-    is not proved (proving it as well asked about a third more distance queries on the window cell's answers:
-    benchmark pages). Stops at the first straight part that fails. known: indices of the path's edges certified
-    already, whose straight parts are not proved again."""
+def prove_blends(
+    certifier: Certifier, path: np.ndarray, known=(), clearance: float = CLEARANCE, tighten: int = TIGHTEN
+) -> BlendProof:
+    """The curve time_path makes of `path` (a path of the certifier's checker, wrapped) certified to keep
+    `clearance`: its blends, the straight parts of its edges between them, and the corners the blends cut off (to
+    keep half of it, see _certified_radii). Stops at the first straight part that fails. known: indices of the
+    path's edges certified already (to keep `clearance`), whose straight parts are not proved again."""
     space = certifier.checker.space
     W, tangent, arc, kept = _geometry(space.unwrap(path), space.weights)
     edge = kept[1:] - 1  # each of W's segments as an edge of the path (repeated waypoints are skipped)
     if len(W) < 2:
-        return BlendProof(
-            path.copy(), np.zeros(len(W)), [], {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
-        )
+        cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
+        return BlendProof(path.copy(), np.zeros(len(W)), [], cost, clearance)
+    known = np.isin(edge, list(known))
     radii, failed, cost = _certified_radii(
-        certifier, W, tangent, arc, _first_radii(np.diff(arc)), tighten, np.isin(edge, list(known)), give_up=True
+        certifier, W, tangent, arc, _first_radii(np.diff(arc)), tighten, known, clearance, give_up=True
     )
-    return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost)
+    return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost, clearance)
 
 
 def parameterize(
@@ -466,7 +633,7 @@ def parameterize(
     where it stops). Not certified: it is exactly the polyline, as free as its checks say."""
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, np.ones(np.shape(waypoints)[-1]))
     legs = _legs(W, tangent, arc, np.zeros(len(W))) if len(W) > 1 else []
-    return _time_legs(plant, W, arc, legs, v, a, dt, joint_names, certified=False)
+    return _time_legs(plant, W, arc, legs, v, a, dt, joint_names, chords=None)
 
 
 def scaled_limits(scene, velocity_scale: float = 1.0, acceleration_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -489,10 +656,12 @@ def time_path(
     proof: BlendProof | None = None,
     velocity_scale: float = 1.0,
     acceleration_scale: float = 1.0,
+    clearance: float = CLEARANCE,
 ) -> Trajectory:
     """A path of the oracle's scene (wrapped waypoints) timed by parameterize_smooth under the scene's limits, scaled
-    by velocity_scale and acceleration_scale (see scaled_limits); it carries the scene's mimic joints. proof: the
-    path's curve certified already (prove_blends), whose radii are then used as they are."""
+    by velocity_scale and acceleration_scale (see scaled_limits), certified to keep `clearance`; it carries the
+    scene's mimic joints. proof: the path's curve certified already (prove_blends), whose radii are then used as
+    they are."""
     trajectory = parameterize_smooth(
         oracle,
         oracle.space.unwrap(path),
@@ -502,6 +671,7 @@ def time_path(
         certifier=certifier,
         edges_proved=edges_proved,
         proof=proof,
+        clearance=clearance,
     )
     return dataclasses.replace(trajectory, position_map=oracle.scene.position_map)
 
@@ -519,17 +689,20 @@ def parameterize_smooth(
     certifier: Certifier | None = None,
     edges_proved: bool = False,
     proof: BlendProof | None = None,
+    clearance: float = CLEARANCE,
 ) -> Trajectory:
-    """Blended corners, certified (see the module doc), timed with Toppra.
+    """Blended corners, certified to keep `clearance` (see the module doc), timed with Toppra.
 
-    The trajectory is `certified` when the whole executed curve is (blends and straight pieces); if a straight
-    piece of the polyline itself cannot be certified, the curve is still timed and returned, uncertified.
+    The trajectory is `certified` when the whole executed curve keeps the clearance (blends and straight pieces)
+    and the polyline the corners it cuts off, with half of it; its samples are then placed so that the straight
+    lines between them keep half of it too (_sample_times). If a straight piece of the polyline itself cannot be
+    certified, the curve is still timed and returned, uncertified.
     floor: the certificate's bisection floor (default: app.checking.certify's); tighten: halvings of a failing blend
     before its corner becomes a stop. stats, if given, receives: stops (corners the robot stops at), pieces,
     distance_queries and seconds (certification), rounds (of blend tightening). certifier: one to reuse (its
     distances are cached). edges_proved: every straight edge of the waypoints' polyline is certified already (the
-    planner's certificate): then only the blends are. proof: the curve certified already (prove_blends on the
-    wrapped waypoints these are unwrapped from): its radii are used.
+    planner's certificate, to keep `clearance`): then only the blends are. proof: the curve certified already
+    (prove_blends on the wrapped waypoints these are unwrapped from): its radii and clearance are used.
     """
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, oracle.space.weights)
     known = np.full(max(len(W) - 1, 0), edges_proved)
@@ -538,15 +711,22 @@ def parameterize_smooth(
     if proof is not None:
         if len(proof.radii) != len(W):
             raise ValueError("the blend proof is of other waypoints")
-        radii, certified = proof.radii.copy(), not proof.failed
+        radii, certified, clearance = proof.radii.copy(), not proof.failed, proof.clearance
     elif len(W) > 1:
         certifier = certifier or Certifier(oracle, floor)
-        radii, failed, cost = _certified_radii(certifier, W, tangent, arc, _first_radii(np.diff(arc)), tighten, known)
+        first = _first_radii(np.diff(arc))
+        radii, failed, cost = _certified_radii(certifier, W, tangent, arc, first, tighten, known, clearance)
         certified = not failed
     while True:
         legs = _legs(W, tangent, arc, radii) if len(W) > 1 else []
         try:
-            trajectory = _time_legs(oracle.plant, W, arc, legs, v, a, dt, joint_names, certified)
+            chords = None
+            if certified:
+                certifier = certifier or Certifier(oracle, floor)
+                chords = _Chords(clearance, certifier)
+            trajectory = _time_legs(oracle.plant, W, arc, legs, v, a, dt, joint_names, chords)
+            if chords is not None:
+                cost = {k: cost[k] + chords.cost.get(k, 0) for k in cost}
             break
         except _LegNotTimed as failed:
             # Toppra fails on a blend of extreme curvature (seen: a corner 2e-5 from the next one, left by a partial
@@ -559,7 +739,7 @@ def parameterize_smooth(
             radii[corners[np.argmin(radii[corners])]] = 0.0
             if certified and not edges_proved:  # the polyline by that corner was cut off by its blend: prove it
                 certifier = certifier or Certifier(oracle, floor)
-                radii, refused, more = _certified_radii(certifier, W, tangent, arc, radii, tighten, known)
+                radii, refused, more = _certified_radii(certifier, W, tangent, arc, radii, tighten, known, clearance)
                 cost = {k: cost[k] + more[k] for k in cost}
                 certified = not refused
     if stats is not None:

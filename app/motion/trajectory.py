@@ -13,6 +13,9 @@ start, positions, velocities, accelerations), stored by columns:
     waypoints         (K, J) the path the motion follows, unwrapped like positions
     waypoint_times    (K,) when the motion passes each waypoint
     certified         whether the whole motion, not only its samples, was proved collision-free
+    clearance         optional: the distance a certified motion was proved to keep from everything (scene length
+                      units), of which the straight lines between its samples and the waypoints' polyline keep
+                      half; null when not certified
     narrow_samples    optional (M, J): the planner's narrow-passage samples
     narrow_on_path    optional (M,) booleans: which of them the roadmap path used
 
@@ -51,6 +54,9 @@ class Trajectory:
     waypoint_times: np.ndarray  # (K,)
     certified: bool = False
     position_map: PositionMap | None = None  # the scene's mimic joints (None: every joint is a coordinate)
+    # Certified: the distance the motion keeps from everything; the straight lines between its samples (what a
+    # controller interpolating linearly follows) and the waypoints' polyline keep half of it. None: not certified.
+    clearance: float | None = None
 
     @property
     def duration(self) -> float:
@@ -75,6 +81,7 @@ class Trajectory:
             "waypoints": waypoints.tolist(),
             "waypoint_times": self.waypoint_times.tolist(),
             "certified": bool(self.certified),
+            "clearance": self.clearance,
         }
 
 
@@ -144,13 +151,14 @@ class TrajectoryFile:
             "waypoints",
             "waypoint_times",
             "certified",
+            "clearance",
             "narrow_samples",
             "narrow_on_path",
         }
         unknown = set(obj) - known
         if unknown:
             raise UserError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}")
-        missing = sorted(known - set(obj) - {"narrow_samples", "narrow_on_path"})
+        missing = sorted(known - set(obj) - {"narrow_samples", "narrow_on_path", "clearance"})
         if missing:
             raise UserError(f"{source}: missing key(s) {', '.join(missing)}")
         names = obj["joint_names"]
@@ -180,6 +188,11 @@ class TrajectoryFile:
             raise UserError(f"{source}: {len(waypoint_times)} waypoint times for {len(waypoints)} waypoints")
         if not isinstance(obj["certified"], bool):
             raise UserError(f"{source}: 'certified' must be true or false")
+        clearance = obj.get("clearance")
+        if clearance is not None and (
+            isinstance(clearance, bool) or not isinstance(clearance, (int, float)) or not 0 <= clearance < np.inf
+        ):
+            raise UserError(f"{source}: 'clearance' must be a distance of at least 0, or null")
         trajectory = Trajectory(
             names,
             times,
@@ -190,6 +203,7 @@ class TrajectoryFile:
             waypoint_times,
             obj["certified"],
             position_map,
+            None if clearance is None else float(clearance),
         )
         narrow = on_path = None
         if ("narrow_samples" in obj) != ("narrow_on_path" in obj):

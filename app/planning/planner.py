@@ -20,10 +20,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from app.checking.budget import Budget, BudgetSpent, Stop
+from app.checking.certify import CLEARANCE
 from app.checking.oracle import CONTACT
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.motion.path import FINE, Shortcuts, path_length, shortcut, unwind, verify
-from app.motion.timing import BlendProof, prove_blends, time_path
+from app.motion.timing import BlendProof, check_duration, prove_blends, scaled_limits, time_path
 from app.motion.trajectory import Trajectory, TrajectoryFile
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy: imported when planning, not when the CLI starts
@@ -43,6 +44,9 @@ SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
 SMOOTHING_REPAIRS = 4
 # The shortest trajectory sample period: a 1 kHz controller; finer would only make files of gigabytes.
 MIN_DT = 1e-3
+# The smallest clearance a query may ask for (PlanSettings.clearance, CLEARANCE by default): the samples a controller
+# needs for the straight lines between them to keep half of it grow as 1/sqrt(clearance).
+MIN_CLEARANCE = 1e-6
 # Narrow-passage samples per round once they are on: narrow/NARROW_RAMP at first, doubling every round up to
 # narrow/4 -- few while a few may do, and never more than twice what the query needed.
 NARROW_RAMP = 16
@@ -77,7 +81,9 @@ class PlanSettings:
     sampler alone; a full roadmap draws none); timing: time the path with Toppra (False: the result's trajectory is
     None, for a caller that times several paths as one motion, as a job does through its pass-through poses).
     velocity_scale, acceleration_scale: fractions in (0, 1] of the scene's velocity and acceleration limits that the
-    trajectory keeps to (MoveIt's scaling factors)."""
+    trajectory keeps to (MoveIt's scaling factors); clearance: the distance (scene length units) the certified
+    motion keeps from everything the scene counts (CLEARANCE; at least MIN_CLEARANCE), of which the straight lines
+    between its samples and the path polyline keep at least half: start and goal must be that far off too."""
 
     sampler: str = "lfbs"
     narrow: int = 200
@@ -95,6 +101,7 @@ class PlanSettings:
     timing: bool = True
     velocity_scale: float = 1.0
     acceleration_scale: float = 1.0
+    clearance: float = CLEARANCE
 
     def __post_init__(self):
         from app.samplers import check_name
@@ -128,6 +135,9 @@ class PlanSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 1:
                 raise UserError(f"{name} must be a fraction in (0, 1], got {value!r}")
+        c = self.clearance
+        if isinstance(c, bool) or not isinstance(c, (int, float)) or not MIN_CLEARANCE <= c < math.inf:
+            raise UserError(f"clearance must be a finite distance of at least {MIN_CLEARANCE:g}, got {c!r}")
 
 
 @dataclass
@@ -156,6 +166,7 @@ class PlanResult:
     workspace_on_path: int = 0  # roadmap path nodes placed in workspace gaps
     point_queries: int = 0  # workspace points asked for their distances to obstacles, finding gaps
     certificate_seconds: float = 0.0  # the certificates' own time (set-up and every proof), Drake's queries included
+    clearance: float = 0.0  # what the certificate proved the motion keeps from everything (see PlanSettings)
     # The roadmap itself (nodes `Q`, provenance `kinds`, `edges()`) and the roadmap path's node indices,
     # for viewers; not part of the JSON.
     graph: Roadmap | None = field(default=None, repr=False)
@@ -207,18 +218,25 @@ class PlanResult:
             "workspace_on_path": self.workspace_on_path,
             "point_queries": self.point_queries,
             "certificate_seconds": self.certificate_seconds,
-            "certified": self.trajectory.certified if self.trajectory else self.smoothing["certificate"]["proved"],
+            "certified": self.certified,
+            "clearance": self.clearance if self.certified else None,
         }
 
+    @property
+    def certified(self) -> bool:
+        """Whether the motion returned (the timed trajectory, or without timing the path) was proved free."""
+        return self.trajectory.certified if self.trajectory else bool(self.smoothing["certificate"]["proved"])
 
-def check_endpoint(checker, q, what: str) -> np.ndarray:
-    """A start or goal as a vector; wrong length or non-finite -> UserError, out of bounds, colliding or touching
-    -> InvalidEndpoint naming the coordinate or the bodies.
 
-    Touching (signed distance 0: a maze hull on the outer wall at its bound) is refused too, although the collision
-    check calls it free: no motion out of it can be certified, and a query from it would spend its whole budget
-    before failing. Refused rather than moved off the contact, because which way is "off" is the user's call (a
-    tool on a part means to touch it); the message says how close the bodies are, so a nudge is easy."""
+def check_endpoint(checker, q, what: str, clearance: float = CONTACT) -> np.ndarray:
+    """A start or goal as a vector; wrong length or non-finite -> UserError, out of bounds, colliding or nearer
+    than `clearance` to anything -> InvalidEndpoint naming the coordinate or the bodies.
+
+    Touching (signed distance 0: a maze hull on the outer wall at its bound), or nearer than the clearance the
+    motion must keep, is refused too, although the collision check calls it free: no motion out of it can be
+    certified, and a query from it would spend its whole budget before failing. Refused rather than moved off,
+    because which way is "off" is the user's call (a tool on a part means to touch it); the message says how close
+    the bodies are, so a nudge is easy."""
     q = checker.space.check_configuration(q, what)
     bad = checker.space.out_of_bounds(q)
     code = "START_STATE_IN_COLLISION" if what == "start" else "GOAL_IN_COLLISION"
@@ -231,18 +249,24 @@ def check_endpoint(checker, q, what: str) -> np.ndarray:
         pairs = checker.colliding_bodies(q)
         touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
         raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}", code)
-    contacts = checker.touching(q)
+    contacts = checker.touching(q, max(clearance, CONTACT))
     if contacts:
         named = ", ".join(f"{a} with {b} at {d:.2g}" for a, b, d in contacts[:4]) + (
             " ..." if len(contacts) > 4 else ""
         )
+        if contacts[0][2] <= CONTACT:
+            raise InvalidEndpoint(
+                f"{what} touches (signed distance <= {CONTACT:g}): {named}; move it off the contact", code
+            )
         raise InvalidEndpoint(
-            f"{what} touches (signed distance <= {CONTACT:g}): {named}; move it off the contact", code
+            f"{what} is nearer than the clearance {clearance:g} the motion must keep: {named}; move it off, or "
+            "plan with a smaller clearance (--clearance)",
+            code,
         )
     return checker.space.wrap(q)
 
 
-def check_goals(checker, goal) -> np.ndarray:
+def check_goals(checker, goal, clearance: float = CONTACT) -> np.ndarray:
     """One goal, or several (k, dim) of which the query may reach any (every IK solution of a tool pose), as rows.
     A single bad goal is refused as check_endpoint refuses it; among several, those that are out of bounds or collide
     are left out, and only when none is left is the first one's fault raised."""
@@ -251,11 +275,11 @@ def check_goals(checker, goal) -> np.ndarray:
     except (TypeError, ValueError):  # ragged or not numbers: check_endpoint says what is wrong
         several = False
     if not several:
-        return check_endpoint(checker, goal, "goal")[None, :]
+        return check_endpoint(checker, goal, "goal", clearance)[None, :]
     kept, faults = [], []
     for q in goal:
         try:
-            kept.append(check_endpoint(checker, q, "goal"))
+            kept.append(check_endpoint(checker, q, "goal", clearance))
         except InvalidEndpoint as fault:
             faults.append(fault)
     if not kept:
@@ -403,10 +427,15 @@ class Query:
         self.seconds = dict.fromkeys(PHASES, 0.0)
         self.checks = dict.fromkeys(("endpoints",) + PHASES, 0)
 
-        self.start = check_endpoint(checker, oracle.scene.start if start is None else start, "start")
-        self.goals = check_goals(checker, oracle.scene.goal if goal is None else goal)
+        self.clearance = settings.clearance
+        self.start = check_endpoint(checker, oracle.scene.start if start is None else start, "start", self.clearance)
+        self.goals = check_goals(checker, oracle.scene.goal if goal is None else goal, self.clearance)
         self.goal = self.goals[0]  # until the query has reached one of them
         self.checks["endpoints"] = checker.checks - self._checks0
+        if settings.timing:  # limits scaled so far down that even the straight motion would take days: refused now
+            limits = scaled_limits(oracle.scene, settings.velocity_scale, settings.acceleration_scale)
+            nearest = self.goals[np.argmin(oracle.space.distance(self.start, self.goals))]
+            check_duration(oracle.space.unwrap(np.array([self.start, nearest])), *limits)
         # The easy route: the straight motion, or the polyline through `via`.
         via = [] if via is None or len(via) == 0 else np.atleast_2d(np.asarray(via, float))
         via = [oracle.space.check_configuration(q, "via point") for q in via]
@@ -567,16 +596,19 @@ class Query:
         from app.checking.certify import polyline
 
         self._make_certifier()
-        # A segment that is a roadmap edge proved before (by this query, or by an earlier one on a persistent
-        # roadmap) is not proved again; one proved now is remembered as such.
+        # A segment that is a roadmap edge proved before with this clearance or more (by this query, or by an
+        # earlier one on a persistent roadmap, in this process) is not proved again; one proved now is remembered.
         pairs = self.roadmap.edge_pairs(path)
-        edges = [i for i in (range(len(path) - 1) if edges is None else edges) if pairs[i] not in self.roadmap.proved]
+        known = self.roadmap.proved_with(pairs, self.clearance)
+        edges = [i for i in (range(len(path) - 1) if edges is None else edges) if not known[i]]
         if not edges:
             return True, {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0, "blended": False}
         curve = polyline(self.checker.space, path)
-        proved, stats = self._timed("certify", self.certifier.certify, curve, [(i, i + 1) for i in edges])
+        proved, stats = self._timed(
+            "certify", self.certifier.certify, curve, [(i, i + 1) for i in edges], self.clearance
+        )
         failed = [edges[k] for k in stats["failed"]]
-        self.roadmap.proved.update(pairs[i] for i in edges if pairs[i] is not None and i not in failed)
+        self.roadmap.mark_proved([pairs[i] for i in edges if i not in failed], self.clearance)
         return proved, {**stats, "failed": failed, "blended": False}
 
     def certify_blends(self, path: np.ndarray) -> tuple[bool, dict]:
@@ -586,9 +618,8 @@ class Query:
         edges whose straight part could not be proved; the proof is kept for `time`. For a path that is timed:
         without timing the polyline itself is the answer, and `certify` proves it."""
         self._make_certifier()
-        pairs = self.roadmap.edge_pairs(path)
-        known = [i for i, pair in enumerate(pairs) if pair in self.roadmap.proved]
-        self.blends = self._timed("certify", prove_blends, self.certifier, path, known)
+        known = np.flatnonzero(self.roadmap.proved_with(self.roadmap.edge_pairs(path), self.clearance))
+        self.blends = self._timed("certify", prove_blends, self.certifier, path, known, self.clearance)
         return not self.blends.failed, {**self.blends.cost, "failed": self.blends.failed, "blended": True}
 
     def _make_certifier(self) -> None:
@@ -696,6 +727,7 @@ class Query:
                 certifier=self.certifier,
                 edges_proved=proved and blends is None,
                 proof=blends,
+                clearance=self.clearance,
                 velocity_scale=self.settings.velocity_scale,
                 acceleration_scale=self.settings.acceleration_scale,
             )
@@ -853,5 +885,6 @@ class Query:
             workspace_on_path=int(sum(roadmap.kinds[i] == WORKSPACE for i in nodes)),
             point_queries=self.checker.point_queries,
             certificate_seconds=0.0 if self.certifier is None else self.certifier.seconds - self._certificate_before,
+            clearance=self.clearance,
             blends=self.blends if stats["certificate"].get("blended") else None,
         )

@@ -87,7 +87,8 @@ class Roadmap:
         self.edges_tried = 0  # decided: checked in full, or found to collide
         self.edges_proposed = 0  # lazy candidates ever added
         self._tried: set[int] = set()  # `_key`s of the pairs ever proposed
-        self.proved: set[tuple[int, int]] = set()  # edges the certificate proved free, (smaller, larger)
+        # Edges the certificate proved, (smaller, larger) -> the clearance they were proved to keep.
+        self.proved: dict[tuple[int, int], float] = {}
         self._labelled = None  # (graph sizes, connected components) of the last `_labels`
         self._nodes: dict[bytes, int] = {}  # a configuration's bytes -> its node, so a repeated one is not added twice
         # Neighbour search (`_trees`): a k-d tree over the first `_tree_size` nodes, and one over the nodes since.
@@ -454,7 +455,7 @@ class Roadmap:
         a, b = tried >> 32, tried & 0xFFFFFFFF
         kept = keep[a] & keep[b]
         self._tried = set(_key(index[a[kept]], index[b[kept]]).tolist())
-        self.proved = {(int(index[u]), int(index[v])) for u, v in self.proved if keep[u] and keep[v]}
+        self.proved = {(int(index[u]), int(index[v])): c for (u, v), c in self.proved.items() if keep[u] and keep[v]}
         self._search, self._search_synced, self._search_dead = tuple(column[:0] for column in self._search), 0, 0
         # Each label's nodes kept stay together, under the least of them (labels may only join more than is true).
         self._reach = _by_least(self._reach[keep])
@@ -484,6 +485,16 @@ class Roadmap:
             row = None if a is None or b is None else self._rows.get(_key(a, b))
             pairs.append((min(a, b), max(a, b)) if row is not None and self._alive[row] else None)
         return pairs
+
+    def proved_with(self, pairs: list, clearance: float) -> np.ndarray:
+        """Per entry of `pairs` (edge_pairs' answer), whether that edge was proved to keep at least `clearance`."""
+        return np.array([pair is not None and self.proved.get(pair, -1.0) >= clearance for pair in pairs], bool)
+
+    def mark_proved(self, pairs: list, clearance: float) -> None:
+        """The edges of `pairs` (None entries skipped) proved to keep `clearance` (the larger proof is kept)."""
+        for pair in pairs:
+            if pair is not None:
+                self.proved[pair] = max(clearance, self.proved.get(pair, -1.0))
 
     # ---- persistence ------------------------------------------------------------------------------------------------
     def arrays(self) -> dict[str, np.ndarray]:
