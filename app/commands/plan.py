@@ -170,6 +170,7 @@ def settings_from_args(args) -> PlanSettings:
         workspace=args.workspace,
         velocity_scale=args.velocity_scale,
         acceleration_scale=args.acceleration_scale,
+        clearance=args.clearance,
     )
 
 
@@ -279,7 +280,11 @@ def summary(r, scene) -> str:
         f"{r.smoothing['raw_length']:.1f} -> {len(r.path)} waypoints, length {r.smoothing['length_after']:.1f} "
         f"after smoothing",
         f"  motion    {t.duration:.2f} s trajectory, {len(t.times)} samples, corners blended, "
-        + (f"certified free (continuous{scope})" if t.certified else f"NOT certified: fine-checked only{scope}"),
+        + (
+            f"certified to keep {t.clearance:g} from everything (continuous{scope}), the lines between samples half"
+            if t.certified
+            else f"NOT certified: fine-checked only{scope}"
+        ),
         f"  cost      {r.collision_checks} collision checks + {r.distance_queries} distance queries "
         f"+ {r.point_queries} point queries, "
         f"{s['total']:.2f} s (sampling {s['sampling']:.2f}, roadmap {s['roadmap']:.2f}, search {s['search']:.2f}, "

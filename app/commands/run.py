@@ -68,6 +68,7 @@ def run(args) -> int:
         full_roadmap=args.full_roadmap,
         velocity_scale=args.velocity_scale,
         acceleration_scale=args.acceleration_scale,
+        clearance=args.clearance,
     )
     if args.update and not args.roadmap:
         raise UserError("--update writes back to a roadmap: give --roadmap FILE")
