@@ -137,6 +137,91 @@ def test_damaged_cache_entry_is_rebuilt(tmp_path, capsys):
     assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
 
 
+def test_a_forged_cache_entry_with_matching_checksums_is_rebuilt(tmp_path, capsys):
+    """Checksums in the manifest catch accidents only: a piece replaced by a smaller one, with the manifest's checksum
+    updated to match, would leave part of the mesh outside every piece. The manifest's seal (an HMAC under this
+    user's key, which is not in the cache) no longer matches: the entry is rebuilt."""
+    import hashlib
+    import json
+
+    path = tmp_path / "u.stl"
+    open_u().export(path)
+    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    good = first.pieces[0].read_bytes()
+    forged = b"v 0 0 0\nv 1e-3 0 0\nv 0 1e-3 0\nv 0 0 1e-3\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+    first.pieces[0].write_bytes(forged)
+    manifest_file = first.directory / "manifest.json"
+    manifest = json.loads(manifest_file.read_text())
+    manifest["files"][manifest["pieces"][0]] = hashlib.sha256(forged).hexdigest()
+    manifest_file.write_text(json.dumps(manifest, indent=1))
+    capsys.readouterr()
+    rebuilt = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert not rebuilt.from_cache and rebuilt.pieces[0].read_bytes() == good
+    assert capsys.readouterr().err == f"warning: mesh cache entry {first.directory} is damaged; rebuilding it\n"
+    assert meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache  # sealed again, with this key
+    (rebuilt.directory / "manifest.mac").unlink()  # no seal at all: damaged too
+    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+
+
+def test_a_cache_made_with_another_key_is_rebuilt(tmp_path, monkeypatch, capsys):
+    """Another user's cache folder (or one handed over) is sealed under their key, not this user's."""
+    path = tmp_path / "u.stl"
+    open_u().export(path)
+    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "theirs.key"))
+    theirs = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "mine.key"))
+    capsys.readouterr()
+    mine = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    assert mine.directory == theirs.directory and not mine.from_cache
+    assert "is damaged; rebuilding it" in capsys.readouterr().err
+
+
+def test_a_converted_obj_is_sealed_and_a_forged_one_is_converted_again(tmp_path, monkeypatch, capsys):
+    path = tmp_path / "u.stl"
+    u_boxes().export(path)
+    converted = meshes.converted_obj(path, cache_dir=tmp_path)
+    good = converted.read_bytes()
+    assert converted.with_name(converted.name + ".mac").is_file()
+    assert meshes.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
+    converted.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")  # another shape under the same name
+    capsys.readouterr()
+    assert meshes.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
+    assert "is damaged; rebuilding it" in capsys.readouterr().err
+    # The same file and seal made under another key: converted again.
+    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "other.key"))
+    seal = converted.with_name(converted.name + ".mac").read_text()
+    meshes.converted_obj(path, cache_dir=tmp_path)
+    assert converted.with_name(converted.name + ".mac").read_text() != seal
+    assert "is damaged; rebuilding it" in capsys.readouterr().err
+
+
+def test_the_key_is_made_private_and_a_key_that_cannot_be_made_means_no_reuse(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "config" / "npp" / "cache.key"))
+    key = meshes.cache_key()
+    stat = (tmp_path / "config" / "npp" / "cache.key").stat()
+    assert len(key) == 32 and stat.st_mode & 0o777 == 0o600 and meshes.cache_key() == key
+    path = tmp_path / "u.stl"
+    open_u().export(path)
+    meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    # A key that cannot be made (its folder would be inside a file, as under a read-only home): said once, and
+    # nothing cached is reused, not even what this process writes.
+    (tmp_path / "file").write_text("x")
+    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "file" / "cache.key"))
+    capsys.readouterr()
+    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"warning: cannot use the mesh cache key {tmp_path / 'file'}")
+    assert "cached meshes are not reused" in err[0]
+    # A key file others may read is no secret: refused the same way.
+    loose = tmp_path / "loose.key"
+    loose.write_bytes(b"k" * 32)
+    loose.chmod(0o644)
+    monkeypatch.setenv(meshes.KEY_ENV, str(loose))
+    assert meshes.cache_key() is None and "chmod 600 it" in capsys.readouterr().err
+
+
 def test_a_changed_mesh_is_a_new_entry(tmp_path):
     path = tmp_path / "m.stl"
     u_boxes().export(path)

@@ -372,6 +372,7 @@ def run_case(argv: list[str], timeout: float = 60.0) -> dict:
             "DRAKE_ALLOW_NETWORK": "none",
             "XDG_CACHE_HOME": str(cache),
             "NPP_CACHE_DIR": str(cache / "npp"),
+            "NPP_KEY_FILE": str(Path(tmp) / "cache.key"),
             "MPLBACKEND": "Agg",
         }
         try:

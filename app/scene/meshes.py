@@ -29,9 +29,12 @@ convex` forces hulls for every part. `volume_report` states what the pieces add.
 
 Every decomposition is validated against the original surface (`validate`); parts whose pieces hold free points
 move on to their next method. The result, or the failure, is cached on disk (`cache_root()`), keyed by the mesh
-file's content hash, the method request, the parameters, DECOMPOSER_VERSION and CoACD's version; a manifest with a
-sha256 of every file guards against truncated or corrupt entries (they are rebuilt, not trusted). Entries are built
-in a staging folder and renamed into place, so concurrent runs see a whole entry or none.
+file's content hash, the method request, the parameters, DECOMPOSER_VERSION and CoACD's version. An entry's manifest
+holds a sha256 of every file, and the manifest itself is sealed with an HMAC-SHA256 under a per-user secret key kept
+outside the cache (`key_path()`): checksums alone only catch accidents, since whoever writes a cache folder can write
+matching checksums for pieces that do not contain the mesh (a false "free" for the planner). An entry whose seal is
+missing or wrong is rebuilt, not trusted; so is a converted .obj (`converted_obj`), sealed the same way. Entries are
+built in a staging folder and renamed into place, so concurrent runs see a whole entry or none.
 
 Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (docs/benchmarks.md,
 "Mesh scenes"), so merging faces into few pieces matters as much as the decomposition.
@@ -45,8 +48,10 @@ from __future__ import annotations
 
 import hashlib
 import heapq
+import hmac
 import json
 import os
+import secrets
 import shutil
 import sys
 import tempfile
@@ -62,8 +67,10 @@ from app.io import check_input, write_atomically
 # trimesh and coacd (optional, slow to import) are imported inside the functions that use them.
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
-DECOMPOSER_VERSION = "4"
+DECOMPOSER_VERSION = "5"
 CACHE_ENV = "NPP_CACHE_DIR"
+KEY_ENV = "NPP_KEY_FILE"
+KEY_BYTES = 32
 DRAKE_MESH_SUFFIXES = {".obj", ".vtk", ".gltf"}
 CONVERTIBLE_SUFFIXES = {".stl", ".dae", ".ply", ".off", ".glb"}
 MESH_SUFFIXES = DRAKE_MESH_SUFFIXES | CONVERTIBLE_SUFFIXES
@@ -93,6 +100,94 @@ def cache_root() -> Path:
         return Path(os.environ[CACHE_ENV]).absolute()
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return (Path(base) / "npp").absolute()
+
+
+# ---- the cache's key ----------------------------------------------------------------------------------------------
+def key_path() -> Path:
+    """The secret key that seals cache entries: $NPP_KEY_FILE, else $XDG_CONFIG_HOME/npp/cache.key, else
+    ~/.config/npp/cache.key. Outside the cache on purpose: a cache folder is something one may be handed, copy or
+    share, and a seal made with a key that travels with it would prove nothing."""
+    if os.environ.get(KEY_ENV):
+        return Path(os.environ[KEY_ENV]).expanduser().absolute()
+    base = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
+    return (Path(base) / "npp" / "cache.key").absolute()
+
+
+_keys: dict[Path, bytes | None] = {}  # per key file: its key, or None when it cannot be used (said once)
+
+
+def cache_key() -> bytes | None:
+    """This user's key (made on first use), or None when it cannot be read or made: then one line says so and no
+    cached entry is reused in this process (entries are still written, unsealed, so they are never trusted)."""
+    path = key_path()
+    if path not in _keys:
+        try:
+            _keys[path] = _load_key(path)
+        except OSError as exc:
+            reason = exc.strerror or str(exc)
+            _warn(
+                f"cannot use the mesh cache key {path}: {reason}; cached meshes are not reused (set {KEY_ENV} to a "
+                "file of yours)"
+            )
+            _keys[path] = None
+    return _keys[path]
+
+
+def _load_key(path: Path) -> bytes:
+    """The key in `path`; made when missing: KEY_BYTES random bytes in a private temporary file, linked into place
+    (mode 0600, whole or not at all; when two processes make it at once, both then read the one that was linked
+    first). A key file that others may read or write, or not of the key's size, is refused (OSError)."""
+    for _ in range(3):
+        try:
+            with open(path, "rb") as f:
+                status = os.fstat(f.fileno())
+                key = f.read(KEY_BYTES + 1)
+        except FileNotFoundError:
+            _make_key(path)
+            continue
+        if hasattr(os, "getuid") and status.st_uid != os.getuid():
+            raise OSError(0, "it belongs to another user")
+        if status.st_mode & 0o077:
+            raise OSError(0, f"others may read or write it (mode {status.st_mode & 0o777:o}; chmod 600 it)")
+        if len(key) != KEY_BYTES:
+            raise OSError(0, f"it holds {len(key)} bytes, not a key of {KEY_BYTES}")
+        return key
+    raise OSError(0, "it vanished while being made")
+
+
+def _make_key(path: Path) -> None:
+    path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)  # mode 0600
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(secrets.token_bytes(KEY_BYTES))
+            f.flush()
+            os.fsync(f.fileno())
+        try:
+            os.link(tmp, path)  # fails if another process made the key meanwhile: theirs is kept
+        except FileExistsError:
+            pass
+        except OSError:  # a filesystem without hard links
+            if not path.exists():
+                os.rename(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _seal(key: bytes, kind: str, payload: bytes) -> str:
+    """HMAC-SHA256 of `payload` under `key`, for `kind` of record (so a seal of one kind is none of another)."""
+    return hmac.new(key, kind.encode() + b"\0" + payload, hashlib.sha256).hexdigest()
+
+
+def _canonical(record: dict) -> bytes:
+    """The one byte string of a JSON record (as read back: lists, not tuples), which its seal covers."""
+    return json.dumps(record, sort_keys=True, separators=(",", ":")).encode()
+
+
+def _warn(message: str) -> None:
+    """A line on stderr, as this module reports everything it does not raise (its progress bars go there too)."""
+    print(f"warning: {message}", file=sys.stderr)
 
 
 def _progress(**kwargs):
@@ -879,17 +974,22 @@ class Decomposition:
     volume: dict = field(default_factory=dict)  # what the pieces add (`volume_report`)
     seconds: float = 0.0
     from_cache: bool = False
+    bounds: list = field(default_factory=list)  # the mesh's box [lo, hi], from the verified manifest
 
     def extent(self) -> tuple[np.ndarray, np.ndarray]:
-        manifest = json.loads((self.directory / "manifest.json").read_text())
-        return np.array(manifest["bounds"][0]), np.array(manifest["bounds"][1])
+        return np.array(self.bounds[0]), np.array(self.bounds[1])
+
+
+def obj_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """A Wavefront .obj of the triangles, exactly as `_write_obj` writes it."""
+    lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    return ("\n".join(lines) + "\n").encode()
 
 
 def _write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> str:
     """Write a Wavefront .obj; returns the sha256 of what was written."""
-    lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in vertices]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
-    data = ("\n".join(lines) + "\n").encode()
+    data = obj_bytes(vertices, faces)
     path.write_bytes(data)
     return hashlib.sha256(data).hexdigest()
 
@@ -928,12 +1028,14 @@ def decompose(
     root = (cache_dir or cache_root()) / "meshes"
     entry = root / key
     started = time.perf_counter()
-    found = _read_entry(entry, key)
+    secret = cache_key()
+    found = _read_entry(entry, key, secret)
     if found is not None:
         found.seconds = time.perf_counter() - started
         return found
     if entry.exists():
-        print(f"warning: mesh cache entry {entry} is damaged; rebuilding it", file=sys.stderr)
+        if secret is not None:  # (without a key nothing is reused, and cache_key has said so)
+            _warn(f"mesh cache entry {entry} is damaged; rebuilding it")
         shutil.rmtree(entry, ignore_errors=True)
 
     mesh = load_mesh(path)
@@ -949,7 +1051,8 @@ def decompose(
         if not pieces:
             raise UserError(f"no valid convex decomposition for {path.name}: no piece has any volume")
     except UserError as exc:
-        _store(root, entry, {**manifest, "error": str(exc), "files": {}}, lambda staging: None)
+        if secret is not None:  # (unsealed, it would never be read back)
+            _store(root, entry, {**manifest, "error": str(exc), "files": {}}, lambda staging: None, secret)
         raise
     facts["components"] = len(set(owner)) if owner else 0
     manifest.update(
@@ -970,8 +1073,8 @@ def decompose(
         files["visual.obj"] = _write_obj(staging / "visual.obj", mesh.vertices, mesh.faces)
         manifest.update(files=files, build_seconds=time.perf_counter() - started)
 
-    _store(root, entry, manifest, write)
-    result = _read_entry(entry, key)
+    _store(root, entry, manifest, write, secret)
+    result = _read_entry(entry, key, secret, written=manifest)
     if result is None:
         raise UserError(f"cannot write the mesh cache at {entry}")
     result.seconds = time.perf_counter() - started
@@ -979,14 +1082,18 @@ def decompose(
     return result
 
 
-def _store(root: Path, entry: Path, manifest: dict, write) -> None:
-    """A cache entry: `write(staging)` fills a staging folder, then manifest.json, then the folder is renamed into
-    place (atomic: a reader sees no entry or a whole one)."""
+def _store(root: Path, entry: Path, manifest: dict, write, secret: bytes | None) -> None:
+    """A cache entry: `write(staging)` fills a staging folder, then manifest.json and its seal manifest.mac (none
+    without a key: such an entry is never trusted), then the folder is renamed into place (atomic: a reader sees no
+    entry or a whole one)."""
     try:
         root.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{entry.name}-", dir=root))
         write(staging)
-        (staging / "manifest.json").write_text(json.dumps(manifest, indent=1))
+        text = json.dumps(manifest, indent=1)
+        (staging / "manifest.json").write_text(text)
+        if secret is not None:
+            (staging / "manifest.mac").write_text(_seal(secret, "mesh-cache-entry", _canonical(json.loads(text))))
         try:
             os.replace(staging, entry)
         except OSError:  # another process won the race; use theirs if it is whole
@@ -997,11 +1104,22 @@ def _store(root: Path, entry: Path, manifest: dict, write) -> None:
         ) from None
 
 
-def _read_entry(entry: Path, key: str) -> Decomposition | None:
-    """The entry if its manifest parses and every file matches its checksum, else None. An entry that records a
-    failed decomposition raises its UserError again."""
+def _read_entry(entry: Path, key: str, secret: bytes | None, written: dict | None = None) -> Decomposition | None:
+    """The entry if it is one this code made for this key: its manifest parses, its seal (manifest.mac, an HMAC under
+    this user's key) matches the manifest, and every file matches its checksum in it; else None. Without a key, only
+    the entry just `written` (the same manifest, build time aside) is taken. An entry that records a failed
+    decomposition raises its UserError again."""
     try:
         manifest = json.loads((entry / "manifest.json").read_text())
+        if secret is not None:
+            seal = (entry / "manifest.mac").read_text().strip()
+            if not hmac.compare_digest(seal.encode(), _seal(secret, "mesh-cache-entry", _canonical(manifest)).encode()):
+                return None
+        elif written is None or {**manifest, "build_seconds": 0} != {
+            **json.loads(json.dumps(written)),
+            "build_seconds": 0,
+        }:
+            return None
         if manifest.get("key") != key:
             return None
         if "error" in manifest:
@@ -1022,8 +1140,9 @@ def _read_entry(entry: Path, key: str) -> Decomposition | None:
             parts=manifest["parts"],
             volume=manifest["volume"],
             from_cache=True,
+            bounds=manifest["bounds"],
         )
-    except (OSError, ValueError, KeyError, TypeError, IndexError):
+    except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError):
         return None
 
 
@@ -1051,15 +1170,38 @@ def volume_report(mesh, pieces: list[Piece], closed: bool, samples: int = 20000,
 
 def converted_obj(path: str | Path, cache_dir: Path | None = None) -> Path:
     """A mesh Drake cannot read (.stl, .dae, ...) as an .obj in the cache (keyed by content): the shape unchanged,
-    so as a collision shape Drake uses its convex hull (conservative, as usual for robot links)."""
+    so as a collision shape Drake uses its convex hull (conservative, as usual for robot links). Sealed as decomposition
+    entries are (`<key>.obj.mac` beside it: an HMAC of the key and the file's sha256 under this user's key): a
+    converted file that does not verify is converted again, since a forged one would be another shape."""
     path = check_input(path, "mesh file")
     key = hashlib.sha256((file_sha256(path) + "convert" + DECOMPOSER_VERSION).encode()).hexdigest()[:32]
     target = (cache_dir or cache_root()) / "converted" / f"{key}.obj"
-    if target.is_file():
-        return target
+    seal_file = target.with_name(f"{target.name}.mac")
+    secret = cache_key()
+    if secret is not None and target.is_file():
+        if _converted_seal_holds(secret, key, target, seal_file):
+            return target
+        _warn(f"mesh cache entry {target} is damaged; rebuilding it")
     mesh = load_mesh(path)
+    data = obj_bytes(mesh.vertices, mesh.faces)
     target.parent.mkdir(parents=True, exist_ok=True)
-    return write_atomically(target, lambda tmp: _write_obj(tmp, mesh.vertices, mesh.faces))
+    write_atomically(target, data)
+    if secret is not None:
+        write_atomically(seal_file, _converted_seal(secret, key, hashlib.sha256(data).hexdigest()))
+    return target
+
+
+def _converted_seal(secret: bytes, key: str, digest: str) -> str:
+    return _seal(secret, "converted-obj", f"{key}\0{digest}".encode())
+
+
+def _converted_seal_holds(secret: bytes, key: str, target: Path, seal_file: Path) -> bool:
+    try:
+        seal = seal_file.read_text().strip()
+        digest = file_sha256(target)
+    except (OSError, ValueError):
+        return False
+    return hmac.compare_digest(seal.encode(), _converted_seal(secret, key, digest).encode())
 
 
 def _coacd_version() -> str | None:
