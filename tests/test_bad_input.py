@@ -10,10 +10,11 @@ would be seen too.
 
 import json
 import os
+import re
 
 import pytest
 
-from app.bench.bad_input import ROWS, arguments, files, prepare, run_case
+from app.bench.bad_input import NO_INTERNAL_FILE, ROWS, arguments, files, prepare, run_case
 
 
 @pytest.fixture
@@ -34,6 +35,7 @@ def test_bad_input_fails_in_one_line_and_writes_nothing(cli, place, tmp_path, ar
     assert len(lines) == 1 and lines[0].strip(), result.stderr
     assert "Traceback" not in result.stderr
     assert fragment in lines[0]
+    assert not re.search(NO_INTERNAL_FILE, lines[0])  # the user's files are named, never the cache's
     assert result.stdout == ""
 
     answer = cli(*argv, "--json")

@@ -350,6 +350,126 @@ def test_bad_input_is_a_one_line_user_error(files, cache, change, message):
     assert type(info.value) is UserError and "\n" not in str(info.value)
 
 
+LATER_LINK = """  <link name="link2">
+    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><mesh filename="{mesh}"/></geometry></collision>
+  </link>
+  <joint name="j2" type="revolute"><parent link="link1"/><child link="link2"/><origin xyz="1 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda t: t.replace('lower="-3"', 'lower="-1e300"'), "joint 'j1': lower limit -1e300 is out of range"),
+        (lambda t: t.replace('upper="3"', 'upper="inf"'), "joint 'j1': upper limit inf is not a finite number"),
+        (lambda t: t.replace('<parent link="base"/>', '<parent link="nowhere"/>'), "Could not find link named"),
+        (lambda t: t.replace("</robot>", LATER_LINK.format(mesh="package://other/m.stl")), "unknown package 'other'"),
+        (
+            lambda t: t.replace("</robot>", LATER_LINK.format(mesh="package://my_arm/meshes/none.stl")),
+            "mesh file not found: package://my_arm/meshes/none.stl",
+        ),
+        (lambda t: t.replace("</limit>", "").replace('velocity="1"/>', 'velocity="1"/><mimic joint="j0"/>'), "'j0'"),
+        (lambda t: t.replace("<robot", "<robot><link").replace("</robot>", "</robot></robot>"), "cannot load"),
+    ],
+)
+def test_a_refusal_comes_before_any_mesh_work(arm_package, tmp_path, change, message):
+    """The arm's mesh link (an STL: converted, then decomposed) comes first in the file; each fault is found later
+    in the file, or only by Drake's parser, yet refused before the mesh is read: nothing is written to the cache."""
+    robot = arm_package / "late_fault.urdf"
+    robot.write_text(change((arm_package / "arm_stl.urdf").read_text()))
+    spec = CustomSpec(robot=str(robot), package_path=[f"my_arm={arm_package}"], start=[1.0], goal=[-1.0])
+    with pytest.raises(UserError, match=message) as info:
+        build_scene(spec, cache_dir=tmp_path / "cache", progress=False)
+    assert "\n" not in str(info.value) and "late_fault.urdf" in str(info.value)
+    assert not any(p.is_file() for p in (tmp_path / "cache").rglob("*")), "mesh work was done before the refusal"
+
+
+def test_a_wrong_number_of_start_values_comes_before_any_mesh_work(arm_package, tmp_path):
+    spec = CustomSpec(robot=str(arm_package / "arm_stl.urdf"), package_path=[f"my_arm={arm_package}"], start=[1, 2])
+    with pytest.raises(UserError, match=r"start needs 1 numbers \(j1\), got 2"):
+        build_scene(spec, cache_dir=tmp_path / "cache", progress=False)
+    assert not (tmp_path / "cache").exists()
+
+
+MATERIALS = {
+    # Defined twice (Drake refuses a repeated definition, even of the same colour), and used but never defined.
+    "top": '<material name="carbon_fiber"><color rgba="0.79 0.82 0.93 1"/></material>\n'
+    '  <material name="carbon_fiber"><color rgba="0.2 0.2 0.2 1"/></material>',
+    "visual": '<visual><geometry><box size="0.2 0.2 0.1"/></geometry><material name="black"/></visual>'
+    '<visual><geometry><box size="0.2 0.2 0.1"/></geometry><material name="carbon_fiber"/></visual>',
+}
+
+
+def test_materials_ros_tools_take_are_fixed_up_for_drake_with_one_note(arm_package, tmp_path, capsys):
+    """As seen in a Kinova j2s6s200 description (carbon_fiber defined twice) and a UR5 + Robotiq one (black used,
+    never defined): urdfdom and RViz load them, Drake refuses them; only visual colour is at stake."""
+    robot = arm_package / "arm_colours.urdf"
+    robot.write_text(
+        ARM.replace('<robot name="arm">', f'<robot name="arm">\n  {MATERIALS["top"]}').replace(
+            '<link name="base">', f'<link name="base">{MATERIALS["visual"]}'
+        )
+    )
+    capsys.readouterr()
+    spec = CustomSpec(robot=str(robot), package_path=[f"my_arm={arm_package}"], start=[1.0], goal=[-1.0])
+    scene = build_scene(spec, cache_dir=tmp_path, progress=False)
+    assert scene.dim == 1
+    assert capsys.readouterr().err.splitlines() == [
+        "note: arm_colours.urdf: material 'carbon_fiber' is defined twice (the first definition is used); material "
+        "'black' is used but never defined (visual colour left default)"
+    ]
+
+
+def test_drakes_warnings_about_elements_a_planner_does_not_use_are_one_line(arm_package, tmp_path, capsys):
+    """ROS descriptions carry transmissions, joint friction and Gazebo settings (an xArm7's drew 70 warnings)."""
+    ros = """  <link name="link2"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
+    </inertial><collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>
+  <joint name="j2" type="revolute"><parent link="link1"/><child link="link2"/><origin xyz="1 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/><dynamics friction="0.3"/></joint>
+  <transmission name="t1"><type>transmission_interface/SimpleTransmission</type>
+    <joint name="j1"><hardwareInterface>PositionJointInterface</hardwareInterface></joint>
+    <actuator name="m1"><mechanicalReduction>100</mechanicalReduction></actuator></transmission>
+  <transmission name="t2"><type>transmission_interface/SimpleTransmission</type>
+    <joint name="j2"><hardwareInterface>PositionJointInterface</hardwareInterface></joint>
+    <actuator name="m2"><mechanicalReduction>50</mechanicalReduction></actuator></transmission>
+  <gazebo reference="link2"><material>Gazebo/Grey</material></gazebo>
+</robot>"""
+    robot = arm_package / "arm_ros.urdf"
+    robot.write_text(
+        ARM.replace('velocity="1"/></joint>', 'velocity="1"/><dynamics friction="0.3"/></joint>').replace(
+            "</robot>", ros
+        )
+    )
+    capsys.readouterr()
+    spec = CustomSpec(robot=str(robot), package_path=[f"my_arm={arm_package}"], start=[1.0, 0], goal=[-1.0, 0])
+    build_scene(spec, cache_dir=tmp_path, progress=False)
+    build_scene(spec, cache_dir=tmp_path, progress=False)  # (said once per process)
+    assert capsys.readouterr().err.splitlines() == [
+        "note: arm_ros.urdf: Drake ignored 4 elements it does not use for planning "
+        "(friction x2, mechanicalReduction x2)"
+    ]
+
+
+def test_a_scene_refusal_names_the_users_file_not_a_generated_one(tmp_path):
+    """Whatever build_scene leaves to the Scene is said of the user's scene (its source), and paths into the cache
+    are cut to file names."""
+    from app.scene.custom import CustomScene, user_words
+    from app.scene.model import ROOT
+
+    (tmp_path / "scene.dmd.yaml").write_text((ROOT / "scenes" / "bar-3link.dmd.yaml").read_text())
+    generated = tmp_path / "problem-0123456789abcdef.yaml"
+    problem = (ROOT / "scenes" / "bar-3link.yaml").read_text().replace("bar-3link.dmd.yaml", "scene.dmd.yaml")
+    assert "weights: [1, 1, 12, 8, 4]" in problem
+    generated.write_text(problem.replace("weights: [1, 1, 12, 8, 4]", "weights: [1, 1, -12, 8, 4]"))
+    with pytest.raises(UserError) as info:
+        CustomScene(generated, {}, "arm-in-bars", {}, "my_cell.yaml")
+    assert str(info.value) == "bad scene my_cell.yaml: weights must be positive"
+    assert user_words("cannot load file:///root/.cache/npp/models/0a1b/arm.urdf:12: error: x") == (
+        "cannot load arm.urdf:12: error: x"
+    )
+
+
 def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):
     from app.planning.planner import PlanSettings, plan
 

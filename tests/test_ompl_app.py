@@ -236,6 +236,8 @@ def test_bounds_hold_start_and_goal_and_default_to_the_environment(problem_dir, 
         ({"start__x": "nan"}, "finite"),
         ({"volume__max__z": -5}, "volume.min must be below"),
         ({"volume__max__z": None}, "volume.max.z too"),
+        ({"volume__min__x": "-1e308", "volume__max__x": "1e308"}, "volume.min.x = -1e308 is out of range"),
+        ({"goal__theta": "1e300"}, "goal.theta = 1e300 is out of range"),
     ],
 )
 def test_bad_problem_files(problem_dir, tmp_path, cli, one_line_error, extra, words):
@@ -246,6 +248,40 @@ def test_bad_problem_files(problem_dir, tmp_path, cli, one_line_error, extra, wo
     with pytest.raises(UserError, match=words):
         ompl_app.read_problem(tmp_path / "bad.cfg")
     assert words in one_line_error(cli("plan", "--ompl-app", tmp_path / "bad.cfg"), 2)
+
+
+def test_a_key_given_twice_in_the_problem_is_refused_and_planner_repeats_are_not(problem_dir, tmp_path, cli):
+    """OMPL's option parser refuses a repeated key; configparser (non-strict, as [planner] needs: each `aps=` is
+    another planner) would let the last one win without a word."""
+    for name in ("robot.dae", "world.dae"):
+        (tmp_path / name).write_text((problem_dir / name).read_text())
+    text = cfg().replace("[planner]\nprm=\n", "[planner]\naps=\naps.name=APS1\naps=\naps.name=APS4\n")
+    (tmp_path / "ok.cfg").write_text(text.replace("name = wall", "name = wall\n  continued on a second line"))
+    assert ompl_app.read_problem(tmp_path / "ok.cfg").goal[2] == -1.25
+    lines = text.splitlines()
+    first = lines.index("goal.z = -1.25") + 1
+    (tmp_path / "twice.cfg").write_text(text.replace("goal.z = -1.25", "goal.z = -1.25\n# again:\ngoal.z = 9"))
+    with pytest.raises(UserError, match=rf"\[problem\] goal.z is given twice \(lines {first} and {first + 2}\)"):
+        ompl_app.read_problem(tmp_path / "twice.cfg")
+    # Across a second [problem] section (which configparser merges into the first) and in another case.
+    (tmp_path / "sections.cfg").write_text(text + "\n[problem]\nGOAL.Z = 9\n")
+    with pytest.raises(UserError, match=r"goal.z is given twice"):
+        ompl_app.read_problem(tmp_path / "sections.cfg")
+    answer = cli("plan", "--ompl-app", tmp_path / "twice.cfg", "--json")
+    assert answer.returncode == 2 and len(answer.stdout.splitlines()) == 1
+    assert answer.stderr.count("\n") == 1 and "twice.cfg" in answer.stderr and "Traceback" not in answer.stderr
+
+
+def test_a_cached_conversion_is_compared_not_trusted(problem_dir, tmp_path):
+    """The converted meshes are written to the cache by content key; a file found there under that name is used only
+    if it holds exactly what this conversion makes (a file put there by someone else would be another shape)."""
+    problem = ompl_app.read_problem(problem_dir / "wall.cfg")
+    spec, _ = ompl_app.scene_spec(problem, cache_dir=tmp_path)
+    robot, world = Path(spec.robot), Path(spec.env[0])
+    made = robot.read_bytes()
+    robot.write_bytes(world.read_bytes())  # the wall in place of the wedge
+    again, _ = ompl_app.scene_spec(problem, cache_dir=tmp_path)
+    assert Path(again.robot) == robot and robot.read_bytes() == made
 
 
 def test_cli_refusals(problem_dir, tmp_path, monkeypatch, cli, one_line_error):

@@ -11,6 +11,10 @@ weight), {inverted_box} (a passage box with lo > hi), {negative_velocity}, {zero
 (a step longer than the diagonal) and {big_scene} (a list past the size limit); meshes {stl} (garbage), {cube_mesh}
 (a cube), {nan_mesh} (a NaN vertex), {flat_mesh} (collinear vertices) and {huge_mesh} (1e30 coordinates);
 trajectories {maze_motion} (of scene maze) and {renamed_motion} (its last joint renamed).
+One-joint URDF robots: {huge_limits} (limits +-1e300), {nan_limit}, {inverted_limits} (lower above upper: Drake's
+parser would stop the process), {two_mimics} (two <mimic> in one joint), {huge_origin} (a link offset of 1e300 m)
+and {stuck_joint} (lower = upper); OMPL.app problems {huge_volume} (volume bounds +-1e308) and {repeated_key} (a
+[problem] key given twice).
 
 Paths that cannot be written are a file used as a folder, a folder used as a file, /proc and /sys and over-long names:
 the tests run as root in CI, where a write-protected folder stays writable.
@@ -34,6 +38,9 @@ from app.scene.model import ROOT, SCENES_DIR
 
 ROBOT = ["--robot", "{stl}", "--start", "0,0,0,0,0,0", "--goal", "1,0,0,0,0,0", "--bounds", "-1..1,-1..1,-1..1"]
 MESH_ROBOT = ["--start", "5,5,5,0,0,0", "--goal", "6,6,6,0,0,0", "--bounds", "0..10,0..10,0..10"]
+URDF_ROBOT = ["--start", "0", "--goal", "0.5"]
+# What no message may name: the files generated in the cache (problem files, model directives, cached entries).
+NO_INTERNAL_FILE = r"problem-[0-9a-f]+\.yaml|(robot|scene)\.dmd\.yaml|/meshes/[0-9a-f]{32}/|/models/[0-9a-f]{24}/"
 TOO_LONG = "File name too long"
 
 ROWS = [
@@ -201,6 +208,17 @@ ROWS = [
     (["plan", "--ompl-app", "{out}/missing.cfg"], 2, "OMPL.app problem file not found"),
     (["plan", "--ompl-app", "{dir}"], 2, "is not a file"),
     (["plan", "--ompl-app", "{file}"], 2, "File contains no section headers"),
+    (["plan", "--ompl-app", "{huge_volume}"], 2, "huge_volume.cfg: volume.min.x = -1e308 is out of range"),
+    (["plan", "--ompl-app", "{repeated_key}"], 2, "repeated_key.cfg: [problem] goal.x is given twice (lines 7 and 14)"),
+    # -- a robot's own numbers, refused before any arithmetic, naming the joint and the value ------------------------
+    (["plan", "--robot", "{huge_limits}", *URDF_ROBOT], 2, "joint 'slide': lower limit -1e300 is out of range"),
+    (["plan", "--robot", "{nan_limit}", *URDF_ROBOT], 2, "nan_limit.urdf: joint 'slide': upper limit nan is not a"),
+    (["plan", "--robot", "{inverted_limits}", *URDF_ROBOT], 2, "lower limit 1 is above upper limit -1"),
+    (["plan", "--robot", "{two_mimics}", *URDF_ROBOT], 2, "two_mimics.urdf: joint 'slide' has 2 <mimic> elements"),
+    (["plan", "--robot", "{huge_origin}", *URDF_ROBOT], 2, "link 'carriage': <origin xyz=\"1e300 0 0\"> is out of"),
+    (["plan", "--robot", "{stuck_joint}", *URDF_ROBOT], 2, "stuck_joint.urdf: joint 'slide': lower limit 0"),
+    (["plan", "--robot", "{cube_mesh}", *MESH_ROBOT[2:], "--start", "1e300,0,0,0,0,0"], 2, "x is 1e+300"),
+    (["plan", "--robot", "{cube_mesh}", "--start", "5,5,5,0,0,0", "--bounds", "-1e308..1e308,0..10,0..10"], 2, "1e308"),
     (["plan", "bar", "--ompl-app", "{file}"], 2, "--ompl-app sets the robot, environment and bounds"),
     (["roadmap", "info", "{file}"], 2, "is not a roadmap file of this planner (not an .npz archive)"),
     (["plan", "bar", "--roadmap", "{file}"], 2, "is not a roadmap file of this planner (not an .npz archive)"),
@@ -209,6 +227,41 @@ ROWS = [
     (["view", "tunnel", "--trajectory", "{maze_motion}", "--html", "{out}/x.html"], 2, "scene 'maze', not of 'tunnel'"),
     (["view", "maze", "--trajectory", "{renamed_motion}", "--html", "{out}/x.html"], 2, "joint 4 is 'heading'"),
 ]
+
+
+ONE_JOINT = """<?xml version="1.0"?>
+<robot name="slider">
+  <link name="base"><collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>
+  <link name="carriage">
+    <inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="{origin} 0 0"/><geometry><box size="0.2 0.05 0.05"/></geometry></collision>
+  </link>
+  <joint name="slide" type="prismatic"><parent link="base"/><child link="carriage"/><axis xyz="1 0 0"/>
+    <limit lower="{lower}" upper="{upper}" effort="1" velocity="1"/>{mimic}</joint>
+</robot>
+"""
+OMPL_PROBLEM = """[problem]
+robot = cube.obj
+world = cube.obj
+start.x = 0
+start.y = 0
+start.theta = 0
+goal.x = 5
+goal.y = 5
+goal.theta = 0
+volume.min.x = {lo}
+volume.min.y = {lo}
+volume.max.x = {hi}
+volume.max.y = {hi}
+{extra}
+[planner]
+aps=
+aps=
+"""
+
+
+def _one_joint(lower="-1", upper="1", mimic="", origin="0.3") -> str:
+    return ONE_JOINT.format(lower=lower, upper=upper, mimic=mimic, origin=origin)
 
 
 CUBE = [(x, y, z) for z in (0, 1) for y in (0, 1) for x in (0, 1)]
@@ -280,6 +333,18 @@ def prepare(folder: Path) -> dict[str, Path]:
     (folder / "huge.obj").write_text(
         _obj([(0, 0, 0), (1e30, 0, 0), (0, 1e30, 0), (0, 0, 1e30)], [(1, 2, 3), (1, 3, 4), (1, 2, 4), (2, 3, 4)])
     )
+    robots = {
+        "huge_limits": _one_joint(lower="-1e300", upper="1e300"),
+        "nan_limit": _one_joint(upper="nan"),
+        "inverted_limits": _one_joint(lower="1", upper="-1"),
+        "two_mimics": _one_joint(mimic='<mimic joint="slide"/><mimic joint="slide" multiplier="2"/>'),
+        "huge_origin": _one_joint(origin="1e300"),
+        "stuck_joint": _one_joint(lower="0", upper="0"),
+    }
+    for name, text in robots.items():
+        (folder / f"{name}.urdf").write_text(text)
+    (folder / "huge_volume.cfg").write_text(OMPL_PROBLEM.format(lo="-1e308", hi="1e308", extra=""))
+    (folder / "repeated_key.cfg").write_text(OMPL_PROBLEM.format(lo="-10", hi="10", extra="goal.x = 6\n"))
     (folder / "maze_motion.json").write_text(_motion("maze", ["x", "y", "z", "yaw"]))
     (folder / "renamed_motion.json").write_text(_motion("maze", ["x", "y", "z", "heading"]))
     db = sqlite3.connect(folder / "other.sqlite")
@@ -306,6 +371,14 @@ _FILES = {
     "nan_mesh": "nan.obj",
     "flat_mesh": "flat.obj",
     "huge_mesh": "huge.obj",
+    "huge_limits": "huge_limits.urdf",
+    "nan_limit": "nan_limit.urdf",
+    "inverted_limits": "inverted_limits.urdf",
+    "two_mimics": "two_mimics.urdf",
+    "huge_origin": "huge_origin.urdf",
+    "stuck_joint": "stuck_joint.urdf",
+    "huge_volume": "huge_volume.cfg",
+    "repeated_key": "repeated_key.cfg",
     "maze_motion": "maze_motion.json",
     "renamed_motion": "renamed_motion.json",
     "other_db": "other.sqlite",

@@ -21,12 +21,26 @@ Inputs (the keys of a custom scene file, see `CustomSpec`; `plan` takes the same
   x, y, z only (the angles then wrap on [-pi, pi); further joints keep their model limits). Default for a floating
   robot: the environment's bounding box, grown by the robot's radius, and stretched to include start and goal;
   for a jointed arm: its joint limits.
+
+Every refusal an input can earn comes before any mesh work (`check_model`, `_checked_inputs`): a model file's XML,
+its numbers (joint limits and speeds, mimic factors, offsets and sizes: finite and within MAX_MODEL_NUMBER), its
+<mimic> elements, its mesh references (known packages, existing files), and Drake's own parser on the model without
+its geometry; for a URDF robot also its joint types, mimic joints and the number of start, goal, limit and bounds
+values. What ROS tools accept but Drake refuses only in visuals (a material defined twice, a material used but
+never defined) is tolerated: the URDF given to Drake is fixed up, and one line says what was ignored. Messages name
+the user's files, never the files generated in the cache.
 """
 
+import collections
+import contextlib
 import functools
 import hashlib
 import json
+import logging
 import math
+import re
+import sys
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -37,7 +51,7 @@ from app.errors import UserError
 from app.io import check_input, write_atomically
 from app.scene import meshes
 from app.scene.cspace import PositionMap
-from app.scene.model import PACKAGES, Scene, model_loading, robot_diagram_builder
+from app.scene.model import MIN_RESOLUTION, PACKAGES, Scene, model_loading, robot_diagram_builder
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
 
@@ -50,6 +64,11 @@ ROBOT_SUFFIXES = {".urdf", ".sdf"}
 # Robot meshes keep app.scene.meshes' default.
 ENV_TOLERANCE_PER_STEP = 0.5
 CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
+# The largest number taken from a model file or the inputs for a joint limit or speed (m or rad, per s for speeds), a
+# mimic multiplier or offset, an offset, a size or a bound (m): as meshes.MAX_COORDINATE, far beyond any robot or
+# building (a revolute joint allowed 1e6 rad turns 160,000 times) and far below where the planner's differences and
+# sums overflow (joint limits of +-1e300 made the bounds' diagonal infinite) or doubles lose the millimetres.
+MAX_MODEL_NUMBER = meshes.MAX_COORDINATE
 
 
 @dataclass
@@ -75,20 +94,47 @@ class CustomSpec:
 
 
 class CustomScene(Scene):
-    """A Scene from generated files, loaded with the user's package paths in the package map."""
+    """A Scene from generated files, loaded with the user's package paths in the package map. `source` names the
+    scene for messages (the user's scene file, else the robot's file): the generated problem and directives files
+    are the cache's business, never named to the user."""
 
-    def __init__(self, problem_path: Path, packages: dict[str, Path], name: str, info: dict):
+    def __init__(self, problem_path: Path, packages: dict[str, Path], name: str, info: dict, source: str = ""):
         self.extra_packages = dict(packages)
         self.info = info  # what was built: decompositions, timings
-        super().__init__(str(problem_path))
+        self.source = source or name
+        self._generated = Path(problem_path).name
+        try:
+            super().__init__(str(problem_path))
+        except UserError as exc:  # (build_scene checks first what it can; this names whatever it did not)
+            raise self._in_users_words(exc) from None
         self.name = name
-        self.recipe = functools.partial(CustomScene, problem_path, self.extra_packages, name, {})
+        self.recipe = functools.partial(CustomScene, problem_path, self.extra_packages, name, {}, self.source)
 
     def add_models(self, parser) -> None:
         for package, directory in self.extra_packages.items():
             if not parser.package_map().Contains(package):
                 parser.package_map().Add(package, str(directory))
-        super().add_models(parser)
+        try:
+            super().add_models(parser)
+        except UserError as exc:
+            raise self._in_users_words(exc) from None
+
+    def _in_users_words(self, exc: UserError) -> UserError:
+        """`exc` naming the scene by `source` instead of the generated problem or directives file, and files by name."""
+        directives = getattr(getattr(self, "problem", None), "directives", "scene.dmd.yaml")
+        text = str(exc).replace(f"bad scene file {self._generated}", f"bad scene {self.source}")
+        text = text.replace(f"cannot load {directives}", f"cannot load the scene of {self.source}")
+        exc.args = (user_words(text),)
+        return exc
+
+
+# An absolute path (or file:// URI) in a message: the user knows their files by name, and the cache's by none.
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.])(?:file://)?/(?:[^\s'\"<>:/]+/)+([^\s'\"<>:/]+)")
+
+
+def user_words(text: str) -> str:
+    """`text` with every absolute path cut to its file name (a model copied into the cache keeps its name)."""
+    return _ABSOLUTE_PATH.sub(r"\1", text)
 
 
 # ---- parsing inputs -----------------------------------------------------------------------------------------------
@@ -120,6 +166,8 @@ def parse_bounds(items: list[str]) -> list[tuple[float, float]]:
             pair = None
         if not sep or pair is None or not all(map(math.isfinite, pair)) or not pair[0] < pair[1]:
             raise UserError(f"bad bounds item '{item.strip()}': need lo..hi with finite lo < hi")
+        if max(map(abs, pair)) > MAX_MODEL_NUMBER:
+            raise UserError(f"bad bounds item '{item.strip()}': bounds must be within +-{MAX_MODEL_NUMBER:g}")
         out.append(pair)
     return out
 
@@ -132,6 +180,8 @@ def parse_poses(values: list[float], count: int) -> list[list[float]]:
         raise UserError(
             f"env pose needs 6 finite numbers x,y,z,roll,pitch,yaw (once, or once per env); got {len(values)}"
         )
+    if any(abs(v) > MAX_MODEL_NUMBER for i, v in enumerate(values) if i % 6 < 3):
+        raise UserError(f"env pose: x, y, z must be within +-{MAX_MODEL_NUMBER:g} m")
     if len(values) == 6:
         return [values] * count
     return [values[6 * i : 6 * i + 6] for i in range(count)]
@@ -155,10 +205,9 @@ def _kind(path: Path, what: str) -> str:
 
 # ---- probing models -----------------------------------------------------------------------------------------------
 def _parser_error(exc: Exception, path: Path) -> UserError:
-    text = " ".join(str(exc).split())
+    """Drake's refusal of the model file `path` (the user's: a copy in the cache has the same name) in one line."""
+    text = user_words(" ".join(str(exc).split()))
     if "unknown package" in text:
-        import re
-
         match = re.search(r"unknown package '([^']+)'", text)
         name = match.group(1) if match else "?"
         return UserError(f"cannot load {path.name}: unknown package '{name}' (add the package path {name}=DIR)")
@@ -198,13 +247,11 @@ def read_mimics(path: Path) -> list[dict]:
     """The <mimic> elements of a URDF's joints, as the problem file's `mimic` entries: each such joint follows
     another (multiplier 1 and offset 0 unless given). Drake's URDF parser ignores them in kinematics (a continuous
     plant only records a coupler constraint that no query uses), so they are read here."""
-    from app.scene.model import xml_root
-
     if path.suffix.lower() != ".urdf":
         return []
-    root = xml_root(path, "cannot load")
+    root = _xml_root(path.read_text(errors="replace"), path)
     mimics = []
-    for joint in root.iter("joint"):
+    for joint in root.findall("joint"):  # (a <transmission>'s <joint> children are no joints)
         element = joint.find("mimic")
         if element is None:
             continue
@@ -223,9 +270,12 @@ def read_mimics(path: Path) -> list[dict]:
     return mimics
 
 
-def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str], mimics: list[dict]) -> dict:
+def probe_robot(
+    directives: Path, packages: dict[str, Path], instances: list[str], mimics: list[dict], robot_file: Path
+) -> dict:
     """Load the robot part of the directives: coordinate names, limits, and the robot's size (for weights). A
-    joint in `mimics` is no coordinate; the limits of the one it follows keep it within its own."""
+    joint in `mimics` is no coordinate; the limits of the one it follows keep it within its own. Messages name
+    `robot_file` (the user's), not the generated directives."""
     from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
     from pydrake.multibody.tree import JointIndex
 
@@ -235,7 +285,7 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
         ProcessModelDirectives(LoadModelDirectives(str(directives)), builder.parser())
         plant.Finalize()
     except Exception as exc:
-        raise _parser_error(exc, directives) from None
+        raise _parser_error(exc, robot_file) from None
     nq = plant.num_positions()
     names, kinds = [""] * nq, [""] * nq
     for i in range(plant.num_joints()):
@@ -283,7 +333,10 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
         plant.GetPositionUpperLimits(),
         plant.GetVelocityUpperLimits(),
     )
-    mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics])
+    try:
+        mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics])
+    except UserError as exc:
+        raise UserError(f"{robot_file.name}: {exc}") from None
     if mimic is not None:
         (mimic_lower, mimic_upper), mimic_velocity = (
             mimic.coordinate_limits(lower, upper),
@@ -295,7 +348,9 @@ def probe_robot(directives: Path, packages: dict[str, Path], instances: list[str
         velocity = np.minimum(velocity[planned], mimic_velocity)
         if np.any(lower >= upper):
             bad = names[int(np.flatnonzero(lower >= upper)[0])]
-            raise UserError(f"joint '{bad}': no position keeps the joints that mimic it within their limits")
+            raise UserError(
+                f"{robot_file.name}: joint '{bad}': no position keeps the joints that mimic it within their limits"
+            )
     return {
         "names": names,
         "kinds": kinds,
@@ -314,6 +369,236 @@ def _smallest_width(points: np.ndarray) -> float:
     axes = np.linalg.svd(centred, full_matrices=False)[2]
     extents = np.ptp(centred @ axes.T, axis=0)
     return float(extents.min()) if len(extents) == 3 else 0.0
+
+
+# ---- model files: every refusal before any mesh work ------------------------------------------------------------
+# The numeric attributes of a URDF checked (per element name; each number of a list): finite, within
+# MAX_MODEL_NUMBER. Joint limits and speeds are checked apart (`_check_limit`).
+_URDF_NUMBERS = {
+    "origin": ("xyz",),
+    "axis": ("xyz",),
+    "box": ("size",),
+    "cylinder": ("radius", "length"),
+    "sphere": ("radius",),
+    "capsule": ("radius", "length"),
+    "mesh": ("scale",),
+    "mimic": ("multiplier", "offset"),
+}
+_COMMENT = re.compile(r"<!--.*?-->", re.S)
+_MATERIAL = re.compile(r"<material\b(?P<attrs>[^>]*?)(?:/>|>(?P<body>.*?)</material\s*>)", re.S)
+_VISUAL = re.compile(r"<visual\b[^>]*?(?<!/)>.*?</visual\s*>", re.S)
+_GEOMETRY_ELEMENTS = re.compile(
+    r"<(collision|visual)\b[^>]*?/>|<(collision|visual)\b.*?</\2\s*>|<material\b[^>]*?/>|<material\b.*?</material\s*>",
+    re.S,
+)
+_notes_said: set[str] = set()  # the notes this process has printed (a scene may be built more than once)
+
+
+@dataclass
+class ModelCheck:
+    """What `check_model` found in a model file that it did not refuse: notes for the user (one line per file), and
+    for a URDF the joints Drake's parser makes of it (name, type, positions, ephemeral), in position order."""
+
+    notes: list[str] = field(default_factory=list)
+    joints: list[tuple[str, str, int, bool]] | None = None
+
+
+def check_model(path: Path, packages: dict[str, Path]) -> ModelCheck:
+    """Every refusal a URDF/SDF file can earn, before any mesh work, as one-line UserErrors naming the file: its XML,
+    its numbers and <mimic> elements (a URDF's), its mesh references (unknown packages, missing mesh files) and, for a
+    URDF, Drake's parser on the model without its geometry (which needs no mesh read)."""
+    text = _blank_comments(path.read_text(errors="replace"))
+    root = _xml_root(text, path)
+    found = ModelCheck()
+    urdf = path.suffix.lower() == ".urdf"
+    if urdf:
+        _check_urdf_numbers(root, path)
+        for joint in root.findall("joint"):
+            count = len(joint.findall("mimic"))
+            if count > 1:
+                raise UserError(
+                    f"{path.name}: joint '{joint.get('name')}' has {count} <mimic> elements; a joint follows one joint"
+                )
+    for m in re.finditer(_MESH_REF, text):
+        _mesh_target(_ref_parts(m)[1], path, packages)
+    if urdf:
+        found.joints = _urdf_joints(text, path, packages)
+        found.notes = drake_materials(text)[1]
+    return found
+
+
+def _blank_comments(text: str) -> str:
+    """`text` with its XML comments blanked out (each character a space, lines kept): a commented-out element is
+    none, and Drake's line numbers still point into the user's file."""
+    return _COMMENT.sub(lambda m: re.sub(r"[^\n]", " ", m.group(0)), text)
+
+
+def _xml_root(text: str, path: Path):
+    """The root element of a model file's text, or one line: "cannot load NAME: the XML error". A prefix used but
+    never declared (`<drake:...>` without xmlns:drake, which Drake's own parser takes) is declared for the reading."""
+    try:
+        return ET.fromstring(text)
+    except ET.ParseError as exc:
+        if "unbound prefix" not in str(exc):
+            raise UserError(f"cannot load {path.name}: {exc}") from None
+    prefixes = set(re.findall(r"</?([A-Za-z_][\w.-]*):[A-Za-z_]", text)) - {"xml"}
+    declared = set(re.findall(r"xmlns:([A-Za-z_][\w.-]*)\s*=", text))
+    extra = "".join(f' xmlns:{p}="urn:undeclared:{p}"' for p in sorted(prefixes - declared))
+    head = re.search(r"<(?![?!])[A-Za-z_][\w.:-]*", text)
+    try:
+        return ET.fromstring(text[: head.end()] + extra + text[head.end() :] if head else text)
+    except ET.ParseError as exc:
+        raise UserError(f"cannot load {path.name}: {exc}") from None
+
+
+def _local(tag) -> str:
+    return tag.rsplit("}", 1)[-1] if isinstance(tag, str) else ""
+
+
+def _check_urdf_numbers(root, path: Path) -> None:
+    """A URDF's joint limits and speeds, mimic factors, offsets and sizes: finite and within MAX_MODEL_NUMBER, and a
+    joint's lower limit not above its upper one (Drake's parser takes +-1e300; the planner then overflows, and an
+    inverted limit or a negative speed stops the process inside Drake). Text that is no number is Drake's to refuse."""
+    for kind in ("link", "joint"):
+        for owner in root.findall(kind):
+            where = f"{path.name}: {kind} '{owner.get('name')}'"
+            for element in owner.iter():
+                for attribute in _URDF_NUMBERS.get(_local(element.tag), ()):
+                    raw = element.get(attribute)
+                    try:
+                        values = [float(v) for v in raw.split()] if raw is not None else []
+                    except ValueError:
+                        continue
+                    if not all(math.isfinite(v) and abs(v) <= MAX_MODEL_NUMBER for v in values):
+                        raise UserError(
+                            f'{where}: <{_local(element.tag)} {attribute}="{raw.strip()}"> is out of range (numbers '
+                            f"here must be finite and within +-{MAX_MODEL_NUMBER:g})"
+                        )
+            if kind == "joint":
+                _check_limit(owner, where)
+
+
+def _check_limit(joint, where: str) -> None:
+    limit = joint.find("limit")
+    if limit is None:
+        return
+    # A continuous (or fixed, floating, planar) joint's lower and upper are not limits: Drake reads them for
+    # revolute and prismatic joints only.
+    names = ("lower", "upper", "velocity") if joint.get("type") in ("revolute", "prismatic") else ("velocity",)
+    values = {}
+    for name in names:
+        raw = limit.get(name)
+        try:
+            value = float(raw) if raw is not None else None
+        except ValueError:
+            continue  # (Drake's parser says what it expected)
+        what = "velocity limit" if name == "velocity" else f"{name} limit"
+        if value is not None and not math.isfinite(value):
+            raise UserError(f"{where}: {what} {raw.strip()} is not a finite number")
+        if value is not None and abs(value) > MAX_MODEL_NUMBER:
+            raise UserError(
+                f"{where}: {what} {raw.strip()} is out of range (limits must be within +-{MAX_MODEL_NUMBER:g} m or rad)"
+            )
+        values[name] = value
+    if values.get("velocity") is not None and values["velocity"] < 0:
+        raise UserError(f"{where}: velocity limit {limit.get('velocity').strip()} is negative")
+    lower, upper = values.get("lower"), values.get("upper")
+    if lower is not None and upper is not None and lower > upper:
+        raise UserError(f"{where}: lower limit {limit.get('lower').strip()} is above upper limit {upper:g}")
+
+
+@contextlib.contextmanager
+def _drake_quiet_about(marker: str):
+    """Drake's log records that contain `marker` dropped while the block runs."""
+    logger = logging.getLogger("drake")
+
+    def keep(record: logging.LogRecord) -> bool:
+        return marker not in record.getMessage()
+
+    logger.addFilter(keep)
+    try:
+        yield
+    finally:
+        logger.removeFilter(keep)
+
+
+def _urdf_joints(text: str, path: Path, packages: dict[str, Path]) -> list[tuple[str, str, int, bool]]:
+    """Drake's parser on the URDF without its geometry and materials (lines kept, so its messages point into the
+    user's file): its refusal, else the joints it makes (name, type, positions, ephemeral: a joint Drake adds to a
+    body attached to nothing), in position order. Its warnings are left to the real load, which summarises them."""
+    from pydrake.multibody.tree import JointIndex
+
+    bare = _GEOMETRY_ELEMENTS.sub(lambda m: "\n" * m.group(0).count("\n"), text)
+    builder = _new_builder(packages)
+    plant = builder.plant()
+    literal = "<literal-string>.urdf"
+    try:
+        with _drake_quiet_about(literal):
+            builder.parser().AddModelsFromString(bare, "urdf")
+            plant.Finalize()
+    except Exception as exc:  # pydrake raises RuntimeError
+        message = " ".join(str(exc).split()).replace(f"{literal}:", "line ").replace(literal, path.name)
+        raise _parser_error(RuntimeError(message), path) from None
+    joints = [plant.get_joint(JointIndex(i)) for i in range(plant.num_joints())]
+    joints.sort(key=lambda j: j.position_start())
+    return [(j.name(), j.type_name(), j.num_positions(), j.is_ephemeral()) for j in joints if j.num_positions()]
+
+
+def drake_materials(text: str) -> tuple[str, list[str]]:
+    """A URDF's text with the materials Drake refuses and ROS tools (urdfdom, RViz) take fixed up, and what was done.
+    Drake reads the robot's own <material> elements, then each visual's, and refuses a name defined twice (an inline
+    repeat of the same colour aside) and a name used before any definition; here the first definition of a name is
+    kept (a later top-level one dropped, a later inline one reduced to a reference to it), and a reference to a name
+    defined nowhere before it is dropped (that visual keeps Drake's default colour). Lines are kept."""
+    visuals = [m.span() for m in _VISUAL.finditer(text)]
+    found = []
+    for m in _MATERIAL.finditer(text):
+        name = re.search(r"\bname\s*=\s*([\"'])(.*?)\1", m.group("attrs"))
+        if name is None:  # (Gazebo's <material>Gazebo/Grey</material>: not Drake's)
+            continue
+        inline = any(a <= m.start() < b for a, b in visuals)
+        found.append((m, name.group(2), inline, _material_definition(m.group("body") or "")))
+    defined_somewhere = collections.Counter(name for _, name, _, definition in found if definition is not None)
+    defined: dict[str, tuple] = {}
+    edits, notes = [], []
+    for m, name, inline, definition in [f for f in found if not f[2]] + [f for f in found if f[2]]:
+        if definition is None:
+            if name not in defined:
+                edits.append((m.span(), ""))
+                notes.append(
+                    f"material '{name}' is used before it is defined (that visual's colour left default)"
+                    if name in defined_somewhere
+                    else f"material '{name}' is used but never defined (visual colour left default)"
+                )
+        elif name not in defined:
+            defined[name] = definition
+        elif not (inline and definition == defined[name]):
+            edits.append((m.span(), f"<material name={quoteattr(name)}/>" if inline else ""))
+            times = "twice" if defined_somewhere[name] == 2 else f"{defined_somewhere[name]} times"
+            notes.append(f"material '{name}' is defined {times} (the first definition is used)")
+    for (start, end), replacement in sorted(edits, reverse=True):
+        text = text[:start] + replacement + "\n" * text[start:end].count("\n") + text[end:]
+    return text, list(dict.fromkeys(notes))
+
+
+def _material_definition(body: str) -> tuple | None:
+    """A material's colour and texture as Drake compares them; None when it has neither (a reference by name)."""
+    rgba = re.search(r"<color\b[^>]*\brgba\s*=\s*([\"'])(.*?)\1", body)
+    texture = re.search(r"<texture\b[^>]*\bfilename\s*=\s*([\"'])(.*?)\1", body)
+    if rgba is None and texture is None:
+        return None
+    try:
+        colour = tuple(float(v) for v in rgba.group(2).split()) if rgba else None
+    except ValueError:
+        colour = rgba.group(2)
+    return colour, texture.group(2) if texture else None
+
+
+def _say_notes(path: Path, notes: list[str]) -> None:
+    line = f"note: {path.name}: {'; '.join(notes)}"
+    if notes and line not in _notes_said:
+        _notes_said.add(line)
+        print(line, file=sys.stderr)
 
 
 # ---- model files with meshes Drake cannot read ------------------------------------------------------------------
@@ -342,6 +627,19 @@ def _ref_parts(m) -> tuple[str, str, str]:
     return (m.group(1), m.group(2), m.group(3)) if m.group(2) else (m.group(4), m.group(5), m.group(6))
 
 
+def _is_mesh(uri: str) -> bool:
+    return Path(uri.split("?")[0]).suffix.lower() in meshes.MESH_SUFFIXES
+
+
+def _mesh_target(uri: str, path: Path, packages: dict[str, Path]) -> Path | None:
+    """The file a reference in the model file `path` names (None for another URI scheme); an unknown package, or a
+    mesh file that is not there, is a UserError naming `path`."""
+    target = resolve_uri(uri, path, packages)
+    if target is not None and _is_mesh(uri) and not target.is_file():
+        raise UserError(f"cannot load {path.name}: mesh file not found: {uri}")
+    return target
+
+
 def convert_model_meshes(
     path: Path,
     packages: dict[str, Path],
@@ -355,31 +653,31 @@ def convert_model_meshes(
       convex hull; the pieces stay on the link's body, so they are never checked against each other;
     - mesh references Drake cannot read (.stl, .dae, ...) point to converted .obj files (without decompose_options
       that means their convex hull, conservative);
-    - every other relative or package:// reference is made absolute (the copy lives elsewhere).
-    `info` collects what each decomposition did."""
-    import re
-
-    text = path.read_text(errors="replace")
+    - every other relative or package:// reference is made absolute (the copy lives elsewhere);
+    - (a URDF) the materials Drake refuses and ROS tools take are fixed up (`drake_materials`).
+    Comments are blanked and lines kept, so Drake's messages point into the user's file. `info` collects what each
+    decomposition did. (`check_model` has refused what it can before this runs any decomposition.)"""
+    original = path.read_text(errors="replace")
+    text = _blank_comments(original)
+    if path.suffix.lower() == ".urdf":
+        text = drake_materials(text)[0]
     refs = re.compile(_MESH_REF)
     blocks = re.compile(r"<collision\b.*?</collision>", re.S)
-
-    def is_mesh(uri):
-        return Path(uri.split("?")[0]).suffix.lower() in meshes.MESH_SUFFIXES
 
     def convertible(uri):
         return Path(uri.split("?")[0]).suffix.lower() in meshes.CONVERTIBLE_SUFFIXES
 
     decompose_here = decompose_options is not None and any(
-        is_mesh(_ref_parts(m)[1]) for b in blocks.finditer(text) for m in refs.finditer(b.group(0))
+        _is_mesh(_ref_parts(m)[1]) for b in blocks.finditer(text) for m in refs.finditer(b.group(0))
     )
-    if not decompose_here and not any(convertible(_ref_parts(m)[1]) for m in refs.finditer(text)):
+    refit = path.suffix.lower() == ".urdf" and text != _blank_comments(original)  # (materials fixed up)
+    if not decompose_here and not refit and not any(convertible(_ref_parts(m)[1]) for m in refs.finditer(text)):
         return path
+    for m in refs.finditer(text):  # every reference checked before the first decomposition starts
+        _mesh_target(_ref_parts(m)[1], path, packages)
 
     def resolved(uri):
-        target = resolve_uri(uri, path, packages)
-        if target is not None and is_mesh(uri) and not target.is_file():
-            raise UserError(f"cannot load {path.name}: mesh file not found: {uri}")
-        return target
+        return _mesh_target(uri, path, packages)
 
     def absolute(m):
         head, uri, tail = _ref_parts(m)
@@ -392,7 +690,7 @@ def convert_model_meshes(
 
     def split_collision(b):
         block = b.group(0)
-        found = [m for m in refs.finditer(block) if is_mesh(_ref_parts(m)[1])]
+        found = [m for m in refs.finditer(block) if _is_mesh(_ref_parts(m)[1])]
         if len(found) != 1:
             return block
         m = found[0]
@@ -408,8 +706,8 @@ def convert_model_meshes(
             uri = str(piece) if m.group(2) else f"file://{piece}"
             copy = block[: m.start()] + f"{head}{uri}{tail}" + block[m.end() :]
             copy = re.sub(r'(<collision\b[^>]*\bname\s*=\s*")([^"]*)(")', rf"\g<1>\g<2>_piece{k}\g<3>", copy, count=1)
-            copies.append(copy)
-        return "\n".join(copies)
+            copies.append(copy if not copies else copy.replace("\n", " "))  # (all on the block's own lines)
+        return "".join(copies)
 
     if decompose_here:
         text = blocks.sub(split_collision, text)
@@ -520,9 +818,10 @@ def _write(path: Path, text: str) -> None:
 # ---- the builder --------------------------------------------------------------------------------------------------
 @model_loading()
 def build_scene(
-    spec: CustomSpec, base: Path | None = None, cache_dir: Path | None = None, progress: bool = True
+    spec: CustomSpec, base: Path | None = None, cache_dir: Path | None = None, progress: bool = True, source: str = ""
 ) -> CustomScene:
-    """The Scene for `spec`. Relative paths are taken from `base` (the scene file's directory, or the cwd)."""
+    """The Scene for `spec`. Relative paths are taken from `base` (the scene file's directory, or the cwd). `source`
+    names the scene in messages (its file's name; default: the robot file's)."""
     import time
 
     started = time.perf_counter()
@@ -542,7 +841,7 @@ def build_scene(
     root = cache_dir or meshes.cache_root()
     robot_dir = _write_scene_dir(models, robot_directives, inputs.packages, root)
     mimics = read_mimics(inputs.robot_path) if inputs.robot_kind == "model" else []
-    coords = probe_robot(robot_dir / "robot.dmd.yaml", inputs.packages, robot_instances, mimics)
+    coords = probe_robot(robot_dir / "robot.dmd.yaml", inputs.packages, robot_instances, mimics, inputs.robot_path)
     resolution = spec.resolution or default_resolution(coords)
     _check_vectors(spec, coords)
     env_options = {**mesh_options, "tolerance": spec.mesh_tolerance or ENV_TOLERANCE_PER_STEP * resolution}
@@ -562,7 +861,7 @@ def build_scene(
         info["mesh_links"] = hull_disagreement(scene_dir, *models.hull_robot_file, inputs, robot_instances)
     name = f"{inputs.robot_path.stem}-in-{'+'.join(p.stem for p in inputs.env_paths) or 'nothing'}"
     load_started = time.perf_counter()
-    scene = CustomScene(problem_path, inputs.packages, name, info)
+    scene = CustomScene(problem_path, inputs.packages, name, info, source or inputs.robot_path.name)
     info["drake_load_seconds"] = time.perf_counter() - load_started
     info["scene_dir"] = str(scene_dir)
     return scene
@@ -584,7 +883,10 @@ class _Inputs:
 
 
 def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
-    """Every check that needs no model loaded, so bad input fails before any (slow) mesh decomposition."""
+    """Every check that needs no mesh read, so bad input fails before any (slow) mesh decomposition: the inputs
+    themselves, each model file (`check_model`), the SRDF's links, and where the coordinates are known by now (a mesh
+    robot's; a URDF robot's, from Drake's parser on it without geometry) their joint types, mimic joints and the
+    number of start, goal, limit and bounds values. Notes on what a model file had ignored follow once all passed."""
 
     def resolve(p: str) -> Path:
         path = Path(p).expanduser()
@@ -606,21 +908,53 @@ def _checked_inputs(spec: CustomSpec, base: Path) -> _Inputs:
     poses = parse_poses(spec.env_pose, len(env_paths)) if env_paths else []
     if spec.env_pose and not env_paths:
         raise UserError("an env pose needs an environment file")
+    checked = {}
+    for path, kind in [(robot_path, robot_kind), *zip(env_paths, env_kinds)]:
+        if kind == "model" and path not in checked:
+            checked[path] = check_model(path, packages)
     srdf_path = resolve(spec.srdf) if spec.srdf else None
     if srdf_path is not None:
         _check_srdf_links(srdf_path, robot_path if robot_path.suffix.lower() == ".urdf" else None)
     bounds = parse_bounds(spec.bounds)
-    return _Inputs(
-        packages,
-        robot_path,
-        robot_kind,
-        robot_kind == "mesh" or spec.floating,
-        env_paths,
-        env_kinds,
-        poses,
-        bounds,
-        srdf_path,
-    )
+    floating = robot_kind == "mesh" or spec.floating
+    names = _coordinate_names(robot_path, floating, checked.get(robot_path))
+    if names is not None:
+        _check_vectors(spec, {"names": names})
+        _check_bounds_count(bounds, names, floating)
+    for path, found in checked.items():
+        _say_notes(path, found.notes)
+    return _Inputs(packages, robot_path, robot_kind, floating, env_paths, env_kinds, poses, bounds, srdf_path)
+
+
+def _coordinate_names(robot_path: Path, floating: bool, found: ModelCheck | None) -> list[str] | None:
+    """The scene's coordinates as far as they are known before any mesh work (a mesh robot's carrier; a URDF
+    robot's joints as Drake's parser makes them, mimic joints left out, after the carrier's when it floats); None
+    for an SDF robot. Joint types the planner does not take, and mimic joints that cannot follow, are refused."""
+    if found is None:
+        return list(CARRIER_JOINTS) if floating else None
+    if found.joints is None:
+        return None
+    joints = [(name, kind, count) for name, kind, count, ephemeral in found.joints if not ephemeral]
+    bad = sorted({kind for _, kind, _ in joints if kind not in ("revolute", "prismatic")})
+    if bad:
+        raise UserError(f"robot joints of type {', '.join(bad)} are not supported (revolute and prismatic only)")
+    names = [name for name, _, count in joints for _ in range(count)]
+    mimics = read_mimics(robot_path)
+    try:
+        mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics])
+    except UserError as exc:
+        raise UserError(f"{robot_path.name}: {exc}") from None
+    planned = [names[i] for i in mimic.planned] if mimic is not None else names
+    return (list(CARRIER_JOINTS) if floating else []) + planned
+
+
+def _check_bounds_count(bounds: list[tuple[float, float]], names: list[str], floating: bool) -> None:
+    if bounds and not (len(bounds) == len(names) or (floating and len(bounds) == 3)):
+        raise UserError(
+            f"bounds: {len(names)} lo..hi items needed (one per coordinate: {', '.join(names)})"
+            + (" or 3 for x, y, z" if floating else "")
+            + f"; got {len(bounds)}"
+        )
 
 
 def _check_srdf_links(srdf_path: Path, model_path: Path | None) -> None:
@@ -775,6 +1109,16 @@ def _problem(
     # Weights: an angle's weight is the lever arm it swings (the robot's radius or reach), metres weigh 1.
     lever = max(coords["reach"], 1e-6)
     weights = np.where(angular, lever, 1.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        diagonal = float(np.linalg.norm((upper - lower) * weights))
+    if not math.isfinite(diagonal):
+        raise UserError("the bounds are too large to plan in: their diagonal is not a finite number (give bounds)")
+    # (as app.scene.model.Scene checks it: here, so that the message names the value, not a generated file)
+    if not MIN_RESOLUTION * diagonal <= resolution <= diagonal:
+        raise UserError(
+            f"resolution must be from {MIN_RESOLUTION:g} x the bounds' diagonal ({MIN_RESOLUTION * diagonal:.3g}) to "
+            f"the diagonal ({diagonal:.3g}), got {resolution:g}"
+        )
     env_names = ", ".join(p.name for p in inputs.env_paths) or "-"
     # A joint without a velocity limit gets 1 (m/s or rad/s), so the trajectory has a sensible duration.
     model_velocity = np.where(np.isfinite(coords["velocity"]) & (coords["velocity"] > 0), coords["velocity"], 1.0)
@@ -844,16 +1188,11 @@ def _limits(
         lower[:3], upper[:3] = -1e4, 1e4
         lower[3:6], upper[3:6] = -math.pi, math.pi
     if bounds:
+        _check_bounds_count(bounds, coords["names"], floating)
         if len(bounds) == nq:
             lower, upper = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
-        elif floating and len(bounds) == 3:
-            lower[:3], upper[:3] = [b[0] for b in bounds], [b[1] for b in bounds]
         else:
-            raise UserError(
-                f"bounds: {nq} lo..hi items needed (one per coordinate: {', '.join(coords['names'])})"
-                + (" or 3 for x, y, z" if floating else "")
-                + f"; got {len(bounds)}"
-            )
+            lower[:3], upper[:3] = [b[0] for b in bounds], [b[1] for b in bounds]
     elif floating:
         if not env_boxes:
             raise UserError("a floating robot with no environment needs bounds for x, y, z")
@@ -865,6 +1204,12 @@ def _limits(
     if not np.all(np.isfinite(lower) & np.isfinite(upper)):
         missing = [coords["names"][i] for i in range(nq) if not (np.isfinite(lower[i]) and np.isfinite(upper[i]))]
         raise UserError(f"no limits for {', '.join(missing)}: give bounds")
+    if np.any(lower >= upper):
+        i = int(np.flatnonzero(lower >= upper)[0])
+        raise UserError(
+            f"{inputs.robot_path.name}: joint '{coords['names'][i]}': lower limit {lower[i]:g} is not below upper "
+            f"limit {upper[i]:g}, no room to move (give bounds)"
+        )
     return lower, upper
 
 
@@ -899,6 +1244,9 @@ def _vector(values, nq: int, what: str, names: list[str]) -> np.ndarray:
     if not np.all(np.isfinite(vector)):
         bad = int(np.flatnonzero(~np.isfinite(vector))[0])
         raise UserError(f"{what} needs finite numbers, {names[bad]} is {vector[bad]}")
+    if np.any(np.abs(vector) > MAX_MODEL_NUMBER):
+        bad = int(np.flatnonzero(np.abs(vector) > MAX_MODEL_NUMBER)[0])
+        raise UserError(f"{what} needs numbers within +-{MAX_MODEL_NUMBER:g}, {names[bad]} is {vector[bad]:g}")
     return vector
 
 
@@ -980,5 +1328,5 @@ def load_scene(name_or_path: str, cache_dir: Path | None = None) -> Scene:
     """A shipped scene, a problem file, or a custom scene file (robot/env keys): the one loader commands need."""
     path = Path(name_or_path)
     if path.suffix == ".yaml" and is_custom_scene_file(check_input(path, "scene file")):
-        return build_scene(read_spec(path), base=path.resolve().parent, cache_dir=cache_dir)
+        return build_scene(read_spec(path), base=path.resolve().parent, cache_dir=cache_dir, source=path.name)
     return Scene(name_or_path)

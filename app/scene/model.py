@@ -98,49 +98,62 @@ class ProblemFile:
     mimic: list[Mimic] = field(default_factory=list)  # joints that follow others: not planned coordinates
 
 
-# Drake's URDF parser warns about each element it ignores, once per parse. These are ROS controller and calibration
-# settings a planner never reads; a load says in one line what it ignored (each element once per process: a custom
-# scene parses its robot several times) instead of a warning per element per parse.
-HARMLESS_URDF_TAGS = ("safety_controller", "calibration")
-_HARMLESS = re.compile(
-    r"^(.*?): warning: The tag '(" + "|".join(HARMLESS_URDF_TAGS) + r")' found as a child of '\w+' is currently "
-    r"unsupported and will be ignored"
+# Drake's URDF parser warns about each element it ignores, once per parse. These elements are ROS controller,
+# calibration, transmission and friction settings a planner never reads (an xArm7 description drew 70 such warnings).
+# A load says in one line per file what it ignored (each element once per process: a custom scene parses its robot
+# several times) instead of a warning per element per parse. Each pattern names the element it is about.
+HARMLESS_URDF_WARNINGS = (
+    r"The tag '(safety_controller|calibration)' found as a child of '\w+' is currently unsupported and will be ignored",
+    r"A joint has specified a non-zero value for the '(friction)' attribute of a joint/dynamics tag",
+    r"A '\w+' element contains a (mechanicalReduction) element with a value",
+    r"A <(transmission)> has a type that isn't 'SimpleTransmission'",
+    r"A link has specified the '(group)' attribute on the <collision> tag",
+    r"A joint has specified a value for the '(coulomb_window)' attribute",
 )
-_harmless_seen: set[str] = set()  # the warnings already summarised (file name:line and tag)
-_harmless_new: collections.Counter | None = None  # per tag, while a model_loading block runs
+_HARMLESS = re.compile(r"^(.*?):(\d+): warning: (?:" + "|".join(HARMLESS_URDF_WARNINGS) + ")")
+_harmless_seen: set[tuple[str, str, str]] = set()  # (file name, line, element) already summarised
+_harmless_new: dict[str, collections.Counter] | None = None  # per file name and element, while model_loading runs
 
 
 def _drop_harmless(record: logging.LogRecord) -> bool:
     found = _HARMLESS.match(record.getMessage())
-    if found is None or _harmless_new is None:
+    if found is None or _harmless_new is None or found.group(1).startswith("<"):  # (a string parsed: no file)
         return True
-    # By file name and line: the cached copies of a model (its mesh links rewritten) are the same elements.
-    key = f"{Path(found.group(1)).name} {found.group(2)}"
-    if key not in _harmless_seen:
-        _harmless_seen.add(key)
-        _harmless_new[found.group(2)] += 1
+    # By file name and line: the cached copies of a model (its mesh links rewritten, lines kept) are the same elements.
+    name, line = Path(found.group(1)).name, found.group(2)
+    element = next(g for g in found.groups()[2:] if g)
+    if (name, line, element) not in _harmless_seen:
+        _harmless_seen.add((name, line, element))
+        _harmless_new.setdefault(name, collections.Counter())[element] += 1
     return False
 
 
 @contextlib.contextmanager
 def model_loading():
-    """Drake's known-harmless URDF warnings (HARMLESS_URDF_TAGS) kept off stderr while models load, and summarised
-    in one line at the end of the outermost block (nothing if every one was summarised before)."""
+    """Drake's known-harmless URDF warnings (HARMLESS_URDF_WARNINGS) kept off stderr while models load, and
+    summarised in one line per file at the end of the outermost block (nothing if every one was summarised before):
+    `note: arm.urdf: Drake ignored 70 elements it does not use for planning (friction x35, mechanicalReduction x35)`.
+    """
     global _harmless_new
     if _harmless_new is not None:  # an enclosing block summarises
         yield
         return
     logger = logging.getLogger("drake")
-    _harmless_new = collections.Counter()
+    _harmless_new = {}
     logger.addFilter(_drop_harmless)
     try:
         yield
     finally:
         logger.removeFilter(_drop_harmless)
-        counts, _harmless_new = _harmless_new, None
-        if counts:
-            parts = ", ".join(f"{count} <{tag}>" for tag, count in sorted(counts.items()))
-            print(f"note: Drake ignored URDF elements a planner does not use: {parts}", file=sys.stderr)
+        found, _harmless_new = _harmless_new, None
+        for name, counts in found.items():
+            parts = ", ".join(f"{element} x{count}" for element, count in sorted(counts.items()))
+            total = sum(counts.values())
+            print(
+                f"note: {name}: Drake ignored {total} element{'s' if total > 1 else ''} it does not use for planning "
+                f"({parts})",
+                file=sys.stderr,
+            )
 
 
 def robot_diagram_builder():

@@ -8,7 +8,9 @@ The conventions reproduced here, and where each comes from:
 - The file is INI: section [problem] with `robot` and `world` (mesh files, relative to the .cfg: gui/ompl_app.py
   lines 231-234 join them to the file's folder; benchmark/CFGBenchmark.cpp line 95 also searches it first), `start.*`,
   `goal.*` and optional `volume.min.*`/`volume.max.*`. [benchmark] and [planner] hold planner settings, not the
-  problem, and are not read.
+  problem, and are not read ([planner] repeats keys on purpose: each `aps=` is another planner). A key given twice in
+  [problem] is refused (OMPL's option parser refuses it too) rather than the last one silently winning, and every
+  number there must be within meshes.MAX_COORDINATE in size.
 - 3-D or 2-D: a problem with `start.z` and `start.axis.*` is SE(3), one with none of them SE(2)
   (benchmark/BenchmarkOptions.cpp lines 222-246, isSE2Problem/isSE3Problem). A `control` key (kinematic_car,
   dynamic_car: gui/ompl_app.py lines 220-227) or a `statespace` (dubins, reedsshepp: benchmark/BenchmarkTypes.cpp
@@ -112,10 +114,15 @@ def read_problem(path: str | Path) -> OmplAppProblem:
     """Parse and check an OMPL.app problem file; meshes must exist. One-line UserError for anything wrong."""
     path = check_input(Path(path), "OMPL.app problem file")
     parser = configparser.ConfigParser(interpolation=None, strict=False)
+    text = path.read_text(errors="replace")
     try:
-        parser.read_string(path.read_text(errors="replace"), source=str(path))
+        parser.read_string(text, source=path.name)
     except configparser.Error as exc:
         raise UserError(f"bad OMPL.app problem {path.name}: {' '.join(str(exc).split())[:200]}") from None
+    twice = _repeated_key(parser, text, "problem")
+    if twice is not None:
+        key, first, again = twice
+        raise UserError(f"bad OMPL.app problem {path.name}: [problem] {key} is given twice (lines {first} and {again})")
     if not parser.has_section("problem"):
         raise UserError(f"bad OMPL.app problem {path.name}: no [problem] section")
     section = parser["problem"]
@@ -135,6 +142,11 @@ def read_problem(path: str | Path) -> OmplAppProblem:
             raise UserError(f"{path.name}: {key} = {section[key]!r} is not a number") from None
         if not math.isfinite(value):
             raise UserError(f"{path.name}: {key} must be a finite number, got {section[key]}")
+        if abs(value) > meshes.MAX_COORDINATE:  # (as a mesh's coordinates: beyond it, bounds overflow when subtracted)
+            raise UserError(
+                f"{path.name}: {key} = {section[key].strip()} is out of range (at most {meshes.MAX_COORDINATE:g} in "
+                "size)"
+            )
         return value
 
     def mesh(key: str) -> Path:
@@ -179,6 +191,36 @@ def read_problem(path: str | Path) -> OmplAppProblem:
         goal=goal,
         volume=volume,
     )
+
+
+def _repeated_key(parser: configparser.ConfigParser, text: str, wanted: str) -> tuple[str, int, int] | None:
+    """The first key given twice in section `wanted` (which may itself appear more than once), with the lines of both,
+    read line by line as configparser reads them: a line indented deeper than its key's continues that key's value,
+    comments and blank lines are no keys, keys are compared as configparser stores them (lower case)."""
+    section, seen, indent, in_value = None, {}, 0, False
+    for number, line in enumerate(text.splitlines(), 1):
+        stripped = line.strip()
+        if not stripped or stripped[0] in "#;":
+            continue
+        depth = len(line) - len(line.lstrip())
+        if in_value and depth > indent:
+            continue
+        indent, in_value = depth, False
+        header = parser.SECTCRE.match(stripped)
+        if header:
+            section = header.group("header")
+            continue
+        option = parser._optcre.match(stripped)  # (the pattern configparser itself reads options with)
+        if option is None:
+            continue
+        in_value = True
+        if section != wanted:
+            continue
+        key = parser.optionxform(option.group("option").rstrip())
+        if key in seen:
+            return key, seen[key], number
+        seen[key] = number
+    return None
 
 
 def load_mesh(path: str | Path) -> OmplAppMesh:
@@ -305,18 +347,25 @@ def position_bounds(problem: OmplAppProblem, world: OmplAppMesh) -> tuple[np.nda
 
 
 # ---- the scene ----------------------------------------------------------------------------------------------------
-def _cached_file(cache_dir: Path | None, key_text: str, name: str, write) -> Path:
-    """`name` in a cache folder named by a hash of `key_text`, written (atomically) by `write(path)` if absent."""
+def _cached_file(cache_dir: Path | None, key_text: str, name: str, content: str | bytes) -> Path:
+    """`name` holding `content` in a cache folder named by a hash of `key_text`, written (atomically) unless it holds
+    exactly that already: what is there is compared, never trusted (a file someone else put there would be another
+    shape)."""
+    data = content.encode() if isinstance(content, str) else content
     key = hashlib.sha256((CONVERSION_VERSION + key_text).encode()).hexdigest()[:24]
     target = (cache_dir or meshes.cache_root()) / "ompl_app" / key / name
-    if not target.is_file():
-        write_atomically(meshes.writable_folder(target.parent) / name, write)
+    try:
+        same = target.is_file() and target.read_bytes() == data
+    except OSError:
+        same = False
+    if not same:
+        write_atomically(meshes.writable_folder(target.parent) / name, data)
     return target
 
 
 def _mesh_file(cache_dir: Path | None, name: str, vertices: np.ndarray, faces: np.ndarray) -> Path:
     key = hashlib.sha256(np.ascontiguousarray(vertices).tobytes() + np.ascontiguousarray(faces).tobytes()).hexdigest()
-    return _cached_file(cache_dir, key, f"{name}.obj", lambda tmp: meshes._write_obj(tmp, vertices, faces))
+    return _cached_file(cache_dir, key, f"{name}.obj", meshes.obj_bytes(vertices, faces))
 
 
 def planar_urdf(name: str, mesh: Path, lo: np.ndarray, hi: np.ndarray) -> str:
@@ -386,6 +435,8 @@ def build_scene(
     app.scene.custom.build_scene. `options`: CustomSpec keys the file does not set (see `scene_spec`)."""
     problem = read_problem(path)
     spec, found = scene_spec(problem, cache_dir, **options)
-    scene = custom.build_scene(spec, base=problem.path.parent, cache_dir=cache_dir, progress=progress)
+    scene = custom.build_scene(
+        spec, base=problem.path.parent, cache_dir=cache_dir, progress=progress, source=problem.path.name
+    )
     scene.info["ompl_app"] = found
     return scene
