@@ -468,6 +468,32 @@ def test_a_scene_refusal_names_the_users_file_not_a_generated_one(tmp_path):
     assert user_words("cannot load file:///root/.cache/npp/models/0a1b/arm.urdf:12: error: x") == (
         "cannot load arm.urdf:12: error: x"
     )
+    assert user_words("//tmp/cell/arm.sdf:5: error: x, 1/2 of /a/b") == "arm.sdf:5: error: x, 1/2 of b"
+
+
+SDF_ARM = """<?xml version="1.0"?>
+<sdf version="1.9"><model name="arm">
+  <link name="a"><collision name="c"><geometry><box><size>0.1 0.1 0.1</size></box></geometry></collision></link>
+  <link name="b"><pose>0.3 0 0 0 0 0</pose>
+    <collision name="c"><geometry><box><size>0.1 0.1 0.1</size></box></geometry></collision></link>
+  <joint name="j" type="prismatic"><parent>a</parent><child>b</child>
+    <axis><xyz>1 0 0</xyz><limit><lower>{lower}</lower><upper>{upper}</upper></limit></axis></joint>
+</model></sdf>
+"""
+
+
+@pytest.mark.parametrize(
+    "lower, upper, message",
+    [
+        ("-1e300", "1e300", r"^arm.sdf: joint 'j': lower limit -1e\+300 is out of range"),
+        ("1", "-1", r"^cannot load arm.sdf: arm.sdf:\d+: error: The lower limit must be lower"),
+    ],
+)
+def test_an_sdf_robots_limits_are_refused_naming_the_joint(tmp_path, lower, upper, message):
+    """An SDF is not read ahead as a URDF is: its limits are refused when Drake has read it, as one line."""
+    (tmp_path / "arm.sdf").write_text(SDF_ARM.format(lower=lower, upper=upper))
+    with pytest.raises(UserError, match=message):
+        build_scene(CustomSpec(robot=str(tmp_path / "arm.sdf"), start=[0], goal=[0.5]), cache_dir=tmp_path)
 
 
 def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):

@@ -129,7 +129,7 @@ class CustomScene(Scene):
 
 
 # An absolute path (or file:// URI) in a message: the user knows their files by name, and the cache's by none.
-_ABSOLUTE_PATH = re.compile(r"(?<![\w.])(?:file://)?/(?:[^\s'\"<>:/]+/)+([^\s'\"<>:/]+)")
+_ABSOLUTE_PATH = re.compile(r"(?<![\w./])(?:file:)?/+(?:[^\s'\"<>:/]+/)+([^\s'\"<>:/]+)")
 
 
 def user_words(text: str) -> str:
@@ -333,6 +333,15 @@ def probe_robot(
         plant.GetPositionUpperLimits(),
         plant.GetVelocityUpperLimits(),
     )
+    # (check_model has refused a URDF's; an SDF's limits are first seen here)
+    for what, values in (("lower limit", lower), ("upper limit", upper), ("velocity limit", velocity)):
+        huge = np.isfinite(values) & (np.abs(values) > MAX_MODEL_NUMBER)
+        if huge.any():
+            i = int(np.flatnonzero(huge)[0])
+            raise UserError(
+                f"{robot_file.name}: joint '{names[i]}': {what} {values[i]:g} is out of range (limits must be within "
+                f"+-{MAX_MODEL_NUMBER:g} m or rad)"
+            )
     try:
         mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics])
     except UserError as exc:
