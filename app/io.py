@@ -6,15 +6,21 @@ command's outputs appear together, or none of them when it fails.
 
 Reading: `check_input` refuses a file larger than its kind's limit (INPUT_LIMITS) before any parser sees it, so a
 huge file is one line at once instead of minutes of parsing and gigabytes of memory.
+
+Reading, adding to and writing back one file from several processes (`plan --roadmap FILE --update`): `exclusive`
+holds a lock for the whole of it, so that they take turns and none writes over another's update.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import os
 import shutil
+import stat
 import tempfile
+import threading
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
 from pathlib import Path
@@ -38,6 +44,11 @@ INPUT_LIMITS = {
     "results store": 8 << 30,  # SQLite: read row by row, never whole
     "trials file": 256 << 20,  # trials.csv.gz (compressed)
 }
+
+# The exclusive locks this process holds (`exclusive`): lock file path -> [a lock for this process's threads, the lock
+# file's descriptor while held, how many blocks hold it].
+_locks: dict[str, list] = {}
+_locks_guard = threading.Lock()
 
 # A folder is written inside a temporary folder of its own, named with this ending, under its own name (a ROS 2 bag
 # names its files after its folder).
@@ -231,3 +242,75 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+@contextlib.contextmanager
+def exclusive(path: str | os.PathLike, waiting: Callable[[], None] | None = None) -> Iterator[None]:
+    """Hold the exclusive lock of `path` for the block: another process (or thread) asking for it waits until the
+    block ends. For a read-modify-write of `path`, taken before it is read and held until it is written (its
+    replacement by write_atomically included: inside all_or_nothing(), hold the lock around that block).
+    `waiting()`, if given, is called once when the lock is held elsewhere as it is asked for, before waiting.
+    Reentrant: a block inside another of the same process for the same path shares the outer one's lock.
+
+    The lock is an flock(2) on `path`.lock beside it, made for the purpose and removed when the block ends.
+    fcntl.flock rather than a package such as filelock: the planner runs only where Drake does (Linux, macOS), the
+    kernel drops a lock with its process however that process ends (no stale lock to clean up, no timeout to
+    guess), and a dozen lines need no dependency. A lock file is removed while it is held, so a process that waited
+    on it finds it no longer at its path once it gets it and locks the new one instead: two holders never overlap."""
+    name = os.path.abspath(os.fspath(path)) + ".lock"
+    with _locks_guard:
+        entry = _locks.setdefault(name, [threading.RLock(), None, 0])
+    with entry[0]:
+        if entry[2] == 0:
+            entry[1] = _lock(name, path, waiting)
+        entry[2] += 1
+        try:
+            yield
+        finally:
+            entry[2] -= 1
+            if entry[2] == 0:
+                fd, entry[1] = entry[1], None
+                with contextlib.suppress(OSError):
+                    os.unlink(name)  # while held: see above
+                os.close(fd)  # (releases the lock)
+
+
+def _lock(name: str, path, waiting) -> int:
+    """The descriptor of the lock file `name`, exclusively locked (see `exclusive`); UserError if it cannot be."""
+    told = False
+    while True:
+        try:
+            # Not following a link, not blocking on a named pipe someone put there, not a terminal.
+            flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC
+            fd = os.open(name, flags, 0o666)
+        except OSError as exc:
+            raise UserError(f"cannot lock {path} for updating ({name}): {exc.strerror or exc}") from None
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise UserError(f"cannot lock {path} for updating: {name} is not a lock file")
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                if waiting is not None and not told:
+                    waiting()
+                    told = True
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            if _names(fd, name):
+                return fd
+        except OSError as exc:
+            os.close(fd)
+            raise UserError(f"cannot lock {path} for updating ({name}): {exc.strerror or exc}") from None
+        except BaseException:
+            os.close(fd)
+            raise
+        os.close(fd)  # the holder before removed it: lock the file at the path now
+
+
+def _names(fd: int, name: str) -> bool:
+    """Whether the open file `fd` is the one at path `name` (not one removed from it since it was opened)."""
+    try:
+        there = os.stat(name, follow_symlinks=False)
+    except FileNotFoundError:
+        return False
+    mine = os.fstat(fd)
+    return (there.st_dev, there.st_ino) == (mine.st_dev, mine.st_ino)

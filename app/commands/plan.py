@@ -2,6 +2,7 @@
 (app.planning.planner.plan)."""
 
 import argparse
+import contextlib
 
 from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
@@ -186,32 +187,39 @@ def run(args) -> int:
         raise UserError("--update writes back to a roadmap: give --roadmap FILE")
     if args.roadmap and args.full_roadmap:
         raise UserError("--full-roadmap builds a roadmap of its own: give it or --roadmap, not both")
-    view.check_from_args(args, args.out)
+    view.check_from_args(args, args.out, args.roadmap if args.update else None)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     posed = args.start_pose is not None or args.goal_pose is not None
     tool = tool_frame(oracle, args.tool) if posed else None  # the frame the poses place, named in the answer
-    cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
-    start, goal = args.start, args.goal
-    with progress(args, oracle, f"plan {oracle.scene.name}"):
-        if args.start_pose is not None:
-            start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
-        if args.goal_pose is not None:
-            goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed, every=True)
-        result = plan(oracle, settings, start=start, goal=goal) if cell is None else cell.solve(start, goal, settings)
-    # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-    saved = (cell, args.roadmap) if args.update else None
-    with answering():  # from here an interrupt waits until the files and the answer are written
-        viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
-        if args.json:
-            meshes = (
-                {"meshes": oracle.scene.info["decompositions"]} if isinstance(oracle.scene, custom.CustomScene) else {}
+    # --update: the roadmap's lock, held from before the file is read until it is written back (view.roadmap_lock),
+    # so that a second process updating it waits, then adds to this one's update instead of writing over it.
+    with view.roadmap_lock(args.roadmap) if args.update else contextlib.nullcontext():
+        cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
+        start, goal = args.start, args.goal
+        with progress(args, oracle, f"plan {oracle.scene.name}"):
+            if args.start_pose is not None:
+                start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
+            if args.goal_pose is not None:
+                goal = pose_goal(oracle, args.goal_pose, tool=args.tool, reference=start, seed=args.seed, every=True)
+            result = (
+                plan(oracle, settings, start=start, goal=goal) if cell is None else cell.solve(start, goal, settings)
             )
-            print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool, **meshes})
-        else:
-            lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
-            if tool is not None:
-                lines.append(f"tool      {tool['name']} placed by the pose(s) ({TOOL_CHOSEN[tool['chosen']]})")
-            print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
+        # Files first (all or none), the answer last: a failure writing one leaves no success printed.
+        saved = (cell, args.roadmap) if args.update else None
+        with answering():  # from here an interrupt waits until the files and the answer are written
+            viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
+            if args.json:
+                meshes = (
+                    {"meshes": oracle.scene.info["decompositions"]}
+                    if isinstance(oracle.scene, custom.CustomScene)
+                    else {}
+                )
+                print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool, **meshes})
+            else:
+                lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
+                if tool is not None:
+                    lines.append(f"tool      {tool['name']} placed by the pose(s) ({TOOL_CHOSEN[tool['chosen']]})")
+                print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
     view.wait(args, viewer)
     return 0
 

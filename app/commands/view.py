@@ -9,6 +9,7 @@ normal end of the command, exit code 0: its work is done and its answer (with --
 already printed. What the wait says goes to stderr.
 """
 
+import contextlib
 import os
 import signal
 import sys
@@ -16,7 +17,7 @@ import threading
 
 from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json
 from app.errors import UserError
-from app.io import all_or_nothing
+from app.io import all_or_nothing, exclusive
 from app.motion.rosbag import write_bag
 from app.motion.trajectory import TrajectoryFile
 from app.scene.custom import load_scene
@@ -70,7 +71,12 @@ def write_outputs(args, scene, file: TrajectoryFile, out: str | None = None, roa
     (stdout may carry a command's JSON); `wait` then keeps it served. A command calls it inside its
     common.answering() block, with the answer it prints."""
     viewer = None
-    with all_or_nothing():
+    # The roadmap's lock around the whole block, whose end replaces its file: CellRoadmap.save checks under it that
+    # the file is still the revision it loaded. plan --update holds it already (taken before it read the file); a
+    # command that did not take it then does not wait here for another process's update, which its save would
+    # refuse anyway (and a wait here, where an interrupt waits for the answer, could not be interrupted).
+    lock = exclusive(roadmap[1], _refuse_busy(roadmap[1])) if roadmap is not None else contextlib.nullcontext()
+    with lock, all_or_nothing():
         if args.meshcat or args.html:
             viewer = publish(scene, ViewData.of(file), html=args.html, frame=args.frame, collision=args.collision)
         if out:
@@ -83,6 +89,26 @@ def write_outputs(args, scene, file: TrajectoryFile, out: str | None = None, roa
     if args.meshcat:
         print(f"meshcat: {viewer.url()}", file=sys.stderr, flush=True)
     return viewer
+
+
+def roadmap_lock(path):
+    """The lock of a roadmap file that is read, added to and written back (app.io.exclusive): taken before it is
+    read and held until it is written, so that two processes updating one roadmap take turns and the second adds
+    to the first one's update instead of writing over it. Says so once on stderr when it has to wait."""
+
+    def waiting() -> None:
+        print(f"waiting for roadmap {path}: another process is updating it", file=sys.stderr, flush=True)
+
+    return exclusive(path, waiting)
+
+
+def _refuse_busy(path):
+    def refuse() -> None:
+        raise UserError(
+            f"roadmap {path} is being updated by another process: not written over (that update would be lost)"
+        )
+
+    return refuse
 
 
 def wait(args, viewer) -> None:
