@@ -97,20 +97,40 @@ def main(argv=None) -> int:
         # Nobody reads the rest: end quietly. Later writes (and the final flush) go nowhere instead of raising again.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return exit_code(exc)
-    except KeyboardInterrupt as exc:
-        if answer_written():  # the answer is out whole: the interrupt came too late to matter
-            print(INTERRUPTED_WHILE_ANSWERING, file=sys.stderr, flush=True)
-            return 0
-        return _fail(argv, "interrupted", exit_code(exc), "PREEMPTED")
+    except KeyboardInterrupt:
+        return _interrupted(argv)
     except UserError as exc:
         return _fail(argv, str(exc), exit_code(exc), exc.code)
     except Exception as exc:
+        if caused_by_interrupt(exc):  # e.g. Ctrl-C while pydrake loads: ImportError("initialization failed")
+            return _interrupted(argv)
         # A bug, not bad input (or an error raised in Drake's C++, which pydrake raises as RuntimeError): the
         # traceback stays, on stderr (it is what a report needs), and a --json reader still gets its one answer on
         # stdout, with MoveIt's generic FAILURE and Python's exit code for an uncaught exception.
         if "--json" in argv and not answer_written():
             _print_failure("FAILURE", f"internal error: {type(exc).__name__}: {exc}", status=1)
         raise
+
+
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether `exc` is a Ctrl-C or was raised because of one: an interrupt inside a C extension's import comes out
+    as the ImportError it caused."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _interrupted(argv: list[str]) -> int:
+    """Ctrl-C: exit code 130 and PREEMPTED, unless the command's answer is out whole already (then it came too late
+    to matter: exit 0)."""
+    if answer_written():
+        print(INTERRUPTED_WHILE_ANSWERING, file=sys.stderr, flush=True)
+        return 0
+    return _fail(argv, "interrupted", EXIT_CODES[KeyboardInterrupt], "PREEMPTED")
 
 
 def _fail(argv: list[str], message: str, code: int, error: str) -> int:

@@ -5,6 +5,7 @@ that, Ctrl-C stops it with exit code 130 and writes nothing. With --json, every 
 The interrupts are sent by the process to itself from inside the code under test (a writer wrapped to send one), so
 where they land does not depend on timing."""
 
+import io
 import json
 import os
 import signal
@@ -77,24 +78,35 @@ def test_ctrl_c_while_the_files_are_written_finishes_them_and_the_answer(cli, ce
     assert _queries_answered(cli, cell) == 1  # the roadmap was written back
 
 
+class _Pipe(io.RawIOBase):
+    """The write end of a pipe whose reader is slow: each write takes at most 4 kB, and the first is cut short by a
+    Ctrl-C (write(2) then returns what it wrote so far)."""
+
+    def __init__(self):
+        self.written, self.writes = bytearray(), 0
+
+    def writable(self):
+        return True
+
+    def write(self, data):
+        self.writes += 1
+        if self.writes == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+        taken = bytes(data[:4096])
+        self.written += taken
+        return len(taken)
+
+
 def test_ctrl_c_while_the_answer_is_printed_finishes_it(cli, monkeypatch):
-    """A signal that lands in the write of the JSON line waits until the line is out."""
-    real, sent = sys.stdout, []
-
-    class Interrupting:
-        def write(self, text):
-            if not sent:  # once: the first write is the answer's
-                sent.append(signal.SIGINT)
-                os.kill(os.getpid(), signal.SIGINT)
-            return real.write(text)
-
-        def __getattr__(self, name):
-            return getattr(real, name)
-
-    monkeypatch.setattr(sys, "stdout", Interrupting())
+    """A Ctrl-C that cuts the write of the JSON line short: the line is written whole all the same. stdout is
+    unbuffered here (as with PYTHONUNBUFFERED or python -u: a TextIOWrapper straight on the file), where a write cut
+    short used to lose the rest of the line."""
+    pipe = _Pipe()
+    monkeypatch.setattr(sys, "stdout", io.TextIOWrapper(pipe, encoding="utf-8", write_through=True))
     result = cli("scenes", "--json")
     assert result.returncode == 0, result.stderr
-    assert _one_json(result.stdout)["success"] is True and result.stderr.count(INTERRUPTED_WHILE_ANSWERING) == 1
+    assert result.stderr.count(INTERRUPTED_WHILE_ANSWERING) == 1
+    assert pipe.writes > 1 and _one_json(pipe.written.decode())["success"] is True
 
 
 def test_ctrl_c_before_the_answer_stops_the_command_and_writes_nothing(cli, cell, tmp_path, monkeypatch):
@@ -166,15 +178,48 @@ def test_an_answer_json_cannot_hold_prints_nothing_but_the_failure(capsys, monke
 def test_print_json_writes_its_line_in_one_call(monkeypatch):
     writes = []
 
-    class Recorder:
+    class Recorder:  # a stream of text only
         def write(self, text):
             writes.append(text)
 
         def flush(self):
-            writes.append(None)
+            pass
 
     monkeypatch.setattr(sys, "stdout", Recorder())
     print_json({"numbers": list(range(1000)), "nan": float("nan")})
-    texts = [w for w in writes if w is not None]
-    assert len(texts) == 1 and writes[-1] is None  # one write, then flushed
-    assert json.loads(texts[0]) == {"success": True, "numbers": list(range(1000)), "nan": None}
+    assert len(writes) == 1 and writes[0].endswith("}\n")
+    assert json.loads(writes[0]) == {"success": True, "numbers": list(range(1000)), "nan": None}
+
+
+def test_an_interrupt_that_a_c_extension_turned_into_an_import_error_is_an_interrupt(capsys, monkeypatch):
+    """Ctrl-C while pydrake loads a module comes out as ImportError("initialization failed"), caused by the
+    KeyboardInterrupt: exit code 130 and PREEMPTED, not a FAILURE with a traceback."""
+    from app.cli import main
+
+    def interrupted_import(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr("app.commands.plan.CollisionOracle", interrupted_import)
+    assert main(["plan", "bar", "--json"]) == 130
+    out, err = capsys.readouterr()
+    answer = _one_json(out)
+    assert answer["error"]["code"] == "PREEMPTED" and answer["exit_code"] == 130 and err == "error: interrupted\n"
+
+
+@pytest.mark.parametrize(
+    "how", ["raise KeyboardInterrupt", "raise ImportError('initialization failed') from KeyboardInterrupt()"]
+)
+def test_ctrl_c_while_the_command_line_loads_is_one_preempted_object(tmp_path, how):
+    """`python -m app ... --json` interrupted while app.cli imports its modules (a stand-in tqdm, which the command
+    line loads and `import app` does not, is interrupted): exit code 130, one PREEMPTED object, one line on stderr."""
+    (tmp_path / "tqdm").mkdir()
+    (tmp_path / "tqdm" / "__init__.py").write_text(how + "\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(tmp_path), os.environ.get("PYTHONPATH")]))}
+    result = subprocess.run(
+        [sys.executable, "-m", "app", "scenes", "--json"], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert result.returncode == 130, result.stderr
+    assert _one_json(result.stdout)["error"]["code"] == "PREEMPTED" and result.stderr == "error: interrupted\n"

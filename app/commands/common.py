@@ -6,6 +6,7 @@ A type raises argparse.ArgumentTypeError; the parser turns that into one line na
 
 import argparse
 import contextlib
+import io
 import json
 import math
 import os
@@ -310,20 +311,26 @@ def answering():
     on stdout. A command enters it once it has its answer; inside it SIGINT (Ctrl-C) and SIGTERM wait until the
     block ends, so the answer is written whole, and the command then ends as it would have (exit 0 on success),
     with one line on stderr saying an interrupt came too late to matter. Before the block an interrupt stops the
-    command as before (exit 130, nothing written). stdout is flushed before the block ends (a pipe's buffer would
-    otherwise be written at exit, where an interrupt could cut it).
+    command as before (exit 130, nothing written).
+
+    What the block prints on stdout is held and written when it ends, all of it (`_write_whole`), before the
+    signals are let through; if the block fails, none of it (as none of its files): the failure is the answer.
 
     Only the main thread receives signals: in another thread (or inside an outer block) the block just runs."""
     if threading.current_thread() is not threading.main_thread() or _answer.signals is not None:
         yield
         return
     received: list[int] = []
-    _answer.signals, previous = received, {}
+    _answer.signals, previous, stdout = received, {}, sys.stdout
     try:
         for number in _DEFERRED_SIGNALS:
             previous[number] = signal.signal(number, lambda signum, frame: received.append(signum))
-        yield
-        sys.stdout.flush()
+        sys.stdout = held = io.StringIO()
+        try:
+            yield
+        finally:
+            sys.stdout = stdout
+        _write_whole(stdout, held.getvalue())
         _answer.written = True
         if received:
             print(INTERRUPTED_WHILE_ANSWERING, file=sys.stderr, flush=True)
@@ -333,15 +340,30 @@ def answering():
         _answer.signals = None
 
 
+def _write_whole(stream, text: str) -> None:
+    """`text` written to `stream` and flushed, all of it. Through the stream's binary buffer, since a signal can cut
+    a write to a pipe short, and an unbuffered stdout (PYTHONUNBUFFERED, python -u: a TextIOWrapper straight on
+    the file) drops the rest of a write cut short: the bytes are written again from where the write stopped."""
+    stream.flush()
+    binary = getattr(stream, "buffer", None)
+    if binary is None:  # a stream of text only (one a test put there): its write takes the whole text
+        stream.write(text)
+        stream.flush()
+        return
+    rest = memoryview(text.encode(stream.encoding or "utf-8", stream.errors or "strict"))
+    while rest:
+        rest = rest[binary.write(rest) or 0 :]  # (None: a non-blocking stream took nothing this time)
+    binary.flush()
+
+
 def print_json(obj: dict) -> None:
-    """A command's answer as one line of JSON on stdout, in one write and flushed (inside `answering()`, so that an
-    interrupt cannot cut it); every answer says whether it is a success. The whole line is made before anything is
-    written: a value JSON cannot hold fails the call with nothing printed. JSON has no NaN or infinity (Python's
-    json would print them anyway): they become null, e.g. a median over no successes."""
+    """A command's answer as one line of JSON on stdout, written in one call inside `answering()` (so that neither
+    an interrupt nor a short write cuts it); every answer says whether it is a success. The whole line is made
+    before anything is written: a value JSON cannot hold fails the call with nothing printed. JSON has no NaN or
+    infinity (Python's json would print them anyway): they become null, e.g. a median over no successes."""
     text = json.dumps(_finite({"success": True, **obj}), indent=None, separators=(",", ":"), allow_nan=False)
     with answering():
         sys.stdout.write(text + "\n")
-        sys.stdout.flush()
 
 
 def _finite(value):
