@@ -1,5 +1,7 @@
 # make plan: create .venv, install, run the default job.  make test: the import contracts, ruff, the documentation site
-# built --strict and the test suite (what CI runs).  make docs: the documentation site, into site/.
+# built --strict and the test suite (what CI runs); it installs nothing outside .venv (the browser tests skip, in one
+# line, where Chromium is missing).  make browser-test: installs Chromium (apt-get) and runs the browser tests.
+# make docs: the documentation site, into site/.
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
@@ -15,12 +17,19 @@ $(STAMP): pyproject.toml
 plan: $(STAMP)
 	mkdir -p out
 	$(PY) -m app run window --html out/window.html
+	@echo "The command line runs in .venv: $(PY) -m app --help (or source $(VENV)/bin/activate, then python -m app ...)"
 
-# The browser checks need Debian's chromium, and chromedriver for the panel's (Selenium); CI machines start without them.
+# The browser checks need Debian's chromium, and chromedriver for the panel's (Selenium): this target installs them
+# with apt-get (as root) when they are missing. Only `make browser-test` asks for it; `make test` installs nothing.
 chromium:
-	command -v chromium >/dev/null && command -v chromedriver >/dev/null || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null)
+	@if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then \
+		echo "browser-test: using $$(command -v chromium) and $$(command -v chromedriver)"; \
+	else \
+		echo "browser-test: installing Debian's chromium and chromium-driver (apt-get install, needs root)"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	fi
 
-test: $(STAMP) chromium
+test: $(STAMP)
 	$(VENV)/bin/lint-imports
 	$(VENV)/bin/ruff check app tests docs/hooks examples/*.py
 	$(VENV)/bin/ruff format --check app tests docs/hooks examples/*.py
@@ -31,7 +40,8 @@ test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
 # The exported Meshcat page drawn by headless Chromium (WebGL via SwiftShader), and the planning panel driven in it;
-# screenshots in out/browser-*.png and out/panel-*.png.
+# screenshots in out/browser-*.png and out/panel-*.png. Installs Debian's chromium and chromium-driver first when they
+# are missing (the chromium target: apt-get, as root), and says which it uses.
 browser-test: $(STAMP) chromium
 	mkdir -p out
 	$(PY) -m pytest -q -m browser tests/test_browser.py tests/test_panel.py

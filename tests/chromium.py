@@ -15,10 +15,13 @@ from pathlib import Path
 import pytest
 
 CHROMIUM, CHROMEDRIVER = shutil.which("chromium"), shutil.which("chromedriver")
-needs_chromium = pytest.mark.skipif(
-    CHROMIUM is None or CHROMEDRIVER is None,
-    reason="Chromium or chromedriver not installed (make browser-test installs Debian's chromium, chromium-driver)",
+# Why a browser test is skipped; `make test` installs nothing outside .venv, so on a machine without them these tests
+# skip, and tests/conftest.py sums them up in one line of the test summary.
+MISSING = (
+    "Chromium or chromedriver is not installed: `make browser-test` installs them (Debian's chromium, "
+    "chromium-driver) and runs these tests"
 )
+needs_chromium = pytest.mark.skipif(CHROMIUM is None or CHROMEDRIVER is None, reason=MISSING)
 
 
 @contextlib.contextmanager

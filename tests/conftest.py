@@ -107,6 +107,15 @@ def one_line_error():
     return check
 
 
+def pytest_terminal_summary(terminalreporter):
+    """The browser tests skipped for want of Chromium (tests/chromium.py), in one line naming what runs them."""
+    from chromium import MISSING
+
+    skipped = [r for r in terminalreporter.stats.get("skipped", []) if MISSING in str(r.longrepr)]
+    if skipped:
+        terminalreporter.write_line(f"{len(skipped)} browser test(s) skipped: {MISSING}")
+
+
 # OMPL's nanobind bindings report "leaked" objects while the interpreter shuts down (harmless: the process is ending).
 # When OMPL was loaded, end the process right after pytest is done, so the test summary stays the last thing printed.
 _exit_status = None

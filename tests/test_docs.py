@@ -4,8 +4,11 @@ table of scene-file keys names every key CustomSpec has. (`make test` also build
 import dataclasses
 import os
 import re
+import shutil
 import subprocess
 import sys
+
+import pytest
 
 from app.scene.custom import CustomSpec
 from app.scene.model import ROOT
@@ -43,3 +46,25 @@ def test_the_scene_file_keys_are_all_documented():
     page = (ROOT / "docs" / "own-robot.md").read_text()
     for field in dataclasses.fields(CustomSpec):
         assert f"`{field.name}`" in page, field.name
+
+
+def _make_dry_run(target: str) -> str:
+    """What `make TARGET` would run (make -n: printed, not run)."""
+    if shutil.which("make") is None:
+        pytest.skip("make is not installed")
+    result = subprocess.run(["make", "-n", "-C", str(ROOT), target], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_make_test_installs_nothing_outside_the_project_and_browser_test_says_it_does():
+    assert "apt-get" not in _make_dry_run("test")
+    browser = _make_dry_run("browser-test")
+    assert "apt-get install" in browser and "installing Debian's chromium" in browser
+
+
+def test_make_plan_and_the_readme_say_how_to_run_the_command_line():
+    """After `make plan` the package is in .venv only: both say so (a plain `python -m app` cannot import it)."""
+    assert "source .venv/bin/activate" in _make_dry_run("plan")
+    set_up = README.read_text().split("## Set up", 1)[1].split("\n## ", 1)[0]
+    assert "source .venv/bin/activate" in set_up and ".venv/bin/python -m app" in set_up
