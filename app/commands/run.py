@@ -1,5 +1,6 @@
 """`run welding|window`: the scripted UR3 jobs, planned leg by leg into one trajectory, with a summary table."""
 
+import contextlib
 from dataclasses import replace
 
 from app.checking.oracle import CollisionOracle
@@ -14,7 +15,7 @@ from app.commands.common import (
     sampler_name,
     seed,
 )
-from app.commands.view import add_arguments, check_from_args, wait, write_outputs
+from app.commands.view import add_arguments, check_from_args, roadmap_lock, wait, write_outputs
 from app.errors import UserError
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
 from app.planning.cell import CellRoadmap
@@ -74,29 +75,33 @@ def run(args) -> int:
         raise UserError("--update writes back to a roadmap: give --roadmap FILE")
     if args.roadmap and args.full_roadmap:
         raise UserError("--full-roadmap builds a roadmap per leg: give it or --roadmap, not both")
-    check_from_args(args, args.out)
+    check_from_args(args, args.out, args.roadmap if args.update else None)
     oracle = CollisionOracle(Scene(args.job))
-    cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
-    with progress(args, oracle, f"run {args.job}"):
-        result = run_job(oracle, args.job, settings, cell)
-    # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-    saved = (cell, args.roadmap) if args.update else None
-    with answering():  # the files and the table are the answer
-        viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
-        if args.json:
-            print_json(result.to_json())
-        else:
-            print(f"{result.scene}: {len(result.legs)} legs, sampler {result.sampler}, seed {result.seed}")
-            print(f"{'leg':<20} {'method':<9} {'narrow':>7} {'on path':>8} {'checks':>8} {'plan s':>7} {'move s':>7}")
-            for leg in result.legs:
+    # --update: the roadmap's lock from before the file is read until it is written back, as plan --update takes it.
+    with roadmap_lock(args.roadmap) if args.update else contextlib.nullcontext():
+        cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
+        with progress(args, oracle, f"run {args.job}"):
+            result = run_job(oracle, args.job, settings, cell)
+        # Files first (all or none), the answer last: a failure writing one leaves no success printed.
+        saved = (cell, args.roadmap) if args.update else None
+        with answering():  # the files and the table are the answer
+            viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
+            if args.json:
+                print_json(result.to_json())
+            else:
+                print(f"{result.scene}: {len(result.legs)} legs, sampler {result.sampler}, seed {result.seed}")
                 print(
-                    f"{leg.start + ' -> ' + leg.goal:<20} {leg.method:<9} {leg.narrow_samples:>7} "
-                    f"{leg.narrow_on_path:>8} {leg.collision_checks:>8} {leg.seconds:>7.2f} {leg.duration:>7.2f}"
+                    f"{'leg':<20} {'method':<9} {'narrow':>7} {'on path':>8} {'checks':>8} {'plan s':>7} {'move s':>7}"
                 )
-            s = result.seconds
-            print(
-                f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
-                f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)"
-            )
+                for leg in result.legs:
+                    print(
+                        f"{leg.start + ' -> ' + leg.goal:<20} {leg.method:<9} {leg.narrow_samples:>7} "
+                        f"{leg.narrow_on_path:>8} {leg.collision_checks:>8} {leg.seconds:>7.2f} {leg.duration:>7.2f}"
+                    )
+                s = result.seconds
+                print(
+                    f"{'total':<20} {'':<9} {'':>7} {'':>8} {result.collision_checks:>8} {s['planning']:>7.2f} "
+                    f"{result.trajectory.duration:>7.2f}   (IK {s['ik']:.2f} s, wall {s['total']:.2f} s)"
+                )
     wait(args, viewer)
     return 0
