@@ -2,7 +2,14 @@
 triangle's corners stored anew (as STL does), several overlapping shells (housings, tubes, flanges) whose faces are
 tessellated apart and not stitched (open parts; the chamfers' facets are 2-face slivers: 99-318 parts per link),
 and on the upper arm a closed, non-convex bracket. Joints as a UR3's (shoulder pan z, lift y, elbow y, wrist 1 y,
-wrist 2 z, wrist 3 y)."""
+wrist 2 z, wrist 3 y).
+
+How long it loads is measured by a benchmark, not asserted by a test: `python tests/cad_arm.py DIR` writes the arm
+with a post round which to plan (`write_cell`) and prints the `bench oracle` command that loads it into an empty mesh
+cache and again from the cache ("load s (first/cached)"), and measures its collision checks."""
+
+import sys
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -133,3 +140,37 @@ def write_arm(folder) -> None:
         write_stl(link_mesh(name), folder / "meshes" / f"{name}.stl")
     (folder / "cad_arm.urdf").write_text(urdf())
     (folder / "cad_arm.srdf").write_text(srdf(ADJACENT))
+
+
+# Start and goal of a plan round the post: the arm reaching out left of it; the straight way (pan 0) runs into it.
+START = [-0.9, 0.9, 0.6, 0, 0, 0]
+GOAL = [0.9, 0.9, 0.6, 0, 0, 0]
+
+
+def write_post(path) -> None:
+    """A 5 x 5 x 60 cm post beside the arm's base, on a 60 x 60 cm floor plate under it, as one STL."""
+    post = trimesh.creation.box([0.05, 0.05, 0.6], T([0.3, 0, 0.3]))
+    floor = trimesh.creation.box([0.6, 0.6, 0.02], T([0, 0, -0.011]))
+    trimesh.util.concatenate([post, floor]).export(path)
+
+
+def write_cell(folder) -> Path:
+    """The arm (write_arm), the post (post.stl) and a custom scene file naming them with a start and goal round the
+    post (cad_arm.yaml, which `plan` and `bench oracle` take); returns the scene file's path."""
+    folder = Path(folder)
+    write_arm(folder)
+    write_post(folder / "post.stl")
+    scene = folder / "cad_arm.yaml"
+    scene.write_text(
+        "description: a UR-like arm exported as CAD tools export one, beside a post (tests/cad_arm.py)\n"
+        f"robot: cad_arm.urdf\nsrdf: cad_arm.srdf\nenv: [post.stl]\nstart: {START}\ngoal: {GOAL}\n"
+    )
+    return scene
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        sys.exit("usage: python tests/cad_arm.py DIR  (writes the CAD arm's scene into DIR)")
+    written = write_cell(Path(sys.argv[1]))
+    print(f"wrote {written}; its load times (into an empty mesh cache, then from it) and check costs:")
+    print(f"  python -m app bench oracle --scenes {written}")

@@ -1,10 +1,12 @@
 """A UR-like arm exported the way CAD tools export one (tests/cad_arm.py: STL, unstitched faces, 2-face slivers,
-several shells per link) loads with default settings in seconds: its links' open parts become merged convex hulls
-that contain the original mesh, each link says what was used and the volume it adds, a second load reads the cache,
-and (slow) a plan round a post is free against the original meshes, checked with trimesh."""
+several shells per link) loads with default settings: its links' open parts become merged convex hulls that contain
+the original mesh, each link says what was used and the volume it adds, a second load reads the cache, and (slow) a
+plan round a post is free against the original meshes, checked with trimesh.
+
+How long the loads take is not asserted here (a busy machine would fail the test, not the code): `bench oracle`
+measures it (`python tests/cad_arm.py DIR` prints the command)."""
 
 import json
-import time
 
 import numpy as np
 import pytest
@@ -18,26 +20,20 @@ from app.commands.custom import describe  # noqa: E402
 from app.errors import UserError  # noqa: E402
 from app.scene import meshes  # noqa: E402
 from app.scene.custom import CustomSpec, build_scene  # noqa: E402
-from cad_arm import LINKS, write_arm  # noqa: E402
-
-START = "-0.9,0.9,0.6,0,0,0"  # the arm reaching out left of the post; the straight way (pan 0) runs into it
-GOAL = "0.9,0.9,0.6,0,0,0"
+from cad_arm import GOAL, LINKS, START, write_arm, write_post  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def arm(tmp_path_factory):
     d = tmp_path_factory.mktemp("cad_arm")
     write_arm(d)
-    T = trimesh.transformations.translation_matrix
-    post = trimesh.creation.box([0.05, 0.05, 0.6], T([0.3, 0, 0.3]))
-    floor = trimesh.creation.box([0.6, 0.6, 0.02], T([0, 0, -0.011]))
-    trimesh.util.concatenate([post, floor]).export(d / "post.stl")
+    write_post(d / "post.stl")
     return d
 
 
 @pytest.fixture(scope="module")
 def cache(tmp_path_factory):
-    """One mesh cache for the module: empty for the first test (which times the first load), warm after it."""
+    """One mesh cache for the module: empty for the first test (which loads into it, then from it), warm after it."""
     return tmp_path_factory.mktemp("cad_arm_cache")
 
 
@@ -55,13 +51,11 @@ def _outside(points: np.ndarray, pieces: list) -> np.ndarray:
     return out
 
 
-def test_cad_links_load_with_defaults_in_seconds_and_contain_their_meshes(arm, cache):
-    started = time.perf_counter()
+def test_cad_links_load_with_defaults_and_contain_their_meshes(arm, cache, monkeypatch):
     scene = build_scene(_spec(arm), cache_dir=cache, progress=False)
-    first = time.perf_counter() - started
     links = {d["mesh"]: d for d in scene.info["decompositions"] if d["mesh"] != "post.stl"}
     assert sorted(links) == sorted(f"{name}.stl" for name in LINKS)
-    assert first < 60  # ~10 s measured on 2 shared cores; the goal is 30
+    assert not any(d["from_cache"] for d in scene.info["decompositions"])  # built here, into the empty cache
     for name, d in links.items():
         source = trimesh.load(arm / "meshes" / name, force="mesh")
         assert len(source.split(only_watertight=False)) > 90 and not source.is_watertight
@@ -77,11 +71,10 @@ def test_cad_links_load_with_defaults_in_seconds_and_contain_their_meshes(arm, c
     lines = describe(scene)
     assert any("upper_arm.stl" in line and "by convex" in line and "of the mesh's hull" in line for line in lines)
 
-    started = time.perf_counter()
+    # Again: every piece read from the cache, none decomposed anew (how much faster: `bench oracle`, see above).
+    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails
     again = build_scene(_spec(arm), cache_dir=cache, progress=False)
     assert all(d["from_cache"] for d in again.info["decompositions"])
-    assert sum(d["seconds"] for d in again.info["decompositions"]) < 1.0
-    assert time.perf_counter() - started < first
 
 
 def test_forced_hulls_take_every_part_as_a_hull(arm, tmp_path):
@@ -112,7 +105,7 @@ def test_a_plan_round_the_post_is_free_against_the_original_meshes(arm, tmp_path
 
     monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path))
     flags = ["--robot", arm / "cad_arm.urdf", "--srdf", arm / "cad_arm.srdf", "--env", arm / "post.stl"]
-    result = cli("plan", *flags, f"--start={START}", f"--goal={GOAL}", "--json")
+    result = cli("plan", *flags, f"--start={','.join(map(str, START))}", f"--goal={','.join(map(str, GOAL))}", "--json")
     assert result.returncode == 0, result.stderr
     answer = json.loads(result.stdout)
     assert answer["success"] and {d["mesh"] for d in answer["meshes"]} >= {f"{n}.stl" for n in LINKS}

@@ -686,7 +686,8 @@ def test_the_trap_example_becomes_shell_pieces_and_its_cube_escapes(tmp_path, mo
 
     monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
     scene = str(Path(__file__).parent.parent / "examples" / "trap" / "trap.yaml")
-    assert main(["plan", scene, "--budget", "60s", "--json"]) == 0
+    # A check budget (not seconds), so the answer does not depend on the machine's load: ~2,300 checks are spent.
+    assert main(["plan", scene, "--budget", "200kchecks", "--json"]) == 0
     answer = json.loads(capsys.readouterr().out)
     assert answer["success"] and answer["certified"]
     path = np.array(answer["path"])

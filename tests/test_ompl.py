@@ -35,7 +35,10 @@ from app.scene.cspace import ConfigurationSpace
 from app.scene.model import Scene
 
 SCENE = "bar-3link"
-BUDGET = 5.0  # seconds, at most, per OMPL solve
+# OMPL's planners stop on time, not on checks. The tests that need a solution give them this long: they return at
+# their first solution (the problem's cost threshold is infinite), in well under a second here, so only a hang
+# comes near it and the verdict does not depend on the machine's load.
+HANG_GUARD = 120.0  # seconds
 
 
 @pytest.fixture
@@ -94,7 +97,7 @@ def test_our_sampler_feeds_ompls_prm_only_free_states(problem, monkeypatch):
 
     monkeypatch.setattr(ProjectSampler, "sample", recording)
     problem.use_sampler("lfbs", step=default_step(problem.oracle.scene))
-    problem.solve(1.0)
+    problem.solve(HANG_GUARD)  # until its first solution: the states it drew are there whatever the load
     assert problem._samplers and all(isinstance(s, ProjectSampler) for s in problem._samplers)
     assert handed, "OMPL's PRM drew no state from the lfbs adapter"
     assert problem.oracle.context().are_free(np.array(handed)).all()
@@ -103,17 +106,18 @@ def test_our_sampler_feeds_ompls_prm_only_free_states(problem, monkeypatch):
 @pytest.mark.parametrize("name", ["lfbs", "ompl-uniform"])
 def test_each_sampler_drives_ompls_prm_on_bar_3link(oracles, name):
     """Each sampler drives OMPL's PRM, and a path it finds runs from start to goal through free states. LFBS must
-    solve within the budget, with a path free at a quarter of the resolution. OMPL's uniform sampler need not: it
-    takes from under a second to more than the budget, depending on OMPL's per-process draw, and OMPL checks motions
-    only at its own resolution (`bench ompl` holds its paths to ours)."""
+    solve, with a path free at a quarter of the resolution. OMPL's uniform sampler need not: it takes from under a
+    second to minutes, depending on OMPL's per-process draw, so it is given 5 s and only what it did is checked
+    (the start's validity check and the sampler's allocation come before PRM looks at the time), and OMPL checks
+    motions only at its own resolution (`bench ompl` holds its paths to ours)."""
     oracle = oracles(SCENE)
     problem = OmplProblem(oracle, seed=0)
     problem.use_sampler(name, **({"step": default_step(oracle.scene)} if name == "lfbs" else {}))
-    solved = problem.solve(BUDGET)
+    solved = problem.solve(HANG_GUARD if name == "lfbs" else 5.0)
     expected = ProjectSampler if name == "lfbs" else problem.ob.UniformValidStateSampler
     assert problem._samplers and all(type(s) is expected for s in problem._samplers)
     assert problem.checker.checks > 0
-    assert solved or name != "lfbs", f"OMPL's PRM with lfbs did not solve {SCENE} in {BUDGET:g} s"
+    assert solved or name != "lfbs", f"OMPL's PRM with lfbs did not solve {SCENE} in {HANG_GUARD:g} s"
     if solved:
         path = problem.solution_for_oracle()
         assert np.allclose(path[0], oracle.scene.start, atol=1e-6)
@@ -181,7 +185,7 @@ def test_bench_ompl_ends_without_ompls_leak_report(tmp_path, run_app):
 def test_rrtconnect_through_the_oracle_counts_checks_and_returns_a_fine_checked_path(oracles, monkeypatch):
     oracle = oracles(SCENE)
     spec = TrialSpec(
-        "ompl", SCENE, "ompl:RRTConnect", default_step(oracle.scene), 0, {"budget": BUDGET, "protocol": PROTOCOL}
+        "ompl", SCENE, "ompl:RRTConnect", default_step(oracle.scene), 0, {"budget": HANG_GUARD, "protocol": PROTOCOL}
     )
     answered = []  # configurations Drake answered, counted at the oracle's three entry points
     single, batch, edges = oracle.free, oracle.free_batch, oracle.first_hits
@@ -206,7 +210,7 @@ def test_bitstar_in_the_real_vector_space_solves_bar_3link_with_a_fine_checked_p
     oracle = oracles(SCENE)
     problem = OmplProblem(oracle, seed=0, planner="BITstar")
     assert not problem.map.compound  # BIT*'s informed sampler refuses compound spaces
-    assert problem.solve(BUDGET), "BIT* found no path on bar-3link"
+    assert problem.solve(HANG_GUARD), "BIT* found no path on bar-3link"
     assert problem.checker.checks > 0
     path = problem.solution_for_oracle()
     assert np.allclose(path[0], oracle.scene.start) and np.allclose(path[-1], oracle.scene.goal)

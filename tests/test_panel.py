@@ -22,7 +22,7 @@ import pytest
 
 from app.scene.model import ROOT
 from app.viewer import PATH_COLOUR
-from chromium import chromium, needs_chromium
+from chromium import chromium, needs_chromium, screenshot_when_still
 from meshcat_page import commands
 
 OUT = ROOT / "out"
@@ -64,7 +64,7 @@ def panel(tmp_path):
     state = tmp_path / "state.json"
     env = {**os.environ, "DRAKE_ALLOW_NETWORK": "meshcat"}  # conftest says "none"; Meshcat needs its server
     server = subprocess.Popen(
-        [sys.executable, "-m", "app", "gui", SCENE, "--state", str(state), "--wait", "120", "--json"],
+        [sys.executable, "-m", "app", "gui", SCENE, "--state", str(state), "--wait", "600", "--json"],
         cwd=ROOT,
         env=env,
         stdin=subprocess.DEVNULL,
@@ -125,10 +125,9 @@ def test_panel_plans_in_chromium(panel, browser):
         "the server to read the goal typed in the page",
     )
     assert seen["goal"][0] == GOAL_X and seen["goal_free"]
-    time.sleep(1.0)  # the goal robot redrawn where it was moved
     OUT.mkdir(exist_ok=True)
     before = OUT / f"panel-{SCENE}-before.png"
-    browser.save_screenshot(str(before))
+    screenshot_when_still(browser, before)  # the goal robot redrawn where it was moved (however long that takes)
 
     control(browser, "function", "Plan").click()
     done = wait_for(lambda: (s := read_state(state_path)) and s["plans"] >= 1 and s, 60, "a plan")
@@ -145,9 +144,8 @@ def test_panel_plans_in_chromium(panel, browser):
         10,
         "the result on the page",
     )
-    time.sleep(1.0)
     shot = OUT / f"panel-{SCENE}.png"
-    browser.save_screenshot(str(shot))
+    screenshot_when_still(browser, shot)  # the path drawn
 
     drawn, not_drawn = path_pixels(shot), path_pixels(before)
     assert not_drawn <= 20, f"{before}: {not_drawn} path-coloured pixels before any plan"

@@ -274,10 +274,12 @@ def _one_json_answer(stdout: Path) -> dict:
 
 
 def test_meshcat_wait_serves_for_its_seconds_without_a_terminal_then_exits_0(tmp_path):
-    child, lines = _served_plan(tmp_path / "answer.json", "--wait", "2")
+    # The page is fetched while the command waits: 10 s, far longer than a fetch takes on a loaded machine (with 2 s
+    # a busy machine could fetch after the wait).
+    child, lines = _served_plan(tmp_path / "answer.json", "--wait", "10")
     try:
         url, how = _wait_for_serving(lines)
-        assert "2 s" in how
+        assert "10 s" in how
         with urllib.request.urlopen(url, timeout=10) as page:  # served while the command waits
             assert page.status == 200 and b"<html" in page.read().lower()
         assert child.wait(timeout=60) == 0
