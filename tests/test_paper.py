@@ -170,11 +170,14 @@ def test_ur3_trial_times_a_job(oracles):
     """A UR3 trial under the paper's protocol (a full roadmap per leg) times a whole job. Window's LFBS seed 1 is one
     of the 14 of 20 runs that succeed (results/paper/report.md); a failed run, such as every welding LFBS run under
     this protocol, is a row without times."""
+    # The protocol's seconds a leg (UR3_SIZE's 30) lifted to a hang guard: a full roadmap of fixed size answers the
+    # same given any time (the window job took 3.5 s in all), so the verdicts cannot depend on the machine's load.
     by_key = {(s.scene, s.method, s.seed): s for s in paper.ur3_specs(2)}
-    done = jobs.run_trial_spec(oracles("window"), by_key["window", "lfbs", 1])
+    unhurried = {key: TrialSpec(**{**vars(s), "params": {**s.params, "budget": 3600.0}}) for key, s in by_key.items()}
+    done = jobs.run_trial_spec(oracles("window"), unhurried["window", "lfbs", 1])
     assert done["success"] == 1.0
     assert done["seconds"] >= done["seconds_planning"] > 0 and done["collision_checks"] > 0
-    failed = jobs.run_trial_spec(oracles("welding"), by_key["welding", "lfbs", 0])
+    failed = jobs.run_trial_spec(oracles("welding"), unhurried["welding", "lfbs", 0])
     assert failed["success"] == 0.0 and failed["seconds_planning"] is None and "no path" in failed["error"]
 
 
