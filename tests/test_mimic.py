@@ -13,7 +13,7 @@ from app.errors import UserError
 from app.motion.trajectory import TrajectoryFile
 from app.scene.custom import CustomSpec, build_scene
 from app.scene.model import Scene
-from tests.independent import fine_points, raw_free
+from independent import fine_points, raw_free
 
 OFFSET = 0.005  # right finger = -left + OFFSET; its limits [-0.03, 0.005] keep left within [0, 0.035]
 INERTIAL = '<inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>'
