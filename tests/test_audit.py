@@ -103,10 +103,11 @@ def test_answers_on_a_stored_and_a_tampered_roadmap_are_clean(tmp_path):
 
 def test_a_soak_run_again_reuses_its_problems(cli, tmp_path):
     """Problems are rows of the store: the same soak again plans nothing and answers the same table."""
-    argv = ["bench", "audit", "--scenes", "bar-3link,maze", "--problems", "2", "--no-bad-input", "--json"]
+    argv = ["bench", "audit", "--scenes", "bar-3link,maze", "--problems", "2", "--roadmap-problems", "0"]
+    argv += ["--no-bad-input", "--json"]
     argv += ["--store", tmp_path / "audit.sqlite"]
     first = json.loads(cli(*argv).stdout)
-    assert first["checks"] == CHECKS and first["bad_input"] is None
+    assert first["checks"] == CHECKS and first["bad_input"] is None and first["stored_roadmaps"] is None
     assert [row["problems"] for row in first["audit"]] == [1, 1, 2] and first["reused"]["reused"] == 0
     again = json.loads(cli(*argv).stdout)
     assert again["reused"]["reused"] == 2 and again["audit"] == first["audit"]

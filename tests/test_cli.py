@@ -297,3 +297,15 @@ def test_sample_takes_the_scenes_own_step(cli, tmp_path):
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["step"] == default_step(Scene("window")) == Scene("window").step
     assert result.stderr.splitlines() == [f"wrote {png}"]
+
+
+def test_an_output_onto_a_symbolic_link_replaces_the_link_and_says_so(tmp_path, cli):
+    """`--out` onto a symbolic link writes a file in its place (atomically, as every output), leaves the file the
+    link pointed to as it was, and the line naming the file written says so."""
+    target, link = tmp_path / "target.png", tmp_path / "link.png"
+    target.write_bytes(b"kept")
+    link.symlink_to(target)
+    out = cli("show", "bar", "--png", link)
+    assert out.returncode == 0
+    assert not link.is_symlink() and link.stat().st_size > 1000 and target.read_bytes() == b"kept"
+    assert f"wrote {link} (it replaced a symbolic link to {target}, which is left as it was)" in out.stderr

@@ -231,6 +231,8 @@ def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
     seen = {}
     for path, make_folders in paths:
         real = os.path.realpath(check_output(path, make_folders=make_folders))
+        if os.path.islink(path):  # replaced by the file written, as `cp` would not: announce says so
+            _links[os.path.abspath(path)] = os.readlink(path)
         if real in seen:
             raise UserError(f"{seen[real]} and {path} are the same file; give each output its own path")
         seen[real] = path
@@ -275,11 +277,19 @@ def progress(args, oracle, what: str):
         shower.join()
 
 
+# Output paths that were symbolic links when check_outputs looked (absolute path -> the link's target): the file
+# written replaces the link, and leaves its target alone (app.io writes through a temporary file and a rename).
+_links: dict[str, str] = {}
+
+
 def announce(*files: str | None) -> None:
-    """Name each file a command wrote on stderr, one line each (stdout may carry its JSON answer); None: not asked."""
+    """Name each file a command wrote on stderr, one line each (stdout may carry its JSON answer); None: not asked.
+    A file that replaced a symbolic link says so."""
     for file in files:
         if file:
-            print(f"wrote {file}", file=sys.stderr)
+            target = _links.pop(os.path.abspath(file), None)
+            replaced = f" (it replaced a symbolic link to {target}, which is left as it was)" if target else ""
+            print(f"wrote {file}{replaced}", file=sys.stderr)
 
 
 # What `answering()` says on stderr when an interrupt came while the answer was being written.

@@ -1,6 +1,8 @@
 """`bench audit`: the soak. Random problems in every shipped scene, each planned under a budget of collision checks,
 every returned trajectory re-checked by an independent Drake checker at 1/64 of the scene's resolution, with its
-limits and endpoints; and the bad-input table, each case run as its own process (app.bench.audit)."""
+limits and endpoints, the straight lines between its 50 Hz samples and its path polyline; the same on cell roadmaps
+saved and read back, and tampered with; and the bad-input table, each case run as its own process
+(app.bench.audit)."""
 
 import argparse
 
@@ -8,9 +10,11 @@ from app.bench.audit import (
     ANSWER_SECONDS,
     CHECKS,
     DIVISOR,
+    ROADMAP_NODES,
     bad_input_counts,
     measure,
     measure_bad_input,
+    measure_roadmaps,
 )
 from app.commands.bench import results
 from app.commands.common import (
@@ -22,6 +26,7 @@ from app.commands.common import (
     processes,
     repetitions,
     seed,
+    whole_number,
 )
 from app.scene.model import scene_names
 
@@ -44,6 +49,19 @@ def register(kinds) -> None:
         help=f"collision checks each problem may spend planning (default {CHECKS}); checks, not seconds, so the "
         "answers do not depend on the machine or its load",
     )
+    p.add_argument(
+        "--roadmap-problems",
+        type=whole_number(0, 10_000),
+        default=200,
+        help="problems planned on stored cell roadmaps (one per scene, saved and read back as it is, or with every "
+        "colliding edge rewritten as free and proved), shared out over scenes and the two (default 200; 0: none)",
+    )
+    p.add_argument(
+        "--roadmap-nodes",
+        type=repetitions,
+        default=ROADMAP_NODES,
+        help=f"nodes of each scene's stored roadmap (default {ROADMAP_NODES})",
+    )
     p.add_argument("--workers", type=processes, default=1, help="parallel processes (one thread each when > 1)")
     p.add_argument(
         "--bad-input",
@@ -62,6 +80,19 @@ def run(args) -> int:
         args.scenes, args.problems, args.seed, args.checks, args.store, workers=args.workers, fresh=args.fresh
     )
     results.say_reused(reuse, args.store)
+    stored = None
+    if args.roadmap_problems:
+        stored, stored_reuse = measure_roadmaps(
+            args.scenes,
+            args.roadmap_problems,
+            args.seed,
+            args.checks,
+            args.store,
+            nodes=args.roadmap_nodes,
+            workers=args.workers,
+            fresh=args.fresh,
+        )
+        results.say_reused(stored_reuse)
     cases = None
     if args.bad_input:
         cases, case_reuse = measure_bad_input(args.store, workers=args.workers, fresh=args.fresh)
@@ -71,7 +102,9 @@ def run(args) -> int:
             print_json(
                 {
                     "audit": table,
+                    "stored_roadmaps": stored,
                     "problems": args.problems,
+                    "roadmap_problems": args.roadmap_problems,
                     "seed": args.seed,
                     "checks": args.checks,
                     "reused": reuse.to_json(),
@@ -82,21 +115,16 @@ def run(args) -> int:
             return 0
         print(
             f"{args.problems} problems (seed {args.seed}), at most {args.checks} collision checks each; every solved "
-            f"trajectory re-checked at 1/{DIVISOR} of the scene's resolution by a Drake checker of its own"
+            f"trajectory re-checked at 1/{DIVISOR} of the scene's resolution by a Drake checker of its own: its "
+            "curve, the straight lines between its 50 Hz samples, and its path polyline"
         )
-        print(
-            f"{'scene':<10} {'problems':>8} {'solved':>7} {'certified':>9} {'colliding':>9} {'coll. states':>12} "
-            f"{'max pen.':>9} {'limit viol.':>11} {'worst v/a':>9} {'bad ends':>8} {'states':>10} {'median s':>8}"
-        )
-        for r in table:
-            seconds = "-" if r["median_seconds"] is None else f"{r['median_seconds']:.2f}"
-            worst = "-" if r["worst_limit_ratio"] is None else f"{r['worst_limit_ratio']:.6f}"
+        _table(table, "scene")
+        if stored is not None:
             print(
-                f"{r['scene']:<10} {r['problems']:>8} {r['solved']:>7} {r['certified']:>9} "
-                f"{r['colliding_trajectories']:>9} {r['colliding_states']:>12} {r['max_penetration']:>9.2g} "
-                f"{r['limit_violations']:>11} {worst:>9} {r['inexact_endpoints']:>8} "
-                f"{r['states_checked']:>10} {seconds:>8}"
+                f"\n{args.roadmap_problems} problems on stored cell roadmaps of {args.roadmap_nodes} nodes, read back "
+                "as saved, or tampered (every colliding edge rewritten as free and proved); re-checked the same way"
             )
+            _table(stored, "roadmap")
         if cases is not None:
             counts = bad_input_counts(cases)
             print(
@@ -114,3 +142,25 @@ def run(args) -> int:
                     f"{c['first_line']}{written}"
                 )
         return 0
+
+
+def _table(rows: list[dict], first: str) -> None:
+    wide = max(10, *(len(r["scene"]) for r in rows))
+    print(
+        f"{first:<{wide}} {'problems':>8} {'solved':>7} {'certified':>9} {'colliding':>9} {'coll. states':>12} "
+        f"{'lines':>6} {'polyline':>8} {'max pen.':>9} {'limit viol.':>11} {'worst v/a':>9} {'bad ends':>8} "
+        f"{'states':>10} {'median s':>8}" + (f" {'forged on path':>14}" if "forged_edges_on_paths" in rows[-1] else "")
+    )
+    for r in rows:
+        seconds = "-" if r["median_seconds"] is None else f"{r['median_seconds']:.2f}"
+        worst = "-" if r["worst_limit_ratio"] is None else f"{r['worst_limit_ratio']:.6f}"
+        lines, polyline = (
+            "-" if r[key] is None else r[key] for key in ("colliding_sample_lines_states", "colliding_polyline_states")
+        )
+        forged = f" {r['forged_edges_on_paths']:>14}" if "forged_edges_on_paths" in r else ""
+        print(
+            f"{r['scene']:<{wide}} {r['problems']:>8} {r['solved']:>7} {r['certified']:>9} "
+            f"{r['colliding_trajectories']:>9} {r['colliding_states']:>12} {lines:>6} {polyline:>8} "
+            f"{r['max_penetration']:>9.2g} {r['limit_violations']:>11} {worst:>9} {r['inexact_endpoints']:>8} "
+            f"{r['states_checked']:>10} {seconds:>8}{forged}"
+        )
