@@ -82,7 +82,8 @@ def exit_code(exc: BaseException) -> int:
 
 def main(argv=None) -> int:
     """Run one command. A failure is one line on stderr and its exit code; with --json also one JSON object on
-    stdout: {"success": false, "error": {"code", "message"}, "exit_code"}. A command writes its answer inside
+    stdout: {"success": false, "error": {"code", "message"}, "exit_code"}, and "details" when the failure (a planning
+    query's, or an interrupt during one) carries them. A command writes its answer inside
     app.commands.common.answering(): an interrupt that comes once it has begun no longer stops the command (exit 0,
     one line on stderr saying so), and --json prints exactly one object on every path."""
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -97,10 +98,10 @@ def main(argv=None) -> int:
         # Nobody reads the rest: end quietly. Later writes (and the final flush) go nowhere instead of raising again.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return exit_code(exc)
-    except KeyboardInterrupt:
-        return _interrupted(argv)
+    except KeyboardInterrupt as exc:
+        return _interrupted(argv, getattr(exc, "details", None))
     except UserError as exc:
-        return _fail(argv, str(exc), exit_code(exc), exc.code)
+        return _fail(argv, str(exc), exit_code(exc), exc.code, getattr(exc, "details", None))
     except Exception as exc:
         if caused_by_interrupt(exc):  # e.g. Ctrl-C while pydrake loads: ImportError("initialization failed")
             return _interrupted(argv)
@@ -124,24 +125,27 @@ def caused_by_interrupt(exc: BaseException) -> bool:
     return False
 
 
-def _interrupted(argv: list[str]) -> int:
+def _interrupted(argv: list[str], details: dict | None = None) -> int:
     """Ctrl-C: exit code 130 and PREEMPTED, unless the command's answer is out whole already (then it came too late
-    to matter: exit 0)."""
+    to matter: exit 0). `details`: what the interrupted query had spent, when the interrupt came during one."""
     if answer_written():
         print(INTERRUPTED_WHILE_ANSWERING, file=sys.stderr, flush=True)
         return 0
-    return _fail(argv, "interrupted", EXIT_CODES[KeyboardInterrupt], "PREEMPTED")
+    return _fail(argv, "interrupted", EXIT_CODES[KeyboardInterrupt], "PREEMPTED", details)
 
 
-def _fail(argv: list[str], message: str, code: int, error: str) -> int:
+def _fail(argv: list[str], message: str, code: int, error: str, details: dict | None = None) -> int:
     """A failure's one line on stderr and, with --json, its one JSON object (none if the command's answer is out
-    already: --json prints one object); returns its exit code."""
+    already: --json prints one object), with `details` when the failure has them; returns its exit code."""
     with answering():  # a second Ctrl-C does not cut the failure's answer either
         print(f"error: {message}", file=sys.stderr, flush=True)
         if "--json" in argv and not answer_written():
-            _print_failure(error, message, code)
+            _print_failure(error, message, code, details)
     return code
 
 
-def _print_failure(code: str, message: str, status: int) -> None:
-    print_json({"success": False, "error": {"code": code, "message": message}, "exit_code": status})
+def _print_failure(code: str, message: str, status: int, details: dict | None = None) -> None:
+    """The failure's JSON object; `details` (what a planning query spent: its counts and phase times, see
+    docs/schemas/failure.json) only when there are some."""
+    extra = {"details": details} if details else {}
+    print_json({"success": False, "error": {"code": code, "message": message}, "exit_code": status, **extra})

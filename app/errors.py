@@ -26,8 +26,10 @@ class InvalidEndpoint(UserError):
 
 
 class NoPath(UserError):
-    """The planner spent its samples or its budget without connecting start and goal (TIMED_OUT when the budget
-    ended it)."""
+    """The planner spent its samples or its budget without connecting start and goal: PLANNING_FAILED, also when its
+    check limit ran out; TIMED_OUT when its time limit did, PREEMPTED when it was cancelled. A planner's NoPath carries
+    `details`: what the query spent (collision checks, distance queries, seconds per phase, rounds) and why it stopped
+    ("stopped": "checks", "time", "cancelled" or None)."""
 
     code = "PLANNING_FAILED"
 

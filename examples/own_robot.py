@@ -9,7 +9,7 @@ import app
 scene = app.build_scene(app.CustomSpec(robot="robots/planar_arm_3.urdf", env=["scenes/bar_obstacles.sdf"]))
 print("joints:", scene.coordinate_names)  # start and goal: one value per joint, in this order
 oracle = app.CollisionOracle(scene)  # self-collision counts (unless CustomSpec(collisions="environment"))
-settings = app.PlanSettings(seed=0)  # budget: 200k collision checks unless budget=app.Budget(...) says otherwise
+settings = app.PlanSettings(seed=0)  # budget: 200k collision checks and at most 600 s, unless budget=app.Budget(...)
 result = app.plan(oracle, settings, start=[20, 80, -1.57, 0, 0], goal=[80, 80, -1.57, 0, 0])
 print(f"{len(result.path)} waypoints, {result.trajectory.duration:.1f} s of motion")
 result.trajectory_file().write("motion.json")  # joint names, times, positions, velocities, accelerations

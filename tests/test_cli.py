@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from app import errors
-from app.checking.budget import Budget
-from app.cli import EXIT_CODES, exit_code
-from app.commands.common import comma_list, names_from, parse_budget, sampler_names
+from app.checking.budget import SAFETY_NET_SECONDS, Budget
+from app.cli import EXIT_CODES, build_parser, exit_code
+from app.commands.common import comma_list, names_from, parse_budget, parse_build_budget, sampler_names
 from app.errors import UserError
+from app.planning.planner import DEFAULT_BUDGET, PlanSettings
 from app.scene.model import SCENES_DIR, Scene
 
 
@@ -156,13 +157,31 @@ def test_every_error_class_has_its_exit_code():
 def test_budget_syntax():
     assert parse_budget("30s") == Budget(seconds=30)
     assert parse_budget("2min") == Budget(seconds=120)
-    assert parse_budget("200000checks") == Budget(checks=200000)
-    assert parse_budget("200kchecks") == Budget(checks=200000)
-    assert parse_budget("1.5Mchecks") == Budget(checks=1500000)
     assert parse_budget("30s,200kchecks") == Budget(seconds=30, checks=200000)
     for bad in ["", "30", "-5s", "0s", "nans", "30s,40s", "1e3checks", "10 parsecs", "s"]:
         with pytest.raises(argparse.ArgumentTypeError):
             parse_budget(bad)
+
+
+def test_a_check_budget_keeps_the_time_safety_net_unless_told_to_leave_it_out():
+    """A slow CAD-mesh arm ran 22 minutes without a word on --budget 300kchecks: a check limit alone keeps the
+    default budget's seconds, and only `nolimit` beside it leaves them out. A build is bounded by its nodes instead."""
+    net = DEFAULT_BUDGET.seconds
+    assert net == SAFETY_NET_SECONDS and PlanSettings().budget.seconds == net
+    assert parse_budget("200000checks") == Budget(seconds=net, checks=200000)
+    assert parse_budget("200kchecks") == Budget(seconds=net, checks=200000)
+    assert parse_budget("1.5Mchecks") == Budget(seconds=net, checks=1500000)
+    assert parse_budget("300kchecks,nolimit") == parse_budget("nolimit, 300kchecks") == Budget(checks=300000)
+    for bad in ["nolimit", "30s,nolimit", "nolimit,nolimit", "300kchecks,nolimit,30s"]:
+        with pytest.raises(argparse.ArgumentTypeError, match="300kchecks,nolimit"):
+            parse_budget(bad)
+    assert parse_build_budget("3Mchecks") == Budget(checks=3_000_000)
+    assert parse_build_budget("60s,3Mchecks") == Budget(seconds=60, checks=3_000_000)
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    for command in ("plan", "run"):
+        assert "which 200kchecks,nolimit leaves out" in " ".join(commands[command].format_help().split())
+    args = build_parser().parse_args(["plan", "bar", "--budget", "300kchecks"])
+    assert args.budget == Budget(seconds=net, checks=300000)
 
 
 def test_comma_lists_are_parsed_one_way():
@@ -213,7 +232,7 @@ def test_help_does_not_load_drake():
         (["plan", "bar", "--sampler", "nope"], 2, "INVALID_INPUT"),
         (["plan", "bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, "START_STATE_IN_COLLISION"),
         (["plan", "bar", "--goal", "500,50,0,0,0,0,0,0,0"], 3, "GOAL_STATE_INVALID"),
-        (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "TIMED_OUT"),
+        (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "PLANNING_FAILED"),
         (
             ["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--full-roadmap"],
             1,

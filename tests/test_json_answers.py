@@ -191,7 +191,7 @@ FAILURES = [
     (["show", "nowhere", "--png", "{tmp}/x.png"], 2, "INVALID_INPUT"),
     (["sample", "bar", "--sampler", "lfbs", "-k", "0"], 2, "INVALID_INPUT"),
     (["plan", "bar", "--start", "50,30,0,0,0,0,0,0,0"], 3, "START_STATE_IN_COLLISION"),
-    (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "TIMED_OUT"),
+    (["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks"], 1, "PLANNING_FAILED"),
     (["run", "painting"], 2, "INVALID_INPUT"),
     (["view", "bar", "--trajectory", "{tmp}/missing.json", "--html", "{tmp}/x.html"], 2, "INVALID_INPUT"),
     (["gui", "nowhere"], 2, "INVALID_INPUT"),
@@ -238,3 +238,69 @@ def test_an_internal_error_still_answers_one_object(capsys, monkeypatch):
     obj = answer(capsys.readouterr().out)
     jsonschema.validate(obj, schema("failure"))
     assert obj["error"] == {"code": "FAILURE", "message": "internal error: RuntimeError: boom"}
+
+
+# ---- what a failed or interrupted query spent --------------------------------------------------------------------
+PHASES = {"sampling", "roadmap", "search", "smoothing", "certify", "timing"}
+
+
+def _spent(details: dict, stopped: str) -> None:
+    """`details` count what the query spent as a success answer counts it, and say why it stopped."""
+    assert details["stopped"] == stopped and details["rounds"] >= 1
+    assert details["collision_checks"] == sum(details["checks"].values()) > details["checks"]["endpoints"]
+    assert set(details["checks"]) == {"endpoints", *PHASES} and set(details["seconds"]) == {*PHASES, "total"}
+    assert details["distance_queries"] >= 0 and details["roadmap"]["nodes"] >= 2
+
+
+def test_a_spent_check_budget_answers_planning_failed_with_what_it_spent(cli):
+    """Not TIMED_OUT, which is MoveIt's code for time: the check limit ran out, the details say so (stopped:
+    "checks"), and the message names a larger budget."""
+    argv = ["plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--budget", "2000checks", "--json"]
+    failed = check(cli(*argv), "failure", 1)
+    assert failed["error"]["code"] == "PLANNING_FAILED"
+    assert "budget of 2000 collision checks spent (stopped: checks)" in failed["error"]["message"]
+    assert "try --budget 20kchecks" in failed["error"]["message"]
+    _spent(failed["details"], "checks")
+    assert failed["details"]["collision_checks"] >= 2000 and failed["details"]["budget"] == "600s,2000checks"
+
+
+def test_ctrl_c_during_plan_answers_preempted_with_what_the_query_spent(cli, monkeypatch):
+    """Ctrl-C after the query's first round: exit code 130 and PREEMPTED, with the query's figures. The interrupt is
+    sent by the process to itself from inside the query, so where it lands does not depend on timing."""
+    import os
+    import signal
+
+    from app.planning.planner import Query
+
+    grow = Query.grow
+
+    def grow_then_ctrl_c(self, *sizes):
+        new = grow(self, *sizes)
+        os.kill(os.getpid(), signal.SIGINT)
+        return new
+
+    monkeypatch.setattr(Query, "grow", grow_then_ctrl_c)
+    result = cli("plan", "joint3d", "--sampler", "uniform", "--narrow", "0", "--json")
+    interrupted = check(result, "failure", 130)
+    assert interrupted["error"] == {"code": "PREEMPTED", "message": "interrupted"}
+    assert result.stderr == "error: interrupted\n"
+    _spent(interrupted["details"], "interrupted")
+    assert interrupted["details"]["rounds"] == 1
+
+
+def test_a_custom_scene_answers_its_meshes_and_load_time_on_failure_as_on_success(cli, tmp_path, monkeypatch):
+    """plan --robot/--env: the answer names each mesh's decomposition and what loading the scene took, whether the
+    query found its path or spent its budget (1 check: spent before the first edge)."""
+    trimesh = pytest.importorskip("trimesh")
+    monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
+    trimesh.creation.box([0.6, 0.6, 0.6]).export(tmp_path / "cube.obj")
+    trimesh.creation.box([1.0, 1.0, 1.0]).export(tmp_path / "block.stl")
+    argv = ["plan", "--robot", tmp_path / "cube.obj", "--env", tmp_path / "block.stl", "--bounds=-3..3,-2..2,-2..3"]
+    argv += ["--start=-2.5,1.5,2.1,0,0,0", "--goal=2.5,-1.5,0.9,0,0,0", "--json"]
+    planned = check(cli(*argv), "plan")
+    failed = check(cli(*argv, "--budget", "1checks"), "failure", 1)
+    assert failed["error"]["code"] == "PLANNING_FAILED" and failed["details"]["stopped"] == "checks"
+    for answer in (planned, failed["details"]):
+        assert sorted(Path(mesh["mesh"]).name for mesh in answer["meshes"]) == ["block.stl", "cube.obj"]
+        assert set(answer["scene_seconds"]) == {"prepare", "drake_load"}
+        assert all(seconds > 0 for seconds in answer["scene_seconds"].values())

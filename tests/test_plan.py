@@ -10,7 +10,7 @@ import pytest
 
 from app.checking.budget import Budget
 from app.errors import InvalidEndpoint, NoPath, UserError
-from app.planning.planner import PlanSettings, plan
+from app.planning.planner import PHASES, PlanSettings, plan
 from app.planning.roadmap import Roadmap
 from independent import fine_points, raw_free
 
@@ -47,6 +47,16 @@ def test_budget_is_spent_by_either_limit():
     assert str(Budget(seconds=30, checks=200000)) == "30s,200000checks" and str(Budget()) == "none"
     assert Budget(seconds=1).spent(1.0, 0) and not Budget(seconds=1).spent(0.5, 10**9)
     assert Budget(checks=10).spent(0, 10) and not Budget(checks=10).spent(10**6, 9)
+
+
+def test_a_larger_budget_is_suggested_as_the_command_line_takes_it():
+    """Ten times the checks; with a time limit too when that many checks would outlast the budget's (or the command
+    line's safety net) at the pace the spent ones took: 200k checks in 52 s, times ten, would take 520 s."""
+    assert Budget(seconds=600, checks=200_000).larger(10.0) == "2000kchecks"
+    assert Budget(seconds=600, checks=200_000).larger(52.0) == "2000kchecks,800s"
+    assert Budget(checks=8000).larger(1.0) == "80kchecks" and Budget(checks=2550).larger(0.1) == "25500checks"
+    assert Budget(checks=2500).larger(100.0) == "25kchecks,1500s"
+    assert Budget(checks=10**8).larger(60_000.0) == "1000000kchecks,86400s"  # the largest the command line takes
 
 
 def test_roadmap_neighbours_are_exact_under_the_wrapping_metric(oracles):
@@ -527,10 +537,49 @@ def test_a_plan_without_timing_returns_the_certified_path_alone(oracles):
 
 def test_a_check_budget_is_never_overrun(oracles):
     oracle = oracles("joint3d")  # joint3d's hole is beyond 8000 checks of uniform samples
-    with pytest.raises(NoPath, match=r"budget 8000checks spent \(checks\)") as info:
+    with pytest.raises(NoPath, match=r"budget of 8000 collision checks spent \(stopped: checks\)") as info:
         plan(oracle, PlanSettings(sampler="uniform", narrow=0, uniform=40, seed=0, budget=Budget(checks=8000)))
     assert 8000 <= info.value.details["collision_checks"] <= 8000 + 2  # + the two endpoint checks before it
     assert info.value.details["rounds"] > 1
+
+
+def test_a_spent_check_budget_is_a_planning_failure_that_says_so_and_names_a_larger_budget(oracles):
+    """MoveIt's TIMED_OUT is for time: a query its check limit stopped is PLANNING_FAILED, stopped "checks", and its
+    message suggests ten times the checks (a time limit beside them only if the checks took long, which this scene's
+    do not come near). Its details count what it spent as a success answer counts it."""
+    oracle = oracles("joint3d")
+    settings = PlanSettings(sampler="uniform", narrow=0, uniform=40, seed=0, budget=Budget(seconds=600, checks=8000))
+    with pytest.raises(NoPath, match=r"; budget of 8000 collision checks spent \(stopped: checks\): a larger one may "
+                       r"find a path, try --budget 80kchecks") as info:  # fmt: skip
+        plan(oracle, settings)
+    details = info.value.details
+    assert info.value.code == "PLANNING_FAILED" and details["stopped"] == "checks"
+    assert details["collision_checks"] == sum(details["checks"].values()) >= 8000
+    assert set(details["checks"]) == {"endpoints", *PHASES} and set(details["seconds"]) == {*PHASES, "total"}
+    assert details["seconds"]["total"] >= details["seconds"]["sampling"] > 0 and details["rounds"] > 1
+    assert details["distance_queries"] == 0 and details["budget"] == "600s,8000checks"
+
+
+def test_ctrl_c_during_a_query_carries_what_it_spent(oracles, monkeypatch):
+    """A KeyboardInterrupt stays one (the command line answers PREEMPTED, exit code 130), with the query's figures
+    as its `details`, as a failure's NoPath has them."""
+    from app.planning.planner import Query
+
+    grow, rounds = Query.grow, []
+
+    def interrupted_in_the_second_round(self, *sizes):
+        rounds.append(1)
+        if len(rounds) == 2:
+            raise KeyboardInterrupt
+        return grow(self, *sizes)
+
+    monkeypatch.setattr(Query, "grow", interrupted_in_the_second_round)
+    with pytest.raises(KeyboardInterrupt) as info:
+        plan(oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=40, seed=0))
+    details = info.value.details
+    assert details["stopped"] == "interrupted" and details["rounds"] == 1  # the first round, done
+    assert details["collision_checks"] == sum(details["checks"].values()) > details["checks"]["endpoints"]
+    assert set(details["seconds"]) == {*PHASES, "total"}
 
 
 def test_a_query_cancelled_from_another_thread_stops_with_moveits_preempted(oracles):
@@ -596,9 +645,10 @@ def test_a_time_budget_ends_sampling_within_a_round(oracles, monkeypatch):
     looks = iter(range(10**9))
     monkeypatch.setattr(app.checking.budget, "time", types.SimpleNamespace(perf_counter=lambda: next(looks) / 100))
     oracle = oracles("maze")
-    with pytest.raises(NoPath, match=r"budget 0.5s spent \(time\)") as info:
+    with pytest.raises(NoPath, match=r"time limit of 0.5 s spent \(stopped: time\): try a longer one") as info:
         plan(oracle, PlanSettings(sampler="rbbs", seed=0, step=0.3, budget=Budget(seconds=0.5)))
     assert info.value.details["rounds"] == 1 and info.value.details["stopped"] == "time"
+    assert info.value.code == "TIMED_OUT"  # MoveIt's code for time
 
 
 def test_parameters_that_would_never_end_are_refused(oracles):
@@ -609,7 +659,7 @@ def test_parameters_that_would_never_end_are_refused(oracles):
 
 
 def test_budget_adds_rounds_until_spent(oracles):
-    with pytest.raises(NoPath, match=r"budget 8000checks spent") as info:
+    with pytest.raises(NoPath, match=r"budget of 8000 collision checks spent") as info:
         plan(
             oracles("joint3d"), PlanSettings(sampler="uniform", narrow=0, uniform=8, seed=0, budget=Budget(checks=8000))
         )
@@ -705,7 +755,7 @@ def test_cli_human_summary(cli):
         (
             ["joint3d", "--sampler", "uniform", "--narrow", "0", "--uniform", "10", "--budget", "1checks"],
             1,
-            ["no path", "not joined", "budget 1checks spent"],
+            ["no path", "not joined", "budget of 1 collision check spent", "try --budget 10checks"],
         ),
         (["bar", "--sampler", "magic"], 2, ["unknown sampler", "lfbs"]),
         (["atlantis"], 2, ["unknown scene"]),

@@ -3,8 +3,18 @@
 from __future__ import annotations
 
 import copy
+import math
 import time
 from dataclasses import dataclass
+
+# The time limit a query keeps unless told otherwise: beside a check limit, a safety net for a machine so slow (or a
+# robot's meshes so heavy) that the checks would take hours. PlanSettings' default budget has it, and the command line
+# adds it to a budget given in checks alone (`--budget 300kchecks`); `--budget 300kchecks,nolimit` leaves it out.
+SAFETY_NET_SECONDS = 600.0
+# The largest budgets taken: a day (a longer one, 1e308 s, is no limit at all, and a query that cannot be solved would
+# run until killed) and a billion checks.
+MAX_SECONDS = 86_400.0
+MAX_CHECKS = 10**9
 
 
 @dataclass(frozen=True)
@@ -26,6 +36,23 @@ class Budget:
         if self.checks is not None:
             parts.append(f"{self.checks}checks")
         return ",".join(parts) or "none"
+
+    def larger(self, seconds_spent: float, factor: int = 10) -> str:
+        """A budget as `--budget` takes it with `factor` times this one's checks ("2000kchecks"), for a query that
+        spent them in `seconds_spent`: with a time limit too ("2000kchecks,1500s") when that many checks would take
+        longer at the same pace than this budget's time limit (or, without one, the command line's
+        SAFETY_NET_SECONDS, which a check limit alone keeps there)."""
+        checks = min(MAX_CHECKS, factor * (self.checks or 1))
+        limit = SAFETY_NET_SECONDS if self.seconds is None else self.seconds
+        needed = 1.5 * seconds_spent * checks / (self.checks or 1)  # with a margin: later rounds cost more a check
+        if needed <= limit:
+            return spell_checks(checks)
+        return f"{spell_checks(checks)},{min(MAX_SECONDS, 100 * math.ceil(needed / 100)):g}s"
+
+
+def spell_checks(checks: int) -> str:
+    """A check limit as `--budget` takes it: 2000kchecks, 2500checks."""
+    return f"{checks // 1000}kchecks" if checks % 1000 == 0 else f"{checks}checks"
 
 
 class BudgetSpent(Exception):

@@ -16,9 +16,9 @@ import sys
 import threading
 import time
 
-from app.checking.budget import Budget
+from app.checking.budget import MAX_CHECKS, MAX_SECONDS, SAFETY_NET_SECONDS, Budget
 from app.checking.certify import CLEARANCE
-from app.errors import UserError
+from app.errors import NoPath, UserError
 from app.io import check_output
 from app.samplers import check_name
 
@@ -48,11 +48,7 @@ shortcut_rounds = whole_number(0, 10_000)
 repetitions = whole_number(1, 10_000)  # seeds, trials, runs, repeats per measured cell
 MAX_PROCESSES = 256
 processes = whole_number(1, MAX_PROCESSES)  # workers, threads
-MAX_CHECKS = 10**9
 check_count = whole_number(1, MAX_CHECKS)  # collision checks of a budget, configurations of a measurement
-# The longest time budget taken: a day. A longer one (1e308 s) is no limit at all, and a query that cannot be solved
-# would then run until killed.
-MAX_SECONDS = 86_400.0
 
 
 def _finite_float(text: str) -> float:
@@ -191,16 +187,39 @@ def sampler_names(text: str) -> list[str]:
 
 
 _BUDGET_PART = re.compile(r"^(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>s|min|k?checks|M?checks)$")
-_BUDGET_USAGE = "use e.g. 30s, 2min, 200000checks, 200kchecks or 30s,200kchecks"
+# Beside a check limit: no time limit at all (a query's time safety net, SAFETY_NET_SECONDS, left out).
+NO_TIME_LIMIT = "nolimit"
+_BUDGET_USAGE = "use e.g. 30s, 2min, 200000checks, 200kchecks, 30s,200kchecks or 200kchecks,nolimit"
+BUDGET_HELP = (
+    "30s, 2min, 200000checks, 200kchecks, or both as 30s,200kchecks; checks alone keep the "
+    f"{SAFETY_NET_SECONDS:g} s safety net (200kchecks means 200kchecks,{SAFETY_NET_SECONDS:g}s), which "
+    f"200kchecks,{NO_TIME_LIMIT} leaves out"
+)
 
 
 def parse_budget(text: str) -> Budget:
-    """'30s', '2min', '200000checks', '200kchecks', '5Mchecks', or two joined by a comma: '30s,200kchecks'."""
+    """A query's budget: '30s', '2min', '200000checks', '200kchecks', '5Mchecks', or a time and a check limit joined
+    by a comma: '30s,200kchecks'. A check limit alone keeps the time safety net SAFETY_NET_SECONDS (a query on a
+    slow machine or among heavy meshes still ends); 'nolimit' beside it ('300kchecks,nolimit') leaves that out."""
+    return _budget(text, SAFETY_NET_SECONDS)
+
+
+def parse_build_budget(text: str) -> Budget:
+    """A cell roadmap build's budget: as parse_budget, without a time safety net (a build is bounded by its node
+    count, looked at between rounds, and ends with the roadmap it has, not with a failure)."""
+    return _budget(text, None)
+
+
+def _budget(text: str, safety_net: float | None) -> Budget:
     seconds = checks = None
+    no_limit = False
     parts = [p.strip() for p in str(text).split(",")]
     if not all(parts) or len(parts) > 2:
         raise argparse.ArgumentTypeError(f"bad budget {text!r}: {_BUDGET_USAGE}")
     for part in parts:
+        if part == NO_TIME_LIMIT:
+            no_limit = True
+            continue
         match = _BUDGET_PART.match(part)
         if not match:
             raise argparse.ArgumentTypeError(f"bad budget {part!r}: {_BUDGET_USAGE}")
@@ -220,6 +239,13 @@ def parse_budget(text: str) -> Budget:
             checks = int(round(number * scale))
             if not 0 < checks <= MAX_CHECKS:
                 raise argparse.ArgumentTypeError(f"bad budget {part!r}: from 1 to {MAX_CHECKS} checks")
+    if no_limit and (seconds is not None or checks is None):
+        raise argparse.ArgumentTypeError(
+            f"bad budget {text!r}: {NO_TIME_LIMIT} leaves the time limit out of a check limit "
+            f"(e.g. 300kchecks,{NO_TIME_LIMIT}); a budget of neither would let a query run until killed"
+        )
+    if checks is not None and seconds is None and not no_limit:
+        seconds = safety_net
     return Budget(seconds=seconds, checks=checks)
 
 
@@ -236,6 +262,19 @@ def check_outputs(*files: str | None, creating_folders: tuple = ()) -> None:
         if real in seen:
             raise UserError(f"{seen[real]} and {path} are the same file; give each output its own path")
         seen[real] = path
+
+
+@contextlib.contextmanager
+def failure_details(extra: dict):
+    """Inside the block, a planning failure (NoPath) or an interrupt leaves with `extra` added to its `details`, which
+    app.cli prints in the --json failure answer: what a command knows beside the query's own figures (a custom scene's
+    load time and mesh decompositions)."""
+    try:
+        yield
+    except (NoPath, KeyboardInterrupt) as exc:
+        if extra:
+            exc.details = {**extra, **(getattr(exc, "details", None) or {})}
+        raise
 
 
 # A command that runs longer than this shows its progress (on a terminal): shorter ones stay quiet.

@@ -7,8 +7,10 @@ import contextlib
 from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
 from app.commands.common import (
+    BUDGET_HELP,
     add_scaling_arguments,
     answering,
+    failure_details,
     float_list,
     neighbours,
     parse_budget,
@@ -132,8 +134,7 @@ def add_settings_arguments(p) -> None:
         "--budget",
         type=parse_budget,
         default=DEFAULTS.budget,
-        help="what the query may spend before it gives up: 30s, 2min, 200000checks, 200kchecks, or both "
-        f"as 30s,200kchecks (default {DEFAULTS.budget})",
+        help=f"what the query may spend before it gives up: {BUDGET_HELP} (default {DEFAULTS.budget})",
     )
     p.add_argument(
         "--full-roadmap",
@@ -196,7 +197,9 @@ def run(args) -> int:
     with view.roadmap_lock(args.roadmap) if args.update else contextlib.nullcontext():
         cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
         start, goal = args.start, args.goal
-        with progress(args, oracle, f"plan {oracle.scene.name}"):
+        # A failure or Ctrl-C from here on answers with what the query spent and, for a custom scene, what loading it
+        # took (app.cli prints them as the failure's details).
+        with progress(args, oracle, f"plan {oracle.scene.name}"), failure_details(scene_details(oracle.scene)):
             if args.start_pose is not None:
                 start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
             if args.goal_pose is not None:
@@ -209,12 +212,8 @@ def run(args) -> int:
         with answering():  # from here an interrupt waits until the files and the answer are written
             viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
             if args.json:
-                meshes = (
-                    {"meshes": oracle.scene.info["decompositions"]}
-                    if isinstance(oracle.scene, custom.CustomScene)
-                    else {}
-                )
-                print_json({**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool, **meshes})
+                answer = {**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool}
+                print_json({**answer, **scene_details(oracle.scene)})
             else:
                 lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
                 if tool is not None:
@@ -243,6 +242,17 @@ def tool_frame(oracle, name: str | None) -> dict:
     frame = robot_frame(oracle, name)
     chosen = "tool" if name else "scene" if oracle.scene.tool_frame is not None else "last_body"
     return {"name": frame.name(), "chosen": chosen}
+
+
+def scene_details(scene) -> dict:
+    """What a custom scene's loading took, for the answer (success or failure): `meshes`, its mesh decompositions
+    (one per mesh: method, pieces, volume added, seconds, cached or not), and `scene_seconds`, preparing the scene
+    (decompositions included) and Drake's load of it. Nothing for a shipped scene."""
+    if not isinstance(scene, custom.CustomScene):
+        return {}
+    info = scene.info
+    seconds = {"prepare": info.get("prepare_seconds"), "drake_load": info.get("drake_load_seconds")}
+    return {"meshes": info["decompositions"], "scene_seconds": seconds}
 
 
 def certificate_scope(scene) -> dict:

@@ -8,7 +8,7 @@ from app.commands import custom, plan
 from app.commands.common import (
     answering,
     check_outputs,
-    parse_budget,
+    parse_build_budget,
     print_json,
     processes,
     share,
@@ -41,9 +41,11 @@ def register(subparsers) -> None:
     plan.add_sampling_arguments(b)
     b.add_argument(
         "--budget",
-        type=parse_budget,
+        type=parse_build_budget,
         default=DEFAULTS.budget,
-        help=f"what the build may spend, looked at between rounds: 60s, 3000kchecks, ... (default {DEFAULTS.budget})",
+        help="what the build may spend, looked at between rounds: 60s, 3000kchecks, ... (default "
+        f"{DEFAULTS.budget}); no time limit unless given, as the build is bounded by --nodes and ends with the "
+        "roadmap it has",
     )
     b.add_argument(
         "--workers",

@@ -5,6 +5,7 @@ from dataclasses import replace
 
 from app.checking.oracle import CollisionOracle
 from app.commands.common import (
+    BUDGET_HELP,
     add_scaling_arguments,
     answering,
     parse_budget,
@@ -34,8 +35,8 @@ def register(subparsers) -> None:
         "--budget",
         type=parse_budget,
         default=JOB_SETTINGS.budget,
-        help=f"per planned leg, e.g. 500kchecks or 30s (default {JOB_SETTINGS.budget}: checks decide, the seconds "
-        "are a safety net)",
+        help=f"per planned leg: {BUDGET_HELP} (default {JOB_SETTINGS.budget}: checks decide, the seconds are a "
+        "safety net)",
     )
     p.add_argument(
         "--full-roadmap",

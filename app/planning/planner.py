@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from app.checking.budget import Budget, BudgetSpent, Stop
+from app.checking.budget import MAX_SECONDS, SAFETY_NET_SECONDS, Budget, BudgetSpent, Stop, spell_checks
 from app.checking.certify import CLEARANCE
 from app.checking.oracle import CONTACT
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
@@ -34,7 +34,7 @@ PHASES = ("sampling", "roadmap", "search", "smoothing", "certify", "timing")
 # What a query may spend unless told otherwise: every query ends, and says so when this is why. Collision checks
 # decide, so the same seed gives the same answer on any machine at any load; the seconds are a safety net for a
 # machine so slow that the checks would take hours, and a query they stop says that its answer depends on the machine.
-DEFAULT_BUDGET = Budget(seconds=600.0, checks=200_000)
+DEFAULT_BUDGET = Budget(seconds=SAFETY_NET_SECONDS, checks=200_000)
 # Smoothing may spend this share of the checks that finding the path took (at least SMOOTHING_MIN), and all its passes
 # together (a path the certificate refused is shortened again, fine-only) SMOOTHING_CAP.
 SMOOTHING_SHARE, SMOOTHING_CAP, SMOOTHING_MIN = 0.2, 0.3, 200
@@ -71,7 +71,9 @@ class PlanSettings:
     sampler: the narrow-passage sampler's registered name; narrow / uniform: the sample counts that size a
     query's rounds (see Query) or, with full_roadmap, the whole roadmap; step: the sampler's base step a (None:
     the scene's default); budget: what the search for a path may spend (seconds and/or collision checks; Budget()
-    has no limit; the default, DEFAULT_BUDGET, stops on checks). Its time limit bounds the whole query, the proof
+    has no limit; the default, DEFAULT_BUDGET, stops on checks, with SAFETY_NET_SECONDS as a safety net: a budget
+    built here as Budget(checks=N) has no time limit unless it says seconds=..., where the command line's
+    `--budget Nchecks` keeps the safety net). Its time limit bounds the whole query, the proof
     (the certificate) and timing of the path found included; its check limit bounds the search and smoothing, as
     proving and timing ask for distances, not checks; k: neighbours per node (None: k-PRM*'s);
     smooth_rounds: random shortcut rounds; dt: trajectory sample period (s); sampler_params: extra keyword
@@ -293,9 +295,10 @@ def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None,
     """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()); `via`: waypoints
     of the easy route to try instead of the straight motion (an arm's tool line, app.planning.ik.tool_line).
 
-    Returns a PlanResult; raises InvalidEndpoint for a bad start or goal, NoPath (with `.details`) when the
-    samples or the budget run out before start and goal connect (code PREEMPTED when `cancel`, a threading.Event,
-    was set from another thread), UserError for bad parameters."""
+    Returns a PlanResult; raises InvalidEndpoint for a bad start or goal, NoPath (with `.details`, Query.figures)
+    when the samples or the budget run out before start and goal connect (code PREEMPTED when `cancel`, a
+    threading.Event, was set from another thread; TIMED_OUT when the time limit ran out), UserError for bad
+    parameters. A KeyboardInterrupt (Ctrl-C) while the query runs leaves it with the same `.details`."""
     return Query(oracle, settings or PlanSettings(), start=start, goal=goal, via=via, cancel=cancel).solve()
 
 
@@ -732,7 +735,7 @@ class Query:
                 acceleration_scale=self.settings.acceleration_scale,
             )
         except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
-            raise NoPath(
+            raise self._failure(
                 f"path found on {self.checker.scene.name} but not time-parameterized: {' '.join(str(exc).split())}"
             ) from None
 
@@ -748,6 +751,11 @@ class Query:
                     return self._result(*found)
         except BudgetSpent as spent:
             self.stopped = spent.reason
+        except KeyboardInterrupt as interrupt:
+            # Ctrl-C stays an interrupt (the command line answers PREEMPTED, exit code 130), carrying what the query
+            # had spent, as a failure's NoPath.details does.
+            interrupt.details = self.figures("interrupted")
+            raise
         finally:
             self.checker.stop = None
         if self.proof_unfinished:
@@ -807,18 +815,31 @@ class Query:
         return int(np.argmin(self.checker.space.distance(q, self.goals)))
 
     # ---- answers ----------------------------------------------------------------------------------------------------
-    def _failure(self, message: str, **details) -> NoPath:
+    def figures(self, stopped: str | None = None) -> dict:
+        """What the query has spent so far, counted as a success answer counts it (PlanResult): collision checks in
+        all and per phase, distance and point queries, seconds per phase and in total, rounds, the roadmap, the
+        budget, and why it stopped (`stopped`, else the budget's reason: "time", "checks", "cancelled", or None)."""
         seconds, spent = self.elapsed()
-        code = {None: None, "cancelled": "PREEMPTED"}.get(self.stopped, "TIMED_OUT")
-        error = NoPath(message, code)
-        error.details = {
-            "roadmap": self.roadmap.stats(),
-            "rounds": self.rounds,
+        return {
             "collision_checks": spent,
-            "seconds": seconds,
-            "stopped": self.stopped,
-            **details,
+            "checks": dict(self.checks),
+            "distance_queries": self.checker.distance_queries,
+            "point_queries": self.checker.point_queries,
+            "certificate_seconds": 0.0 if self.certifier is None else self.certifier.seconds - self._certificate_before,
+            "seconds": {**self.seconds, "total": seconds},
+            "rounds": self.rounds,
+            "roadmap": self.roadmap.stats(),
+            "budget": str(self.settings.budget),
+            "stopped": stopped or self.stopped,
         }
+
+    def _failure(self, message: str, **details) -> NoPath:
+        """NoPath with the query's figures in `details`. Its code says why: PREEMPTED when cancelled, TIMED_OUT when
+        the time limit ended it (MoveIt's code for time), else PLANNING_FAILED -- a spent check limit too, whose
+        details say stopped: "checks"."""
+        code = {"cancelled": "PREEMPTED", "time": "TIMED_OUT"}.get(self.stopped)
+        error = NoPath(message, code)
+        error.details = {**self.figures(), **details}
         return error
 
     def _not_connected(self) -> NoPath:
@@ -827,13 +848,22 @@ class Query:
         seconds, spent = self.elapsed()
         if self.stopped == "cancelled":
             ending = ", cancelled"
+        elif self.stopped == "checks":
+            ending = (
+                f"; budget of {s.budget.checks} collision check{'s' if s.budget.checks != 1 else ''} spent (stopped: "
+                f"checks): a larger one may find a path, try --budget {s.budget.larger(seconds)}"
+            )
         elif self.stopped == "time" and s.budget.checks is not None:
             ending = (
                 f", stopped by the budget's {s.budget.seconds:g} s before its {s.budget.checks} checks were spent: "
-                "on a faster or less loaded machine the same seed may get further"
+                "on a faster or less loaded machine the same seed may get further; --budget "
+                f"{spell_checks(s.budget.checks)},nolimit lets the checks alone decide"
             )
-        elif self.stopped:
-            ending = f", budget {s.budget} spent ({self.stopped})"
+        elif self.stopped == "time":
+            ending = (
+                f"; time limit of {s.budget.seconds:g} s spent (stopped: time): try a longer one, e.g. --budget "
+                f"{min(MAX_SECONDS, 10 * s.budget.seconds):g}s"
+            )
         else:
             ending = "; the roadmap may not grow further"
         if self.unproved_edges:

@@ -4,10 +4,12 @@ multi-query PRM and OMPL's RRTConnect (app.bench.queries)."""
 from app.bench.queries import METHODS, Settings, check_methods, figure, measure
 from app.commands.bench import results
 from app.commands.common import (
+    BUDGET_HELP,
     answering,
     check_outputs,
     names_from,
     parse_budget,
+    parse_build_budget,
     positive_float,
     print_json,
     processes,
@@ -32,7 +34,8 @@ def register(kinds) -> None:
         "--budget",
         type=parse_budget,
         default="200kchecks",
-        help="each of our queries (fresh, cell): checks by default, so results do not depend on the machine",
+        help="each of our queries (fresh, cell): checks decide, so results do not depend on the machine; as plan's "
+        f"--budget: {BUDGET_HELP}",
     )
     p.add_argument(
         "--ompl-seconds",
@@ -41,7 +44,7 @@ def register(kinds) -> None:
         help="each OMPL query's seconds (OMPL's planners stop on time, not on checks)",
     )
     p.add_argument("--build-nodes", type=whole_number(2, 10**7), default=1500, help="the cell roadmap's nodes")
-    p.add_argument("--build-budget", type=parse_budget, default="3Mchecks", help="what the cell build may spend")
+    p.add_argument("--build-budget", type=parse_build_budget, default="3Mchecks", help="what the cell build may spend")
     p.add_argument("--workers", type=processes, default=1, help="processes building the cell roadmap")
     results.add_arguments(p, "out/bench-queries.sqlite")
     p.add_argument("--png", default=None, metavar="FILE", help="figure: per-query seconds per method (log scale)")
