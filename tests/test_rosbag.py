@@ -8,7 +8,7 @@ import pytest
 
 rosbags = pytest.importorskip("rosbags")
 
-from app.motion.rosbag import MESSAGE_TYPE, TOPIC  # noqa: E402
+from app.motion.rosbag import DEFAULT_DISTRO, DISTROS, MESSAGE_TYPE, TOPIC  # noqa: E402
 
 
 def read_bag(folder) -> list:
@@ -89,3 +89,58 @@ def test_the_ur3_joints_are_named_as_in_ur_description(oracles):
     expected = [f"{name}_joint" for name in ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")]
     assert moving == expected
     assert oracles("welding").space.names == expected
+
+
+def metadata(folder) -> dict:
+    from ruamel.yaml import YAML
+
+    return YAML(typ="safe").load((folder / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+
+
+@pytest.mark.parametrize("distro", DISTROS)
+def test_each_distributions_bag_reads_back_with_its_metadata_version(tmp_path, distro):
+    """--ros-distro humble writes version 5 as Humble's rosbag2 0.15 writes and reads it: a topic's QoS profiles a
+    string (as<std::string>() in its metadata parser), and none of the fields later versions added; iron 8, jazzy 9
+    (QoS profiles a list, which Humble cannot parse). Each reads back whole, and its header is stamped 0:
+    ros2_control's joint trajectory controller then starts it on arrival, where it refuses a stamp whose trajectory
+    ends in the past."""
+    import sqlite3
+
+    from app.motion import rosbag
+    from app.motion.trajectory import Trajectory
+
+    times = np.array([0.0, 0.5, 1.25])
+    positions = np.array([[0.0, 1.0], [0.5, 1.5], [1.0, 2.0]])
+    trajectory = Trajectory(["a", "b"], times, positions, positions / 2, positions / 4, positions, times)
+    rosbag.write_bag(tmp_path / "bag", trajectory, distro=distro)
+    (topic, msgtype, message), *others = read_bag(tmp_path / "bag")
+    assert not others and (topic, msgtype) == (TOPIC, MESSAGE_TYPE) and message.joint_names == ["a", "b"]
+    assert (message.header.stamp.sec, message.header.stamp.nanosec) == (0, 0)
+    assert np.allclose([seconds(p.time_from_start) for p in message.points], times, atol=1e-9)
+    for key, values in (("positions", positions), ("velocities", positions / 2), ("accelerations", positions / 4)):
+        assert np.array_equal([getattr(p, key) for p in message.points], values), key
+    info = metadata(tmp_path / "bag")
+    assert info["version"] == DISTROS[distro] and info["storage_identifier"] == "sqlite3"
+    (topic_info,) = info["topics_with_message_count"]
+    qos = topic_info["topic_metadata"]["offered_qos_profiles"]
+    assert isinstance(qos, list) if distro == "jazzy" else qos == ""
+    with sqlite3.connect(tmp_path / "bag" / "bag.db3") as database:
+        assert database.execute("SELECT metadata_version FROM metadata").fetchall() == [(DISTROS[distro],)]
+    if distro == "humble":
+        assert DISTROS[distro] == 5
+        assert not {"custom_data", "ros_distro"} & set(info)
+        assert "type_description_hash" not in topic_info["topic_metadata"]
+        assert {"files", "compression_format", "compression_mode", "relative_file_paths"} <= set(info)
+
+
+def test_ros_distro_picks_the_bag_version_from_the_command_line(cli, tmp_path, one_line_error):
+    out = tmp_path / "t.json"
+    assert cli("plan", "bar", "--out", out).returncode == 0
+    result = cli("view", "bar", "--trajectory", out, "--bag", tmp_path / "humble", "--ros-distro", "humble")
+    assert result.returncode == 0, result.stderr
+    assert metadata(tmp_path / "humble")["version"] == 5
+    assert cli("view", "bar", "--trajectory", out, "--bag", tmp_path / "default").returncode == 0
+    assert metadata(tmp_path / "default")["version"] == DISTROS[DEFAULT_DISTRO] == 8
+    assert "--ros-distro needs --bag" in one_line_error(cli("plan", "bar", "--ros-distro", "humble"), 2)
+    assert "--ros-distro" in one_line_error(cli("view", "bar", "--trajectory", out, "--bag", tmp_path / "x",
+                                                "--ros-distro", "foxy"), 2)  # fmt: skip

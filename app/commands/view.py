@@ -18,7 +18,7 @@ import threading
 from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json
 from app.errors import UserError
 from app.io import all_or_nothing, exclusive
-from app.motion.rosbag import write_bag
+from app.motion.rosbag import DEFAULT_DISTRO, DISTROS, write_bag
 from app.motion.trajectory import TrajectoryFile
 from app.scene.custom import load_scene
 from app.viewer import ViewData, check_meshcat_allowed, publish
@@ -31,7 +31,16 @@ def add_arguments(p) -> None:
         "--bag",
         metavar="DIR",
         help="write the trajectory as a new ROS 2 bag folder: one trajectory_msgs/msg/JointTrajectory on "
-        "/joint_trajectory (refused if DIR exists)",
+        "/joint_trajectory, its header stamped 0, which ros2_control's joint trajectory controller reads as "
+        "'start on arrival' (refused if DIR exists)",
+    )
+    p.add_argument(
+        "--ros-distro",
+        choices=list(DISTROS),
+        default=None,
+        help=f"with --bag: the ROS 2 distribution whose rosbag2 reads the bag (default {DEFAULT_DISTRO}: metadata "
+        "version 8, read by Iron and every later distribution); humble: version 5, as Humble's own rosbag2 writes "
+        "it; jazzy: version 9, as Jazzy, Kilted and Rolling write it",
     )
     p.add_argument(
         "--meshcat",
@@ -57,6 +66,8 @@ def check_from_args(args, *outputs: str | None) -> None:
         raise UserError("--wait needs --meshcat (it says how long the Meshcat server stays up)")
     if args.frame is not None and not (args.html or args.meshcat):
         raise UserError("--frame needs --html or --meshcat (it says which frame draws the samples and path)")
+    if args.ros_distro is not None and not args.bag:
+        raise UserError("--ros-distro needs --bag (it says which ROS 2 distribution the bag is written for)")
     if args.bag and os.path.lexists(args.bag):  # a bag is a new folder: never merged into or replaced
         raise UserError(f"cannot write {args.bag}: it exists already; give a new folder name")
     check_outputs(*outputs, args.html, args.bag)
@@ -82,7 +93,7 @@ def write_outputs(args, scene, file: TrajectoryFile, out: str | None = None, roa
         if out:
             file.write(out)
         if args.bag:
-            write_bag(args.bag, file.trajectory)
+            write_bag(args.bag, file.trajectory, distro=args.ros_distro or DEFAULT_DISTRO)
         if roadmap is not None:
             roadmap[0].save(roadmap[1])
     announce(out, args.bag, args.html, roadmap and roadmap[1])
