@@ -271,7 +271,12 @@ def collisions(scene) -> str:
         return "robot vs environment (the robot is one rigid body)"
     if not scene.self_collisions:
         return "robot vs environment only (self-collision off)"
-    text = f"robot vs environment and itself ({len(scene.disabled_pairs)} SRDF pairs left out)"
+    text = f"robot vs environment and itself ({len(scene.disabled_pairs)} SRDF pairs left out"
+    adjacent = getattr(scene, "adjacent_pairs", [])
+    if adjacent:  # Drake leaves out a joint's parent and child; these meet at a joint across a link without geometry
+        named = ", ".join(f"{a}-{b}" for a, b in adjacent[:3]) + (" ..." if len(adjacent) > 3 else "")
+        text += f"; {len(adjacent)} adjacent across links without collision geometry: {named}"
+    text += ")"
     links = getattr(scene, "info", {}).get("mesh_links")  # a custom robot's decomposed mesh links
     if links:
         text += (

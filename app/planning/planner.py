@@ -249,23 +249,45 @@ def check_endpoint(checker, q, what: str, clearance: float = CONTACT) -> np.ndar
         )
     if not checker.is_free(q):
         pairs = checker.colliding_bodies(q)
+        if not pairs:  # faces that touch exactly: a collision to the check, no penetration to name; name the contact
+            pairs = [(a, b) for a, b, _ in checker.touching(q)]
         touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
-        raise InvalidEndpoint(f"{what} is in collision: {touching or 'contact reported by the checker'}", code)
+        raise InvalidEndpoint(
+            f"{what} is in collision: {touching or 'contact reported by the checker'}{_own_links(checker, pairs)}",
+            code,
+        )
     contacts = checker.touching(q, max(clearance, CONTACT))
     if contacts:
         named = ", ".join(f"{a} with {b} at {d:.2g}" for a, b, d in contacts[:4]) + (
             " ..." if len(contacts) > 4 else ""
         )
+        own = _own_links(checker, contacts)
         if contacts[0][2] <= CONTACT:
             raise InvalidEndpoint(
-                f"{what} touches (signed distance <= {CONTACT:g}): {named}; move it off the contact", code
+                f"{what} touches (signed distance <= {CONTACT:g}): {named}; move it off the contact{own}", code
             )
         raise InvalidEndpoint(
             f"{what} is nearer than the clearance {clearance:g} the motion must keep: {named}; move it off, or "
-            "plan with a smaller clearance (--clearance)",
+            f"plan with a smaller clearance (--clearance){own}",
             code,
         )
     return checker.space.wrap(q)
+
+
+def _own_links(checker, pairs) -> str:
+    """For an endpoint refused over body pairs (scoped names first in each item): if two links of the robot are one
+    of them, the end of the message saying how to stop checking that pair, which no move of the endpoint can help
+    when the links touch by design (at a joint); else nothing."""
+    links = getattr(checker.scene, "robot_links", {})
+    own = [(links[a], links[b]) for a, b, *_ in pairs if a in links and b in links]
+    if not own:
+        return ""
+    a, b = own[0]
+    return (
+        f"; {a} and {b} are links of the robot: if that is by design, leave the pair out with an SRDF (--srdf FILE "
+        f'holding <disable_collisions link1="{a}" link2="{b}"/>; srdf: in a scene file) or do not check '
+        "self-collision (--no-self-collision; collisions: environment)"
+    )
 
 
 def check_goals(checker, goal, clearance: float = CONTACT) -> np.ndarray:

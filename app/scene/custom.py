@@ -1263,18 +1263,22 @@ def hull_disagreement(
     scene_dir: Path, pieces_file: Path, hull_file: Path, inputs: _Inputs, robot_instances: list[str], samples=300
 ) -> dict:
     """How often the robot alone collides with itself at uniform random configurations (seeded), with its mesh links
-    as Drake's convex hulls and as the validated pieces (SRDF pairs left out in both): `hull_only` is the fraction
-    that collide as hulls but not as pieces, what the decomposition saves self-collision checking from."""
+    as Drake's convex hulls and as the validated pieces (adjacent links and SRDF pairs left out in both, as the scene
+    leaves them out): `hull_only` is the fraction that collide as hulls but not as pieces, what the decomposition
+    saves self-collision checking from."""
     from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
 
-    from app.scene.model import exclude_body_pairs, read_srdf
+    from app.scene.model import exclude_adjacent_bodies, exclude_body_pairs, read_srdf
 
     pairs = read_srdf(inputs.srdf_path) if inputs.srdf_path else []
     exact = scene_dir / "robot.dmd.yaml"
     hulls = scene_dir / "robot-hulls.dmd.yaml"
     # Kept beside the scene, keyed by what decides it (the pieces' and hulls' cache files are named by content): a
-    # cached load should not spend two robot set-ups and 600 checks on it again.
-    key = hashlib.sha256(repr((exact.read_text(), str(pieces_file), str(hull_file), pairs, samples)).encode())
+    # cached load should not spend two robot set-ups and 600 checks on it again. (The last item: measured with the
+    # adjacent links across links without geometry left out, which earlier measurements counted.)
+    key = hashlib.sha256(
+        repr((exact.read_text(), str(pieces_file), str(hull_file), pairs, samples, "adjacent")).encode()
+    )
     kept = scene_dir / f"hull-disagreement-{key.hexdigest()[:16]}.json"
     if kept.is_file():
         return json.loads(kept.read_text())
@@ -1287,6 +1291,7 @@ def hull_disagreement(
         ProcessModelDirectives(LoadModelDirectives(str(directives)), builder.parser())
         plant.Finalize()
         instances = [plant.GetModelInstanceByName(n) for n in robot_instances]
+        exclude_adjacent_bodies(plant, builder.scene_graph(), instances)
         exclude_body_pairs(plant, builder.scene_graph(), instances, pairs, inputs.srdf_path)
         diagram = builder.Build()
         root = diagram.CreateDefaultContext()

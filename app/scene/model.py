@@ -79,7 +79,8 @@ class ProblemFile:
     collisions: str = "environment"
     collisions_why: str = ""
     # An SRDF (MoveIt's format; a path relative to the problem file, or package://npp_robots/...) whose
-    # <disable_collisions link1= link2=/> robot body pairs are never checked (Drake already skips parent/child pairs).
+    # <disable_collisions link1= link2=/> robot body pairs are never checked (adjacent links never are: see
+    # exclude_adjacent_bodies).
     srdf: str = ""
     lower: list[float] = field(default_factory=list)  # default: the model's joint limits
     upper: list[float] = field(default_factory=list)
@@ -232,7 +233,6 @@ def read_srdf(path: Path) -> list[tuple[str, str]]:
 def exclude_body_pairs(plant, scene_graph, instances, pairs: list[tuple[str, str]], srdf) -> None:
     """Exclude collisions between the geometries of each named body pair of the robot `instances` on the
     SceneGraph model (before contexts are made). Names no robot body carries -> one UserError naming them all."""
-    from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
 
     def body(name):
         found = [plant.GetBodyByName(name, i) for i in instances if plant.HasBodyNamed(name, i)]
@@ -241,13 +241,58 @@ def exclude_body_pairs(plant, scene_graph, instances, pairs: list[tuple[str, str
     unknown = sorted({name for pair in pairs for name in pair if body(name) is None})
     if unknown:
         raise UserError(f"SRDF {Path(srdf).name}: unknown link(s) {', '.join(unknown)} (not bodies of the robot)")
+    _exclude_between(plant, scene_graph, [(body(a), body(b)) for a, b in pairs])
+
+
+def _exclude_between(plant, scene_graph, bodies: list) -> None:
+    """Exclude collisions between the geometries of each pair of bodies, on the SceneGraph model."""
+    from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+
     declaration = CollisionFilterDeclaration()
-    for a, b in pairs:
+    for a, b in bodies:
         declaration.ExcludeBetween(
-            GeometrySet(plant.GetCollisionGeometriesForBody(body(a))),
-            GeometrySet(plant.GetCollisionGeometriesForBody(body(b))),
+            GeometrySet(plant.GetCollisionGeometriesForBody(a)), GeometrySet(plant.GetCollisionGeometriesForBody(b))
         )
     scene_graph.collision_filter_manager().Apply(declaration)
+
+
+def adjacent_bodies(plant, instances) -> list[tuple]:
+    """The robot's adjacent body pairs as MoveIt's Setup Assistant finds them ("Adjacent" in the SRDF it writes):
+    bodies with collision geometry that a joint joins, directly or across bodies without collision geometry (a
+    virtual link, a flange frame), which are left out of the chain: the bodies next to such a body, before and
+    after it, are all adjacent to one another. Only the robot `instances`' own bodies and joints count (the world
+    is none of them)."""
+    robot = {body.index() for instance in instances for body in map(plant.get_body, plant.GetBodyIndices(instance))}
+    neighbours = {index: set() for index in robot}
+    for joint in map(plant.get_joint, plant.GetJointIndices()):
+        a, b = joint.parent_body().index(), joint.child_body().index()
+        if a in robot and b in robot and a != b:
+            neighbours[a].add(b)
+            neighbours[b].add(a)
+    for index in sorted(robot):
+        if plant.GetCollisionGeometriesForBody(plant.get_body(index)):
+            continue
+        around = neighbours.pop(index)
+        for other in around:
+            neighbours[other] |= around - {other}
+            neighbours[other].discard(index)
+    pairs = {tuple(sorted((a, b))) for a, near in neighbours.items() for b in near}
+    return [(plant.get_body(a), plant.get_body(b)) for a, b in sorted(pairs)]
+
+
+def exclude_adjacent_bodies(plant, scene_graph, instances) -> list[tuple[str, str]]:
+    """Exclude collisions between the robot's adjacent bodies (`adjacent_bodies`) on the SceneGraph model, as MoveIt
+    never checks them: two links that meet at a joint touch there by design, whether or not a link without geometry
+    sits between them. Drake itself leaves out only a joint's parent and child and bodies welded together. Returns
+    the (name, name) pairs this adds to Drake's (usually none: they need a body without geometry between two)."""
+    inspector = scene_graph.model_inspector()
+    added = []
+    for a, b in adjacent_bodies(plant, instances):
+        ours, theirs = plant.GetCollisionGeometriesForBody(a), plant.GetCollisionGeometriesForBody(b)
+        if not all(inspector.CollisionFiltered(g, h) for g in ours for h in theirs):
+            added.append((a, b))
+    _exclude_between(plant, scene_graph, added)
+    return [(a.name(), b.name()) for a, b in added]
 
 
 class Scene:
@@ -271,11 +316,19 @@ class Scene:
         self.robot_instances = [plant.GetModelInstanceByName(n) for n in problem.robot]
         plant.Finalize()
         # On the SceneGraph model itself, so every context, the collision checker (which copies the model's filters
-        # when made) and the certificate's pair list all see the same pairs.
+        # when made) and the certificate's pair list all see the same pairs: adjacent links (across links without
+        # collision geometry too, as MoveIt has them) and the SRDF's pairs.
+        self.adjacent_pairs = exclude_adjacent_bodies(plant, builder.scene_graph(), self.robot_instances)
         self.disabled_pairs = read_srdf(self._file(problem.srdf)) if problem.srdf else []
         exclude_body_pairs(plant, builder.scene_graph(), self.robot_instances, self.disabled_pairs, problem.srdf)
         self.diagram = builder.Build()
         self.plant = self.diagram.plant()
+        # The robot's bodies by the scoped name messages give them ("robot::forearm") -> the link name an SRDF uses.
+        self.robot_links = {
+            body.scoped_name().to_string(): body.name()
+            for instance in self.robot_instances
+            for body in map(self.plant.get_body, self.plant.GetBodyIndices(instance))
+        }
 
         # Per plant position first; the planned coordinates are the positions of joints that mimic none.
         positions = self.plant.num_positions()
