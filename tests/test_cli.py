@@ -17,7 +17,7 @@ from app.cli import EXIT_CODES, build_parser, exit_code
 from app.commands.common import comma_list, names_from, parse_budget, parse_build_budget, sampler_names
 from app.errors import UserError
 from app.planning.planner import DEFAULT_BUDGET, PlanSettings
-from app.scene.model import SCENES_DIR, Scene
+from app.scene.model import ROOT, SCENES_DIR, Scene
 
 
 def test_scenes_json_lists_every_scene_with_its_facts(cli):
@@ -328,3 +328,58 @@ def test_an_output_onto_a_symbolic_link_replaces_the_link_and_says_so(tmp_path, 
     assert out.returncode == 0
     assert not link.is_symlink() and link.stat().st_size > 1000 and target.read_bytes() == b"kept"
     assert f"wrote {link} (it replaced a symbolic link to {target}, which is left as it was)" in out.stderr
+
+
+def _subparser(*names: str) -> argparse.ArgumentParser:
+    from app.cli import build_parser
+
+    parser = build_parser()
+    for name in names:
+        action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        parser = action.choices[name]
+    return parser
+
+
+def _option(parser: argparse.ArgumentParser, flag: str) -> argparse.Action:
+    return next(a for a in parser._actions if flag in a.option_strings)
+
+
+def test_the_sampler_flags_name_every_registered_sampler():
+    from app.samplers import SAMPLERS
+
+    for command in (("plan",), ("sample",), ("run",), ("roadmap", "build"), ("gui",)):
+        help_text = _option(_subparser(*command), "--sampler").help
+        assert all(name in help_text for name in SAMPLERS), (command, help_text)
+
+
+def test_every_bench_scenes_flag_says_what_it_takes():
+    bench = _subparser("bench")
+    kinds = next(a for a in bench._actions if isinstance(a, argparse._SubParsersAction)).choices
+    explained = []
+    for kind, parser in kinds.items():
+        if any("--scenes" in a.option_strings for a in parser._actions):
+            help_text = _option(parser, "--scenes").help or ""
+            assert "scene" in help_text and len(help_text) > 30, (kind, help_text)
+            explained.append(kind)
+    assert "ablation" in explained and "ompl" in explained
+
+
+def test_show_sample_and_view_take_a_robot_of_ones_own(cli, one_line_error, tmp_path, monkeypatch):
+    """As plan does: --robot/--env instead of a scene file written first, through the same flags."""
+    monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
+    robot = ["--robot", ROOT / "robots" / "planar_arm_3.urdf", "--env", SCENES_DIR / "bar_obstacles.sdf"]
+    result = cli("show", *robot, "--png", tmp_path / "own.png")
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "own.png").stat().st_size > 0
+    result = cli("sample", *robot, "--sampler", "uniform", "-k", "3", "--json")
+    assert result.returncode == 0, result.stderr
+    assert len(json.loads(result.stdout)["samples"]) == 3
+    trajectory = tmp_path / "motion.json"
+    result = cli("plan", *robot, "--start", "20,80,0,0,0", "--goal", "25,80,0,0,0", "--out", trajectory)
+    assert result.returncode == 0, result.stderr
+    monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")  # the viewer needs Meshcat even to export a page
+    result = cli("view", *robot, "--trajectory", trajectory, "--html", tmp_path / "motion.html", "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["scene"] == "planar_arm_3-in-bar_obstacles"
+    assert "--srdf needs --robot" in one_line_error(cli("show", "bar", "--png", tmp_path / "b.png", "--srdf", "x"), 2)
+    assert "not both" in one_line_error(cli("view", "bar", *robot, "--trajectory", trajectory, "--html", "x.html"), 2)

@@ -20,7 +20,7 @@ from app.checking.budget import MAX_CHECKS, MAX_SECONDS, SAFETY_NET_SECONDS, Bud
 from app.checking.certify import CLEARANCE
 from app.errors import NoPath, UserError
 from app.io import check_output
-from app.samplers import check_name
+from app.samplers import SAMPLERS, check_name
 
 
 def whole_number(least: int, most: int):
@@ -184,6 +184,11 @@ def sampler_name(text: str) -> str:
 def sampler_names(text: str) -> list[str]:
     """Comma-separated registered sampler names."""
     return [sampler_name(name) for name in comma_list(text)]
+
+
+def known_samplers() -> str:
+    """The registered samplers' names (app.samplers.SAMPLERS), for a flag's help."""
+    return ", ".join(SAMPLERS)
 
 
 _BUDGET_PART = re.compile(r"^(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>s|min|k?checks|M?checks)$")

@@ -12,6 +12,7 @@ from app.commands.common import (
     answering,
     failure_details,
     float_list,
+    known_samplers,
     neighbours,
     parse_budget,
     positive_float,
@@ -86,7 +87,7 @@ def add_sampling_arguments(p) -> None:
         "--sampler",
         type=sampler_name,
         default=DEFAULTS.sampler,
-        help=f"narrow-passage sampler (default {DEFAULTS.sampler})",
+        help=f"narrow-passage sampler: {known_samplers()} (default {DEFAULTS.sampler})",
     )
     p.add_argument(
         "--step",

@@ -8,6 +8,7 @@ from app.commands.common import (
     BUDGET_HELP,
     add_scaling_arguments,
     answering,
+    known_samplers,
     parse_budget,
     positive_float,
     print_json,
@@ -26,7 +27,12 @@ from app.scene.model import Scene
 def register(subparsers) -> None:
     p = subparsers.add_parser("run", help="scripted UR3 jobs: welding (seam point to point), window (reach, place)")
     p.add_argument("job", help="welding or window (the scene of the same name)")
-    p.add_argument("--sampler", type=sampler_name, default=JOB_SETTINGS.sampler)
+    p.add_argument(
+        "--sampler",
+        type=sampler_name,
+        default=JOB_SETTINGS.sampler,
+        help=f"narrow-passage sampler: {known_samplers()} (default {JOB_SETTINGS.sampler})",
+    )
     p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--narrow", type=sample_count, default=40, help="narrow-passage samples per planned leg")
     p.add_argument("--uniform", type=sample_count, default=40, help="uniform samples per planned leg")

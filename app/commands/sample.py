@@ -2,10 +2,12 @@
 
 from app.bench.sampling import run_trial
 from app.checking.oracle import CollisionOracle
+from app.commands import custom
 from app.commands.common import (
     announce,
     answering,
     check_outputs,
+    known_samplers,
     positive_float,
     print_json,
     processes,
@@ -15,15 +17,14 @@ from app.commands.common import (
 )
 from app.errors import SamplerBudgetExceeded
 from app.planning.planner import default_step
-from app.scene.custom import load_scene
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("sample", help="draw k samples with one of the seven samplers")
-    p.add_argument("scene", help="scene name, problem-file path or custom scene file")
     p.add_argument(
-        "--sampler", type=sampler_name, required=True, help="uniform, gaussian, rbbs, rws, lfs, rwbs or lfbs"
+        "scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env instead)"
     )
+    p.add_argument("--sampler", type=sampler_name, required=True, help=f"the sampler: {known_samplers()}")
     p.add_argument("-k", type=samples_wanted, default=30, help="number of samples (default 30)")
     p.add_argument(
         "--step",
@@ -36,12 +37,13 @@ def register(subparsers) -> None:
     p.add_argument("--threads", type=processes, default=None, help="oracle threads (default: up to 2)")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument("--png", help="draw the samples over the scene to this PNG")
+    custom.add_arguments(p)  # --robot / --package-path / --env ...
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     check_outputs(args.png)
-    oracle = CollisionOracle(load_scene(args.scene), threads=args.threads)
+    oracle = CollisionOracle(custom.scene_from_args(args, args.scene), threads=args.threads)
     step = args.step or default_step(oracle.scene)
     result = run_trial(oracle, args.sampler, step, args.seed, k=args.k, keep_samples=True)
     if not result["ok"]:

@@ -1,8 +1,8 @@
 """`scenes` lists the shipped scenes; `show` draws one to a PNG."""
 
 from app.checking.oracle import CollisionOracle
+from app.commands import custom
 from app.commands.common import announce, answering, check_outputs, print_json
-from app.scene.custom import load_scene
 from app.scene.model import Scene, scene_names
 
 
@@ -12,9 +12,12 @@ def register(subparsers) -> None:
     p.set_defaults(func=run_scenes)
 
     p = subparsers.add_parser("show", help="draw a scene (obstacles, passage region, robot at start and goal)")
-    p.add_argument("scene", help="scene name, problem-file path or custom scene file")
+    p.add_argument(
+        "scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env instead)"
+    )
     p.add_argument("--png", required=True, help="output PNG file")
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    custom.add_arguments(p)  # --robot / --package-path / --env ...
     p.set_defaults(func=run_show)
 
 
@@ -34,7 +37,7 @@ def run_show(args) -> int:
     from app.draw import draw_scene  # loads matplotlib: only when a picture is drawn
 
     check_outputs(args.png)
-    oracle = CollisionOracle(load_scene(args.scene))
+    oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
     with answering():  # the picture is the answer
         draw_scene(oracle, args.png)
         announce(args.png)

@@ -15,12 +15,12 @@ import signal
 import sys
 import threading
 
+from app.commands import custom
 from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json
 from app.errors import UserError
 from app.io import all_or_nothing, exclusive
 from app.motion.rosbag import DEFAULT_DISTRO, DISTROS, write_bag
 from app.motion.trajectory import TrajectoryFile
-from app.scene.custom import load_scene
 from app.viewer import ViewData, check_meshcat_allowed, publish
 
 
@@ -149,12 +149,15 @@ def wait(args, viewer) -> None:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("view", help="show a trajectory in Meshcat and/or export a standalone HTML page")
-    p.add_argument("scene", help="scene name, problem-file path or custom scene file")
+    p.add_argument(
+        "scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env instead)"
+    )
     p.add_argument(
         "--trajectory", required=True, metavar="FILE.json", help="a trajectory file written by plan --out or run --out"
     )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     add_arguments(p)
+    custom.add_arguments(p)  # --robot / --package-path / --env ...: the scene the trajectory was planned in
     p.set_defaults(func=run_view)
 
 
@@ -162,7 +165,7 @@ def run_view(args) -> int:
     if not args.html and not args.meshcat and not args.bag:
         raise UserError("view: nothing to do; give --html FILE, --bag DIR and/or --meshcat")
     check_outputs(args.html)
-    scene = load_scene(args.scene)
+    scene = custom.scene_from_args(args, args.scene)
     file = TrajectoryFile.read_for(args.trajectory, scene)
     check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
     with answering():

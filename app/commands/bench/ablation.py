@@ -16,7 +16,13 @@ def register(kinds) -> None:
         help="the planner with workspace placements, the Lévy walkers or both swapped out: success and checks to "
         "the first solution on a check budget, and which source supplied the path's narrow nodes",
     )
-    p.add_argument("--scenes", type=comma_list, default=",".join(scene_names()))
+    p.add_argument(
+        "--scenes",
+        type=comma_list,
+        default=",".join(scene_names()),
+        help="comma-separated scenes (shipped scene names or problem files) whose own start-to-goal query each "
+        "variant plans, once per seed (default: every shipped scene, see `python -m app scenes`)",
+    )
     p.add_argument("--variants", type=comma_list, default=",".join(VARIANTS), help=f"of {', '.join(VARIANTS)}")
     p.add_argument("--seeds", type=repetitions, default=20, help="seeds 0..N-1 per scene and variant")
     p.add_argument("--checks", type=check_count, default=DEFAULT_CHECKS, help="collision-check budget per query")

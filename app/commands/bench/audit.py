@@ -40,7 +40,10 @@ def register(kinds) -> None:
     )
     p.add_argument("--seed", type=seed, default=0, help="seeds the problems' starts and goals")
     p.add_argument(
-        "--scenes", type=names_from(scene_names(), "scene"), default=",".join(scene_names()), help="comma-separated"
+        "--scenes",
+        type=names_from(scene_names(), "scene"),
+        default=",".join(scene_names()),
+        help="comma-separated shipped scenes the random problems are drawn in (default: every shipped scene)",
     )
     p.add_argument(
         "--checks",

@@ -13,7 +13,11 @@ def register(kinds) -> None:
         "certify", help="what certification and smooth timing add to plan time; smooth vs rest to rest"
     )
     p.add_argument(
-        "--scenes", type=names_from(scene_names(), "scene"), default=",".join(scene_names()), help="comma-separated"
+        "--scenes",
+        type=names_from(scene_names(), "scene"),
+        default=",".join(scene_names()),
+        help="comma-separated shipped scenes whose own start-to-goal query is planned, once per seed (default: "
+        "every shipped scene)",
     )
     p.add_argument("--jobs", type=names_from(JOBS, "job"), default="window", help="comma-separated UR3 jobs")
     p.add_argument("--seeds", type=repetitions, default=5, help="seeds 0..N-1 per scene and job")

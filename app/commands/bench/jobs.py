@@ -7,6 +7,7 @@ from app.commands.common import (
     answering,
     budget_seconds,
     check_outputs,
+    known_samplers,
     names_from,
     print_json,
     repetitions,
@@ -20,7 +21,9 @@ def register(kinds) -> None:
     p.add_argument(
         "--jobs", type=names_from(JOBS, "job"), default=",".join(JOBS), help="comma-separated: welding, window"
     )
-    p.add_argument("--samplers", type=sampler_names, default="lfbs", help="comma-separated sampler names")
+    p.add_argument(
+        "--samplers", type=sampler_names, default="lfbs", help=f"comma-separated sampler names, of {known_samplers()}"
+    )
     p.add_argument("--seeds", type=repetitions, default=10, help="seeds 0..N-1 per job, sampler and mode")
     p.add_argument(
         "--roadmap",

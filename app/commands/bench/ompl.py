@@ -37,7 +37,13 @@ def register(kinds) -> None:
         help="our planner vs OMPL's RRTConnect, BIT*, PRM and KPIECE1: same oracle, same "
         "budget; checks to the first solution, smoothing, success",
     )
-    p.add_argument("--scenes", type=comma_list, default=",".join(scene_names()))
+    p.add_argument(
+        "--scenes",
+        type=comma_list,
+        default=",".join(scene_names()),
+        help="comma-separated scenes (shipped scene names or problem files) whose own start-to-goal query each "
+        "method plans, once per seed (default: every shipped scene, see `python -m app scenes`)",
+    )
     p.add_argument(
         "--methods",
         type=method_names,

@@ -7,6 +7,7 @@ from app.commands.common import (
     budget_seconds,
     check_outputs,
     comma_list,
+    known_samplers,
     neighbours,
     positive_float,
     print_json,
@@ -21,9 +22,18 @@ from app.commands.common import (
 
 def register(kinds) -> None:
     p = kinds.add_parser("plan", help="PRM success rate and median time per sampler (fixed roadmap size)")
-    p.add_argument("--scenes", type=comma_list, default="bar,joint3d", help="comma-separated scene names")
     p.add_argument(
-        "--samplers", type=sampler_names, default=",".join(COMPARED_SAMPLERS), help="comma-separated sampler names"
+        "--scenes",
+        type=comma_list,
+        default="bar,joint3d",
+        help="comma-separated scenes (shipped scene names or problem files) whose own start-to-goal query each "
+        "sampler plans, once per seed (default bar,joint3d)",
+    )
+    p.add_argument(
+        "--samplers",
+        type=sampler_names,
+        default=",".join(COMPARED_SAMPLERS),
+        help=f"comma-separated sampler names, of {known_samplers()}",
     )
     p.add_argument("--seeds", type=repetitions, default=50, help="seeds 0..N-1 per scene and sampler")
     p.add_argument(

@@ -26,7 +26,13 @@ def register(kinds) -> None:
         help="many queries in one cell: fresh single queries vs one persistent roadmap vs OMPL's PRM (graph kept) "
         "and RRTConnect, through one oracle; build, per-query checks and time, success, certified share",
     )
-    p.add_argument("--scenes", type=names_from(scene_names(), "scene"), default="window,welding")
+    p.add_argument(
+        "--scenes",
+        type=names_from(scene_names(), "scene"),
+        default="window,welding",
+        help="comma-separated shipped scenes, each a cell in which --queries queries are made and answered (default "
+        "window,welding)",
+    )
     p.add_argument("--queries", type=repetitions, default=100, help="queries per scene")
     p.add_argument("--seed", type=seed, default=0, help="of the query set and every planner")
     p.add_argument("--methods", type=names_from(METHODS, "methods"), default=",".join(METHODS), help=", ".join(METHODS))

@@ -7,6 +7,7 @@ from app.commands.common import (
     check_count,
     check_outputs,
     comma_list,
+    known_samplers,
     positive_float,
     positive_float_list,
     print_json,
@@ -20,8 +21,19 @@ from app.samplers import SAMPLERS
 
 def register(kinds) -> None:
     p = kinds.add_parser("sampling", help="t_eps, gamma_c and passage fraction of the seven samplers vs step")
-    p.add_argument("--scenes", type=comma_list, default="bar,teeth3d", help="comma-separated scene names")
-    p.add_argument("--samplers", type=sampler_names, default=",".join(SAMPLERS), help="comma-separated sampler names")
+    p.add_argument(
+        "--scenes",
+        type=comma_list,
+        default="bar,teeth3d",
+        help="comma-separated scenes (shipped scene names or problem files) each sampler draws samples in "
+        "(default bar,teeth3d)",
+    )
+    p.add_argument(
+        "--samplers",
+        type=sampler_names,
+        default=",".join(SAMPLERS),
+        help=f"comma-separated sampler names, of {known_samplers()}",
+    )
     p.add_argument(
         "--steps", type=positive_float_list, default=STEPS, help="comma-separated steps a (default 2,5,10,15,20)"
     )
