@@ -6,6 +6,7 @@ import json
 import re
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -328,6 +329,48 @@ def test_an_output_onto_a_symbolic_link_replaces_the_link_and_says_so(tmp_path, 
     assert out.returncode == 0
     assert not link.is_symlink() and link.stat().st_size > 1000 and target.read_bytes() == b"kept"
     assert f"wrote {link} (it replaced a symbolic link to {target}, which is left as it was)" in out.stderr
+
+
+class _Log:
+    """A stderr that is no terminal (a log file), which says when something was written to it."""
+
+    def __init__(self):
+        self.text, self.written = "", threading.Event()
+
+    def write(self, text: str) -> int:
+        self.text += text
+        self.written.set()
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+    def isatty(self) -> bool:
+        return False
+
+
+@pytest.mark.parametrize("json_flag", [False, True])
+def test_progress_in_a_log_is_a_plain_line_now_and_then(json_flag, monkeypatch):
+    """Where stderr is no terminal a long command once said nothing until it ended: it writes a plain line every
+    PROGRESS_LOG_EVERY s (here made tiny), each ending in a newline, no carriage return; none with --json."""
+    import types
+
+    from app.commands import common
+
+    log = _Log()
+    monkeypatch.setattr(sys, "stderr", log)
+    monkeypatch.setattr(common, "PROGRESS_LOG_EVERY", 0.001)
+    oracle = types.SimpleNamespace(answered=0)
+    with common.progress(types.SimpleNamespace(json=json_flag), oracle, "plan bar"):
+        oracle.answered = 12_000
+        if not json_flag:
+            assert log.written.wait(60)  # a line came (the wait only ends a test that would hang)
+    if json_flag:
+        assert log.text == ""
+        return
+    lines = log.text.split("\n")
+    assert lines[-1] == "" and "\r" not in log.text
+    assert all(re.fullmatch(r"plan bar: \d+ s, [\d,]+ collision checks", line) for line in lines[:-1]), log.text
 
 
 def _subparser(*names: str) -> argparse.ArgumentParser:

@@ -285,19 +285,28 @@ def failure_details(extra: dict):
 # A command that runs longer than this shows its progress (on a terminal): shorter ones stay quiet.
 PROGRESS_AFTER = 1.5
 PROGRESS_EVERY = 0.25  # seconds between updates of the progress line
+# Seconds between the plain progress lines written where stderr is no terminal (a log file, a pipe, CI).
+PROGRESS_LOG_EVERY = 10.0
 
 
 @contextlib.contextmanager
 def progress(args, oracle, what: str):
     """While the block runs longer than PROGRESS_AFTER s: one line on stderr, rewritten in place, with the time so far
-    and the collision checks the oracle answered since the block began, cleared when the block ends. Only on a
-    terminal, and never with --json (a program reads that answer)."""
-    if getattr(args, "json", False) or not sys.stderr.isatty():
+    and the collision checks the oracle answered since the block began, cleared when the block ends. Where stderr is
+    no terminal (a log), the same as a plain line every PROGRESS_LOG_EVERY s instead. Never with --json (a program
+    reads that answer)."""
+    if getattr(args, "json", False):
         yield
         return
     from tqdm import tqdm
 
     done, answered = threading.Event(), oracle.answered
+
+    def log() -> None:
+        started = time.monotonic()
+        while not done.wait(PROGRESS_LOG_EVERY):
+            seconds, checks = time.monotonic() - started, oracle.answered - answered
+            print(f"{what}: {seconds:.0f} s, {checks:,} collision checks", file=sys.stderr, flush=True)
 
     def show() -> None:
         if done.wait(PROGRESS_AFTER):
@@ -312,7 +321,7 @@ def progress(args, oracle, what: str):
                 if done.wait(PROGRESS_EVERY):
                     return
 
-    shower = threading.Thread(target=show, name="progress", daemon=True)
+    shower = threading.Thread(target=show if sys.stderr.isatty() else log, name="progress", daemon=True)
     shower.start()
     try:
         yield
