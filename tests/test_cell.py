@@ -301,3 +301,24 @@ def test_a_job_runs_its_legs_on_one_roadmap_and_a_saved_one_makes_it_cheaper(ora
     cell.save(tmp_path / "window.npz")
     again = run_job(oracle, "window", JOB_SETTINGS, CellRoadmap.load(tmp_path / "window.npz", oracle))
     assert again.collision_checks < first.collision_checks
+
+
+def test_a_build_reports_progress_as_each_rounds_edges_are_decided(oracles, monkeypatch):
+    """A build of one round (its first 250 nodes took most of a 103 s build) reported once, at its end: a bar went
+    from 0 to 83 % of 300 nodes at once. It reports after each part of a round's edges now (parts of about
+    PART_SECONDS; here of FIRST_PART edges each), rising to the nodes it holds, and builds the same roadmap."""
+    from app.planning import cell as cells
+
+    whole = CellRoadmap.build(oracles("bar"), BuildSettings(nodes=40, seed=0))
+    monkeypatch.setattr(cells, "PART_SECONDS", 0.0)
+    monkeypatch.setattr(cells, "FIRST_PART", 8)
+    reports = []
+    cell = CellRoadmap.build(oracles("bar"), BuildSettings(nodes=40, seed=0), progress=lambda *r: reports.append(r))
+    nodes = [n for n, _, _ in reports]
+    assert len(reports) > 4 and nodes == sorted(nodes) and nodes[-1] == len(cell) == 40
+    assert len(set(nodes)) > 4 and nodes[0] < 40 / 4  # through the round, not at its end
+    for key, array in whole.graph.arrays().items():
+        assert np.array_equal(array, cell.graph.arrays()[key]), key
+    assert all(target == 40 for _, target, _ in reports)
+    checks = [c for _, _, c in reports]
+    assert checks == sorted(checks) and checks[-1] == cell.provenance["builds"][-1]["collision_checks"]

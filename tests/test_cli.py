@@ -373,6 +373,24 @@ def test_progress_in_a_log_is_a_plain_line_now_and_then(json_flag, monkeypatch):
     assert all(re.fullmatch(r"plan bar: \d+ s, [\d,]+ collision checks", line) for line in lines[:-1]), log.text
 
 
+def test_roadmap_build_in_a_log_says_how_far_it_is(cli, tmp_path, monkeypatch):
+    """`roadmap build` into a log: plain lines of nodes and checks as its round goes (every PROGRESS_LOG_EVERY s:
+    here every report), none with --json."""
+    from app.commands import common
+    from app.planning import cell
+
+    monkeypatch.setattr(common, "PROGRESS_LOG_EVERY", 0.0)
+    monkeypatch.setattr(cell, "PART_SECONDS", 0.0)  # a report every FIRST_PART edges
+    monkeypatch.setattr(cell, "FIRST_PART", 8)
+    result = cli("roadmap", "build", "bar", "--nodes", "40", "--out", tmp_path / "bar.npz")
+    assert result.returncode == 0, result.stderr
+    found = re.findall(r"^roadmap build: (\d+)/40 nodes, [\d,]+ collision checks, \d+ s$", result.stderr, re.M)
+    nodes = [int(n) for n in found]
+    assert len(nodes) > 2 and nodes == sorted(nodes) and nodes[0] < 40 and "\r" not in result.stderr
+    quiet = cli("roadmap", "build", "bar", "--nodes", "40", "--out", tmp_path / "again.npz", "--json")
+    assert quiet.returncode == 0 and "roadmap build:" not in quiet.stderr
+
+
 def _subparser(*names: str) -> argparse.ArgumentParser:
     from app.cli import build_parser
 

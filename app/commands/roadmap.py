@@ -2,9 +2,10 @@
 --roadmap FILE` and `run JOB --roadmap FILE` (app.planning.cell)."""
 
 import sys
+import time
 
 from app.checking.oracle import CollisionOracle, default_threads
-from app.commands import custom, plan
+from app.commands import common, custom, plan
 from app.commands.common import (
     answering,
     check_outputs,
@@ -76,7 +77,7 @@ def build(args) -> int:
     )
     check_outputs(args.out)
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene), threads=max(args.workers, default_threads()))
-    with _progress(settings.nodes) as progress:
+    with _progress(settings.nodes, quiet=args.json) as progress:
         cell = CellRoadmap.build(oracle, settings, workers=args.workers, progress=progress)
     answer = {"file": args.out, **cell.info()}
     with answering():  # the roadmap file and what it holds are the answer
@@ -119,15 +120,19 @@ def _describe(answer: dict) -> str:
 
 
 class _progress:
-    """A progress bar on stderr while the build runs (tqdm hides it when stderr is not a terminal)."""
+    """The build's progress on stderr: a bar on a terminal; where stderr is no terminal (a log), a plain line at most
+    every common.PROGRESS_LOG_EVERY s, and none with --json (`quiet`). The build reports as each round's edges are
+    decided (CellRoadmap.grow), so both advance within a round."""
 
-    def __init__(self, total: int):
-        self.total = total
+    def __init__(self, total: int, quiet: bool = False):
+        self.total, self.quiet, self.bar = total, quiet, None
 
     def __enter__(self):
+        if not sys.stderr.isatty():
+            return None if self.quiet else self._log()
         from tqdm import tqdm
 
-        self.bar = tqdm(total=self.total, desc="roadmap build", unit="node", file=sys.stderr, disable=None)
+        self.bar = tqdm(total=self.total, desc="roadmap build", unit="node", file=sys.stderr)
 
         def update(nodes: int, target: int, checks: int) -> None:
             self.bar.n = nodes
@@ -135,5 +140,22 @@ class _progress:
 
         return update
 
+    def _log(self):
+        started = last = time.monotonic()
+
+        def update(nodes: int, target: int, checks: int) -> None:
+            nonlocal last
+            now = time.monotonic()
+            if now - last >= common.PROGRESS_LOG_EVERY:
+                last = now
+                print(
+                    f"roadmap build: {nodes}/{target} nodes, {checks:,} collision checks, {now - started:.0f} s",
+                    file=sys.stderr,
+                    flush=True,
+                )
+
+        return update
+
     def __exit__(self, *exc):
-        self.bar.close()
+        if self.bar is not None:
+            self.bar.close()

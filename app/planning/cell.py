@@ -108,6 +108,13 @@ MAX_K = 1000
 _CHUNK = 4 << 20
 # Samples drawn and connected per build round: the budget is looked at between rounds.
 ROUND = 250
+# A round's new edges are decided in parts of about PART_SECONDS each, progress reported after each part: deciding
+# them takes nearly all of a round, which in a cell of many obstacles takes minutes. The first part holds FIRST_PART
+# edges, each next one as many as the pace of the last fits in PART_SECONDS (a part per call to the helper processes
+# costs their hand-over: twenty fixed parts a round made a two-process build 15 % slower). An edge's verdict and
+# checks do not depend on the edges decided with it, so the roadmap is the same whatever the parts.
+PART_SECONDS = 1.0
+FIRST_PART = 64
 # The modules whose code decides a verdict (a collision answer, an edge check, a certificate): a roadmap saved by
 # other code is not trusted.
 _VERDICT_MODULES = (
@@ -183,8 +190,10 @@ class CellRoadmap:
 
     def grow(self, settings: BuildSettings, *, workers: int = 1, progress=None) -> dict:
         """Add samples in rounds until the roadmap holds `settings.nodes` (or the budget is spent), deciding every
-        new k-nearest edge. progress(nodes, target, checks), if given, is called after each round. Returns what the
-        build spent and why it ended; the same record joins `provenance`."""
+        new k-nearest edge. progress(nodes, target, checks), if given, is called as each round's edges are decided,
+        about every PART_SECONDS (nodes: those of the rounds before, and the round's in proportion to its edges
+        decided).
+        Returns what the build spent and why it ended; the same record joins `provenance`."""
         graph, oracle = self.graph, self.oracle
         if settings.k is not None:
             graph.k = settings.k
@@ -207,13 +216,23 @@ class CellRoadmap:
                 break
             new = np.concatenate([graph.add(Q, kind, connect=False) for kind, Q in drawn])
             P = graph.candidates(new)
-            A, B = graph.Q[P[:, 0]], graph.Q[P[:, 1]]
-            if workers > 1:
-                graph.record(P, oracle.spread_edges(checker, A, B, graph.resolution))
-            else:
-                graph.record(P, checker.edges_free(A, B, graph.resolution, ends_free=True))
-            if progress is not None:
-                progress(len(graph), settings.nodes, checker.checks)
+            free, before, done, size = np.zeros(len(P), bool), len(graph) - len(new), 0, FIRST_PART
+            while True:
+                rows, started = np.arange(done, min(done + size, len(P))), time.perf_counter()
+                A, B = graph.Q[P[rows, 0]], graph.Q[P[rows, 1]]
+                if workers > 1:
+                    free[rows] = oracle.spread_edges(checker, A, B, graph.resolution)
+                else:
+                    free[rows] = checker.edges_free(A, B, graph.resolution, ends_free=True)
+                done += len(rows)
+                if progress is not None:
+                    share = done / len(P) if len(P) else 1.0
+                    progress(before + round(len(new) * share), settings.nodes, checker.checks)
+                if done >= len(P):
+                    break
+                pace = (time.perf_counter() - started) / len(rows)
+                size = max(FIRST_PART, int(PART_SECONDS / pace) if pace > 0 else len(P))
+            graph.record(P, free)  # the round's edges in one go, so the rows keep their order whatever the parts
         record = {
             "settings": {**asdict(settings), "budget": str(settings.budget)},
             "workers": int(min(workers, oracle.processes)),
