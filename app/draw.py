@@ -220,7 +220,7 @@ class Faces3D:
     def draw(self, ax) -> None:
         if self.polygons:
             ax.add_collection3d(
-                Poly3DCollection(
+                _DepthSorted(
                     self.polygons,
                     facecolors=self.facecolours,
                     edgecolors=self.edgecolours,
@@ -230,11 +230,41 @@ class Faces3D:
             )
 
 
+class _DepthSorted(Poly3DCollection):
+    """A Poly3DCollection whose line widths stay with their polygons when it sorts them by depth. Matplotlib reorders
+    the face and edge colours only, so a line segment got the width of whatever came to stand at its place in the
+    order: a face's 0 (the segment vanished) or an outline's 0.6 (a sample's arm drawn as broken hairlines). The
+    order is read back from the edge colours, which carry each polygon's index while matplotlib sorts them."""
+
+    def __init__(self, polygons, linewidths, **style):
+        super().__init__(polygons, linewidths=linewidths, **style)
+        self._widths_in_order = np.asarray(linewidths, float)
+
+    def do_3d_projection(self):
+        colours = self._edgecolor3d
+        tags = np.zeros((len(colours), 4))
+        tags[:, 0] = np.arange(len(colours))
+        self._edgecolor3d = tags
+        try:
+            # (Polygons of 2, 3 and 4 corners: matplotlib pads the shorter ones with uninitialised numbers it masks,
+            # whose projection may overflow: a warning about numbers never drawn.)
+            with np.errstate(over="ignore"):
+                depth = super().do_3d_projection()
+            order = np.asarray(self._edgecolors2d)[:, 0].round().astype(int)
+        finally:
+            self._edgecolor3d = colours
+        self._edgecolors2d = colours[order]
+        self._linewidths = self._widths_in_order[order]
+        return depth
+
+
 class Picture:
     """A scene's picture: obstacles and the passage region drawn; `add_robot` and `add_points` add to it, `save`
     writes it with a legend of every colour used."""
 
-    def __init__(self, oracle, title: str | None = None):
+    def __init__(self, oracle, title: str | None = None, also: np.ndarray | None = None, faint: bool = False):
+        """`also`: world points (n, 3) the axes must hold too (samples); `faint`: obstacles as outlines over a
+        faint fill (3D), so that what is drawn among them (samples) stands out."""
         scene = oracle.scene
         self.oracle = oracle
         self.three_d = scene.problem.view == "3d"
@@ -242,7 +272,7 @@ class Picture:
         self.ax = self.fig.add_subplot(projection="3d") if self.three_d else self.fig.add_subplot()
         self.solids: list[str] = []  # the label of every solid drawn
         self._legend: dict[str, object] = {}  # label -> legend handle, in the order first drawn
-        bounds = _workspace_bounds(oracle)
+        bounds = _workspace_bounds(oracle, also)
         lo, hi = np.array(bounds).T
         if self.three_d:
             # Seen from the robot's side of the scene, turned 30 degrees to show depth.
@@ -250,9 +280,9 @@ class Picture:
             azim = np.degrees(np.arctan2(*(toward - (lo + hi) / 2)[1::-1])) - 30
             self.ax.view_init(elev=25, azim=azim)
             self._faces = Faces3D(float(np.linalg.norm(hi - lo)) / 25, 25, azim)
-        alpha = 0.25 if self.three_d else 1.0
+        alpha, edge = (0.05, 0.3) if faint and self.three_d else (0.25, 0.4) if self.three_d else (1.0, 0.4)
         for shape, pose in _geometries(oracle, scene.start, robot=False):
-            self._solid(shape, pose, (*OBSTACLE, alpha), (*OBSTACLE_EDGE, 0.4), "obstacle")
+            self._solid(shape, pose, (*OBSTACLE, alpha), (*OBSTACLE_EDGE, edge), "obstacle")
         for box_lo, box_hi in scene.passage_boxes:
             self._passage_box(box_lo, box_hi)
         if self.three_d:
@@ -361,19 +391,17 @@ def _skeleton(oracle, q) -> np.ndarray:
     return np.vstack([origins[1][first:], oracle.frame_positions(np.array([q]))])
 
 
-def _workspace_bounds(oracle):
-    """The box the obstacles, the robot at start and goal and the robot's translational bounds span."""
-    from pydrake.geometry import Box
-
+def _workspace_bounds(oracle, also: np.ndarray | None = None):
+    """The box the obstacles, the robot at start and goal, the robot's translational bounds and the points `also`
+    span: every shape whole (a mesh piece by its hull's vertices, a cylinder by its rims), not only where its frame
+    is."""
     points = [np.array(p) for lo, hi in oracle.scene.passage_boxes for p in (lo, hi)]
-    for shape, pose in _geometries(oracle, oracle.scene.start, robot=False):
-        points.append(pose.translation())
-        if isinstance(shape, Box):
-            points.extend(_box_corners(shape, pose))
-    for q in (oracle.scene.start, oracle.scene.goal):
-        for shape, pose in _geometries(oracle, q, robot=True):
-            # copy: the pose is a view into SceneGraph's cache, which the next configuration overwrites
-            points.extend(_box_corners(shape, pose) if isinstance(shape, Box) else [np.array(pose.translation())])
+    points.extend(np.empty((0, 3)) if also is None else also)
+    for q, robot in ((oracle.scene.start, False), (oracle.scene.start, True), (oracle.scene.goal, True)):
+        for shape, pose in _geometries(oracle, q, robot=robot):
+            # copies: the pose is a view into SceneGraph's cache, which the next configuration overwrites
+            polygons = _faces(shape, pose)
+            points.extend(np.vstack(polygons) if polygons else [np.array(pose.translation())])
     translational = ~oracle.scene.angular
     points = np.array(points)
     lo, hi = points.min(axis=0), points.max(axis=0)
@@ -403,13 +431,16 @@ def draw_samples(oracle, samples: np.ndarray, path: str, title: str | None = Non
     """The scene with every sample: faint robots in 2D (like the paper's Fig. 3), frame positions as dots in 3D; an
     arm in 3D as a line through its links' origins per sample (thirty faint overlaid arms are one blue blob) over the
     arm at the start."""
-    picture = Picture(oracle, title=title)
     inside = oracle.in_passage(samples)
     p = oracle.frame_positions(samples) if len(samples) else np.empty((0, 3))
-    if picture.three_d and _articulated(oracle):
+    arm = oracle.scene.problem.view == "3d" and _articulated(oracle)
+    skeletons = [_skeleton(oracle, q) for q in samples] if arm else []
+    # The axes hold every sample; the obstacles (an enclosure's walls in front of the samples) are outlines.
+    picture = Picture(oracle, title=title, also=np.vstack([p, *skeletons]), faint=True)
+    if arm:
         picture.add_robot(oracle.scene.start, START_BEHIND_LINES, 0.15, "robot at start")
-        for q, hit in zip(samples, inside):
-            picture.add_line(_skeleton(oracle, q), IN_PASSAGE if hit else SAMPLE, "arm at a sample (link origins)")
+        for skeleton, hit in zip(skeletons, inside):
+            picture.add_line(skeleton, IN_PASSAGE if hit else SAMPLE, "arm at a sample (link origins)")
         picture.add_points(p[~inside], SAMPLE, "sample (tracked frame)")
         picture.add_points(p[inside], IN_PASSAGE, "sample in passage")
     elif picture.three_d:

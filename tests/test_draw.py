@@ -152,3 +152,68 @@ def test_a_flat_scenes_axis_labels_do_not_overlap(oracles):
     label_height = ax.zaxis.get_ticklabels()[0].get_fontsize() * picture.fig.dpi / 72
     assert len(ticks) >= 2 and gaps.min() > 1.2 * label_height, (ticks, gaps, label_height)
     plt.close(picture.fig)
+
+
+def test_a_lines_width_stays_with_it_when_the_faces_are_sorted_by_depth():
+    """Matplotlib sorts a collection's polygons by depth and reorders their colours, not their line widths: a
+    segment then drew with a face's width 0 (gone) or an outline's. Each drawn segment keeps its own width."""
+    fig = plt.figure(figsize=(4, 4))
+    ax = fig.add_subplot(projection="3d")
+    ax.view_init(elev=0, azim=0)
+    ax.set(xlim=(-2, 2), ylim=(-2, 2), zlim=(-2, 2))
+    faces = Faces3D(tile=0.5, elev=0, azim=0)
+    faces.face(np.array([[0.0, -1.5, -1.5], [0.0, 1.5, -1.5], [0.0, 1.5, 1.5], [0.0, -1.5, 1.5]]), (0, 0, 1.0, 1))
+    faces.line(np.array([[1.0, -1.0, 0.5], [-1.0, 1.0, 0.5]]), (1.0, 0.0, 0.0, 1.0), 2.5)  # through the face
+    faces.draw(ax)
+    fig.canvas.draw()
+    (collection,) = ax.collections
+    edges, widths = collection.get_edgecolor(), collection.get_linewidth()
+    plt.close(fig)
+    red = edges[:, 0] > 0.5
+    assert red.sum() > 1 and np.all(widths[red] == 2.5) and np.all(widths[~red] == 0.0)
+
+
+def test_a_custom_scenes_picture_holds_every_shape_whole(tmp_path):
+    """A fixed arm with a 1 m cylinder link along x and a sphere of radius 0.3 centred at y = 1: the axes once held
+    where each shape's frame was, cropping the arm to its link's middle and the sphere to its centre."""
+    from app.checking.oracle import CollisionOracle
+    from app.scene.custom import CustomSpec, build_scene
+
+    inertial = '<inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>'
+    (tmp_path / "arm.urdf").write_text(
+        f'<robot name="arm"><link name="base">{inertial}</link><link name="arm">{inertial}<collision>'
+        '<origin xyz="0.5 0 0" rpy="0 1.5707963 0"/><geometry><cylinder radius="0.05" length="1"/></geometry>'
+        '</collision></link><joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<axis xyz="0 0 1"/><limit lower="-0.1" upper="0.1" effort="1" velocity="1"/></joint></robot>\n'
+    )
+    (tmp_path / "ball.sdf").write_text(
+        '<?xml version="1.0"?><sdf version="1.7"><model name="ball"><static>true</static><link name="ball">'
+        '<pose>0 1 0 0 0 0</pose><collision name="c"><geometry><sphere><radius>0.3</radius></sphere></geometry>'
+        "</collision></link></model></sdf>\n"
+    )
+    spec = CustomSpec(robot=str(tmp_path / "arm.urdf"), env=[str(tmp_path / "ball.sdf")], start=[0.0], goal=[0.0])
+    picture = Picture(CollisionOracle(build_scene(spec, cache_dir=tmp_path / "cache", progress=False)))
+    (x0, x1), (y0, y1), (z0, z1) = picture.ax.get_xlim(), picture.ax.get_ylim(), picture.ax.get_zlim()
+    plt.close(picture.fig)
+    assert x1 >= 1.0 - 1e-6 and y1 >= 1.3 - 1e-6 and z0 <= -0.3 + 1e-6 and z1 >= 0.3 - 1e-6
+    assert x0 <= -0.3 + 1e-6 and y0 <= -0.05 + 1e-6  # the sphere's side, the cylinder's
+
+
+def test_a_sample_picture_holds_every_sample_and_draws_the_obstacles_faintly(oracles, monkeypatch):
+    """The window's enclosure, drawn as a grey cloud, covered the samples among it, and samples beyond the scene's
+    box fell outside the axes: the obstacles are outlines over a faint fill, and the axes hold every sample."""
+    oracle = oracles("window")
+    samples = oracle.space.uniform(np.random.default_rng(0), 10)
+    seen = []
+    monkeypatch.setattr("app.draw.save", lambda fig, path: seen.append(fig))
+    draw_samples(oracle, samples, "unused.png")
+    (fig,) = seen
+    ax = fig.axes[0]
+    limits = np.array([ax.get_xlim(), ax.get_ylim(), ax.get_zlim()])
+    for p in oracle.frame_positions(samples):
+        assert np.all(limits[:, 0] <= p + 1e-9) and np.all(p <= limits[:, 1] + 1e-9), (p, limits)
+    fig.canvas.draw()
+    (collection,) = ax.collections
+    alphas = collection.get_facecolor()[:, 3]
+    plt.close(fig)
+    assert np.isclose(alphas, 0.05).any() and not np.isclose(alphas, 0.25).any()  # a scene picture's obstacles: 0.25
