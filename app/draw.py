@@ -27,7 +27,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from app.io import write_atomically  # noqa: E402
-from app.scene.meshes import hull_vertices  # noqa: E402
+from app.scene.shapes import hull_vertices  # noqa: E402
 
 OBSTACLE = (0.45, 0.45, 0.5)
 OBSTACLE_EDGE = (0.3, 0.3, 0.35)
@@ -388,7 +388,7 @@ def _skeleton(oracle, q) -> np.ndarray:
         origins.append(np.array([plant.EvalBodyPoseInWorld(context, body).translation() for body in bodies]))
     moved = np.flatnonzero(np.linalg.norm(origins[1] - origins[0], axis=1) > 1e-9)
     first = max(int(moved[0]) - 1, 0) if len(moved) else 0
-    return np.vstack([origins[1][first:], oracle.frame_positions(np.array([q]))])
+    return np.vstack([origins[1][first:], oracle.workspace.frame_positions(np.array([q]))])
 
 
 def _workspace_bounds(oracle, also: np.ndarray | None = None):
@@ -431,8 +431,8 @@ def draw_samples(oracle, samples: np.ndarray, path: str, title: str | None = Non
     """The scene with every sample: faint robots in 2D (like the paper's Fig. 3), frame positions as dots in 3D; an
     arm in 3D as a line through its links' origins per sample (thirty faint overlaid arms are one blue blob) over the
     arm at the start."""
-    inside = oracle.in_passage(samples)
-    p = oracle.frame_positions(samples) if len(samples) else np.empty((0, 3))
+    inside = oracle.workspace.in_passage(samples)
+    p = oracle.workspace.frame_positions(samples) if len(samples) else np.empty((0, 3))
     arm = oracle.scene.problem.view == "3d" and _articulated(oracle)
     skeletons = [_skeleton(oracle, q) for q in samples] if arm else []
     # The axes hold every sample; the obstacles (an enclosure's walls in front of the samples) are outlines.

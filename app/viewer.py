@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from app.checking.oracle import half_extent
 from app.errors import UserError
 from app.io import check_output, write_atomically
 from app.motion.trajectory import TrajectoryFile
 from app.scene.model import Scene, robot_diagram_builder
+from app.scene.shapes import half_extent
 
 YELLOW = (1.0, 0.85, 0.0, 1.0)  # narrow-passage samples
 RED = (0.9, 0.05, 0.05, 1.0)  # narrow-passage samples on the path

@@ -12,7 +12,9 @@ def raw_free(oracle, q) -> bool:
     """Free under the scene's policy, asked of SceneGraph directly on a context of our own (not the oracle's paths):
     signed distances on the unfiltered geometry, keeping the pairs the scene counts. q: the plant's positions, which
     are the configuration except in a scene with mimic joints, whose test writes them out itself rather than through
-    the scene's position map (it would not be independent then)."""
+    the scene's position map (it would not be independent then). oracle: a CollisionOracle, or a query's checker
+    on one."""
+    oracle = _shared(oracle)
     plant, model = oracle.plant, oracle.model
     # Keyed by the model, held with its context so that its id is never reused (a query's contexts come and go).
     if id(model) not in _contexts:
@@ -26,6 +28,13 @@ def raw_free(oracle, q) -> bool:
         if ((a != b) or (a and b and oracle.scene.self_collisions)) and pair.distance < 0:
             return False
     return True
+
+
+def _shared(oracle):
+    """The CollisionOracle behind a query's checker (or the oracle itself)."""
+    from app.checking.context import QueryContext
+
+    return oracle.oracle if isinstance(oracle, QueryContext) else oracle
 
 
 def fine_points(oracle, P, resolution):

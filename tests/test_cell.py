@@ -153,14 +153,14 @@ def test_any_of_several_goals_may_be_reached_and_bad_ones_are_left_out(oracles, 
 
 
 def test_a_roadmap_is_the_same_built_on_one_process_or_two(monkeypatch, two_cores):
-    import app.checking.oracle as module
+    import app.checking.helpers as module
     from app.checking.oracle import CollisionOracle
     from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar"), threads=2)
     one = CellRoadmap.build(oracle, SMALL, workers=1)
     shared = []  # the helper's share of each round's edges: (edges, checks)
-    spread = module._Helpers.edges_free
+    spread = module.Helpers.edges_free
 
     def counted(self, Q1, Q2, resolution, here):
         mine = []
@@ -168,7 +168,7 @@ def test_a_roadmap_is_the_same_built_on_one_process_or_two(monkeypatch, two_core
         shared.append((len(Q1) - sum(mine), checks))
         return free, checks
 
-    monkeypatch.setattr(module._Helpers, "edges_free", counted)
+    monkeypatch.setattr(module.Helpers, "edges_free", counted)
     nothing = np.empty((0, oracle.space.dim))
     assert oracle.spread_edges(oracle.context(), nothing, nothing, oracle.space.resolution).shape == (0,)  # a round
     two = CellRoadmap.build(oracle, SMALL, workers=2)

@@ -120,7 +120,8 @@ class _RobotPoints:
     """The oracle's motion bound, its robot geometries with points on each (`geometries`: (id, points (3, n))), and
     where those points are at a configuration (`at`), by Drake's own kinematics."""
 
-    def __init__(self, oracle, seed: int):
+    def __init__(self, checker, seed: int):
+        oracle = checker.oracle
         self.plant, self.bound = oracle.plant, motion_bound(oracle)
         self.inspector = oracle.model.scene_graph().model_inspector()
         self.context = self.plant.CreateDefaultContext()
@@ -297,7 +298,8 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(tmp_pa
     for name in ("window.yaml", "window.dmd.yaml"):
         text = (SCENES_DIR / name).read_text()
         (tmp_path / name).write_text("\n".join(line for line in text.splitlines() if not line.startswith("srdf:")))
-    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml"))).context()
+    checker = CollisionOracle(Scene(str(tmp_path / "window.yaml"))).context()
+    oracle = checker.oracle
     q = np.array([1.04377472, -0.92859484, 1.60936435, -2.24710633, -1.56433128, -0.52707146])
     inspector = oracle.model.scene_graph().model_inspector()
     ids = {inspector.GetName(g): g for g in inspector.GetAllGeometryIds()}
@@ -307,7 +309,7 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(tmp_pa
     a, b = (_surface(inspector.GetShape(g), query.GetPoseInWorld(g), rng) for g in (wrist, torch))
     sampled = min(np.linalg.norm(a[:, i : i + 500, None] - b[:, None], axis=0).min() for i in range(0, a.shape[1], 500))
     assert query.ComputeSignedDistancePairClosestPoints(wrist, torch).distance > sampled + 0.02
-    ours = Certifier(oracle).distances(q, 0.1)[frozenset((wrist, torch))]
+    ours = Certifier(checker).distances(q, 0.1)[frozenset((wrist, torch))]
     assert sampled - 1e-3 < ours <= sampled
 
 
@@ -415,7 +417,7 @@ def test_a_pair_drake_leaves_out_is_bounded_along_drakes_direction(checkers):
     it alone, as its query at a small max_distance leaves the pair out) bounds it above the limit."""
     oracle = checkers("welding")
     q = np.array([-2.3649, -0.1883, -1.7518, 2.8593, 1.1624, -0.9686])
-    inspector = oracle.model.scene_graph().model_inspector()
+    inspector = oracle.oracle.model.scene_graph().model_inspector()
     pair = {"ur3::torch_body", "ur3::upper_arm"}
     drake = [
         p.distance

@@ -78,13 +78,14 @@ def test_environment_pieces_are_anchored_to_the_world(channel_oracle):
     from pydrake.geometry import Role
 
     inspector = channel_oracle.model.scene_graph().model_inspector()
-    robot = channel_oracle._robot_geometries
+    robot = channel_oracle.robot_geometries
     env = [g for g in inspector.GetAllGeometryIds(Role.kProximity) if g not in robot]
     assert len(env) == channel_oracle.scene.info["decompositions"][1]["pieces"] > 1 and robot  # the channel's
     assert all(inspector.GetFrameId(g) == inspector.world_frame_id() for g in env)
     assert all(inspector.GetFrameId(g) != inspector.world_frame_id() for g in robot)
     # Collisions with them are named by piece (the world body would say nothing).
-    assert channel_oracle.colliding_bodies(np.array([0.0, 1.25, 1.5, 0, 0, 0]))[0][0].startswith("env0_piece")
+    named = channel_oracle.diagnostics.colliding_bodies(np.array([0.0, 1.25, 1.5, 0, 0, 0]))
+    assert named[0][0].startswith("env0_piece")
 
 
 def test_default_mesh_tolerance_follows_the_edge_check_step_on_a_torus(files, tmp_path):
@@ -664,7 +665,7 @@ def test_the_certificate_bounds_mesh_distances_closely(channel_oracle):
     # Along the slot, turned a little: the walls' pieces on both sides are near, none touching.
     Q = [np.array([x, 0.0, 1.5, *rng.uniform(-0.2, 0.2, 3)]) for x in np.linspace(-2.5, 2.5, 11)]
     for q in Q:
-        clearance = oracle.clearance(q, max_distance=2.0)
+        clearance = oracle.diagnostics.clearance(q, max_distance=2.0)
         # Asked only within a limit below the clearance, Drake reports no pair: the bounds alone must clear it.
         # (First: an answer is cached per configuration, and one asked within 2.0 would serve the smaller limit.)
         limit = 0.8 * clearance

@@ -101,8 +101,8 @@ def test_sample_pictures_name_every_colour(scene, points, oracles, monkeypatch):
     if oracle.scene.problem.view == "3d":
         lo, hi = oracle.scene.passage_boxes[0]
         through = oracle.scene.start.copy()
-        through[:3] += (lo + hi) / 2 - oracle.frame_positions(through)[0]  # joint3d: x, y, z come first
-        assert oracle.in_passage(through)[0]
+        through[:3] += (lo + hi) / 2 - oracle.workspace.frame_positions(through)[0]  # joint3d: x, y, z come first
+        assert oracle.workspace.in_passage(through)[0]
         samples = np.vstack([samples, through])
     labels = legend_labels(lambda: draw_samples(oracle, samples, "unused.png"), monkeypatch)
     assert labels[:3] == ["obstacle", "passage region", "robot at a sample"]
@@ -134,7 +134,7 @@ def test_an_arms_samples_are_lines_from_its_base_to_its_tool(oracles, monkeypatc
     base = lines[0][0]
     for P, q in zip(lines, samples):
         assert np.allclose(P[0], base)  # every line starts where the arm stands
-        assert np.allclose(P[-1], oracle.frame_positions(q)[0])
+        assert np.allclose(P[-1], oracle.workspace.frame_positions(q)[0])
         assert len(P) >= 6 and len({tuple(np.round(p, 6)) for p in P}) >= 4  # through the links, not a point
 
 
@@ -210,7 +210,7 @@ def test_a_sample_picture_holds_every_sample_and_draws_the_obstacles_faintly(ora
     (fig,) = seen
     ax = fig.axes[0]
     limits = np.array([ax.get_xlim(), ax.get_ylim(), ax.get_zlim()])
-    for p in oracle.frame_positions(samples):
+    for p in oracle.workspace.frame_positions(samples):
         assert np.all(limits[:, 0] <= p + 1e-9) and np.all(p <= limits[:, 1] + 1e-9), (p, limits)
     fig.canvas.draw()
     (collection,) = ax.collections

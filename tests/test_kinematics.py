@@ -10,7 +10,7 @@ from app.checking.kinematics import TreeKinematics
 @pytest.mark.parametrize("name", ["welding", "bar", "joint3d", "tunnel"])
 def test_geometry_poses_are_drakes(oracles, name):
     oracle = oracles(name)
-    shapes = oracle._robot_shapes
+    shapes = oracle.workspace.robot_shapes
     kinematics = TreeKinematics.of(oracle.plant, [(body, X_BG) for body, X_BG, _ in shapes])
     Q = oracle.space.uniform(np.random.default_rng(3), 20)
     R, p = kinematics.poses(Q)
@@ -44,13 +44,13 @@ def test_the_oracle_and_the_certificate_answer_the_same_with_drakes_poses(oracle
     oracle = oracles(name)
     rng = np.random.default_rng(8)
     Q = oracle.space.uniform(rng, 40)
-    pieces = rng.integers(len(oracle._robot_shapes), size=len(Q))
-    numpy_centres = oracle.robot_geometry_centres(Q), oracle.robot_geometry_centres(Q, pieces)
-    saved, oracle.robot_kinematics = oracle.robot_kinematics, None
+    pieces = rng.integers(len(oracle.workspace.robot_shapes), size=len(Q))
+    numpy_centres = oracle.workspace.robot_geometry_centres(Q), oracle.workspace.robot_geometry_centres(Q, pieces)
+    saved, oracle.workspace.robot_kinematics = oracle.workspace.robot_kinematics, None
     try:
-        drake_centres = oracle.robot_geometry_centres(Q), oracle.robot_geometry_centres(Q, pieces)
+        drake_centres = oracle.workspace.robot_geometry_centres(Q), oracle.workspace.robot_geometry_centres(Q, pieces)
     finally:
-        oracle.robot_kinematics = saved
+        oracle.workspace.robot_kinematics = saved
     for a, b in zip(numpy_centres, drake_centres):
         assert np.allclose(a, b, rtol=0, atol=1e-12)
 

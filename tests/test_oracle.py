@@ -32,7 +32,7 @@ def test_oracle_agrees_with_scenegraph_on_1000_configurations(checkers, name):
     Q = oracle.space.uniform(np.random.default_rng(7), 1000)
     batch = oracle.are_free(Q)
     single = np.array([oracle.is_free(q) for q in Q])
-    reference = np.array([reference_free(oracle, q) for q in Q])
+    reference = np.array([reference_free(oracle.oracle, q) for q in Q])
     assert np.array_equal(batch, reference)
     assert np.array_equal(single, reference)
     # Both answers occur, so agreement means something.
@@ -142,21 +142,21 @@ def test_distance_takes_the_short_way_round_on_continuous_angles(checkers):
 def test_clearance_is_signed(checkers):
     oracle = checkers("bar")
     start = oracle.scene.start
-    assert oracle.clearance(start) > 0
+    assert oracle.diagnostics.clearance(start) > 0
     inside = start.copy()
     inside[0], inside[1] = 50.0, 20.0
-    assert oracle.clearance(inside) < 0
+    assert oracle.diagnostics.clearance(inside) < 0
 
 
 def test_contacts_tell_environment_from_self(checkers):
     oracle = checkers("bar")
     folded = oracle.scene.start.copy()
     folded[3] = np.pi  # link 2 folds back onto link 1: self-contact, ignored by the environment-only policy
-    assert oracle.contacts(folded) == {"environment": False, "self": True}
+    assert oracle.diagnostics.contacts(folded) == {"environment": False, "self": True}
     assert oracle.is_free(folded)
     in_wall = oracle.scene.start.copy()
     in_wall[0], in_wall[1] = 50.0, 20.0
-    assert oracle.contacts(in_wall)["environment"]
+    assert oracle.diagnostics.contacts(in_wall)["environment"]
 
 
 @pytest.mark.parametrize("name", scene_names())
@@ -165,7 +165,7 @@ def test_scene_start_goal_free_and_outside_the_passage(checkers, name):
     ends = np.array([oracle.scene.start, oracle.scene.goal])
     assert oracle.are_free(ends).all()
     assert oracle.scene.passage_boxes
-    assert not oracle.in_passage(ends).any()
+    assert not oracle.workspace.in_passage(ends).any()
 
 
 @pytest.mark.parametrize("name", scene_names())
@@ -174,14 +174,14 @@ def test_passage_is_narrow_for_uniform_sampling(checkers, name):
     Q = oracle.space.uniform(np.random.default_rng(11), 6000)
     free = Q[oracle.are_free(Q)]
     assert len(free) > 1000
-    assert oracle.in_passage(free).mean() < 0.02
+    assert oracle.workspace.in_passage(free).mean() < 0.02
 
 
 def test_in_passage_sees_the_frame_in_the_box(checkers):
     oracle = checkers("bar")
     q = oracle.scene.start.copy()
     q[0], q[1], q[2] = 50.0, 50.0, 0.0  # base in the gap, arm pointing along it
-    assert oracle.in_passage(q)[0]
+    assert oracle.workspace.in_passage(q)[0]
     assert oracle.is_free(q)
 
 
@@ -215,9 +215,9 @@ def test_every_batch_path_gives_the_same_answers_and_the_cheapest_is_chosen(two_
 
 
 def test_a_path_found_dearer_again_is_probed_less_often_and_probes_take_turns():
-    from app.checking.oracle import _Paths
+    from app.checking.batch_paths import BatchPaths
 
-    choice = _Paths(("batch", "raw"))
+    choice = BatchPaths(("batch", "raw"))
     choice.cost, choice.tries = {"batch": 9e-5, "raw": 2e-5}, {"batch": 2, "raw": 2}
     probes = []
     for _ in range(200):
@@ -234,7 +234,7 @@ def test_a_path_found_dearer_again_is_probed_less_often_and_probes_take_turns():
     choice.measured(path, 1e-6)  # the probe finds batch cheaper now: it is chosen, and probing starts over
     assert choice.choose() == "batch"
     assert choice.next_probe == choice.calls - 1 + 16
-    three = _Paths(("batch", "raw", "split"))
+    three = BatchPaths(("batch", "raw", "split"))
     three.cost, three.tries = {"batch": 9e-5, "raw": 2e-5, "split": 1e-5}, dict.fromkeys(three.cost, 2)
     probed = []
     for _ in range(200):
@@ -248,9 +248,9 @@ def test_a_path_found_dearer_again_is_probed_less_often_and_probes_take_turns():
 def test_a_path_slowed_once_while_it_is_tried_is_still_chosen():
     """Each path is tried twice before the cheapest is taken, at the least of its tries: one call slowed by another
     process does not settle the choice on a slower path."""
-    from app.checking.oracle import _Paths
+    from app.checking.batch_paths import BatchPaths
 
-    choice = _Paths(("raw", "split"))
+    choice = BatchPaths(("raw", "split"))
     for cost in {"raw": (1e-5, 1e-5), "split": (3e-5, 5e-6)}.values():
         for c in cost:
             choice.measured(choice.choose(), c)
@@ -344,7 +344,7 @@ def test_a_forked_copy_of_the_oracle_does_not_talk_to_its_parents_helpers(two_co
             oracle._follow_helpers()
             ok = not oracle._helpers.ready() and "split" not in choice.cost
             choice.cost, choice.tries = {"batch": 1.0, "raw": None}, {"batch": 2, "raw": 0}
-            ok = ok and np.array_equal(oracle.free_batch(Q), oracle._raw_free(Q))
+            ok = ok and np.array_equal(oracle.free_batch(Q), oracle.free_raw(Q))
             os.write(write, b"1" if ok else b"0")
         finally:
             os._exit(0)
@@ -352,7 +352,7 @@ def test_a_forked_copy_of_the_oracle_does_not_talk_to_its_parents_helpers(two_co
     assert os.read(read, 1) == b"1"
     os.waitpid(child, 0)
     choice.cost, choice.tries = {"batch": 1.0, "raw": 1.0, "split": None}, {"batch": 2, "raw": 2, "split": 0}
-    assert np.array_equal(oracle.free_batch(Q), oracle._raw_free(Q)) and oracle._helpers.ready()  # the parent's work on
+    assert np.array_equal(oracle.free_batch(Q), oracle.free_raw(Q)) and oracle._helpers.ready()  # the parent's work on
 
 
 @pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="an oracle starts helpers only on a machine of two cores or more")

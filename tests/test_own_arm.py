@@ -171,13 +171,13 @@ def test_srdf_pairs_are_left_out_of_every_answer(arm, tmp_path):
     folded = np.array([float(v) for v in FOLDED.split(",")])
     plain = _oracle(arm).context()
     assert not plain.is_free(folded)
-    assert ("robot::forearm", "robot::shoulder") in plain.colliding_bodies(folded)
+    assert ("robot::forearm", "robot::shoulder") in plain.diagnostics.colliding_bodies(folded)
     (tmp_path / "fold.srdf").write_text(_srdf(ADJACENT + NEVER + [("shoulder", "forearm")]))
     oracle = _oracle(arm, srdf=str(tmp_path / "fold.srdf")).context()
-    assert plain.colliding_bodies(folded) == [("robot::forearm", "robot::shoulder")]  # that pair alone
+    assert plain.diagnostics.colliding_bodies(folded) == [("robot::forearm", "robot::shoulder")]  # that pair alone
     assert oracle.is_free(folded) and oracle.oracle.checker.CheckConfigCollisionFree(folded)
     assert oracle.are_free(np.repeat(folded[None], 16, axis=0)).all()  # the batched path
-    assert oracle.colliding_bodies(folded) == [] and not oracle.contacts(folded)["self"]
+    assert oracle.diagnostics.colliding_bodies(folded) == [] and not oracle.diagnostics.contacts(folded)["self"]
     near = folded.copy()
     near[2] -= 0.3
     certify_path(oracle, np.array([near, near + [0, 0, 0.01, 0, 0, 0]]))  # no pair the certificate does not count

@@ -289,7 +289,7 @@ def test_an_arms_goal_pose_is_solved_by_ik_into_the_goal_sliders(make_panel):
     names = [n for n in panel.state()["sliders"] if n.startswith("goal pose ")]
     assert len(names) == 6
     # The tool's pose at the scene's start (a free configuration, so the pose is reachable) typed into the sliders.
-    plant = panel.preview.plant
+    plant = panel.preview.oracle.plant
     context = plant.CreateDefaultContext()
     plant.SetPositions(context, panel.scene.start)
     X = panel.scene.tool_frame.CalcPoseInWorld(context)
@@ -300,7 +300,7 @@ def test_an_arms_goal_pose_is_solved_by_ik_into_the_goal_sliders(make_panel):
     assert state["ik"]["success"], state["ik"]
     assert state["goal"] == pytest.approx(state["ik"]["goal"], abs=1e-3)  # the sliders hold the solution
     target = RigidTransform(RollPitchYaw(np.radians(pose[3:])), pose[:3])
-    position_error, angle_error = pose_error(panel.preview, np.array(state["goal"]), target)
+    position_error, angle_error = pose_error(panel.preview.oracle, np.array(state["goal"]), target)
     assert position_error < 2e-3 and angle_error < 2e-2  # the solution to IK's tolerance, rounded by the sliders
 
 

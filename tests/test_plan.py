@@ -676,7 +676,7 @@ def test_joint3d_through_the_hole_with_the_sampler_alone(oracles):
     result = plan(oracle, settings)
     points = fine_points(oracle, result.path, oracle.space.resolution / 8)
     assert all(raw_free(oracle, q) for q in points)
-    assert oracle.in_passage(points).any()
+    assert oracle.workspace.in_passage(points).any()
 
 
 # ---- the command line ----------------------------------------------------------------------------------------------
@@ -924,7 +924,7 @@ def test_the_answer_keeps_the_clearance_it_states_and_an_end_nearer_is_refused(o
     assert refused.value.code == "START_STATE_IN_COLLISION"
     result = plan(oracle, PlanSettings(seed=0, clearance=0.005), start=near)
     assert result.certified and result.trajectory.clearance == result.to_json()["clearance"] == 0.005
-    assert min(oracle.clearance(q, 1.0) for q in oracle.space.wrap(result.trajectory.positions)) >= 0.005
+    assert min(oracle.diagnostics.clearance(q, 1.0) for q in oracle.space.wrap(result.trajectory.positions)) >= 0.005
     answer = json.loads(cli("plan", "maze", "--json", "--clearance", "0.004").stdout)
     assert answer["certified"] and answer["clearance"] == answer["trajectory"]["clearance"] == 0.004
     assert "clearance must be" in str(pytest.raises(UserError, PlanSettings, clearance=0).value)

@@ -88,7 +88,7 @@ def test_ur3_self_collision_geometry_is_sane(oracles):
     """No pair of non-adjacent links overlaps for (nearly) all joint values, and the home pose touches nothing."""
     oracle = oracles("window")
     assert not _pair_counts(oracle, [oracle.scene.start])
-    assert oracle.clearance(oracle.scene.start, 0.2) > 0.01
+    assert oracle.diagnostics.clearance(oracle.scene.start, 0.2) > 0.01
     Q = oracle.space.uniform(np.random.default_rng(5), 1500)
     counts = _pair_counts(oracle, Q)
     worst = max(counts.values()) / len(Q)
@@ -107,7 +107,7 @@ def test_ur3_srdf_pairs_never_touch(oracles, tmp_path):
     assert disabled and oracles("welding").scene.disabled_pairs == oracles("window").scene.disabled_pairs
     (tmp_path / "window.dmd.yaml").write_text((SCENES_DIR / "window.dmd.yaml").read_text())
     (tmp_path / "window.yaml").write_text(re.sub(r"srdf: .*\n", "", WINDOW))
-    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml"))).context()
+    oracle = CollisionOracle(Scene(str(tmp_path / "window.yaml")))
     assert not oracle.scene.disabled_pairs
     plant, inspector = oracle.plant, oracle.model.scene_graph().model_inspector()
     context = plant.GetMyContextFromRoot(oracle.model.CreateDefaultContext())
@@ -162,7 +162,7 @@ def test_uav_passage_is_narrow_but_open(oracles, name, side, up):
     Q = oracle.space.uniform(np.random.default_rng(11), 6000)
     free = Q[oracle.are_free(Q)]
     assert len(free) > 3000
-    assert oracle.in_passage(free).mean() < 0.02
+    assert oracle.workspace.in_passage(free).mean() < 0.02
     # The passage is open: the vehicle fits through its middle at any yaw (the hull is round) ...
     lo, hi = oracle.scene.passage_boxes[0]
     middle = (lo + hi) / 2
@@ -226,7 +226,7 @@ def test_the_cart_stands_clear_of_every_obstacle(oracles, name):
     measured here on the shapes' own bounding boxes."""
     from pydrake.geometry import Role
 
-    oracle = oracles(name).context()
+    oracle = oracles(name)
     plant, inspector = oracle.plant, oracle.model.scene_graph().model_inspector()
     query = oracle.query_object(oracle.scene.start)
     welded = {body.index() for body in plant.GetBodiesWeldedTo(plant.world_body())}

@@ -130,8 +130,8 @@ def test_reported_checks_are_the_configurations_drake_answered(oracles, monkeypa
     monkeypatch.setattr(oracle, "_helpers", None)  # no split path: the counts below cannot depend on timing
     monkeypatch.setattr(oracle, "_paths", {})  # path choices made with the helpers: made again without them
     single = []
-    raw = oracle._raw_free
-    monkeypatch.setattr(oracle, "_raw_free", lambda Q: single.extend([1] * len(Q)) or raw(Q))
+    raw = oracle.free_raw
+    monkeypatch.setattr(oracle, "free_raw", lambda Q: single.extend([1] * len(Q)) or raw(Q))
     batch = _CountingChecker(oracle.checker)
     monkeypatch.setattr(oracle, "checker", batch)
     row = run_trial(oracle, name, 10.0, seed=2, k=5, keep_samples=True)
@@ -201,8 +201,8 @@ def test_lfbs_puts_far_more_samples_in_the_bar_passage_than_uniform(checkers):
     oracle = checkers("bar")
     lfbs = make_sampler("lfbs", oracle, step=10).sample(60, np.random.default_rng(0))
     uniform = make_sampler("uniform", oracle).sample(1000, np.random.default_rng(0))
-    assert oracle.in_passage(uniform).mean() < 0.02
-    assert oracle.in_passage(lfbs).mean() >= 5 * max(oracle.in_passage(uniform).mean(), 0.01)
+    assert oracle.workspace.in_passage(uniform).mean() < 0.02
+    assert oracle.workspace.in_passage(lfbs).mean() >= 5 * max(oracle.workspace.in_passage(uniform).mean(), 0.01)
 
 
 # ---- CLI ---------------------------------------------------------------------------------------------------------

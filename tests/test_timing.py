@@ -37,7 +37,7 @@ def _times(oracle, W, **kw):
     smooth = parameterize_smooth(
         oracle, W, scene.velocity_limits, scene.acceleration_limits, joint_names=oracle.space.names, stats=stats, **kw
     )
-    rest = parameterize(oracle.plant, W, scene.velocity_limits, scene.acceleration_limits)
+    rest = parameterize(oracle.oracle.plant, W, scene.velocity_limits, scene.acceleration_limits)
     return smooth, rest, stats
 
 
@@ -187,7 +187,7 @@ def test_a_corner_the_blend_cuts_off_is_proved_too_the_polyline_is_part_of_the_a
     assert smooth.certified and smooth.clearance == 0.004 and stats["distance_queries"] == 0  # nothing proved again
     _check_motion(oracle, smooth, W)
     corner = np.linspace(W[1] - proof.radii[1] * (W[1] - W[0]) / np.linalg.norm(W[1] - W[0]), W[1], 64)
-    assert min(oracle.clearance(q, 1.0) for q in corner) >= 0.002
+    assert min(oracle.diagnostics.clearance(q, 1.0) for q in corner) >= 0.002
 
 
 def test_straight_lines_between_the_samples_keep_half_the_clearance(checkers):
@@ -203,7 +203,7 @@ def test_straight_lines_between_the_samples_keep_half_the_clearance(checkers):
     assert off_grid and np.isclose(np.diff(wide.times).max(), 0.5)  # samples added, only where needed
     X = wide.positions
     lines = X[:-1, None, :] + np.linspace(0, 1, 16)[None, :, None] * (X[1:] - X[:-1])[:, None, :]
-    assert min(oracle.clearance(q, 1.0) for q in lines.reshape(-1, X.shape[1])) >= 0.002 * (1 - 1e-6)
+    assert min(oracle.diagnostics.clearance(q, 1.0) for q in lines.reshape(-1, X.shape[1])) >= 0.002 * (1 - 1e-6)
 
 
 def test_a_straight_part_that_cannot_be_proved_names_its_edge_of_the_path(checkers):

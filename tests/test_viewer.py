@@ -91,7 +91,7 @@ def test_view_writes_a_standalone_page_with_the_recorded_animation(tmp_path, ora
     assert any(p.startswith("/drake/illustration/arm/link7") for p in objects)
     # The samples: yellow off the path, red on it, each point at the passage frame's world position.
     clouds = {c["path"]: c["object"] for c in cmds if c["type"] == "set_object" and c["path"].startswith("/samples/")}
-    frame_xyz = oracle.frame_positions(narrow)
+    frame_xyz = oracle.workspace.frame_positions(narrow)
     flags = np.array(on_path)
     yellow = lambda r, g, b: r > 200 and g > 180 and b < 60  # noqa: E731
     red = lambda r, g, b: r > 200 and g < 60 and b < 60  # noqa: E731
@@ -128,7 +128,7 @@ def test_viewer_frame_positions_agree_with_the_oracle(oracles, meshcat_allowed):
     oracle = oracles("joint3d")
     viewer = Viewer(oracle.scene)
     Q = oracle.space.uniform(np.random.default_rng(1), 20)
-    np.testing.assert_allclose(viewer.frame_positions(Q), oracle.frame_positions(Q), atol=1e-9)
+    np.testing.assert_allclose(viewer.frame_positions(Q), oracle.workspace.frame_positions(Q), atol=1e-9)
     with pytest.raises(UserError):
         viewer.show_samples(Q[:4], [True, False])
     with pytest.raises(UserError):

@@ -18,10 +18,10 @@ def test_a_gap_is_between_two_facing_obstacles_closer_than_the_width(oracles):
         "just in front of the wall": ([44, 20, 50], False),  # one obstacle only
         "inside the wall": ([50, 20, 50], False),
     }
-    found = oracle.environment_gaps(np.array([p for p, _ in points.values()], float), width=20.0)
+    found = oracle.workspace.environment_gaps(np.array([p for p, _ in points.values()], float), width=20.0)
     assert dict(zip(points, found.tolist())) == {name: gap for name, (_, gap) in points.items()}
     # The same hole is no gap for a width below its 10
-    assert not oracle.environment_gaps(np.array([[50.0, 50, 50]]), width=9.0)[0]
+    assert not oracle.workspace.environment_gaps(np.array([[50.0, 50, 50]]), width=9.0)[0]
 
 
 def test_a_free_body_is_shifted_into_a_gap_and_an_arm_is_not(oracles):
@@ -31,7 +31,7 @@ def test_a_free_body_is_shifted_into_a_gap_and_an_arm_is_not(oracles):
     arm = WorkspaceGaps(oracles("window").context(), rng)
     assert arm.axes.tolist() == []
     # The cart is welded to the world: its pieces never move and are never placed.
-    centres = oracles("window").robot_geometry_centres(oracles("window").space.uniform(rng, 8))
+    centres = oracles("window").workspace.robot_geometry_centres(oracles("window").space.uniform(rng, 8))
     still = np.ptp(centres, axis=0).max(axis=1) < 1e-12
     assert still.any() and set(arm.moving) == set(np.flatnonzero(~still))
 
@@ -45,7 +45,7 @@ def test_every_placement_puts_a_moving_piece_at_a_gap_point(oracles, scene):
         gaps.search(rng)
     Q = gaps.place(rng, 400)
     assert len(Q) and oracle.space.within_bounds(Q).all()
-    centres = oracle.robot_geometry_centres(Q)[:, gaps.moving]  # (n, pieces, 3)
+    centres = oracle.workspace.robot_geometry_centres(Q)[:, gaps.moving]  # (n, pieces, 3)
     distance = np.linalg.norm(centres[:, :, None, :] - gaps.points[None, None], axis=-1).min(axis=(1, 2))
     # exactly there when translations can shift it; within the tolerance for an arm
     assert distance.max() <= (1e-9 if len(gaps.axes) else gaps.tolerance)
@@ -70,8 +70,8 @@ def test_joint3d_needs_the_gap_placements_to_pass_the_hole_on_a_small_budget(ora
     result = plan(oracle, PlanSettings(seed=0, budget=budget))
     assert result.workspace_on_path > 0 and result.trajectory.certified
     P = result.roadmap_path  # its edges go through the hole; its nodes may all lie at the hole's mouths
-    assert oracle.in_passage(np.vstack([oracle.space.interpolate(a, b) for a, b in zip(P[:-1], P[1:])])).any()
-    with pytest.raises(NoPath, match="budget 60000checks spent"):  # the sampler alone needs about 400k
+    assert oracle.workspace.in_passage(np.vstack([oracle.space.interpolate(a, b) for a, b in zip(P[:-1], P[1:])])).any()
+    with pytest.raises(NoPath, match="budget of 60000 collision checks spent"):  # the sampler alone needs about 400k
         plan(oracle, PlanSettings(seed=0, budget=budget, workspace=0.0))
 
 
@@ -121,7 +121,7 @@ def test_the_gap_search_finds_what_the_definition_finds(oracles, scene):
     # Random points, and points about the gaps found (where the two-stage query and the pair test decide).
     around = np.repeat(gaps.points[:20], 10, axis=0) + rng.normal(0, gaps.width / 3, (200, 3))
     P = np.vstack([rng.uniform(gaps.lower, gaps.upper, (300, 3)), around])
-    found = oracle.environment_gaps(P, gaps.width)
+    found = oracle.workspace.environment_gaps(P, gaps.width)
     assert np.array_equal(found, exhaustive_gaps(oracle, P, gaps.width))
     assert 0 < found.sum() < len(P)
 
@@ -144,7 +144,7 @@ def test_the_gap_search_on_a_decomposed_mesh_finds_what_the_definition_finds(tmp
     assert len(pieces) > 1 and {type(inspector.GetShape(g)).__name__ for g in pieces} == {"Convex"}
     rng = np.random.default_rng(2)
     P = rng.uniform(-3, 3, (600, 3))
-    found = oracle.environment_gaps(P, 2.5)
+    found = oracle.workspace.environment_gaps(P, 2.5)
     assert np.array_equal(found, exhaustive_gaps(oracle, P, 2.5))
     assert 0 < found.sum() < len(P)
 

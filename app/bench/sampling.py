@@ -27,7 +27,7 @@ def sits_between(oracle, samples: np.ndarray, margin: float) -> dict[str, float]
     """Fractions of samples within `margin` of the environment only, the robot itself only, both, or neither."""
     counts = dict.fromkeys(("environment", "self", "both", "neither"), 0)
     for q in samples:
-        c = oracle.contacts(q, margin)
+        c = oracle.diagnostics.contacts(q, margin)
         key = ("both" if c["self"] else "environment") if c["environment"] else ("self" if c["self"] else "neither")
         counts[key] += 1
     n = max(len(samples), 1)
@@ -71,7 +71,7 @@ def run_trial(
         "seconds": seconds,
         "collision_checks": int(checker.checks),
         "samples_drawn": len(samples),
-        "passage_fraction": float(oracle.in_passage(samples).mean()) if len(samples) else float("nan"),
+        "passage_fraction": float(oracle.workspace.in_passage(samples).mean()) if len(samples) else float("nan"),
         "gave_up": int(sampler.stats.get("gave_up", 0)),
         "attempts": int(sampler.stats.get("attempts", 0)),
     }

@@ -81,7 +81,7 @@ import numpy as np
 
 from app.checking.kinematics import TreeKinematics
 from app.checking.protocol import Checker
-from app.scene.meshes import hull_vertices
+from app.scene.shapes import hull_vertices
 
 # What a planned motion is proved to keep from everything by default (scene length units: metres for the robots): a
 # margin for the proofs that the straight lines a controller draws between its samples, and the path polyline, are
@@ -1035,7 +1035,7 @@ class Certifier:
             return self._kinematics.poses(Q)
         rotations, centres = [], []
         for q in Q:
-            query = self.checker.query_object(q)
+            query = self.checker.oracle.query_object(q)
             poses = [query.GetPoseInWorld(g) for g in self._robot]
             # Copied now: Drake's poses are views into the query's cache, which the next configuration overwrites.
             rotations.append(np.array([X.rotation().matrix() for X in poses]))

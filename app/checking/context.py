@@ -30,26 +30,6 @@ _MAX_BATCH = 4096
 # a search of thousands of points must still end when the query must; among a few, each call's fixed cost would
 # outweigh the points.
 _POINT_BATCH, _POINT_SECONDS = 64, 0.005
-# The oracle's uncounted measurements and model, which a context passes through (CollisionOracle documents each).
-_PASSED_THROUGH = frozenset(
-    {
-        "plant",
-        "model",
-        "threads",
-        "clearance",
-        "contacts",
-        "colliding_bodies",
-        "touching",
-        "frame_positions",
-        "in_passage",
-        "query_object",
-        "is_robot_geometry",
-        "policy_context",
-        "robot_kinematics",
-        "robot_geometry_centres",
-        "robot_geometry_radii",
-    }
-)
 
 
 class QueryContext:
@@ -60,7 +40,7 @@ class QueryContext:
     """
 
     def __init__(self, oracle, budget: Budget | None = None, cancel=None):
-        self.oracle = oracle
+        self.oracle = oracle  # the shared oracle: the Drake model and uncounted distances (protocol.DistanceSource)
         self.space = oracle.space
         self.scene = oracle.scene
         self.checks = 0
@@ -70,10 +50,21 @@ class QueryContext:
         if budget is not None or cancel is not None:
             self.stop = Stop(budget or Budget(), self, cancel)
 
-    def __getattr__(self, name: str):
-        if name in _PASSED_THROUGH:
-            return getattr(self.oracle, name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+    @property
+    def threads(self) -> int:
+        """The cores the shared oracle may use (a large k-nearest query is spread over them)."""
+        return self.oracle.threads
+
+    @property
+    def workspace(self):
+        """Where the robot's pieces and passage frame are, and the environment's gaps (app.checking.workspace):
+        uncounted, but for `environment_gaps` here."""
+        return self.oracle.workspace
+
+    @property
+    def diagnostics(self):
+        """What a configuration touches, named (app.checking.diagnostics): uncounted."""
+        return self.oracle.diagnostics
 
     # ---- collision answers (counted, bounded by the stop) ------------------------------------------------------
     def poll(self) -> None:
@@ -225,7 +216,7 @@ class QueryContext:
 
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`
-        (CollisionOracle.environment_gaps); counted in `point_queries`. Asked in batches, polling the stop before
+        (app.checking.workspace); counted in `point_queries`. Asked in batches, polling the stop before
         each, so BudgetSpent may end it part way."""
         P = np.atleast_2d(np.asarray(P, float))
         gap = np.zeros(len(P), bool)
@@ -235,7 +226,7 @@ class QueryContext:
             batch = P[b : b + size]
             self.point_queries += len(batch)
             clock = time.perf_counter()
-            gap[b : b + len(batch)] = self.oracle.environment_gaps(batch, width)
+            gap[b : b + len(batch)] = self.workspace.environment_gaps(batch, width)
             pace = (time.perf_counter() - clock) / len(batch)
             b, size = b + len(batch), int(np.clip(_POINT_SECONDS / max(pace, 1e-9), _POINT_BATCH, _MAX_BATCH))
         return gap

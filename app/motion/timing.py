@@ -647,7 +647,7 @@ def scaled_limits(scene, velocity_scale: float = 1.0, acceleration_scale: float 
 
 
 def time_path(
-    oracle,
+    checker,
     path: np.ndarray,
     dt: float,
     *,
@@ -658,26 +658,26 @@ def time_path(
     acceleration_scale: float = 1.0,
     clearance: float = CLEARANCE,
 ) -> Trajectory:
-    """A path of the oracle's scene (wrapped waypoints) timed by parameterize_smooth under the scene's limits, scaled
+    """A path of the checker's scene (wrapped waypoints) timed by parameterize_smooth under the scene's limits, scaled
     by velocity_scale and acceleration_scale (see scaled_limits), certified to keep `clearance`; it carries the
     scene's mimic joints. proof: the path's curve certified already (prove_blends), whose radii are then used as
     they are."""
     trajectory = parameterize_smooth(
-        oracle,
-        oracle.space.unwrap(path),
-        *scaled_limits(oracle.scene, velocity_scale, acceleration_scale),
+        checker,
+        checker.space.unwrap(path),
+        *scaled_limits(checker.scene, velocity_scale, acceleration_scale),
         dt,
-        oracle.space.names,
+        checker.space.names,
         certifier=certifier,
         edges_proved=edges_proved,
         proof=proof,
         clearance=clearance,
     )
-    return dataclasses.replace(trajectory, position_map=oracle.scene.position_map)
+    return dataclasses.replace(trajectory, position_map=checker.scene.position_map)
 
 
 def parameterize_smooth(
-    oracle,
+    checker,
     waypoints: np.ndarray,
     velocity_limits: np.ndarray,
     acceleration_limits: np.ndarray,
@@ -704,7 +704,7 @@ def parameterize_smooth(
     planner's certificate, to keep `clearance`): then only the blends are. proof: the curve certified already
     (prove_blends on the wrapped waypoints these are unwrapped from): its radii and clearance are used.
     """
-    W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, oracle.space.weights)
+    W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, checker.space.weights)
     known = np.full(max(len(W) - 1, 0), edges_proved)
     radii = np.zeros(len(W))
     certified, cost = False, {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
@@ -713,7 +713,7 @@ def parameterize_smooth(
             raise ValueError("the blend proof is of other waypoints")
         radii, certified, clearance = proof.radii.copy(), not proof.failed, proof.clearance
     elif len(W) > 1:
-        certifier = certifier or Certifier(oracle, floor)
+        certifier = certifier or Certifier(checker, floor)
         first = _first_radii(np.diff(arc))
         radii, failed, cost = _certified_radii(certifier, W, tangent, arc, first, tighten, known, clearance)
         certified = not failed
@@ -722,9 +722,9 @@ def parameterize_smooth(
         try:
             chords = None
             if certified:
-                certifier = certifier or Certifier(oracle, floor)
+                certifier = certifier or Certifier(checker, floor)
                 chords = _Chords(clearance, certifier)
-            trajectory = _time_legs(oracle.plant, W, arc, legs, v, a, dt, joint_names, chords)
+            trajectory = _time_legs(checker.oracle.plant, W, arc, legs, v, a, dt, joint_names, chords)
             if chords is not None:
                 cost = {k: cost[k] + chords.cost.get(k, 0) for k in cost}
             break
@@ -738,7 +738,7 @@ def parameterize_smooth(
                 raise
             radii[corners[np.argmin(radii[corners])]] = 0.0
             if certified and not edges_proved:  # the polyline by that corner was cut off by its blend: prove it
-                certifier = certifier or Certifier(oracle, floor)
+                certifier = certifier or Certifier(checker, floor)
                 radii, refused, more = _certified_radii(certifier, W, tangent, arc, radii, tighten, known, clearance)
                 cost = {k: cost[k] + more[k] for k in cost}
                 certified = not refused

@@ -71,7 +71,7 @@ from app.checking.budget import Budget
 from app.errors import NoPath, SamplerBudgetExceeded, UserError
 from app.io import exclusive, write_atomically
 from app.planning.planner import PlanResult, PlanSettings, Query, Samples, default_step
-from app.scene.meshes import hull_vertices
+from app.scene.shapes import hull_vertices
 
 # The roadmap graph pulls in scipy: imported when a cell roadmap is made, not when the package is.
 

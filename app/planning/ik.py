@@ -146,7 +146,11 @@ def solve_pose(
             if position > position_tolerance or angle > angle_tolerance:
                 continue
             # Touching counts as colliding: no motion out of a contact can be certified (planner.check_endpoint).
-            if oracle.space.within_bounds(candidate)[0] and oracle.free(candidate) and not oracle.touching(candidate):
+            if (
+                oracle.space.within_bounds(candidate)[0]
+                and oracle.free(candidate)
+                and not oracle.diagnostics.touching(candidate)
+            ):
                 found.append(candidate)
                 if len(found) >= keep:
                     break

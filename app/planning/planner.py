@@ -21,11 +21,11 @@ import numpy as np
 
 from app.checking.budget import MAX_SECONDS, SAFETY_NET_SECONDS, Budget, BudgetSpent, Stop, spell_checks
 from app.checking.certify import CLEARANCE
-from app.checking.oracle import CONTACT
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
 from app.motion.path import FINE, Shortcuts, path_length, shortcut, unwind, verify
 from app.motion.timing import BlendProof, check_duration, prove_blends, scaled_limits, time_path
 from app.motion.trajectory import Trajectory, TrajectoryFile
+from app.scene.shapes import CONTACT
 
 if TYPE_CHECKING:  # the roadmap pulls in scipy: imported when planning, not when the CLI starts
     from app.planning.roadmap import Roadmap
@@ -248,15 +248,15 @@ def check_endpoint(checker, q, what: str, clearance: float = CONTACT) -> np.ndar
             "START_STATE_INVALID" if what == "start" else "GOAL_STATE_INVALID",
         )
     if not checker.is_free(q):
-        pairs = checker.colliding_bodies(q)
+        pairs = checker.diagnostics.colliding_bodies(q)
         if not pairs:  # faces that touch exactly: a collision to the check, no penetration to name; name the contact
-            pairs = [(a, b) for a, b, _ in checker.touching(q)]
+            pairs = [(a, b) for a, b, _ in checker.diagnostics.touching(q)]
         touching = ", ".join(f"{a} with {b}" for a, b in pairs[:4]) + (" ..." if len(pairs) > 4 else "")
         raise InvalidEndpoint(
             f"{what} is in collision: {touching or 'contact reported by the checker'}{_own_links(checker, pairs)}",
             code,
         )
-    contacts = checker.touching(q, max(clearance, CONTACT))
+    contacts = checker.diagnostics.touching(q, max(clearance, CONTACT))
     if contacts:
         named = ", ".join(f"{a} with {b} at {d:.2g}" for a, b, d in contacts[:4]) + (
             " ..." if len(contacts) > 4 else ""

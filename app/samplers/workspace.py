@@ -9,12 +9,12 @@ IJRR 2005). On joint3d's hole placements land far more often than the Lévy brid
 of their checks (benchmark pages, "Tuning notes").
 
 `WorkspaceGaps` finds points in gaps narrower than GAP_WIDTH times the robot's median piece: two obstacles on
-opposite sides of the point, closer together than that (`CollisionOracle.environment_gaps`). Half of its candidate
-points are uniform in the box the robot's pieces reach, half scattered about gap points already found, so a gap once
-hit fills in. `WorkspaceSampler` then draws a uniform configuration, picks one of the robot's moving pieces and
-brings its centre to a gap point: by shifting the coordinates that translate the whole robot (a free-flying body, a
-mobile base), or, for an arm without such coordinates, by keeping the configuration only if the piece's centre is
-already near a gap point. Free placements are its samples.
+opposite sides of the point, closer together than that (`app.checking.workspace.Workspace.environment_gaps`). Half
+of its candidate points are uniform in the box the robot's pieces reach, half scattered about gap points already
+found, so a gap once hit fills in. `WorkspaceSampler` then draws a uniform configuration, picks one of the robot's
+moving pieces and brings its centre to a gap point: by shifting the coordinates that translate the whole robot (a
+free-flying body, a mobile base), or, for an arm without such coordinates, by keeping the configuration only if the
+piece's centre is already near a gap point. Free placements are its samples.
 """
 
 from __future__ import annotations
@@ -44,8 +44,8 @@ class WorkspaceGaps:
     def __init__(self, oracle: Checker, rng: np.random.Generator):
         self.oracle, self.space = oracle, oracle.space
         Q = self.space.uniform(rng, 64)
-        C = oracle.robot_geometry_centres(Q)
-        radii = oracle.robot_geometry_radii()
+        C = oracle.workspace.robot_geometry_centres(Q)
+        radii = oracle.workspace.robot_geometry_radii()
         scale = float(np.max(np.ptp(C.reshape(-1, 3), axis=0))) if C.size else 0.0
         # Pieces that move with the configuration (a cart or base welded to the world does not).
         self.moving = np.flatnonzero(np.ptp(C, axis=0).max(axis=1) > 1e-9 * max(scale, 1.0))
@@ -74,7 +74,7 @@ class WorkspaceGaps:
                 continue
             moved = Q.copy()
             moved[:, i] += delta
-            D = (self.oracle.robot_geometry_centres(moved) - C)[:, self.moving] / delta
+            D = (self.oracle.workspace.robot_geometry_centres(moved) - C)[:, self.moving] / delta
             if np.abs(D - D[0, 0]).max() < 1e-6 and np.linalg.norm(D[0, 0]) > 1e-6:
                 axes.append(int(i))
                 directions.append(D[0, 0])
@@ -108,7 +108,7 @@ class WorkspaceGaps:
             return np.empty((0, self.space.dim))
         Q = self.space.uniform(rng, n)
         piece = self.moving[rng.integers(len(self.moving), size=n)]
-        x = self.oracle.robot_geometry_centres(Q, piece)
+        x = self.oracle.workspace.robot_geometry_centres(Q, piece)
         if len(self.axes):
             p = self.points[rng.integers(len(self.points), size=n)]
             shift = (p - x) @ np.linalg.pinv(self.directions).T

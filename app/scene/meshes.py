@@ -271,13 +271,6 @@ def file_sha256(path: Path) -> str:
 
 
 # ---- pieces -------------------------------------------------------------------------------------------------------
-def hull_vertices(shape) -> np.ndarray:
-    """The vertices (n, 3) of a Drake Mesh's or Convex's convex hull, in its frame and scaled: what Drake's
-    proximity engine collides with for it."""
-    hull = shape.GetConvexHull()
-    return np.array([hull.vertex(i) for i in range(hull.num_vertices())], float).reshape(-1, 3)
-
-
 @dataclass
 class Piece:
     """A convex piece: its vertices, triangles (outward) and half-spaces A x + b <= 0."""
