@@ -10,8 +10,9 @@ import pytest
 
 from app.checking.budget import Budget
 from app.errors import NoPath, UserError
-from app.planning.cell import BuildSettings, CellRoadmap, read
+from app.planning.cell import BuildSettings, CellRoadmap
 from app.planning.planner import PlanSettings
+from app.planning.roadmap_file import read
 from app.scene.model import SCENES_DIR
 
 SMALL = BuildSettings(nodes=250, seed=0)  # one build round on bar: a few seconds

@@ -30,7 +30,8 @@ from app.bench.bad_input import (
     zipped,
 )
 from app.errors import UserError
-from app.planning.cell import BuildSettings, CellRoadmap, read
+from app.planning.cell import BuildSettings, CellRoadmap
+from app.planning.roadmap_file import read
 
 SCENE = "bar-3link"  # 5 coordinates: base x, y in [0, 100], three continuous joint angles
 

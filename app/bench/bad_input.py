@@ -418,13 +418,13 @@ _FILES = {
 
 # ---- roadmap files, made and damaged without a scene ----------------------------------------------------------------
 def roadmap_file(header: dict | None = None, dim: int = 9, **arrays) -> bytes:
-    """The bytes of a roadmap file (app.planning.cell) of 40 nodes of `dim` coordinates in a line, joined in order,
-    with a made-up fingerprint: whole and sound as far as `read` can tell without a scene (`load` refuses it as
-    built for another cell). `header` entries and `arrays` (numpy arrays, or npy bytes as from `npy_claiming`)
+    """The bytes of a roadmap file (app.planning.roadmap_file) of 40 nodes of `dim` coordinates in a line, joined in
+    order, with a made-up fingerprint: whole and sound as far as `read` can tell without a scene (`load` refuses it
+    as built for another cell). `header` entries and `arrays` (numpy arrays, or npy bytes as from `npy_claiming`)
     replace the made ones."""
     import numpy as np
 
-    from app.planning.cell import FINGERPRINT_PARTS, FORMAT, FORMAT_VERSION
+    from app.planning.roadmap_file import FINGERPRINT_PARTS, FORMAT, FORMAT_VERSION
 
     n = 40
     made = {

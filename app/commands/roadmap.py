@@ -15,7 +15,8 @@ from app.commands.common import (
     share,
     whole_number,
 )
-from app.planning.cell import BuildSettings, CellRoadmap, read, summary
+from app.planning.cell import BuildSettings, CellRoadmap
+from app.planning.roadmap_file import read, summary
 
 DEFAULTS = BuildSettings()
 
