@@ -2,8 +2,11 @@
 
 Drake 1.51 registers the remote package `drake_models` in every PackageMap and, with networking off, refuses to
 construct one unless the download cache already holds it. We never use drake_models, so the tests give Drake a
-private cache with an empty stand-in (app.bench.bad_input.offline_drake_cache, which `bench audit` also uses): a
+private cache with an empty stand-in (app.scene.offline.offline_drake_cache, which `bench audit` also uses): a
 stray package://drake_models/... then fails with "file not found", immediately and offline, instead of downloading.
+
+Collecting the tests imports the core only: the command line (which loads every command and experiment) is imported
+by the `cli` fixture when a test uses it.
 """
 
 import atexit
@@ -16,8 +19,7 @@ from pathlib import Path
 import pytest
 
 import app  # noqa: F401  (before pydrake: it sets OpenMP's wait policy, see app/__init__.py)
-from app.bench.bad_input import offline_drake_cache
-from app.cli import main
+from app.scene.offline import offline_drake_cache
 
 os.environ["DRAKE_ALLOW_NETWORK"] = "none"
 os.environ["XDG_CACHE_HOME"] = str(offline_drake_cache(Path(tempfile.mkdtemp(prefix="npp-drake-cache-"))))
@@ -64,6 +66,8 @@ def checkers(oracles):
 @pytest.fixture
 def cli(capsys):
     """`cli("plan", "bar", ...)`: app.cli.main on these arguments; returncode, stdout and stderr of that call."""
+
+    from app.cli import main
 
     def run(*args) -> subprocess.CompletedProcess:
         capsys.readouterr()  # what earlier calls printed is not this call's output

@@ -25,7 +25,6 @@ the tests run as root in CI, where a write-protected folder stays writable.
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import os
@@ -42,6 +41,7 @@ from pathlib import Path
 
 from app.io import INPUT_LIMITS
 from app.scene.model import ROOT, SCENES_DIR
+from app.scene.offline import offline_drake_cache
 
 ROBOT = ["--robot", "{stl}", "--start", "0,0,0,0,0,0", "--goal", "1,0,0,0,0,0", "--bounds", "-1..1,-1..1,-1..1"]
 MESH_ROBOT = ["--start", "5,5,5,0,0,0", "--goal", "6,6,6,0,0,0", "--bounds", "0..10,0..10,0..10"]
@@ -562,28 +562,6 @@ def files(folder: Path) -> dict[str, tuple[int, int] | None]:
         str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns) if p.is_file() else None
         for p in Path(folder).rglob("*")
     }
-
-
-def offline_drake_cache(cache: Path) -> Path:
-    """`cache` made a download cache (XDG_CACHE_HOME) in which Drake, with DRAKE_ALLOW_NETWORK=none, starts offline.
-
-    Drake 1.51 registers the remote package `drake_models` in every PackageMap and, with networking off, refuses to
-    construct one unless the download cache already holds it. Nothing here uses drake_models, so an empty stand-in
-    serves: a stray package://drake_models/... then fails with "file not found", at once, instead of downloading."""
-    import pydrake
-
-    manifest = Path(pydrake.__file__).parent / "share/drake/multibody/parsing/drake_models.json"
-    remote = json.loads(manifest.read_text())
-    # Drake 1.51 names a cached package "<archive sha256>-<sha256 of strip_prefix>".
-    key = f"{remote['sha256']}-{hashlib.sha256(remote['strip_prefix'].encode()).hexdigest()}"
-    package = Path(cache) / "drake" / "package_map" / key
-    package.mkdir(parents=True, exist_ok=True)
-    (package / "package.xml").write_text(
-        '<?xml version="1.0"?><package format="2"><name>drake_models</name><version>0</version>'
-        "<description>offline stand-in</description><maintainer email='x@example.com'>x</maintainer>"
-        "<license>none</license></package>"
-    )
-    return Path(cache)
 
 
 def run_case(argv: list[str], timeout: float = 60.0) -> dict:
