@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.checking.certify import Certifier, certify_path, motion_bound, polyline
+from app.checking.certify import Certifier, certify_path, polyline
+from app.checking.motion_bound import motion_bound
 from independent import fine_points, raw_free
 
 PINNED = json.loads((Path(__file__).parent / "data" / "pinned_plans.json").read_text())
@@ -566,7 +567,7 @@ def test_a_piece_cut_unasked_fails_by_at_least_that_factor_with_its_ends_distanc
         if not oracle.free(b):
             continue
         travel = bound.pair_travel(np.abs(oracle.space.difference(a, b))[None])
-        certain = certifier._certain_shortfall(np.array([a, b]), np.array([0, 1]), travel)[0]
+        certain = certifier.certain_shortfall(np.array([a, b]), np.array([0, 1]), travel)[0]
         limit = float(bound.max_distance(travel)[0])
         ends = certifier._distances([a, b], [limit, limit])
         ok, short = _clear(ends[:1], ends[1:], travel)

@@ -1,0 +1,377 @@
+"""The distances the certificate (app.checking.certify) weighs against its motion bound at the ends of its pieces:
+Drake's where it computes a pair's distance exactly, lower bounds of our own (app.checking.shape_gaps) for the
+others, asked for many configurations at once and cached per configuration.
+
+Distances at the ends. Where a pair of the kind Drake computes by GJK is not settled without Drake's direction, it is
+bounded along the direction Drake last gave for it (ends of one motion are near each other; mesh scenes) and,
+failing that, Drake's direction is asked for that pair alone. Every distance is lowered by a rounding allowance
+(1e-9 of the resolution).
+
+max_distance. A query reports only the pairs within its max_distance D, so an unreported pair is at least D apart
+at that end. Each end is queried with D just above half the largest B_PQ of the pieces it bounds: a pair
+unreported at both ends then passes, and Drake computes no more pairs than the test needs (pairs of the GJK kind
+count as unreported when their own bound is at least D). Where no counted pair is of a kind Drake computes exactly,
+the pairwise query is not asked at all: it has a fixed cost (some 60 us a configuration on the UR3, with nothing
+within D), GJK on a mesh's hull costs time per vertex besides, and our bounds cover every pair anyway, Drake's
+direction being asked per pair where needed. A pair in contact cannot pass a piece even then: its lower bound is at
+most 0, and only a configuration with such a bound is asked whether it is in contact (HasCollisions), so that its
+pieces fail at once. Distances are cached per configuration, so ends shared by adjacent pieces, and by rounds of a
+caller that retries, are asked once.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from app.checking.kinematics import TreeKinematics
+from app.checking.motion_bound import MAX_DISTANCE_MARGIN, motion_bound
+from app.checking.protocol import Checker
+from app.checking.shape_gaps import PAIR_KEY, shape_gaps
+
+# Shape pairs Drake computes signed distance for in closed form.
+_EXACT = {
+    frozenset(pair)
+    for pair in [("Box",), ("Sphere",), ("Box", "Sphere"), ("Sphere", "Capsule"), ("Sphere", "Cylinder")]
+}
+
+
+class EndDistances:
+    """The certificate's distances at configurations of one checker's oracle (the ends of its pieces), kept across
+    calls (and across queries: a caller may hand it another query's checker, whose `distance_queries` it then counts
+    in). A Certifier is one."""
+
+    # Most (configuration, pair) rows one call to the gaps works on, to keep its arrays small.
+    BATCH_ROWS = 1 << 17
+
+    def __init__(self, checker: Checker):
+        from pydrake.geometry import Role
+
+        oracle = checker.oracle
+        self.checker = checker
+        self.bound = motion_bound(oracle)
+        self._cache = {}  # configuration bytes -> PairDistances, or None where it collides
+        self._rounding = 1e-9 * oracle.space.resolution
+        inspector = oracle.model.scene_graph().model_inspector()
+        geometries = inspector.GetAllGeometryIds(Role.kProximity)
+        # A small integer per geometry, for pair keys, by the GeometryId's value (cheaper to hash than the id).
+        self._index_of_value = {g.get_value(): i for i, g in enumerate(geometries)}
+        self._ids = list(geometries)
+        self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
+        kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
+        self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
+        self._gaps = shape_gaps(oracle, geometries, self._rows >= 0, self._exact)
+        # Whether Drake's pairwise query is asked, for every pair within the limit with its direction: where a
+        # counted pair is of a kind Drake computes exactly (its distance is used). Otherwise most pairs are settled
+        # by our bounds alone, and Drake is asked for the direction of the others, one pair at a time, and where a
+        # bound comes out at or below 0 whether anything is in contact (see the module doc and _ends).
+        robot = self._rows >= 0
+        counted = np.triu(robot[:, None] | robot[None, :], 1) & self._exact
+        if not oracle.scene.self_collisions:
+            counted &= ~(robot[:, None] & robot[None, :])
+        self._ask_all = any(
+            not inspector.CollisionFiltered(geometries[i], geometries[j]) for i, j in zip(*np.nonzero(counted))
+        )
+        # Pieces that certainly fail are cut unasked where asking costs most: on mesh scenes (see certain_shortfall).
+        self._cut_unasked = not self._ask_all and bool(self._gaps.hulls)
+        # The direction Drake last gave for each pair of the gaps (world frame), NaN before it gave one.
+        self._recent = np.full((len(self._gaps.pairs), 3), np.nan)
+        # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in
+        # robot slots (slot -1: environment).
+        self._robot = [g for i, g in enumerate(geometries) if self._rows[i] >= 0]
+        self._slot = np.full(len(geometries), -1)
+        self._slot[self._rows >= 0] = np.arange(len(self._robot))
+        plant = oracle.plant
+        self._kinematics = TreeKinematics.of(
+            plant,
+            [(plant.GetBodyFromFrameId(inspector.GetFrameId(g)), inspector.GetPoseInFrame(g)) for g in self._robot],
+            oracle.scene.position_map,
+        )
+        query = oracle.query_object(oracle.scene.start)
+        poses = [query.GetPoseInWorld(g) for g in geometries]
+        self._R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
+        self._p = np.array([X.translation() for X in poses]).reshape(-1, 3)
+        # A point inside each shape, in its frame (its centre; a hull's mean vertex), and in the world for the
+        # environment's.
+        self._inside = self._gaps.offset.copy()
+        for i, vertices in self._gaps.hulls.items():
+            self._inside[i] += vertices.mean(axis=0)
+        self._anchors = self._p + np.einsum("gij,gj->gi", self._R, self._inside)
+        self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
+
+    def at_ends(self, Q: np.ndarray, ends: list, by_end: np.ndarray, travel: np.ndarray, certain: np.ndarray):
+        """{s: its PairDistances, or None where it collides} for the ends (s, at Q) of the pieces not cut unasked
+        (certain <= 1; piece p's ends are Q[by_end[2p]] and Q[by_end[2p + 1]], its pair bounds travel[p]): each end
+        asked at the largest max_distance of the pieces it bounds, and each pair there bounded until it reaches the
+        largest of its bounds on those pieces (shared ends once)."""
+        rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
+        rows = rows[np.argsort(by_end[rows], kind="stable")]
+        ordered = by_end[rows]
+        first = np.flatnonzero(np.concatenate([[len(rows) > 0], ordered[1:] != ordered[:-1]]))
+        asked = by_end[rows[first]]
+        limits, need = np.zeros(0), None
+        if len(rows):
+            pairs = self._rows[self._gaps.pairs]
+            limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel), 2)[rows], first)
+            if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
+                need = _largest_by_group(travel[rows // 2][:, pairs[:, 0], pairs[:, 1]], first)
+        found = self._distances(list(Q[asked]), limits.tolist(), need)
+        return dict(zip([ends[j] for j in asked.tolist()], found))
+
+    def certain_shortfall(self, Q: np.ndarray, by_end: np.ndarray, travel: np.ndarray) -> np.ndarray:
+        """Per piece (ends Q[by_end[2p]] and Q[by_end[2p + 1]], pair bounds travel[p]), a factor by which its bound
+        certainly exceeds its ends' distances for some pair of the gaps: the largest B_PQ / (U_a + U_b), with U an
+        upper bound on the pair's distance at an end -- the distance between a point inside each shape (its centre,
+        a hull's mean vertex). Our lower bounds are at most U, so a piece with a factor above 1 fails its test, and
+        by at least that factor (0 without pairs, and where pieces are not cut unasked)."""
+        if not self._cut_unasked or not len(self._gaps.pairs):
+            return np.zeros(len(travel))
+        rotations, centres = self._robot_poses(Q)
+        anchors = np.repeat(self._anchors[None], len(Q), axis=0)
+        anchors[:, self._slot >= 0] = centres + np.einsum("nrij,rj->nri", rotations, self._inside[self._slot >= 0])
+        a, b = self._gaps.pairs.T
+        upper = np.linalg.norm(anchors[:, a] - anchors[:, b], axis=2)  # (ends, pairs)
+        bound = travel[:, self._rows[a], self._rows[b]]  # (pieces, pairs)
+        return (bound / np.maximum(upper[by_end[0::2]] + upper[by_end[1::2]], 1e-300)).max(axis=1)
+
+    def distances(self, q: np.ndarray, max_distance: float, pair_travel: np.ndarray | None = None) -> dict | None:
+        """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
+        pairs closer than max_distance (those left out are at least that far apart); None if q collides. With
+        pair_travel (rows, rows: the pieces' bounds, see _distances) a pair's bound stops where it reaches that."""
+        pairs = self._rows[self._gaps.pairs]
+        need = None if pair_travel is None else pair_travel[None, pairs[:, 0], pairs[:, 1]]
+        end = self._distances([q], [max_distance], need)[0]
+        if end is None:
+            return None
+        return {
+            frozenset((self._ids[k // PAIR_KEY], self._ids[k % PAIR_KEY])): d
+            for k, d in zip(end.keys.tolist(), end.distance.tolist())
+        }
+
+    def _distances(self, Q: list, limits: list, pair_travel: np.ndarray | None = None) -> list:
+        """For each configuration, the pairs within its limit (a PairDistances), from the cache when it was asked at
+        a limit at least as large; None if it collides or lies outside the bounds. pair_travel[k, pair] (pairs of the
+        gaps): the largest bound on the pair's change over the pieces configuration k ends; a pair's lower bound
+        that reaches it at this end is enough for those pieces, given any positive one at their other end (so no
+        tighter bound is sought); without it every pair below the limit is bounded as tightly as the certificate
+        can."""
+        keys = [np.asarray(q, float).tobytes() for q in Q]
+        todo = []
+        for k, (key, q, limit) in enumerate(zip(keys, Q, limits)):
+            cached = self._cache.get(key, False)
+            if cached is False or (cached is not None and cached.limit < limit):
+                todo.append((key, np.asarray(q, float), limit, None if pair_travel is None else pair_travel[k]))
+        per_batch = max(1, self.BATCH_ROWS // max(1, len(self._gaps.pairs)))
+        for first in range(0, len(todo), per_batch):
+            self.checker.poll()  # a proof keeps to its query's time limit (among many pieces a batch is dear)
+            self._ends(todo[first : first + per_batch])
+        return [self._cache[key] for key in keys]
+
+    def _ends(self, todo: list) -> None:
+        """Into the cache: the certificate's distances at each (key, q, limit, pair travel) of `todo` -- Drake's for
+        the pairs it computes exactly, our lower bound for the others (a pair left out is at least `limit` apart);
+        None where q is out of bounds or in contact."""
+        for key, *_ in todo:
+            self._cache[key] = None
+        inside = self.checker.space.within_bounds(np.array([q for _, q, *_ in todo]))
+        todo = [item for item, keep in zip(todo, inside.tolist()) if keep]
+        reported = self._reported(todo)
+        if reported is None:
+            return
+        drake = [todo[k] for k in reported.kept.tolist()]
+        limits = np.array([limit for _, _, limit, _ in drake])
+        Q = np.array([q for _, q, _, _ in drake])
+        # What settles each pair (see _distances): its bound over the pieces, with room for the rounding allowance.
+        if drake[0][3] is None:
+            need = np.repeat(limits[:, None], len(self._gaps.pairs), axis=1)
+        else:
+            need = np.array([travel for *_, travel in drake]).reshape(len(drake), -1)
+        need = need * MAX_DISTANCE_MARGIN + 2 * self._rounding + 1e-12
+        rotation, centre = self._poses_at(Q)
+        near_k, near_pair, bounds = self._gaps.near(rotation, centre, reported.nhat, limits, need)
+        self._bound_again(Q, near_k, near_pair, bounds, reported.nhat, need, rotation, centre)
+        # A configuration in contact stays None: its pieces fail at once (a bound at or below 0 could only fail them
+        # by cutting them down to the floor).
+        doubtful = np.unique(near_k[bounds <= 0]).tolist()
+        in_contact = {k for k in doubtful if self.checker.in_contact(Q[k])}
+        self._store(drake, reported, near_k, near_pair, bounds, limits, in_contact)
+
+    def _reported(self, todo: list) -> _Reported | None:
+        """What Drake reports at the configurations of `todo` (see _ends), those it finds in contact left out; None
+        where it finds all of them in contact. Drake's pairs of every configuration as rows (configuration, first,
+        second geometry, distance); reading a GeometryId costs more than the distance, so each is read once and
+        mapped through its integer value. Without the pairwise query Drake is asked nothing yet: where every pair's
+        lower bound comes out positive nothing touches, and only a configuration with a bound at or below 0 is asked
+        about contact (at the end of _ends)."""
+        if self._ask_all:
+            answers = [self.checker.signed_distances(q, limit) for _, q, limit, _ in todo]
+        else:
+            answers = [[] for _ in todo]
+            self.checker.count_bounded(len(todo))
+        value = self._index_of_value
+        found = np.array(
+            [(value[p.id_A.get_value()], value[p.id_B.get_value()], p.distance) for pairs in answers for p in pairs],
+            float,
+        ).reshape(-1, 3)
+        config = np.repeat(np.arange(len(answers)), [len(pairs) for pairs in answers])
+        touching = np.unique(config[found[:, 2] <= 0])
+        kept = np.setdiff1d(np.arange(len(answers)), touching)
+        if not len(kept):
+            return None
+        # Renumber the configurations left, 0..len(kept)-1.
+        renumber = np.full(len(answers), -1)
+        renumber[kept] = np.arange(len(kept))
+        position = np.flatnonzero(renumber[config] >= 0)
+        config, found = renumber[config[position]], found[position]
+        index = found[:, :2].astype(np.int64)
+        swapped = index[:, 0] > index[:, 1]
+        index.sort(axis=1)  # a pair is the same whichever geometry Drake names first
+        keys = index[:, 0] * PAIR_KEY + index[:, 1]
+        exact = self._exact[index[:, 0], index[:, 1]]
+        # Drake's separating directions, for the pairs of the gaps only.
+        flat = [p for pairs in answers for p in pairs]
+        directions = np.array([flat[j].nhat_BA_W for j in position[~exact].tolist()], float).reshape(-1, 3)
+        nhat = self._directions(len(kept), config[~exact], keys[~exact], swapped[~exact], directions)
+        if not self._ask_all:  # Drake's directions for the pairs it reported, kept for the rows it did not
+            reported = np.isfinite(nhat[:, :, 0])
+            last = len(nhat) - 1 - reported[::-1].argmax(axis=0)  # the last configuration that reported each pair
+            pairs = np.flatnonzero(reported.any(axis=0))
+            self._recent[pairs] = nhat[last[pairs], pairs]
+        return _Reported(kept, config, index, keys, exact, found[:, 2], nhat)
+
+    def _poses_at(self, Q: np.ndarray) -> tuple:
+        """rotation(k, g) and centre(k, g): the poses of geometries g in configurations Q[k] (index arrays), for the
+        gaps, from one table of poses, the environment's then each configuration's robot geometries. Centres are
+        the shapes' (see ShapeGaps.offset), not their frames' origins."""
+        rotations, centres = self._robot_poses(Q)
+        centres = centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[self._slot >= 0])
+        rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
+        centres = np.concatenate([self._centres, centres.reshape(-1, 3)])
+        slot, count, robots = self._slot, len(self._slot), len(self._robot)
+
+        def row(k, g):
+            return np.where(slot[g] >= 0, count + k * robots + slot[g], g)
+
+        def rotation(k, g):
+            return rotations[row(k, g)]
+
+        def centre(k, g):
+            return centres[row(k, g)]
+
+        return rotation, centre
+
+    def _bound_again(self, Q, near_k, near_pair, bounds, nhat, need, rotation, centre) -> None:
+        """Raises `bounds` (rows near_k, near_pair of the gaps, in place) where Drake gave no direction and they do
+        not reach `need`. A pair Drake's query left out is farther apart than the limit by Drake's reckoning, but
+        without Drake's direction our bound can fall far below that: alternating projections converge slowly
+        between long shapes side by side (the UR3's upper arm and torch 9.8 mm apart were bounded at -2.4 mm), and
+        such a pair fails every piece down to the floor. So those pairs not settled are bounded again: along the
+        direction Drake last gave for the pair (ends of one motion are near each other, and any direction gives a
+        lower bound), then, where that is not enough either, along Drake's direction for the pair alone."""
+
+        def tighten(rows, directions):
+            """Bound rows again along these directions; the rows still not settled."""
+            k, pair = near_k[rows], near_pair[rows]
+            bounds[rows] = np.maximum(bounds[rows], self._gaps.along(k, pair, rotation, centre, directions))
+            return rows[bounds[rows] < need[k, pair]]
+
+        rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
+        known = np.isfinite(self._recent[near_pair[rows], 0]) if not self._ask_all else np.zeros(len(rows), bool)
+        if known.any():
+            rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
+        if len(rows):
+            asked = np.empty((len(rows), 3))
+            for k in np.unique(near_k[rows]).tolist():
+                mine = np.flatnonzero(near_k[rows] == k)
+                pairs = self._gaps.pairs[near_pair[rows[mine]]].tolist()
+                replies = self.checker.pair_distances(Q[k], [(self._ids[i], self._ids[j]) for i, j in pairs])
+                for r, (i, _), answer in zip(mine.tolist(), pairs, replies):
+                    # Drake's direction from the pair's second geometry to its first, in our order.
+                    direction = answer.nhat_BA_W if answer.id_A == self._ids[i] else -answer.nhat_BA_W
+                    asked[r] = self._recent[near_pair[rows[r]]] = direction
+            tighten(rows, asked)
+
+    def _store(self, drake: list, reported: _Reported, near_k, near_pair, bounds, limits, in_contact: set) -> None:
+        """Into the cache, for each configuration of `drake` (the items of _ends' todo that Drake's query kept) not
+        in contact, its PairDistances: Drake's exact distances and our bounds below the limit, sorted by key."""
+        below = bounds < limits[near_k]
+        near_k, near_pair, bounds = near_k[below], near_pair[below], bounds[below]
+        exact = reported.exact
+        config = np.concatenate([reported.config[exact], near_k])
+        index = np.concatenate([reported.index[exact], self._gaps.pairs[near_pair]])
+        keys = np.concatenate([reported.keys[exact], self._gaps.keys[near_pair]])
+        distance = np.concatenate([reported.distance[exact], bounds]) - self._rounding
+        order = np.lexsort((keys, config))
+        rows = self._rows[index[order]]
+        split = np.cumsum(np.bincount(config, minlength=len(drake)))[:-1]
+        parts = zip(*(np.split(array, split) for array in (keys[order], distance[order], rows[:, 0], rows[:, 1])))
+        for k, ((key, _, limit, _), part) in enumerate(zip(drake, parts)):
+            if k not in in_contact:
+                self._cache[key] = PairDistances(limit, *part)
+
+    def _robot_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (n, robots, 3, 3) and centres (n, robots, 3) of the robot geometries at configurations Q."""
+        if self._kinematics is not None:
+            return self._kinematics.poses(Q)
+        rotations, centres = [], []
+        for q in Q:
+            query = self.checker.oracle.query_object(q)
+            poses = [query.GetPoseInWorld(g) for g in self._robot]
+            # Copied now: Drake's poses are views into the query's cache, which the next configuration overwrites.
+            rotations.append(np.array([X.rotation().matrix() for X in poses]))
+            centres.append(np.array([X.translation() for X in poses]))
+        return np.reshape(rotations, (len(Q), -1, 3, 3)), np.reshape(centres, (len(Q), -1, 3))
+
+    def _directions(self, configurations: int, config, keys, swapped, directions) -> np.ndarray:
+        """Drake's separating directions (nhat_BA_W) of the GJK-kind pairs it reported -- rows of (configuration,
+        pair key, whether Drake named the pair's geometries the other way round, direction) -- as (configurations,
+        pairs of the gaps, 3), turned to point from the pair's second geometry to its first in our order; NaN where
+        not reported."""
+        at = np.searchsorted(self._gaps.keys, keys)  # the gaps' keys are sorted (pairs in lexicographic order)
+        if np.any(at >= len(self._gaps.keys)) or np.any(self._gaps.keys[at.clip(max=len(self._gaps.keys) - 1)] != keys):
+            raise RuntimeError("Drake reported a pair the certificate does not count (collision policy mismatch)")
+        nhat = np.full((configurations, len(self._gaps.keys), 3), np.nan)
+        nhat[config, at] = np.where(swapped[:, None], -1.0, 1.0) * directions
+        return nhat
+
+
+class PairDistances(NamedTuple):
+    """Distances at one end of a piece: the pairs within `limit`, by key, sorted."""
+
+    limit: float
+    keys: np.ndarray
+    distance: np.ndarray
+    row_a: np.ndarray
+    row_b: np.ndarray
+
+    def nearest(self) -> float:
+        """The least distance of a pair here (the limit if none is reported)."""
+        return min(float(self.distance.min()), self.limit) if len(self.distance) else self.limit
+
+
+class _Reported(NamedTuple):
+    """What Drake's query reported at the configurations it did not find in contact (kept: their indices in the
+    query, renumbered 0.. in that order): a row a pair -- its configuration, geometry indices (smaller first), key,
+    whether Drake computes its distance exactly, and the distance; and Drake's directions for the pairs of the
+    gaps, (configurations, pairs, 3), NaN where it gave none."""
+
+    kept: np.ndarray
+    config: np.ndarray
+    index: np.ndarray
+    keys: np.ndarray
+    exact: np.ndarray
+    distance: np.ndarray
+    nhat: np.ndarray
+
+
+def _largest_by_group(values: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """The largest row of each group of consecutive rows of `values` (groups start at `first`), elementwise; as
+    np.maximum.reduceat, which is slow on 2-d arrays, where groups here have one or two rows (an end bounds the
+    pieces either side of it)."""
+    size = np.diff(first, append=len(values))
+    largest = values[first]
+    for j in range(1, int(size.max(initial=1))):
+        more = np.flatnonzero(size > j)
+        largest[more] = np.maximum(largest[more], values[first[more] + j])
+    return largest
