@@ -297,11 +297,12 @@ def test_a_blended_curves_variation_is_each_coordinates_travel():
     """Over a blend and over parts of it (where a coordinate's rate turns through zero, and where it does not),
     `variation` is each coordinate's travel along the curve, summed finely, to rounding: never less (the
     certificate's bound rests on it) and not the larger bound of its greatest rate times the length."""
-    from app.motion.timing import _Curve, _first_radii, _legs, _prepare
+    from app.motion.blends import _Curve, first_radii, legs_between_stops
+    from app.motion.timing import _prepare
 
     W = np.array([[0.0, 0.0], [1.0, 0.2], [0.4, 1.0], [1.3, 1.4]])
     W, _, _, tangent, arc = _prepare(W, np.ones(2), np.ones(2), np.ones(2))
-    curve = _Curve(_legs(W, tangent, arc, _first_radii(np.diff(arc))))
+    curve = _Curve(legs_between_stops(W, tangent, arc, first_radii(np.diff(arc))))
     blends = [(s0, s1) for leg in curve.legs for s0, s1, corner in leg.pieces if corner is not None]
     assert blends
     looser = 0
@@ -318,15 +319,17 @@ def test_a_blended_curves_variation_is_each_coordinates_travel():
 
 
 def test_the_time_at_a_path_parameter_is_where_toppras_s_of_t_reaches_it():
-    """_when inverts Toppra's s(t) (piecewise quadratic) in closed form: at the times it gives, s(t) is the asked s
+    """times_at inverts Toppra's s(t) (piecewise quadratic) in closed form: at the times it gives, s(t) is the asked s
     to rounding, all along a blended leg, and the times rise with s from the leg's start."""
-    from app.motion.timing import _first_radii, _legs, _prepare, _sliders, _toppra, _when
+    from app.motion.blends import first_radii, legs_between_stops
+    from app.motion.leg_timing import _sliders, _toppra, times_at
+    from app.motion.timing import _prepare
 
     W = np.array([[0.0, 0.0], [1.0, 0.2], [0.4, 1.0], [1.3, 1.4]])
     W, v, a, tangent, arc = _prepare(W, np.ones(2), np.ones(2), np.ones(2))
-    (leg,) = _legs(W, tangent, arc, _first_radii(np.diff(arc)))
+    (leg,) = legs_between_stops(W, tangent, arc, first_radii(np.diff(arc)))
     s_of_t = _toppra(_sliders(2), leg, v, a)
     s = np.linspace(0.0, arc[-1], 301)
-    t = _when(s_of_t, s)
+    t = times_at(s_of_t, s)
     assert t[0] == 0.0 and np.all(np.diff(t) > 0) and t[-1] <= s_of_t.end_time()
     assert np.allclose(s_of_t.vector_values(t).ravel(), s, rtol=0, atol=1e-12 * arc[-1])
