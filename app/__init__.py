@@ -20,6 +20,7 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from app.checking.budget import Budget  # noqa: E402
+from app.checking.certify import certify_path  # noqa: E402
 from app.checking.context import QueryContext  # noqa: E402
 from app.checking.oracle import CollisionOracle  # noqa: E402
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError  # noqa: E402
@@ -41,6 +42,8 @@ __all__ = [
     "CollisionOracle",
     "QueryContext",
     "ConfigurationSpace",
+    # a path of the user's, proved free between its points
+    "certify_path",
     # planning
     "plan",
     "PlanSettings",

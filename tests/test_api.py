@@ -26,6 +26,7 @@ def test_all_names_exist_and_nothing_else_is_promised():
         "make_sampler",
         "SAMPLERS",
         "NoPath",
+        "certify_path",
     } <= set(app.__all__)
 
 
@@ -58,3 +59,16 @@ def test_settings_are_validated_once_when_built():
     ]:
         with pytest.raises(app.UserError):
             app.PlanSettings(**bad)
+
+
+def test_a_users_polyline_is_certified_free_or_refused_through_an_obstacle(checkers):
+    """app.certify_path proves a user's own path: a short move beside the wall of `bar` is free all along; the
+    straight line from start to goal, through the wall, is refused at that edge."""
+    import numpy as np
+
+    scene = app.load_scene("bar")
+    beside = scene.start + np.eye(len(scene.start))[0] * 5.0  # 5 units along x, the wall still far
+    ok, stats = app.certify_path(checkers("bar"), np.array([scene.start, beside]))
+    assert ok and stats["failed"] == []
+    ok, stats = app.certify_path(checkers("bar"), np.array([scene.start, beside, scene.goal]))
+    assert not ok and stats["failed"] == [1]
