@@ -308,7 +308,3 @@ class ResultStore:
 
     def count(self) -> int:
         return self._db.execute("SELECT COUNT(*) FROM trials").fetchone()[0]
-
-
-def spec_dict(spec: TrialSpec) -> dict:
-    return asdict(spec)

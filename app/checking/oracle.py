@@ -90,7 +90,9 @@ class CollisionOracle:
         # that went to everything else.
         self.seconds = {"checks": 0.0, "distances": 0.0, "points": 0.0}
 
-        # The checker takes ownership of the diagram; everything below goes through checker.model().
+        # The checker takes ownership of the diagram; everything below goes through checker.model(). Drake requires
+        # an edge step, but nothing calls the checker's edge methods (edges are checked on the raw loop: first_hits),
+        # so edge_step_size is unused here.
         self.checker = SceneGraphCollisionChecker(
             model=scene.diagram,
             robot_model_instances=scene.robot_instances,

@@ -296,10 +296,6 @@ class Roadmap:
             self._labelled = (state, connected_components(graph, directed=True, connection="strong"))
         return self._labelled[1]
 
-    def connected(self, a: int, b: int) -> bool:
-        labels = self._labels()[1]
-        return bool(labels[a] == labels[b])
-
     def components(self) -> int:
         return int(self._labels()[0])
 

@@ -28,7 +28,6 @@ class Sampler:
     """Base class. Subclasses implement `_round(rng, need) -> (samples, bridges or None)`."""
 
     name = ""
-    has_bridges = False
 
     def __init__(
         self,

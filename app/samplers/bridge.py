@@ -10,7 +10,6 @@ from app.samplers.base import Sampler
 
 class BridgeSampler(Sampler):
     name = "rbbs"
-    has_bridges = True
 
     def _begin(self, rng):
         self._rate = 0.01

@@ -65,7 +65,6 @@ class Walker(Sampler):
         if step_law not in ("gaussian", "levy"):
             raise ValueError(f"step_law must be 'gaussian' or 'levy', not {step_law!r}")
         self.step_law, self.bridge = step_law, bool(bridge)
-        self.has_bridges = self.bridge
         for key, value in (
             ("alpha_convention", alpha_convention),
             ("angle_law", angle_law),
