@@ -7,12 +7,12 @@ The query set (`make_queries`), deterministic from the seed, is made once per sc
   in query i-1, or that query's start when it failed: a cell's robot waits where it is -- to a tool pose, alternately
   one in the hard region -- a named pose of the scene (the hatch, the part behind it, the weld seam) moved by up to
   HARD_SHIFT and turned by up to HARD_TURN -- and one outside it: the tool pose of a random free configuration.
-  Its goal is every distinct IK solution found for the pose (`ik_solutions`), any of which will do. A hard pose is
-  kept only if the arm reaches it in the posture the scene's job uses for the named pose (IK from that posture,
-  `solve_poses`): moved and turned, a seam can leave the arm only postures wedged among the obstacles, from
-  which no method found a way out (bench pages, "Many queries in one cell"). A fixed start per query (the previous
-  query's first goal) chained such a posture, or a posture beyond an obstacle the robot never reached, into the
-  next query, which then no method could answer either.
+  Its goal is every distinct IK solution found for the pose (`app.planning.ik.distinct_solutions`), any of which
+  will do. A hard pose is kept only if the arm reaches it in the posture the scene's job uses for the named pose
+  (IK from that posture, `solve_poses`): moved and turned, a seam can leave the arm only postures wedged among the
+  obstacles, from which no method found a way out (bench pages, "Many queries in one cell"). A fixed start per query
+  (the previous query's first goal) chained such a posture, or a posture beyond an obstacle the robot never reached,
+  into the next query, which then no method could answer either.
 - any other scene: independent random free start/goal pairs (uniform samples the oracle finds free).
 
 Methods (`METHODS`), on a per-query budget (`--budget`: a CHECK budget, so ours are machine-independent; OMPL only
@@ -47,8 +47,9 @@ from tqdm import tqdm
 
 from app.bench.store import ResultStore, Reuse, TrialSpec
 from app.checking.budget import Budget
-from app.errors import InvalidEndpoint, NoPath, UserError
+from app.errors import NoPath, SamplerBudgetExceeded, UserError
 from app.planning.planner import PlanSettings, default_step, plan
+from app.samplers import make_sampler
 
 # app.planning.cell and app.ompl_bridge (which loads OMPL, optional) are imported by the methods that use them.
 
@@ -56,9 +57,9 @@ METHODS = ("fresh", "cell", "ompl-prm", "ompl-rrtconnect")
 EXPERIMENT, PROTOCOL = "queries", "query-set+answers"
 # The hard region of a UR3 cell: a named pose moved this far (m, per axis) and turned this much (rad) at most.
 HARD_SHIFT, HARD_TURN = 0.02, math.radians(10.0)
-# IK solutions looked for per tool pose: the one nearest the start, then one from each of this many random
-# references; solutions closer than DISTINCT (scene metric) to one already kept are the same solution.
-IK_REFERENCES, DISTINCT = 6, 0.05
+# Free configurations (the random pairs, the outside poses) are the uniform sampler's, a fixed batch a round, so that
+# a query set does not depend on the yield seen so far; at most FREE_ROUNDS rounds.
+FREE_BATCH, FREE_ROUNDS = 256, 1000
 # Tool poses tried per query before the query set gives up (a moved named pose may have no free IK solution).
 POSE_ATTEMPTS = 50
 # How near (scene metric) a path's end must be to a goal to count as reaching it.
@@ -139,20 +140,21 @@ def make_queries(oracle, n: int, seed: int, progress=None) -> QuerySet:
     return QuerySet("random free start/goal pairs", free[0::2], [g[None] for g in free[1::2]], np.zeros(n, bool))
 
 
-def _free_configurations(oracle, n: int, rng, batch: int = 256, tries: int = 1000) -> np.ndarray:
-    checker, out = oracle.context(), []
-    for _ in range(tries):
-        Q = oracle.space.uniform(rng, batch)
-        out.extend(Q[checker.are_free(Q)])
-        if len(out) >= n:
-            return np.array(out[:n])
-    raise UserError(f"scene {oracle.scene.name}: fewer than {n} free configurations in {tries * batch} samples")
+def _free_configurations(oracle, n: int, rng) -> np.ndarray:
+    """n free configurations uniform in the bounds: the uniform sampler, FREE_BATCH candidates a round."""
+    sampler = make_sampler("uniform", oracle.context(), batch=FREE_BATCH, max_rounds=FREE_ROUNDS)
+    try:
+        return sampler.sample(n, rng)
+    except SamplerBudgetExceeded:
+        raise UserError(
+            f"scene {oracle.scene.name}: fewer than {n} free configurations in {FREE_ROUNDS * FREE_BATCH} samples"
+        ) from None
 
 
 def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
     from pydrake.math import RigidTransform, RotationMatrix
 
-    from app.planning.ik import solve_poses, tool_pose
+    from app.planning.ik import distinct_solutions, solve_poses, tool_pose
 
     names = list(oracle.scene.poses)
     home = np.asarray(oracle.scene.start, float)
@@ -171,10 +173,10 @@ def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
                 spin = RotationMatrix.MakeZRotation(rng.uniform(-HARD_TURN, HARD_TURN))
                 turn = turn.multiply(spin).multiply(turn.inverse())  # a turn about `axis`
                 pose = RigidTransform(turn.multiply(X.rotation()), X.translation() + rng.uniform(-1, 1, 3) * HARD_SHIFT)
-                found = ik_solutions(oracle, pose, rng, reference, posture=postures[name])
+                found = distinct_solutions(oracle, pose, rng, reference, posture=postures[name])
             else:
                 q = _free_configurations(oracle, 1, rng)[0]
-                found = ik_solutions(oracle, tool_pose(oracle, q), rng, reference, known=[q])
+                found = distinct_solutions(oracle, tool_pose(oracle, q), rng, reference, known=[q])
             if len(found):
                 break
         else:
@@ -190,35 +192,6 @@ def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
         "job's posture for it (hard), and the pose of a random free configuration"
     )
     return QuerySet(kind, home[None], goals, np.array(hard), chained=True)
-
-
-def ik_solutions(oracle, pose, rng, reference, known=(), posture=None) -> np.ndarray:
-    """Distinct free IK solutions of `pose` (k, dim), the one nearest `reference` first: solve_pose from the
-    reference, then from IK_REFERENCES random references (solve_pose returns one solution per call, the nearest
-    its reference of those it found), plus `known` solutions. With `posture`, first the solution SNOPT reaches
-    from that posture, and none at all when it reaches none. Empty when none is found."""
-    from app.planning.ik import solve_pose
-
-    found = [np.asarray(q, float) for q in known]
-    if posture is not None:
-        try:
-            found.append(solve_pose(oracle, pose, rng, posture, seeds=1, keep=1))
-        except InvalidEndpoint:
-            return np.empty((0, oracle.space.dim))
-    references = [reference] + list(oracle.space.uniform(rng, IK_REFERENCES))
-    for k, ref in enumerate(references):
-        try:
-            q = solve_pose(oracle, pose, rng, ref, seeds=16 if k == 0 else 2, keep=1 if k else 6)
-        except InvalidEndpoint:
-            if k == 0 and not found:
-                return np.empty((0, oracle.space.dim))  # not reachable from 16 seeds: not worth the others
-            continue
-        if all(oracle.space.distance(q, other) > DISTINCT for other in found):
-            found.append(q)
-    if not found:
-        return np.empty((0, oracle.space.dim))
-    found.sort(key=lambda q: float(oracle.space.distance(reference, q)))
-    return np.array(found)
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,9 @@ CLEARANCE = 0.005  # m, the second round's minimum distance
 # left the window job's median time as it was (`bench jobs`, 20 seeds: 3.96 s against 3.95 s), so the tool keeps
 # to its line more closely.
 TOOL_STEP, TOOL_TURN, JUMP = 0.02, math.radians(10.0), 10.0
+# distinct_solutions: random references it solves from besides the caller's, and how near (scene metric) two
+# solutions are the same one.
+REFERENCES, DISTINCT = 6, 0.05
 
 
 def pose_error(oracle, q, pose, frame=None) -> tuple[float, float]:
@@ -180,6 +183,45 @@ def solve_pose(
         if all(oracle.space.distance(q, other) > oracle.space.resolution for other in distinct):
             distinct.append(q)
     return np.array(distinct)
+
+
+def distinct_solutions(
+    oracle,
+    pose,
+    rng: np.random.Generator,
+    reference,
+    *,
+    known=(),
+    posture=None,
+    references: int = REFERENCES,
+    distinct: float = DISTINCT,
+) -> np.ndarray:
+    """Distinct free solutions of `pose` from several postures (k, dim), the one nearest `reference` first: where
+    `solve_pose(..., every=True)` keeps what one search from one reference finds, this also starts from random
+    references, for other branches of the arm's IK (a work cell's goals, any of which will do). `solve_pose` from
+    the reference (16 seeds), then from `references` random ones (2 seeds each; one solution per call), plus `known`
+    solutions; one closer than `distinct` (scene metric) to a solution kept is the same. With `posture`, first the
+    solution SNOPT reaches from that posture, and none at all when it reaches none. Empty when none is found."""
+    found = [np.asarray(q, float) for q in known]
+    if posture is not None:
+        try:
+            found.append(solve_pose(oracle, pose, rng, posture, seeds=1, keep=1))
+        except InvalidEndpoint:
+            return np.empty((0, oracle.space.dim))
+    starts = [reference] + list(oracle.space.uniform(rng, references))
+    for k, ref in enumerate(starts):
+        try:
+            q = solve_pose(oracle, pose, rng, ref, seeds=16 if k == 0 else 2, keep=1 if k else 6)
+        except InvalidEndpoint:
+            if k == 0 and not found:
+                return np.empty((0, oracle.space.dim))  # not reachable from 16 seeds: not worth the others
+            continue
+        if all(oracle.space.distance(q, other) > distinct for other in found):
+            found.append(q)
+    if not found:
+        return np.empty((0, oracle.space.dim))
+    found.sort(key=lambda q: float(oracle.space.distance(reference, q)))
+    return np.array(found)
 
 
 def tool_pose(oracle, q, frame=None):

@@ -4,19 +4,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.errors import UserError
 from app.samplers.base import Sampler
 
 
 class UniformSampler(Sampler):
-    """Free configurations uniform in the bounds: draw a batch, keep the free ones. `step` is ignored."""
+    """Free configurations uniform in the bounds: draw a batch, keep the free ones. `step` is ignored. `batch`:
+    candidates per round, fixed (default None: sized from the free fraction seen so far)."""
 
     name = "uniform"
+
+    def __init__(self, oracle, step: float = 10.0, batch: int | None = None, **kw):
+        super().__init__(oracle, step=step, **kw)
+        if batch is not None and (isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1):
+            raise UserError(f"batch must be a whole number of at least 1, got {batch!r}")
+        self.batch = None if batch is None else int(batch)
 
     def _begin(self, rng):
         self._rate = 0.5  # running estimate of the free fraction, to size batches
 
     def _round(self, rng, need):
-        n = self._batch_size(need, self._rate)
+        n = self.batch or self._batch_size(need, self._rate)
         Q = self.space.uniform(rng, n)
         free = self.oracle.are_free(Q)
         self.stats["attempts"] += n
