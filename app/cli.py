@@ -2,17 +2,19 @@
 
 Each command module (app/commands) exposes `register(subparsers)`, which adds its parser and sets `func` to a
 callable taking the parsed arguments; it returns on success and raises on failure. `main` prints what was raised
-as one line on stderr and exits with its code from EXIT_CODES.
+as one line on stderr and exits with its code from EXIT_CODES, and each warning the library gives
+(app.errors.PlannerWarning) as one line on stderr when it is given: "warning: ..." or, for a Note, "note: ...".
 """
 
 import argparse
 import os
 import re
 import sys
+import warnings
 
 from app import commands
 from app.commands.common import INTERRUPTED_WHILE_ANSWERING, answer_written, answering, forget_answer, print_json
-from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError
+from app.errors import InvalidEndpoint, NoPath, Note, PlannerWarning, SamplerBudgetExceeded, UserError
 
 # The one map from a failure to the process's exit code (0: success). An exception takes the code of its nearest
 # class here: NoPath is also a UserError, and gets 1.
@@ -85,9 +87,31 @@ def main(argv=None) -> int:
     stdout: {"success": false, "error": {"code", "message"}, "exit_code"}, and "details" when the failure (a planning
     query's, or an interrupt during one) carries them. A command writes its answer inside
     app.commands.common.answering(): an interrupt that comes once it has begun no longer stops the command (exit 0,
-    one line on stderr saying so), and --json prints exactly one object on every path."""
+    one line on stderr saying so), and --json prints exactly one object on every path. The library's warnings
+    show as one line each, every time one is given (`one_line_warnings`)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     forget_answer()
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", PlannerWarning)
+        warnings.showwarning = one_line_warnings(warnings.showwarning)
+        return _run(argv)
+
+
+def one_line_warnings(other):
+    """A `warnings.showwarning` that prints a PlannerWarning as one line on stderr, "note: ..." for a Note and
+    "warning: ..." for the others, and hands every other warning to `other`."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if not issubclass(category, PlannerWarning):
+            return other(message, category, filename, lineno, file, line)
+        prefix = "note" if issubclass(category, Note) else "warning"
+        print(f"{prefix}: {' '.join(str(message).split())}", file=sys.stderr, flush=True)
+
+    return show
+
+
+def _run(argv: list[str]) -> int:
+    """`main` on arguments, its warnings set up."""
     try:
         refuse_empty_values(argv)
         args = build_parser().parse_args(join_negative_values(argv))

@@ -1,9 +1,20 @@
-"""The exceptions behind every failure a user should see as one line: bad input, an invalid start or goal, no path.
+"""The exceptions behind every failure a user should see as one line: bad input, an invalid start or goal, no path;
+and the warnings library code gives instead of printing (PlannerWarning, Note).
 
 Each carries a stable `code` (MoveIt's error-code names where they fit), so a program reading `--json` answers, or
 calling the API, can tell failures apart without parsing messages. What each means to a process (its exit code) is
 the command line's business: `app.cli.EXIT_CODES`.
 """
+
+
+class PlannerWarning(UserWarning):
+    """Something about the user's input worth a line that does not stop the work (`warnings.warn(message,
+    PlannerWarning)`): library code warns and never prints. The command line shows it as one line, "warning: ..."."""
+
+
+class Note(PlannerWarning):
+    """A PlannerWarning that changes nothing of the answer (what a model file holds that planning does not use): the
+    command line shows it as "note: ..."."""
 
 
 class UserError(Exception):

@@ -119,7 +119,8 @@ def test_wrong_length_or_non_finite_configuration_is_a_user_error(oracles):
 
 # ---- exit codes and argument types ----------------------------------------------------------------------------------
 def test_every_error_class_has_its_exit_code():
-    """The one map covers every exception the core raises to a user (app.errors; the samplers define none)."""
+    """The one map covers every exception the core raises to a user (app.errors, its warnings apart: they are given,
+    not raised; the samplers define none)."""
     import app.samplers
     import app.samplers.base
     import app.samplers.bridge
@@ -140,7 +141,7 @@ def test_every_error_class_has_its_exit_code():
         obj
         for module in modules
         for obj in vars(module).values()
-        if isinstance(obj, type) and issubclass(obj, BaseException)
+        if isinstance(obj, type) and issubclass(obj, BaseException) and not issubclass(obj, Warning)
     }
     assert classes and classes <= set(EXIT_CODES)
     assert {cls.__name__: code for cls, code in EXIT_CODES.items()} == {
@@ -444,3 +445,31 @@ def test_show_sample_and_view_take_a_robot_of_ones_own(cli, one_line_error, tmp_
     assert json.loads(result.stdout)["scene"] == "planar_arm_3-in-bar_obstacles"
     assert "--srdf needs --robot" in one_line_error(cli("show", "bar", "--png", tmp_path / "b.png", "--srdf", "x"), 2)
     assert "not both" in one_line_error(cli("view", "bar", *robot, "--trajectory", trajectory, "--html", "x.html"), 2)
+
+
+def test_a_library_warning_is_one_line_on_stderr_each_time(cli, monkeypatch):
+    """Library code warns (app.errors.PlannerWarning, Note) and never prints: the command line shows each warning as
+    one line, "warning: ..." or "note: ...", every time one is given; other warnings keep Python's own form."""
+    import warnings
+
+    from app.commands import scenes
+    from app.errors import Note, PlannerWarning
+
+    def names():
+        for _ in range(2):
+            warnings.warn("arm.urdf: Drake ignored 2 elements\nit does not use", Note, stacklevel=1)
+        warnings.warn("arm.stl became 900 convex pieces", PlannerWarning, stacklevel=1)
+        return ["bar"]
+
+    monkeypatch.setattr(scenes, "scene_names", names)
+    result = cli("scenes")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.splitlines() == [
+        "note: arm.urdf: Drake ignored 2 elements it does not use",
+        "note: arm.urdf: Drake ignored 2 elements it does not use",
+        "warning: arm.stl became 900 convex pieces",
+    ]
+    assert result.stdout.startswith("bar ")
+    with pytest.warns(PlannerWarning) as given:  # a library user gets them as Python warnings
+        names()
+    assert [w.category for w in given] == [Note, Note, PlannerWarning]
