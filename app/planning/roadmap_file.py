@@ -76,6 +76,9 @@ _VERDICT_MODULES = (
     "checking/oracle.py",
     "checking/context.py",
     "checking/certify.py",
+    "checking/motion_bound.py",
+    "checking/shape_gaps.py",
+    "checking/end_distances.py",
     "checking/kinematics.py",
     "scene/cspace.py",
 )
