@@ -2,17 +2,8 @@
 
 import numpy as np
 
-from app.bench.claims import (
-    SAMPLER_CAP,
-    checks_per_passage_sample,
-    detectable_drop,
-    judge,
-    median_ci,
-    passage_yield,
-    spread_difference,
-    success_ci,
-    trend,
-)
+from app.bench.claims import SAMPLER_CAP, checks_per_passage_sample, judge, passage_yield
+from app.bench.statistics import detectable_drop, median_ci, spread_difference, success_ci, trend
 from app.bench.store import ResultStore, TrialSpec
 
 

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from app.bench import jobs, paper
+from app.bench import jobs, paper, paper_figures, paper_report, paper_sections, sampling
 from app.bench.runner import EXPERIMENTS
+from app.bench.statistics import detectable_drop
 from app.bench.store import ResultStore, TrialSpec
 from app.cli import main
 
@@ -72,7 +73,7 @@ def test_each_reading_is_judged_on_its_own_trials_and_the_default_ones_of_the_ot
     assert len(default) == len(angle) == 8
     assert {r["metrics"]["passage_fraction"] for r in angle if r["method"] == "lfbs"} == {0.9}
     assert {r["method"] for r in angle if r["metrics"]["passage_fraction"] == 0.2} == {"rbbs"}
-    paper.build_report(store, tmp_path, pictures=False)
+    paper_report.build_report(store, tmp_path, pictures=False)
     report = (tmp_path / "report.md").read_text()
     table = report.split("## Sensitivity to the paper's readings")[1]
     assert "| default | (default) |" in table and "| angle-gaussian | angle_law=gaussian |" in table
@@ -135,7 +136,7 @@ def test_report_only_runs_no_trial_and_links_the_pictures_an_earlier_run_drew(tm
     def no_trials(*args, **kwargs):
         raise AssertionError("--report-only ran a sampling trial")
 
-    monkeypatch.setattr(paper.sampling, "run_trial", no_trials)
+    monkeypatch.setattr(sampling, "run_trial", no_trials)
     monkeypatch.setattr(paper, "run_sweep", no_trials)
     capsys.readouterr()
     assert main([*TINY, "--out", str(out), "--report-only"]) == 0
@@ -219,7 +220,7 @@ def test_a_cell_whose_first_trials_all_spend_the_budget_gets_no_more(tmp_path):
     assert {(s.step, s.seed) for s in specs} - {(s.step, s.seed) for s in kept} == {
         (2.0, seed) for seed in range(paper.CENSORED_CAP, 40)
     }  # a step-5 trial finished: that cell runs on
-    paper.build_report(store, tmp_path, pictures=False)
+    paper_report.build_report(store, tmp_path, pictures=False)
     assert "Capped: bar rbbs a=2." in (tmp_path / "report.md").read_text()
 
 
@@ -239,10 +240,10 @@ def test_the_prm_section_says_what_its_runs_can_tell_apart(tmp_path, runs):
         for method in ("lfbs", "rbbs")
         for seed in range(runs)
     ]
-    text = "\n".join(paper._prm_section(rows, tmp_path)[0])
+    text = "\n".join(paper_sections.prm_section(rows, tmp_path)[0])
     assert f"Runs per cell: {runs}, not {paper.TARGET_TRIALS}" in text
     if runs == 30:
-        assert f"flags LFBS at {paper.detectable_drop(30, 30)}/30 or fewer against RBBS's 30/30" in text
+        assert f"flags LFBS at {detectable_drop(30, 30)}/30 or fewer against RBBS's 30/30" in text
     else:  # one run against one cannot show anything
         assert "flags no LFBS count (too few runs) against RBBS's 1/1" in text
     assert (tmp_path / "prm.png").exists()
@@ -275,12 +276,12 @@ def test_prm_runs_whose_sampler_gave_up_are_marked_censored_in_the_table(tmp_pat
         for s in range(3)
     ]
     rows.append(row("rbbs", 3, {"success": 0.0, "seconds": 9.0, "collision_checks": 90_000, "nodes": 302}))
-    lines, found = paper._prm_section(rows, tmp_path)
+    lines, found = paper_sections.prm_section(rows, tmp_path)
     text = "\n".join(lines)
     assert "| tunnel | 0.2 | rbbs | 4 | 3 | 0/4 [0%, 60%] | – (124.56) | 9.00 [9.00, 9.00] (253.09) |" in text
     assert "| tunnel | 0.2 | lfbs | 4 | 0 |" in text
     assert found[0].startswith("PRM: 3 of 8 runs (tunnel a=0.2 rbbs 3/4) built no roadmap")
-    cells = {c["sampler"]: c for c in paper.prm_cells(rows)}
+    cells = {c["sampler"]: c for c in paper_figures.prm_cells(rows)}
     assert cells["rbbs"]["gave_up"] == 3 and not cells["rbbs"]["gave_up_only"]
     assert (tmp_path / "prm.png").exists()
 
@@ -305,7 +306,7 @@ def test_the_ur3_section_gives_success_intervals_and_what_more_runs_would_cost()
         }
         for seed in range(4)
     ]
-    lines, found = paper._ur3_section(rows)
+    lines, found = paper_sections.ur3_section(rows)
     text = "\n".join(lines)
     assert found == [
         "UR3 window under the paper's protocol (one full roadmap of 300 samples per leg): LFBS 3/4, median 36 s per "

@@ -1,10 +1,10 @@
-"""A stored cell roadmap (app.planning.cell: `read`, `CellRoadmap.load`) against damaged and hostile files, and two
+"""A stored cell roadmap (app.planning.roadmap_file.read, `CellRoadmap.load`) against damaged and hostile files, and two
 processes updating one roadmap file (`plan --roadmap F --update`).
 
 Every fault is one UserError line (from the command line: `error: ...`, exit code 2, nothing written), at once: no
 traceback, no hang, no gigabytes unpacked. The files are copies of one small bar-3link roadmap, built once for the
-module, each damaged one way; app.bench.bad_input holds the helpers that make and damage zip members (its table runs
-a few of these cases for `bench audit` too).
+module, each damaged one way; app.bench.damaged_roadmaps holds the helpers that make and damage zip members (the
+bad-input table runs a few of these cases for `bench audit` too).
 """
 
 import json
@@ -20,7 +20,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from app.bench.bad_input import (
+from app.bench.damaged_roadmaps import (
     deflate_bomb,
     invalid_deflate,
     npy,

@@ -13,7 +13,7 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from app.bench.claims import median_ci
+from app.bench.statistics import median_ci
 from app.checking.oracle import CollisionOracle
 from app.errors import SamplerBudgetExceeded
 from app.samplers import make_sampler
@@ -118,7 +118,7 @@ def run_trial_spec(oracle, spec) -> dict:
 
 
 def summarise(rows: list[dict]) -> list[dict]:
-    """Median and its 95 % bootstrap confidence interval (`claims.median_ci`) of each metric per scene x sampler x
+    """Median and its 95 % bootstrap confidence interval (`statistics.median_ci`) of each metric per scene x sampler x
     step. Censored trials count with their values (lower bounds for checks and time)."""
     cells: dict[tuple, list[dict]] = {}
     for r in rows:

@@ -1,5 +1,5 @@
-"""`bench paper`: the paper's Section IV in one command -- every sweep into one store, then DIR/report.md
-(app.bench.paper)."""
+"""`bench paper`: the paper's Section IV in one command -- every sweep into one store (app.bench.paper), then
+DIR/report.md (app.bench.paper_report)."""
 
 import sys
 import time
@@ -15,13 +15,13 @@ from app.bench.paper import (
     TARGET_TRIALS,
     TRIALS_CSV,
     Config,
-    build_report,
     check_folder,
     check_steps,
     export_trials,
     import_trials,
     run_sweeps,
 )
+from app.bench.paper_report import build_report
 from app.bench.runner import connect
 from app.bench.store import ResultStore
 from app.commands.bench import results
