@@ -29,8 +29,9 @@ from app.planning.cell import BuildSettings, CellRoadmap  # noqa: E402
 from app.planning.planner import PlanResult, PlanSettings, Query, plan  # noqa: E402
 from app.samplers import SAMPLERS, Sampler, make_sampler  # noqa: E402
 from app.scene.cspace import ConfigurationSpace  # noqa: E402
-from app.scene.custom import CustomSpec, build_scene, load_scene  # noqa: E402
+from app.scene.custom import build_scene, load_scene  # noqa: E402
 from app.scene.model import Scene, scene_names  # noqa: E402
+from app.scene.spec import CustomSpec  # noqa: E402
 
 __all__ = [
     # scenes and the collision oracle

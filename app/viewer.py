@@ -26,7 +26,8 @@ import numpy as np
 from app.errors import UserError
 from app.io import check_output, write_atomically
 from app.motion.trajectory import TrajectoryFile
-from app.scene.model import Scene, robot_diagram_builder
+from app.scene.drake_parser import robot_diagram_builder
+from app.scene.model import Scene
 from app.scene.shapes import half_extent
 
 YELLOW = (1.0, 0.85, 0.0, 1.0)  # narrow-passage samples

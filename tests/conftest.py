@@ -23,7 +23,7 @@ from app.scene.offline import offline_drake_cache
 
 os.environ["DRAKE_ALLOW_NETWORK"] = "none"
 os.environ["XDG_CACHE_HOME"] = str(offline_drake_cache(Path(tempfile.mkdtemp(prefix="npp-drake-cache-"))))
-# The mesh cache's secret key (app.scene.meshes.key_path): the session's own, never the user's ~/.config/npp.
+# The mesh cache's secret key (app.scene.meshes.cache.key_path): the session's own, never the user's ~/.config/npp.
 os.environ["NPP_KEY_FILE"] = str(Path(tempfile.mkdtemp(prefix="npp-key-")) / "cache.key")
 os.environ.setdefault("MPLBACKEND", "Agg")
 

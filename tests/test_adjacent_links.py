@@ -73,7 +73,7 @@ def test_links_meeting_across_a_link_without_geometry_are_adjacent(tmp_path, vir
 def test_the_neighbours_of_a_link_without_geometry_are_all_adjacent_and_nothing_else_is(tmp_path):
     """A palm without geometry between an arm and two fingers: arm and fingers, and the fingers with each other, are
     adjacent (MoveIt joins every neighbour of such a link); the tip beyond a finger with geometry is not."""
-    from app.scene.model import adjacent_bodies
+    from app.scene.build import adjacent_bodies
 
     robot = _urdf(
         tmp_path / "hand.urdf",

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.scene.model import ROOT
+from app.scene.files import ROOT
 from chromium import chromium, needs_chromium, screenshot_when_still
 
 OUT = ROOT / "out"

@@ -18,8 +18,9 @@ from scipy.spatial import ConvexHull  # noqa: E402
 
 from app.commands.custom import describe  # noqa: E402
 from app.errors import UserError  # noqa: E402
-from app.scene import meshes  # noqa: E402
 from app.scene.custom import CustomSpec, build_scene  # noqa: E402
+from app.scene.meshes import cache as mesh_cache  # noqa: E402
+from app.scene.meshes import decomposition  # noqa: E402
 from cad_arm import GOAL, LINKS, START, write_arm, write_post  # noqa: E402
 
 
@@ -64,28 +65,28 @@ def test_cad_links_load_with_defaults_and_contain_their_meshes(arm, cache, monke
         assert d["volume"]["relative_to"] == "hull" and -0.6 < d["volume"]["added"] < 0.01
         # Conservative: every corner and 3,000 surface points of the original mesh lie in some piece.
         points = np.vstack([source.vertices, trimesh.sample.sample_surface(source, 3000, seed=0)[0]])
-        decomposition = meshes.decompose(arm / "meshes" / name, cache_dir=cache, conservative=True, progress=False)
-        assert decomposition.from_cache and not _outside(points, decomposition.pieces).any()
+        found = mesh_cache.decompose(arm / "meshes" / name, cache_dir=cache, conservative=True, progress=False)
+        assert found.from_cache and not _outside(points, found.pieces).any()
     # The closed, non-convex bracket on the upper arm keeps its slot: shell pieces, validated.
     assert links["upper_arm.stl"]["parts"].get("shell") == 1
     lines = describe(scene)
     assert any("upper_arm.stl" in line and "by convex" in line and "of the mesh's hull" in line for line in lines)
 
     # Again: every piece read from the cache, none decomposed anew (how much faster: `bench oracle`, see above).
-    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails
+    monkeypatch.setattr(decomposition, "decompose_parts", None)  # calling it now fails
     again = build_scene(_spec(arm), cache_dir=cache, progress=False)
     assert all(d["from_cache"] for d in again.info["decompositions"])
 
 
 def test_forced_hulls_take_every_part_as_a_hull(arm, tmp_path):
-    forced = meshes.decompose(arm / "meshes" / "upper_arm.stl", "convex", cache_dir=tmp_path, progress=False)
+    forced = mesh_cache.decompose(arm / "meshes" / "upper_arm.stl", "convex", cache_dir=tmp_path, progress=False)
     assert forced.parts == {"convex": len(trimesh.load(arm / "meshes" / "upper_arm.stl").split(only_watertight=False))}
     assert forced.method == "convex" and forced.volume["added"] > -0.6
 
 
 def test_an_unknown_srdf_link_is_reported_before_any_mesh_work(arm, tmp_path, monkeypatch):
     (tmp_path / "typo.srdf").write_text('<robot name="cad_arm"><disable_collisions link1="base" link2="elbw"/></robot>')
-    monkeypatch.setattr(meshes, "decompose", None)  # calling it now fails: the SRDF must be refused first
+    monkeypatch.setattr(mesh_cache, "decompose", None)  # calling it now fails: the SRDF must be refused first
     with pytest.raises(UserError, match="unknown link.*elbw"):
         build_scene(_spec(arm, srdf=str(tmp_path / "typo.srdf")), cache_dir=tmp_path, progress=False)
 
@@ -93,7 +94,8 @@ def test_an_unknown_srdf_link_is_reported_before_any_mesh_work(arm, tmp_path, mo
 def test_a_wrong_start_is_reported_before_the_environment_is_decomposed(arm, tmp_path, cache, monkeypatch):
     (tmp_path / "box.stl").write_bytes(trimesh.creation.box([0.1, 0.1, 0.1]).export(file_type="stl"))
     build_scene(_spec(arm, env=[]), cache_dir=cache, progress=False)  # the links cached (by the first test already)
-    monkeypatch.setattr(meshes, "_decompose_parts", None)  # decomposing the box now fails: start must be refused first
+    # Decomposing the box now fails: start must be refused first
+    monkeypatch.setattr(decomposition, "decompose_parts", None)
     with pytest.raises(UserError, match="start needs 6 numbers"):
         build_scene(_spec(arm, env=[str(tmp_path / "box.stl")], start=[0.0, 0.0]), cache_dir=cache, progress=False)
 

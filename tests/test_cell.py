@@ -13,7 +13,7 @@ from app.errors import NoPath, UserError
 from app.planning.cell import BuildSettings, CellRoadmap
 from app.planning.planner import PlanSettings
 from app.planning.roadmap_file import read
-from app.scene.model import SCENES_DIR
+from app.scene.files import SCENES_DIR
 
 SMALL = BuildSettings(nodes=250, seed=0)  # one build round on bar: a few seconds
 QUERY = PlanSettings(seed=0, budget=Budget(checks=200_000))

@@ -294,7 +294,8 @@ def test_a_gross_gjk_error_on_two_nearly_coaxial_cylinders_is_not_trusted(tmp_pa
     is 3.7 cm away: the certificate's bound for the pair stays below every sampled distance, and close to them.
     (The scene's SRDF leaves that pair out, as its distance never changes: here it is loaded without.)"""
     from app.checking.oracle import CollisionOracle
-    from app.scene.model import SCENES_DIR, Scene
+    from app.scene.files import SCENES_DIR
+    from app.scene.model import Scene
 
     for name in ("window.yaml", "window.dmd.yaml"):
         text = (SCENES_DIR / name).read_text()

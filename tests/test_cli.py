@@ -18,7 +18,8 @@ from app.cli import EXIT_CODES, build_parser, exit_code
 from app.commands.common import comma_list, names_from, parse_budget, parse_build_budget, sampler_names
 from app.errors import UserError
 from app.planning.planner import DEFAULT_BUDGET, PlanSettings
-from app.scene.model import ROOT, SCENES_DIR, Scene
+from app.scene.files import ROOT, SCENES_DIR
+from app.scene.model import Scene
 
 
 def test_scenes_json_lists_every_scene_with_its_facts(cli):

@@ -14,7 +14,7 @@ import pytest
 from app.bench.paper import sampling_specs
 from app.bench.runner import run_sweep
 from app.bench.store import ResultStore
-from app.scene.model import ROOT
+from app.scene.files import ROOT
 
 distributed = pytest.importorskip("distributed", reason="Dask not installed (pip install '.[cluster]')")
 

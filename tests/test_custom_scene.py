@@ -2,6 +2,7 @@
 whose convex hull would block it, URDF robots with package paths, custom scene files, and bad input."""
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -135,14 +136,15 @@ def test_plan_goes_through_the_channel(channel_oracle):
 
 def test_open_collada_channel_and_second_build_is_cached(files, tmp_path, monkeypatch):
     from app.checking.oracle import CollisionOracle
-    from app.scene import meshes
+    from app.scene.meshes import decomposition
 
     first = build_scene(_spec(files, env="open_channel.dae"), cache_dir=tmp_path, progress=False)
     assert first.info["decompositions"][1]["method"] == "faces"
     oracle = CollisionOracle(first).context()
     assert oracle.is_free(np.array(IN_SLOT)) and not oracle.is_free(np.array([0.0, 1.0, 1.5, 0, 0, 0]))
     assert oracle.edge_free(np.array([-3.0, 0, 1.5, 0, 0, 0]), np.array([3.0, 0, 1.5, 0, 0, 0]))
-    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: the second build reads the cache
+    # Calling it now fails: the second build reads the cache
+    monkeypatch.setattr(decomposition, "decompose_parts", None)
     again = build_scene(_spec(files, env="open_channel.dae"), cache_dir=tmp_path, progress=False)
     assert all(d["from_cache"] for d in again.info["decompositions"])
 
@@ -387,6 +389,45 @@ def test_a_refusal_comes_before_any_mesh_work(arm_package, tmp_path, change, mes
     assert not any(p.is_file() for p in (tmp_path / "cache").rglob("*")), "mesh work was done before the refusal"
 
 
+MIMIC_WITHOUT_ROOM = """  <link name="link2">
+    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>
+  </link>
+  <joint name="j2" type="revolute"><parent link="link1"/><child link="link2"/><origin xyz="1 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/><mimic joint="j1" offset="10"/></joint>
+</robot>"""
+BOX = ["-1..1,-1..1,-1..1"]
+TWO_BODIES = """<?xml version="1.0"?>
+<robot name="two"><link name="a"><collision><geometry><box size="1 1 1"/></geometry></collision></link>
+  <link name="b"><collision><geometry><box size="1 1 1"/></geometry></collision></link></robot>
+"""
+
+
+@pytest.mark.parametrize(
+    "change, keys, message",
+    [
+        (lambda t: t.replace("</robot>", '<link name="loose"/></robot>'), dict(floating=True, bounds=BOX), "found 2"),
+        (lambda t: t, dict(floating=True), "a floating robot with no environment needs bounds"),
+        (lambda t: re.sub(r"<collision>.*?</collision>", "", t, flags=re.S), {}, "has no collision geometry"),
+        (lambda t: t.replace("</robot>", MIMIC_WITHOUT_ROOM), {}, "joint 'j1': no position keeps the joints"),
+        (lambda t: t, dict(env=["two.urdf"]), "two.urdf: an environment model must be static or one rigid body"),
+    ],
+)
+def test_what_a_urdfs_bodies_tell_is_refused_before_any_mesh_work(arm_package, tmp_path, change, keys, message):
+    """Drake's parser on the URDF without its geometry tells its root bodies and joints, and the XML its collision
+    elements: a floating robot with two roots or no bounds, a robot without collision geometry, a mimic joint that
+    leaves no room, an environment URDF of two free bodies are refused before the arm's STL link is converted."""
+    robot = arm_package / "body_fault.urdf"
+    robot.write_text(change((arm_package / "arm_stl.urdf").read_text()))
+    (tmp_path / "two.urdf").write_text(TWO_BODIES)
+    keys["env"] = [str(tmp_path / name) for name in keys.get("env", [])]
+    spec = CustomSpec(robot=str(robot), package_path=[f"my_arm={arm_package}"], **keys)
+    with pytest.raises(UserError, match=message) as info:
+        build_scene(spec, cache_dir=tmp_path / "cache", progress=False)
+    assert "\n" not in str(info.value)
+    assert not (tmp_path / "cache").exists(), "mesh work was done before the refusal"
+
+
 def test_a_wrong_number_of_start_values_comes_before_any_mesh_work(arm_package, tmp_path):
     spec = CustomSpec(robot=str(arm_package / "arm_stl.urdf"), package_path=[f"my_arm={arm_package}"], start=[1, 2])
     with pytest.raises(UserError, match=r"start needs 1 numbers \(j1\), got 2"):
@@ -455,8 +496,9 @@ def test_drakes_warnings_about_elements_a_planner_does_not_use_are_one_line(arm_
 def test_a_scene_refusal_names_the_users_file_not_a_generated_one(tmp_path):
     """Whatever build_scene leaves to the Scene is said of the user's scene (its source), and paths into the cache
     are cut to file names."""
-    from app.scene.custom import CustomScene, user_words
-    from app.scene.model import ROOT
+    from app.scene.custom import CustomScene
+    from app.scene.drake_parser import user_words
+    from app.scene.files import ROOT
 
     (tmp_path / "scene.dmd.yaml").write_text((ROOT / "scenes" / "bar-3link.dmd.yaml").read_text())
     generated = tmp_path / "problem-0123456789abcdef.yaml"

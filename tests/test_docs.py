@@ -10,8 +10,8 @@ import sys
 
 import pytest
 
-from app.scene.custom import CustomSpec
-from app.scene.model import ROOT
+from app.scene.files import ROOT
+from app.scene.spec import CustomSpec
 
 README = ROOT / "README.md"
 EXAMPLE = ROOT / "examples" / "own_robot.py"

@@ -8,31 +8,31 @@ pytest.importorskip("trimesh")
 import trimesh  # noqa: E402
 
 from app.errors import UserError  # noqa: E402
-from app.scene import meshes  # noqa: E402
+from app.scene.meshes import cache, coacd_process, decomposition, pieces, reading, validation  # noqa: E402
 from mesh_shapes import bent_sheet, holed_shell, open_u, u_boxes, u_channel  # noqa: E402
 
 
 def test_convex_hull_of_a_u_channel_fails_validation():
     mesh = u_channel()
-    check = meshes.validate(mesh, [meshes.hull_piece(mesh.vertices)], meshes.default_tolerance(mesh))
+    check = validation.validate(mesh, [pieces.hull_piece(mesh.vertices)], decomposition.default_tolerance(mesh))
     assert not check.ok
     assert check.violations > 100 and check.worst_depth > 0.5  # the hull fills the 2-wide slot
 
 
 def test_a_dropped_piece_fails_validation():
     mesh = open_u()
-    tol = meshes.default_tolerance(mesh)
-    pieces = meshes.face_pieces(mesh, slab=tol / 2, thickness=tol / 5, progress=False)
-    assert meshes.validate(mesh, pieces, tol).ok
-    check = meshes.validate(mesh, pieces[1:], tol)
+    tol = decomposition.default_tolerance(mesh)
+    plates = pieces.face_pieces(mesh, slab=tol / 2, thickness=tol / 5, progress=False)
+    assert validation.validate(mesh, plates, tol).ok
+    check = validation.validate(mesh, plates[1:], tol)
     assert not check.ok and check.uncovered > 0 and check.violations == 0
 
 
 def test_a_face_with_no_area_makes_no_piece():
     """Collinear corners have no plane: no piece of NaNs (Drake could not read it), the sheet's pieces unchanged."""
     mesh = bent_sheet()
-    tol = meshes.default_tolerance(mesh)
-    before = meshes.face_pieces(mesh, slab=tol / 2, thickness=tol / 5, progress=False)
+    tol = decomposition.default_tolerance(mesh)
+    before = pieces.face_pieces(mesh, slab=tol / 2, thickness=tol / 5, progress=False)
     a, b = mesh.faces[0][:2]
     middle = len(mesh.vertices)
     sliver = trimesh.Trimesh(
@@ -40,23 +40,23 @@ def test_a_face_with_no_area_makes_no_piece():
         np.vstack([mesh.faces, [[a, middle, b]]]),
         process=False,
     )
-    after = meshes.face_pieces(sliver, slab=tol / 2, thickness=tol / 5, progress=False)
+    after = pieces.face_pieces(sliver, slab=tol / 2, thickness=tol / 5, progress=False)
     assert len(after) == len(before) and all(np.isfinite(p.vertices).all() for p in after)
 
 
 def test_thick_face_pieces_fail_validation():
     """Pieces thicker than the tolerance reach into free space near the surface: the check sees it."""
     mesh = bent_sheet()
-    tol = meshes.default_tolerance(mesh)
-    pieces = meshes.face_pieces(mesh, slab=tol / 2, thickness=4 * tol, progress=False)
-    check = meshes.validate(mesh, pieces, tol)
+    tol = decomposition.default_tolerance(mesh)
+    plates = pieces.face_pieces(mesh, slab=tol / 2, thickness=4 * tol, progress=False)
+    check = validation.validate(mesh, plates, tol)
     assert not check.ok and check.violations > 0
 
 
 def test_open_channel_takes_exact_faces_and_coplanar_triangles_merge(tmp_path):
     path = tmp_path / "u.stl"
     open_u().export(path)
-    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert d.method == "faces" and d.facts["closed"] is False
     assert len(d.pieces) == 8  # 16 triangles: each wall rectangle's two triangles become one piece
     assert d.validation["ok"] and d.validation["violations"] == 0
@@ -65,7 +65,7 @@ def test_open_channel_takes_exact_faces_and_coplanar_triangles_merge(tmp_path):
 def test_overlapping_closed_boxes_are_one_piece_each(tmp_path):
     path = tmp_path / "u.stl"
     u_boxes().export(path)  # three boxes in one mesh, touching: not watertight as a whole, each part closed
-    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert d.method == "convex" and len(d.pieces) == 3 and d.facts["components"] == 3
     assert d.validation["ok"]
 
@@ -73,11 +73,11 @@ def test_overlapping_closed_boxes_are_one_piece_each(tmp_path):
 def test_bent_sheet_takes_exact_faces_and_validates(tmp_path):
     path = tmp_path / "sheet.obj"
     bent_sheet().export(path)
-    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert d.method == "faces"
     assert d.validation["ok"] and d.validation["near_surface_points"] > 1000 and d.validation["free_points"] > 1000
     # every piece is thin: within tolerance of the sheet
-    for piece in meshes.load_pieces(d):
+    for piece in cache.load_pieces(d):
         radial = np.linalg.norm(piece.vertices[:, 1:], axis=1)
         assert np.all(np.abs(radial - 2.0) < d.validation["tolerance"])
 
@@ -85,11 +85,11 @@ def test_bent_sheet_takes_exact_faces_and_validates(tmp_path):
 def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path, monkeypatch):
     path = tmp_path / "u.stl"
     u_channel().export(path)
-    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    first = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert first.facts["closed"] and not first.facts["convex"]
     assert first.method == "shell" and first.validation["ok"] and not first.from_cache
-    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: this must read the cache
-    again = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    monkeypatch.setattr(decomposition, "decompose_parts", None)  # calling it now fails: this must read the cache
+    again = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert again.from_cache
     assert [p.read_bytes() for p in again.pieces] == [p.read_bytes() for p in first.pieces]
 
@@ -97,7 +97,7 @@ def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path, monkeypat
 def test_forced_convex_hull_is_taken_and_the_slot_it_fills_is_stated(tmp_path):
     path = tmp_path / "u.obj"
     u_channel().export(path)
-    hull = meshes.decompose(path, method="convex", cache_dir=tmp_path, progress=False)
+    hull = cache.decompose(path, method="convex", cache_dir=tmp_path, progress=False)
     assert len(hull.pieces) == 1 and hull.parts == {"convex": 1}
     # The U's section is 3 m^2 and its slot 2 x 1.5 = 3 m^2: the hull adds the mesh's own volume again.
     assert hull.volume["relative_to"] == "mesh" and hull.volume["added"] == pytest.approx(1.0, abs=0.05)
@@ -107,10 +107,11 @@ def test_a_failed_decomposition_is_cached(tmp_path, monkeypatch):
     path = tmp_path / "open.obj"
     open_u().export(path)
     with pytest.raises(UserError, match="shell needs a closed mesh"):
-        meshes.decompose(path, method="shell", cache_dir=tmp_path, progress=False)
-    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: the failure must come from the cache
+        cache.decompose(path, method="shell", cache_dir=tmp_path, progress=False)
+    # Calling it now fails: the failure must come from the cache
+    monkeypatch.setattr(decomposition, "decompose_parts", None)
     with pytest.raises(UserError, match="shell needs a closed mesh.*cached"):
-        meshes.decompose(path, method="shell", cache_dir=tmp_path, progress=False)
+        cache.decompose(path, method="shell", cache_dir=tmp_path, progress=False)
 
 
 def test_conservative_hulls_merge_slivers_and_keep_an_l_two_hulls():
@@ -118,23 +119,23 @@ def test_conservative_hulls_merge_slivers_and_keep_an_l_two_hulls():
     T = trimesh.transformations.translation_matrix
     bar, leg = trimesh.creation.box([1, 0.1, 0.1]), trimesh.creation.box([0.1, 0.1, 1], T([0.45, 0, 0.55]))
     sliver = np.array([[-0.3, -0.05, 0.05], [-0.2, -0.05, 0.05], [-0.2, 0.05, 0.05]])  # on the bar's top face
-    pieces, members = meshes.hull_groups([bar.vertices, leg.vertices, sliver, sliver + [0.4, 0, 0]], tolerance=0.002)
+    hulls, members = pieces.hull_groups([bar.vertices, leg.vertices, sliver, sliver + [0.4, 0, 0]], tolerance=0.002)
     assert sorted(map(sorted, members)) == [[0, 2, 3], [1]]
-    merged = pieces[next(k for k, m in enumerate(members) if 2 in m)]
+    merged = hulls[next(k for k, m in enumerate(members) if 2 in m)]
     assert np.all(np.vstack([bar.vertices, sliver]) @ merged.equations[:, :3].T + merged.equations[:, 3] <= 1e-9)
 
 
 def test_damaged_cache_entry_is_rebuilt(tmp_path, capsys):
     path = tmp_path / "u.stl"
     open_u().export(path)
-    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    first = cache.decompose(path, cache_dir=tmp_path, progress=False)
     good = first.pieces[3].read_bytes()
     first.pieces[3].write_bytes(good[: len(good) // 2])  # truncated
-    rebuilt = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    rebuilt = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert not rebuilt.from_cache and rebuilt.pieces[3].read_bytes() == good
     assert "damaged" in capsys.readouterr().err
     (rebuilt.directory / "manifest.json").write_text("{not json")
-    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
 
 
 def test_a_forged_cache_entry_with_matching_checksums_is_rebuilt(tmp_path, capsys):
@@ -146,7 +147,7 @@ def test_a_forged_cache_entry_with_matching_checksums_is_rebuilt(tmp_path, capsy
 
     path = tmp_path / "u.stl"
     open_u().export(path)
-    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    first = cache.decompose(path, cache_dir=tmp_path, progress=False)
     good = first.pieces[0].read_bytes()
     forged = b"v 0 0 0\nv 1e-3 0 0\nv 0 1e-3 0\nv 0 0 1e-3\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
     first.pieces[0].write_bytes(forged)
@@ -155,24 +156,24 @@ def test_a_forged_cache_entry_with_matching_checksums_is_rebuilt(tmp_path, capsy
     manifest["files"][manifest["pieces"][0]] = hashlib.sha256(forged).hexdigest()
     manifest_file.write_text(json.dumps(manifest, indent=1))
     capsys.readouterr()
-    rebuilt = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    rebuilt = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert not rebuilt.from_cache and rebuilt.pieces[0].read_bytes() == good
     assert capsys.readouterr().err == f"warning: mesh cache entry {first.directory} is damaged; rebuilding it\n"
-    assert meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache  # sealed again, with this key
+    assert cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache  # sealed again, with this key
     (rebuilt.directory / "manifest.mac").unlink()  # no seal at all: damaged too
-    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
 
 
 def test_a_cache_made_with_another_key_is_rebuilt(tmp_path, monkeypatch, capsys):
     """Another user's cache folder (or one handed over) is sealed under their key, not this user's."""
     path = tmp_path / "u.stl"
     open_u().export(path)
-    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "theirs.key"))
-    theirs = meshes.decompose(path, cache_dir=tmp_path, progress=False)
-    assert meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
-    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "mine.key"))
+    monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "theirs.key"))
+    theirs = cache.decompose(path, cache_dir=tmp_path, progress=False)
+    assert cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "mine.key"))
     capsys.readouterr()
-    mine = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    mine = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert mine.directory == theirs.directory and not mine.from_cache
     assert "is damaged; rebuilding it" in capsys.readouterr().err
 
@@ -180,37 +181,37 @@ def test_a_cache_made_with_another_key_is_rebuilt(tmp_path, monkeypatch, capsys)
 def test_a_converted_obj_is_sealed_and_a_forged_one_is_converted_again(tmp_path, monkeypatch, capsys):
     path = tmp_path / "u.stl"
     u_boxes().export(path)
-    converted = meshes.converted_obj(path, cache_dir=tmp_path)
+    converted = cache.converted_obj(path, cache_dir=tmp_path)
     good = converted.read_bytes()
     assert converted.with_name(converted.name + ".mac").is_file()
-    assert meshes.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
+    assert cache.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
     converted.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")  # another shape under the same name
     capsys.readouterr()
-    assert meshes.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
+    assert cache.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
     assert "is damaged; rebuilding it" in capsys.readouterr().err
     # The same file and seal made under another key: converted again.
-    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "other.key"))
+    monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "other.key"))
     seal = converted.with_name(converted.name + ".mac").read_text()
-    meshes.converted_obj(path, cache_dir=tmp_path)
+    cache.converted_obj(path, cache_dir=tmp_path)
     assert converted.with_name(converted.name + ".mac").read_text() != seal
     assert "is damaged; rebuilding it" in capsys.readouterr().err
 
 
 def test_the_key_is_made_private_and_a_key_that_cannot_be_made_means_no_reuse(tmp_path, monkeypatch, capsys):
-    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "config" / "npp" / "cache.key"))
-    key = meshes.cache_key()
+    monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "config" / "npp" / "cache.key"))
+    key = cache.cache_key()
     stat = (tmp_path / "config" / "npp" / "cache.key").stat()
-    assert len(key) == 32 and stat.st_mode & 0o777 == 0o600 and meshes.cache_key() == key
+    assert len(key) == 32 and stat.st_mode & 0o777 == 0o600 and cache.cache_key() == key
     path = tmp_path / "u.stl"
     open_u().export(path)
-    meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    cache.decompose(path, cache_dir=tmp_path, progress=False)
     # A key that cannot be made (its folder would be inside a file, as under a read-only home): said once, and
     # nothing cached is reused, not even what this process writes.
     (tmp_path / "file").write_text("x")
-    monkeypatch.setenv(meshes.KEY_ENV, str(tmp_path / "file" / "cache.key"))
+    monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "file" / "cache.key"))
     capsys.readouterr()
-    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
-    assert not meshes.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith(f"warning: cannot use the mesh cache key {tmp_path / 'file'}")
     assert "cached meshes are not reused" in err[0]
@@ -218,23 +219,23 @@ def test_the_key_is_made_private_and_a_key_that_cannot_be_made_means_no_reuse(tm
     loose = tmp_path / "loose.key"
     loose.write_bytes(b"k" * 32)
     loose.chmod(0o644)
-    monkeypatch.setenv(meshes.KEY_ENV, str(loose))
-    assert meshes.cache_key() is None and "chmod 600 it" in capsys.readouterr().err
+    monkeypatch.setenv(cache.KEY_ENV, str(loose))
+    assert cache.cache_key() is None and "chmod 600 it" in capsys.readouterr().err
 
 
 def test_a_changed_mesh_is_a_new_entry(tmp_path):
     path = tmp_path / "m.stl"
     u_boxes().export(path)
-    a = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    a = cache.decompose(path, cache_dir=tmp_path, progress=False)
     u_boxes(length=5.0).export(path)
-    b = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    b = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert a.directory != b.directory and not b.from_cache
 
 
 def test_collada_is_read(tmp_path):
     path = tmp_path / "u.dae"
     u_boxes().export(path)
-    mesh = meshes.load_mesh(path)
+    mesh = reading.load_mesh(path)
     assert len(mesh.faces) == 36
 
 
@@ -253,21 +254,21 @@ def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message)
     if content is not None:
         path.write_bytes(content)
     with pytest.raises(UserError, match=message) as info:
-        meshes.decompose(path, cache_dir=tmp_path, progress=False) if suffix != ".xyz" else meshes.load_mesh(path)
+        cache.decompose(path, cache_dir=tmp_path, progress=False) if suffix != ".xyz" else reading.load_mesh(path)
     assert "\n" not in str(info.value)
 
 
 def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch):
     """As measured on thin-walled scenes: CoACD's pieces put free space in collision -> validation rejects them."""
-    monkeypatch.setattr(meshes, "choose_method", lambda facts, conservative: ["coacd", "faces"])
+    monkeypatch.setattr(decomposition, "choose_method", lambda facts, conservative: ["coacd", "faces"])
 
     def hull_instead(parts, *args, **kwargs):
-        return [[meshes.hull_piece(p.vertices)] for p in parts]
+        return [[pieces.hull_piece(p.vertices)] for p in parts]
 
-    monkeypatch.setattr(meshes, "coacd_pieces", hull_instead)
+    monkeypatch.setattr(coacd_process, "coacd_pieces", hull_instead)
     path = tmp_path / "u.stl"
     u_channel().export(path)
-    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
     manifest = __import__("json").loads((d.directory / "manifest.json").read_text())
     assert [t["ok"] for t in manifest["tried"]] == [False, True]
     assert manifest["tried"][0]["methods"]["coacd"] == 1 and d.method == "faces" and d.validation["ok"]
@@ -275,13 +276,13 @@ def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch)
 
 def test_a_crashing_coacd_falls_back_to_exact_faces(tmp_path, monkeypatch):
     def crash(*args, **kwargs):
-        raise meshes.MethodFailed("CoACD failed (exit code -11)")
+        raise coacd_process.MethodFailed("CoACD failed (exit code -11)")
 
-    monkeypatch.setattr(meshes, "coacd_pieces", crash)
-    monkeypatch.setattr(meshes, "choose_method", lambda facts, conservative: ["coacd", "faces"])
+    monkeypatch.setattr(coacd_process, "coacd_pieces", crash)
+    monkeypatch.setattr(decomposition, "choose_method", lambda facts, conservative: ["coacd", "faces"])
     path = tmp_path / "u.stl"
     u_channel().export(path)
-    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert d.method == "faces" and d.validation["ok"]
     assert "exit code -11" in " ".join(d.validation["notes"])
 
@@ -292,18 +293,18 @@ def test_a_thick_shell_becomes_shell_pieces_far_fewer_than_face_plates(tmp_path)
     path = tmp_path / "trap.obj"
     holed_shell().export(path)
     tol = 0.025
-    shell = meshes.decompose(path, tolerance=tol, cache_dir=tmp_path, progress=False)
-    plates = meshes.decompose(path, method="faces", tolerance=tol, cache_dir=tmp_path, progress=False)
+    shell = cache.decompose(path, tolerance=tol, cache_dir=tmp_path, progress=False)
+    plates = cache.decompose(path, method="faces", tolerance=tol, cache_dir=tmp_path, progress=False)
     assert shell.method == "shell" and shell.validation["ok"]
     assert len(shell.pieces) < 0.5 * len(plates.pieces)
     rng = np.random.default_rng(7)
     points = rng.uniform(-1.5, 1.5, (40_000, 3))
     radius = np.linalg.norm(points, axis=1)
     free = (radius < 1.0 - tol) | (radius > 1.2 + tol)
-    depth, _ = meshes._inside_any(points[free], meshes.load_pieces(shell), margin=0.0)
+    depth, _ = validation.inside_any(points[free], cache.load_pieces(shell), margin=0.0)
     assert free.sum() > 20_000 and not (depth > 1e-9).any()
     wall = (radius > 1.0 + tol) & (radius < 1.2 - tol) & (points[:, 2] < 0)  # away from the opening
-    depth, _ = meshes._inside_any(points[wall], meshes.load_pieces(shell), margin=0.0)
+    depth, _ = validation.inside_any(points[wall], cache.load_pieces(shell), margin=0.0)
     assert wall.sum() > 1000 and (depth > 0).mean() > 0.5  # the pieces fill much of the wall, not just its skin
 
 
@@ -312,7 +313,7 @@ def test_shell_pieces_that_fill_free_space_become_face_pieces(tmp_path):
     only they are replaced."""
     path = tmp_path / "u.obj"
     u_channel().export(path)
-    d = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
     manifest = __import__("json").loads((d.directory / "manifest.json").read_text())
     assert [t["ok"] for t in manifest["tried"]] == [False, True]
     assert manifest["tried"][0]["violations"] > 0 and "became face pieces" in " ".join(d.validation["notes"])
@@ -324,7 +325,7 @@ def test_collada_units_are_applied(tmp_path):
     u_boxes().export(path)
     text = path.read_text()
     path.write_text(text.replace("<asset>", '<asset><unit meter="0.001" name="millimeter"/>', 1))
-    mesh = meshes.load_mesh(path)
+    mesh = reading.load_mesh(path)
     assert np.allclose(mesh.extents, [0.004, 0.003, 0.002])
 
 
@@ -343,8 +344,8 @@ def test_a_2700_face_scene_builds_few_pieces_once(tmp_path, monkeypatch):
     sheet.apply_translation([0, 0, 12])
     path = tmp_path / "scene.dae"
     trimesh.util.concatenate(parts + [sheet]).export(path)
-    first = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    first = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert first.validation["ok"] and len(first.pieces) < 200
-    monkeypatch.setattr(meshes, "_decompose_parts", None)  # calling it now fails: this must read the cache
-    again = meshes.decompose(path, cache_dir=tmp_path, progress=False)
+    monkeypatch.setattr(decomposition, "decompose_parts", None)  # calling it now fails: this must read the cache
+    again = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert again.from_cache

@@ -4,7 +4,7 @@ import importlib.util
 
 import pytest
 
-from app.scene.model import ROOT
+from app.scene.files import ROOT
 
 
 @pytest.mark.parametrize("links", [3, 5, 7])

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from app.scene.model import ROOT
+from app.scene.files import ROOT
 
 NOTEBOOK = ROOT / "examples" / "narrow_passages.ipynb"
 

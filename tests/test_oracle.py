@@ -307,7 +307,8 @@ def test_helpers_that_load_another_scene_are_never_used(tmp_path, two_cores):
     import re
 
     from app.checking.oracle import CollisionOracle
-    from app.scene.model import SCENES_DIR, Scene
+    from app.scene.files import SCENES_DIR
+    from app.scene.model import Scene
 
     def far(match):
         numbers = match.group(1).split()

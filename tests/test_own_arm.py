@@ -15,7 +15,7 @@ import trimesh  # noqa: E402
 
 from app.checking.oracle import CollisionOracle  # noqa: E402
 from app.scene.custom import CustomSpec, build_scene, load_scene  # noqa: E402
-from app.scene.model import ROOT  # noqa: E402
+from app.scene.files import ROOT  # noqa: E402
 from independent import fine_points, raw_free  # noqa: E402
 from mesh_shapes import extrude_x  # noqa: E402
 

@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 
-from app.scene.model import ROOT
+from app.scene.files import ROOT
 from app.viewer import PATH_COLOUR
 from chromium import chromium, needs_chromium, screenshot_when_still
 from meshcat_page import commands

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from app.errors import UserError
-from app.scene.model import ROOT, SCENES_DIR, Scene
+from app.scene.files import ROOT, SCENES_DIR
+from app.scene.model import Scene
 
 UAV_SCENES = ["maze", "tunnel"]
 ARM_SCENES = ["welding", "window"]

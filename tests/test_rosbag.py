@@ -82,7 +82,7 @@ def test_a_failed_write_leaves_no_half_bag(tmp_path, monkeypatch):
 
 
 def test_the_ur3_joints_are_named_as_in_ur_description(oracles):
-    from app.scene.model import PACKAGES
+    from app.scene.files import PACKAGES
 
     urdf = ET.parse(PACKAGES["npp_robots"] / "ur3_on_cart.urdf")
     moving = [j.get("name") for j in urdf.getroot().iter("joint") if j.get("type") != "fixed"]

@@ -37,7 +37,7 @@ from pathlib import Path
 
 from app.bench.damaged_roadmaps import invalid_deflate, npy_claiming, patch_member, roadmap_file
 from app.io import INPUT_LIMITS
-from app.scene.model import ROOT, SCENES_DIR
+from app.scene.files import ROOT, SCENES_DIR
 from app.scene.offline import offline_drake_cache
 
 ROBOT = ["--robot", "{stl}", "--start", "0,0,0,0,0,0", "--goal", "1,0,0,0,0,0", "--bounds", "-1..1,-1..1,-1..1"]

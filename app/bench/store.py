@@ -27,7 +27,7 @@ from pathlib import Path
 
 from app.errors import UserError
 from app.io import check_input
-from app.scene.model import ROOT
+from app.scene.files import ROOT
 
 # 1: stores from before the version was recorded (user_version 0); "prm" and "ur3" rows may lack full_roadmap.
 # 2: every "prm" and "ur3" row's params hold full_roadmap.

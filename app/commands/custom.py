@@ -1,13 +1,15 @@
 """The --robot / --env flags (bring your own robot and environment), for a command that takes a scene: they build
-an app.scene.custom.CustomSpec, from which app.scene.custom.build_scene makes the scene."""
+an app.scene.spec.CustomSpec, from which app.scene.custom.build_scene makes the scene."""
 
 import argparse
 
 from app.commands.common import float_list, non_negative_float, positive_float_list
 from app.errors import UserError
-from app.scene import meshes, ompl_app
-from app.scene.custom import CustomScene, CustomSpec, build_scene, load_scene
+from app.scene import ompl_app
+from app.scene.custom import CustomScene, build_scene, load_scene
+from app.scene.files import MESH_METHODS
 from app.scene.model import Scene
+from app.scene.spec import CustomSpec
 
 
 def add_arguments(parser) -> None:
@@ -54,7 +56,7 @@ def add_arguments(parser) -> None:
     )
     group.add_argument(
         "--mesh-method",
-        choices=meshes.METHODS,
+        choices=MESH_METHODS,
         default="auto",
         help="convex decomposition of meshes (default auto: per part, validated; convex: every part's hull, "
         "never smaller than the mesh)",

@@ -10,7 +10,7 @@ The conventions reproduced here, and where each comes from:
   `goal.*` and optional `volume.min.*`/`volume.max.*`. [benchmark] and [planner] hold planner settings, not the
   problem, and are not read ([planner] repeats keys on purpose: each `aps=` is another planner). A key given twice in
   [problem] is refused (OMPL's option parser refuses it too) rather than the last one silently winning, and every
-  number there must be within meshes.MAX_COORDINATE in size.
+  number there must be within app.scene.files.MAX_COORDINATE in size.
 - 3-D or 2-D: a problem with `start.z` and `start.axis.*` is SE(3), one with none of them SE(2)
   (benchmark/BenchmarkOptions.cpp lines 222-246, isSE2Problem/isSE3Problem). A `control` key (kinematic_car,
   dynamic_car: gui/ompl_app.py lines 220-227) or a `statespace` (dubins, reedsshepp: benchmark/BenchmarkTypes.cpp
@@ -69,7 +69,12 @@ import numpy as np
 
 from app.errors import UserError
 from app.io import check_input, write_atomically
-from app.scene import custom, meshes
+from app.scene import custom
+from app.scene.files import MAX_COORDINATE
+from app.scene.files import MESH_SUFFIXES as READ_SUFFIXES
+from app.scene.meshes.cache import cache_root, obj_bytes, writable_folder
+from app.scene.meshes.reading import load_mesh as load_triangles
+from app.scene.spec import CustomSpec
 
 # assimp's COLLADA up-axis conversion to Y up, as the matrix applied to a column vector (ColladaLoader.cpp).
 UP_AXIS_TO_Y_UP = {
@@ -81,7 +86,7 @@ UP_AXIS_TO_Y_UP = {
 CONVERSION_VERSION = "1"
 _SE3_KEYS = ("z", "axis.x", "axis.y", "axis.z")
 # The mesh formats both assimp and app.scene.meshes read (assimp has no VTK reader).
-MESH_SUFFIXES = meshes.MESH_SUFFIXES - {".vtk"}
+MESH_SUFFIXES = READ_SUFFIXES - {".vtk"}
 
 
 @dataclass
@@ -113,6 +118,30 @@ class OmplAppMesh:
 def read_problem(path: str | Path) -> OmplAppProblem:
     """Parse and check an OMPL.app problem file; meshes must exist. One-line UserError for anything wrong."""
     path = check_input(Path(path), "OMPL.app problem file")
+    section = _problem_section(path)
+    present = [f"{end}.{k}" for end in ("start", "goal") for k in _SE3_KEYS if f"{end}.{k}" in section]
+    planar = not present
+    if present and len(present) != 2 * len(_SE3_KEYS):
+        missing = [f"{end}.{k}" for end in ("start", "goal") for k in _SE3_KEYS if f"{end}.{k}" not in section]
+        raise UserError(f"{path.name}: an SE(3) problem needs {', '.join(missing)} too (or none of them for SE(2))")
+    pose_keys = ["x", "y", "theta"] if planar else ["x", "y", "z", "axis.x", "axis.y", "axis.z", "theta"]
+    start = [_number(path, section, f"start.{k}") for k in pose_keys]
+    goal = [_number(path, section, f"goal.{k}") for k in pose_keys]
+    volume = _volume(path, section, "xy" if planar else "xyz")
+    return OmplAppProblem(
+        path=path,
+        name=section.get("name", path.stem).strip() or path.stem,
+        robot=_mesh_file_named(path, section, "robot"),
+        world=_mesh_file_named(path, section, "world"),
+        planar=planar,
+        start=start,
+        goal=goal,
+        volume=volume,
+    )
+
+
+def _problem_section(path: Path) -> configparser.SectionProxy:
+    """The file's [problem] section: given once, each key once, and no car's (`control`, `statespace`)."""
     parser = configparser.ConfigParser(interpolation=None, strict=False)
     text = path.read_text(errors="replace")
     try:
@@ -132,65 +161,52 @@ def read_problem(path: str | Path) -> OmplAppProblem:
                 f"{path.name}: {key} = {section[key].strip()} asks for a car, not a free rigid body; only geometric "
                 "rigid-body problems (SE(2), SE(3)) are supported"
             )
+    return section
 
-    def number(key: str) -> float:
-        if key not in section:
-            raise UserError(f"{path.name}: [problem] has no {key}")
-        try:
-            value = float(section[key])
-        except ValueError:
-            raise UserError(f"{path.name}: {key} = {section[key]!r} is not a number") from None
-        if not math.isfinite(value):
-            raise UserError(f"{path.name}: {key} must be a finite number, got {section[key]}")
-        if abs(value) > meshes.MAX_COORDINATE:  # (as a mesh's coordinates: beyond it, bounds overflow when subtracted)
-            raise UserError(
-                f"{path.name}: {key} = {section[key].strip()} is out of range (at most {meshes.MAX_COORDINATE:g} in "
-                "size)"
-            )
-        return value
 
-    def mesh(key: str) -> Path:
-        if not section.get(key, "").strip():
-            raise UserError(f"{path.name}: [problem] has no {key} (a mesh file)")
-        file = (path.parent / section[key].strip()).resolve()
-        if not file.is_file():
-            raise UserError(f"{path.name}: {key} mesh not found: {file}")
-        if file.suffix.lower() not in MESH_SUFFIXES:
-            raise UserError(
-                f"{path.name}: {key} mesh {file.name}: unsupported format (use {', '.join(sorted(MESH_SUFFIXES))})"
-            )
-        return file
+def _number(path: Path, section, key: str) -> float:
+    if key not in section:
+        raise UserError(f"{path.name}: [problem] has no {key}")
+    try:
+        value = float(section[key])
+    except ValueError:
+        raise UserError(f"{path.name}: {key} = {section[key]!r} is not a number") from None
+    if not math.isfinite(value):
+        raise UserError(f"{path.name}: {key} must be a finite number, got {section[key]}")
+    if abs(value) > MAX_COORDINATE:  # (as a mesh's coordinates: beyond it, bounds overflow when subtracted)
+        raise UserError(
+            f"{path.name}: {key} = {section[key].strip()} is out of range (at most {MAX_COORDINATE:g} in size)"
+        )
+    return value
 
-    present = [f"{end}.{k}" for end in ("start", "goal") for k in _SE3_KEYS if f"{end}.{k}" in section]
-    planar = not present
-    if present and len(present) != 2 * len(_SE3_KEYS):
-        missing = [f"{end}.{k}" for end in ("start", "goal") for k in _SE3_KEYS if f"{end}.{k}" not in section]
-        raise UserError(f"{path.name}: an SE(3) problem needs {', '.join(missing)} too (or none of them for SE(2))")
-    axes = "xy" if planar else "xyz"
-    pose_keys = ["x", "y", "theta"] if planar else ["x", "y", "z", "axis.x", "axis.y", "axis.z", "theta"]
-    start = [number(f"start.{k}") for k in pose_keys]
-    goal = [number(f"goal.{k}") for k in pose_keys]
+
+def _mesh_file_named(path: Path, section, key: str) -> Path:
+    if not section.get(key, "").strip():
+        raise UserError(f"{path.name}: [problem] has no {key} (a mesh file)")
+    file = (path.parent / section[key].strip()).resolve()
+    if not file.is_file():
+        raise UserError(f"{path.name}: {key} mesh not found: {file}")
+    if file.suffix.lower() not in MESH_SUFFIXES:
+        raise UserError(
+            f"{path.name}: {key} mesh {file.name}: unsupported format (use {', '.join(sorted(MESH_SUFFIXES))})"
+        )
+    return file
+
+
+def _volume(path: Path, section, axes: str) -> tuple[list[float], list[float]] | None:
+    """volume.min.* and volume.max.* (all of them, or none: None), min below max on every axis."""
     volume_keys = [f"volume.{end}.{a}" for end in ("min", "max") for a in axes]
     given = [k for k in volume_keys if k in section]
-    volume = None
-    if given:
-        if len(given) != len(volume_keys):
-            missing = sorted(set(volume_keys) - set(given))
-            raise UserError(f"{path.name}: the volume needs {', '.join(missing)} too")
-        lo, hi = [number(f"volume.min.{a}") for a in axes], [number(f"volume.max.{a}") for a in axes]
-        if not all(a < b for a, b in zip(lo, hi)):
-            raise UserError(f"{path.name}: volume.min must be below volume.max on every axis")
-        volume = (lo, hi)
-    return OmplAppProblem(
-        path=path,
-        name=section.get("name", path.stem).strip() or path.stem,
-        robot=mesh("robot"),
-        world=mesh("world"),
-        planar=planar,
-        start=start,
-        goal=goal,
-        volume=volume,
-    )
+    if not given:
+        return None
+    if len(given) != len(volume_keys):
+        missing = sorted(set(volume_keys) - set(given))
+        raise UserError(f"{path.name}: the volume needs {', '.join(missing)} too")
+    lo = [_number(path, section, f"volume.min.{a}") for a in axes]
+    hi = [_number(path, section, f"volume.max.{a}") for a in axes]
+    if not all(a < b for a, b in zip(lo, hi)):
+        raise UserError(f"{path.name}: volume.min must be below volume.max on every axis")
+    return lo, hi
 
 
 def _repeated_key(parser: configparser.ConfigParser, text: str, wanted: str) -> tuple[str, int, int] | None:
@@ -228,7 +244,7 @@ def load_mesh(path: str | Path) -> OmplAppMesh:
     path = check_input(Path(path), "mesh file")
     if path.suffix.lower() == ".dae":
         return _load_collada(path)
-    mesh = meshes.load_mesh(path)
+    mesh = load_triangles(path)
     vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
     corners = np.hstack([vertices[faces].reshape(-1, 3), np.repeat(mesh.face_normals, 3, axis=0)])
     distinct = np.unique(corners, axis=0)
@@ -353,19 +369,19 @@ def _cached_file(cache_dir: Path | None, key_text: str, name: str, content: str 
     shape)."""
     data = content.encode() if isinstance(content, str) else content
     key = hashlib.sha256((CONVERSION_VERSION + key_text).encode()).hexdigest()[:24]
-    target = (cache_dir or meshes.cache_root()) / "ompl_app" / key / name
+    target = (cache_dir or cache_root()) / "ompl_app" / key / name
     try:
         same = target.is_file() and target.read_bytes() == data
     except OSError:
         same = False
     if not same:
-        write_atomically(meshes.writable_folder(target.parent) / name, data)
+        write_atomically(writable_folder(target.parent) / name, data)
     return target
 
 
 def _mesh_file(cache_dir: Path | None, name: str, vertices: np.ndarray, faces: np.ndarray) -> Path:
     key = hashlib.sha256(np.ascontiguousarray(vertices).tobytes() + np.ascontiguousarray(faces).tobytes()).hexdigest()
-    return _cached_file(cache_dir, key, f"{name}.obj", meshes.obj_bytes(vertices, faces))
+    return _cached_file(cache_dir, key, f"{name}.obj", obj_bytes(vertices, faces))
 
 
 def planar_urdf(name: str, mesh: Path, lo: np.ndarray, hi: np.ndarray) -> str:
@@ -393,7 +409,7 @@ def planar_urdf(name: str, mesh: Path, lo: np.ndarray, hi: np.ndarray) -> str:
     )
 
 
-def scene_spec(problem: OmplAppProblem, cache_dir: Path | None = None, **options) -> tuple[custom.CustomSpec, dict]:
+def scene_spec(problem: OmplAppProblem, cache_dir: Path | None = None, **options) -> tuple[CustomSpec, dict]:
     """The custom scene spec for `problem` (converted meshes written to the cache) and what the conversion found.
     `options` are further CustomSpec keys (mesh_method, mesh_tolerance, resolution, velocity/acceleration limits)."""
     robot, world = load_mesh(problem.robot), load_mesh(problem.world)
@@ -408,7 +424,7 @@ def scene_spec(problem: OmplAppProblem, cache_dir: Path | None = None, **options
         text = planar_urdf("robot", robot_file, lo, hi)
         robot_file = _cached_file(cache_dir, text, f"{problem.robot.stem}.urdf", text)
         bounds.append(f"{-math.pi!r}..{math.pi!r}")
-    spec = custom.CustomSpec(
+    spec = CustomSpec(
         description=f"OMPL.app problem {problem.name} ({problem.path.name}, {'SE(2)' if problem.planar else 'SE(3)'})",
         robot=str(robot_file),
         env=[str(world_file)],
