@@ -226,7 +226,7 @@ def checks_per_passage_section(rows) -> tuple[list[str], list[str]]:
                 for a in steps
                 if any(k[0] == scene and k[2] == a for k in ratios)
             ]
-            top = max(set(best), key=best.count)
+            top = max(sorted(set(best)), key=best.count)  # a tie goes to the first name, not to the set's hash order
             cheapest.append(f"{scene} {top} ({best.count(top)} of {len(best)} steps)")
         reading += " Cheapest per passage sample, at most steps: " + ", ".join(cheapest) + "."
         lines += [reading, ""]
