@@ -7,12 +7,11 @@ from __future__ import annotations
 # costs more than the half batch saves.
 SPLIT_MIN = 16
 # Batch calls before the path not in favour is measured again: at first 16; each time it is found dearer still, twice
-# as many, up to 1024. On the UR3 scenes the checker's batch costs 4x the raw loop per configuration (it lists every
-# penetrating pair where HasCollisions stops at the first), and a probe every 16 calls spent a third of a welding
-# job's collision-check time in it.
+# as many, up to 1024. Probes back off because the path out of favour can cost several times the other per
+# configuration (the checker's batch lists every penetrating pair where HasCollisions stops at the first).
 _PROBE_FIRST, _PROBE_MAX = 16, 1024
-# Calls each path is given before the cheapest is chosen, its cost the least of them: one call slowed by another
-# process once settled a benchmark on the raw loop, at half the speed of the split that a second call measured.
+# Calls each path is given before the cheapest is chosen, its cost the least of them, so that one call slowed by
+# another process does not settle the choice.
 _TRIES = 2
 
 

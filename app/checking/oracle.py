@@ -295,9 +295,8 @@ class CollisionOracle:
         return geometry_id in self.robot_geometries
 
     def in_contact(self, q: np.ndarray) -> bool:
-        """Whether a pair the scene's policy counts penetrates at q: HasCollisions, where the certificate needs no
-        distances from Drake (it costs a third of signed_distance_pairs(q, 0) on a mesh robot); timed as a distance
-        query."""
+        """Whether a pair the scene's policy counts penetrates at q: HasCollisions, cheaper than signed distances,
+        where the certificate needs no distances from Drake; timed as a distance query."""
         with self.lock:
             start = time.perf_counter()
             hit = not self.free_raw(np.asarray(q, float)[None])[0]

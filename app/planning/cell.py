@@ -73,8 +73,8 @@ ROUND = 250
 # A round's new edges are decided in parts of about PART_SECONDS each, progress reported after each part: deciding
 # them takes nearly all of a round, which in a cell of many obstacles takes minutes. The first part holds FIRST_PART
 # edges, each next one as many as the pace of the last fits in PART_SECONDS (a part per call to the helper processes
-# costs their hand-over: twenty fixed parts a round made a two-process build 15 % slower). An edge's verdict and
-# checks do not depend on the edges decided with it, so the roadmap is the same whatever the parts.
+# costs their hand-over, so parts are sized by time, not fixed in number). An edge's verdict and checks do not
+# depend on the edges decided with it, so the roadmap is the same whatever the parts.
 PART_SECONDS = 1.0
 FIRST_PART = 64
 

@@ -4,7 +4,7 @@ Drake's `InverseKinematics` on the oracle's own plant (one new context per call,
 frame's origin within `position_tolerance` of the pose's position (a box inside that ball), its orientation within
 `angle_tolerance` (both tightened by 10 % inside the program to leave room for SNOPT's feasibility tolerance), and a
 small weighted quadratic cost towards the reference configuration. Translations are bounded by the scene; angles are
-not (SNOPT converges about three times as often without those bounds), and a solution's angles are shifted by whole
+not (SNOPT converges far more often without those bounds), and a solution's angles are shifted by whole
 turns into the scene's bounds afterwards, which leaves the kinematics unchanged. SNOPT runs from several seeds: the
 reference first, then configurations drawn uniformly from the bounds with the caller's rng. A solution counts only if
 forward kinematics confirms the pose and the oracle says it is free; the first `keep` (6) such solutions are compared
@@ -35,9 +35,8 @@ ANGLE_TOLERANCE = math.radians(0.5)
 CLEARANCE = 0.005  # m, the second round's minimum distance
 # A tool line is solved every TOOL_STEP metres of tool travel or TOOL_TURN radians of its turn, whichever is finer;
 # consecutive solutions further apart than JUMP x the step in the scene metric are a jump (its lever arms are upper
-# bounds: a 2 cm step of the UR3 tool measures 0.06-0.08 there, a change of arm posture 1 or more). 5 cm steps
-# left the window job's median time as it was (`bench jobs`, 20 seeds: 3.96 s against 3.95 s), so the tool keeps
-# to its line more closely.
+# bounds, so a step of the tool measures a few times its length there, a change of arm posture far more). The step
+# is short so that the tool keeps to its line: a longer one saved no job time (benchmark pages, "Tuning notes").
 TOOL_STEP, TOOL_TURN, JUMP = 0.02, math.radians(10.0), 10.0
 # distinct_solutions: random references it solves from besides the caller's, and how near (scene metric) two
 # solutions are the same one.
@@ -128,7 +127,7 @@ def solve_pose(
             R_BbarB=RotationMatrix(),
             theta_bound=0.9 * angle_tolerance,
         )
-        # Translations are bounded; angles are not (SNOPT converges three times as often without them): a revolute
+        # Translations are bounded; angles are not (SNOPT converges far more often without them): a revolute
         # joint's kinematics repeat every 2 pi, so a solution is shifted into the bounds afterwards.
         prog.AddBoundingBoxConstraint(
             np.where(oracle.space.angular, -np.inf, oracle.space.lower),
@@ -269,8 +268,8 @@ def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **
     local solve: the solution SNOPT reaches from there; a full solve if that fails); a backward pass then solves each
     pose again from its successor's posture and keeps whichever of the two is nearer that successor, so an odd arm
     posture picked for the first pose does not survive when the rest of the sequence (a weld seam, say) settled on
-    another. (Full solves in place of the local ones gave the same postures in three times the time: benchmark
-    pages.)"""
+    another. (Full solves in place of the local ones give the same postures, slower: benchmark pages, "Tuning
+    notes".)"""
     names = list(oracle.scene.poses) if names is None else list(names)
     chain = []
     local = {**options, "seeds": 1, "keep": 1}

@@ -34,8 +34,8 @@ START, GOAL, UNIFORM, NARROW, WORKSPACE = "start", "goal", "uniform", "narrow", 
 
 # Candidate paths a lazy search tries per pair of shortest-path trees (see Roadmap.shortest_path).
 CANDIDATES = 16
-# Query points x tree nodes from which a k-nearest query is spread over the oracle's threads: a periodic 9-D query
-# of 125 points takes two threads 1.7x less time on 2,000 nodes, and a smaller one does not pay for starting them.
+# Query points x tree nodes from which a k-nearest query is spread over the oracle's threads: a smaller one does not
+# pay for starting them.
 _THREADED_QUERY = 100_000
 
 

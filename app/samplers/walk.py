@@ -122,8 +122,7 @@ class Walker(Sampler):
         if self.walkers:
             return int(self.walkers)
         # Walk lengths are heavy-tailed, so a larger pool finishes its samples with shorter walks, which offsets
-        # the unfinished walks it leaves; 4x the need was as cheap in checks as 2x and faster in time (fuller
-        # batches) on bar, teeth3d, maze and window (10-12 seeds each).
+        # the unfinished walks it leaves, and its batches are fuller (benchmark pages, "Tuning notes").
         return int(np.clip(4 * need, 32, 256))
 
     def _refill(self, rng, size: int) -> None:

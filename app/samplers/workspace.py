@@ -27,8 +27,8 @@ from app.errors import SamplerBudgetExceeded
 from app.samplers.base import Sampler
 
 # A gap is narrow when it is narrower than this many times the diameter of the robot's median moving piece: a gap
-# such a piece passes only when turned the right way. 1.5 missed bar's 8-wide gap (links 4 long, a 6.4 width), and
-# the largest piece instead of the median made the whole of the UR3's enclosures a gap (its upper arm is 0.34 m).
+# such a piece passes only when turned the right way (why this factor, and the median piece: benchmark pages,
+# "Tuning notes").
 GAP_WIDTH = 2.5
 # Gap points a query looks for; candidate points per search; candidates without a single gap: the scene has none;
 # candidates a query asks at most (the search goes on a batch per round while it has fewer than POINTS).
