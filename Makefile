@@ -1,12 +1,12 @@
 # make plan: create .venv, install, run the default job.  make test: the import contracts, ruff, the documentation site
 # built --strict and the test suite (what CI runs); it installs nothing outside .venv (the browser tests skip, in one
 # line, where Chromium is missing).  make browser-test: installs Chromium (apt-get) and runs the browser tests.
-# make docs: the documentation site, into site/.
+# make test-fast: the Drake-free tests, for the edit loop.  make docs: the documentation site, into site/.
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: plan test test-slow browser-test chromium bench docs clean
+.PHONY: plan test test-fast test-slow browser-test chromium bench docs clean
 
 $(STAMP): pyproject.toml
 	python3 -m venv $(VENV)
@@ -33,8 +33,13 @@ test: $(STAMP)
 	$(VENV)/bin/lint-imports
 	$(VENV)/bin/ruff check app tests docs/hooks examples/*.py
 	$(VENV)/bin/ruff format --check app tests docs/hooks examples/*.py
+	$(VENV)/bin/mypy
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
 	$(PY) -m pytest -q
+
+# The edit loop: the stages after collision checking on a checker of boxes in the plane, without Drake (seconds).
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -m unit tests/test_on_toy_checker.py
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow

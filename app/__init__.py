@@ -26,7 +26,9 @@ from app.checking.oracle import CollisionOracle  # noqa: E402
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError  # noqa: E402
 from app.motion.trajectory import Trajectory, TrajectoryFile  # noqa: E402
 from app.planning.cell import BuildSettings, CellRoadmap  # noqa: E402
-from app.planning.planner import PlanResult, PlanSettings, Query, plan  # noqa: E402
+from app.planning.query import Query, plan  # noqa: E402
+from app.planning.result import PlanResult  # noqa: E402
+from app.planning.settings import PlanSettings  # noqa: E402
 from app.samplers import SAMPLERS, Sampler, make_sampler  # noqa: E402
 from app.scene.cspace import ConfigurationSpace  # noqa: E402
 from app.scene.custom import build_scene, load_scene  # noqa: E402

@@ -27,7 +27,8 @@ from app.motion.timing import BlendProof, time_path
 from app.motion.trajectory import Trajectory, TrajectoryFile
 from app.planning.cell import CellRoadmap
 from app.planning.ik import solve_poses, tool_line
-from app.planning.planner import PlanSettings, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings
 
 HOME = "home"
 # A leg of a job is short: smaller roadmap rounds and fewer shortcut rounds than a scene's default query.
@@ -120,7 +121,6 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
     one roadmap, so what one leg sampled and decided serves the next; with settings.full_roadmap (the paper's
     protocol) each leg builds a roadmap of its own instead."""
     seed, sampler = settings.seed, settings.sampler
-
     names = route(oracle, job)
     cell = cell if cell is not None else CellRoadmap(oracle)
     clock = time.perf_counter()
@@ -135,73 +135,12 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
     stops = [k for k, name in enumerate(names) if k in (0, last) or name not in oracle.scene.pass_through]
     # Legs that pass through a pose are timed together (_through): timing each alone would be thrown away.
     joined = {i for a, b in zip(stops[:-1], stops[1:]) if b - a > 1 for i in range(a, b)}
-    from app.planning.roadmap import NARROW, WORKSPACE  # (scipy: loaded when a job runs)
-
-    def narrow_in_cell() -> int:
-        return sum(kind in (NARROW, WORKSPACE) for kind in cell.graph.kinds)
-
-    legs, planned_checks = [], 0
-    narrow_seen = narrow_in_cell()
+    planner = _LegPlanner(oracle, checker, cell, settings, rng)
+    legs: list[Leg] = []
     for i, (a, b) in enumerate(zip(names[:-1], names[1:])):
-        qa, qb = configurations[a], configurations[b]
-        t = time.perf_counter()
         back = next((leg for leg in legs if (leg.start, leg.goal) == (b, a)), None)
-        if back is not None:
-            # Back out the way the job came in (out of the hatch after the part): that path is proved already.
-            path, proof = back.path[::-1], back.blends.reversed() if back.blends else None
-            trajectory = None if i in joined else time_path(checker, path, settings.dt, **_timing(settings, proof))
-            duration = trajectory.duration if trajectory else 0.0
-            none, used = np.empty((0, oracle.space.dim)), np.zeros(0, bool)
-            seconds = time.perf_counter() - t
-            legs.append(Leg(a, b, "back", 0, 0, 0, seconds, duration, path, trajectory, none, used, proof))
-            continue
-        # The planner tries the easy route first: the straight joint move (a seam step of a few centimetres needs
-        # no roadmap), or where that is blocked the tool's straight line (the forearm following the torch into a
-        # hatch: the joint move between two such postures swings the forearm into the frame).
-        c = checker.checks
-        via = None if checker.edges_free(qa, qb, ends_free=True)[0] else tool_line(oracle, qa, qb, rng)
-        leg_settings = replace(settings, seed=seed * 1000 + i, timing=i not in joined)
-        try:
-            if settings.full_roadmap:
-                result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)
-            else:
-                result = cell.solve(qa, qb, leg_settings, via=via)
-        except NoPath as failure:  # the job's checks up to here, for a caller that counts what a failure cost
-            details = getattr(failure, "details", {})
-            failure.details = {
-                **details,
-                "job_checks": checker.checks + planned_checks + details.get("collision_checks", 0),
-            }
-            raise
-        planned_checks += result.collision_checks
-        path, trajectory = result.path, result.trajectory
-        method = sampler
-        if result.smoothing.get("straight"):
-            method = "tool line" if result.smoothing["via"] else "straight"
-        samples, on_path = result.narrow_samples()
-        # The samples this leg drew: the roadmap it answered on (a cell's before the samples it never joined left)
-        # against the cell's before it.
-        narrow_total = result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"]
-        narrow_count = narrow_total - (0 if settings.full_roadmap else narrow_seen)
-        narrow_seen = narrow_in_cell()
-        used = result.narrow_on_path + result.workspace_on_path
-        legs.append(
-            Leg(
-                a,
-                b,
-                method,
-                int(narrow_count),
-                int(used),
-                checker.checks - c + result.collision_checks,
-                time.perf_counter() - t,
-                trajectory.duration if trajectory else 0.0,
-                path,
-                trajectory,
-                samples,
-                on_path,
-                result.blends,
-            )
-        )
+        timed = i not in joined
+        legs.append(planner.back(back, timed) if back else planner.leg(i, a, b, configurations, timed))
 
     motions = [_through(checker, legs[a:b], settings) for a, b in zip(stops[:-1], stops[1:])]
     planning = time.perf_counter() - clock - ik_seconds
@@ -212,9 +151,80 @@ def run_job(oracle, job: str, settings: PlanSettings = JOB_SETTINGS, cell: CellR
         legs,
         join(motions, oracle),
         {"ik": ik_seconds, "planning": planning, "total": time.perf_counter() - clock},
-        checker.checks + planned_checks,
+        checker.checks + planner.planned_checks,
         configurations,
     )
+
+
+class _LegPlanner:
+    """The legs of one job on one cell roadmap (or, full_roadmap, a roadmap each): `back` for a leg back the way an
+    earlier one came, `leg` for the others (the easy route first, else a query). Counts the checks the legs' queries
+    spent, and the cell's narrow-passage samples before each leg (what a leg drew is the difference)."""
+
+    def __init__(self, oracle, checker, cell: CellRoadmap, settings: PlanSettings, rng: np.random.Generator):
+        self.oracle, self.checker, self.cell, self.settings, self.rng = oracle, checker, cell, settings, rng
+        self.planned_checks = 0
+        self.narrow_seen = self._narrow_in_cell()
+
+    def _narrow_in_cell(self) -> int:
+        from app.planning.roadmap import NARROW, WORKSPACE  # (scipy: loaded when a job runs)
+
+        return sum(kind in (NARROW, WORKSPACE) for kind in self.cell.graph.kinds)
+
+    def back(self, earlier: Leg, timed: bool) -> Leg:
+        """Back out the way the job came in (out of the hatch after the part): that path is proved already."""
+        t, settings = time.perf_counter(), self.settings
+        path, proof = earlier.path[::-1], earlier.blends.reversed() if earlier.blends else None
+        trajectory = time_path(self.checker, path, settings.dt, **_timing(settings, proof)) if timed else None
+        duration = trajectory.duration if trajectory else 0.0
+        none, used = np.empty((0, self.oracle.space.dim)), np.zeros(0, bool)
+        seconds = time.perf_counter() - t
+        return Leg(earlier.goal, earlier.start, "back", 0, 0, 0, seconds, duration, path, trajectory, none, used, proof)
+
+    def leg(self, i: int, a: str, b: str, configurations: dict, timed: bool) -> Leg:
+        """Leg i from pose a to pose b, seeded settings.seed * 1000 + i. The planner tries the easy route first: the
+        straight joint move (a seam step of a few centimetres needs no roadmap), or where that is blocked the tool's
+        straight line (the forearm following the torch into a hatch: the joint move between two such postures swings
+        the forearm into the frame)."""
+        oracle, checker, settings = self.oracle, self.checker, self.settings
+        qa, qb, t, c = configurations[a], configurations[b], time.perf_counter(), checker.checks
+        via = None if checker.edges_free(qa, qb, ends_free=True)[0] else tool_line(oracle, qa, qb, self.rng)
+        leg_settings = replace(settings, seed=settings.seed * 1000 + i, timing=timed)
+        try:
+            if settings.full_roadmap:
+                result = plan(oracle, leg_settings, start=qa, goal=qb, via=via)
+            else:
+                result = self.cell.solve(qa, qb, leg_settings, via=via)
+        except NoPath as failure:  # the job's checks up to here, for a caller that counts what a failure cost
+            details = getattr(failure, "details", {})
+            spent = checker.checks + self.planned_checks + details.get("collision_checks", 0)
+            failure.details = {**details, "job_checks": spent}
+            raise
+        self.planned_checks += result.collision_checks
+        method = {"straight": "straight", "via": "tool line"}.get(result.route, settings.sampler)
+        samples, on_path = result.narrow_samples()
+        # The samples this leg drew: the roadmap it answered on (a cell's before the samples it never joined left)
+        # against the cell's before it.
+        drawn = result.stats.roadmap.narrow_nodes + result.stats.roadmap.workspace_nodes
+        drawn -= 0 if settings.full_roadmap else self.narrow_seen
+        self.narrow_seen = self._narrow_in_cell()
+        used = result.narrow_on_path + result.workspace_on_path
+        trajectory = result.trajectory
+        return Leg(
+            a,
+            b,
+            method,
+            int(drawn),
+            int(used),
+            checker.checks - c + result.collision_checks,
+            time.perf_counter() - t,
+            trajectory.duration if trajectory else 0.0,
+            result.path,
+            trajectory,
+            samples,
+            on_path,
+            result.blends,
+        )
 
 
 def _timing(settings: PlanSettings, proof: BlendProof | None = None, edges_proved: bool = True) -> dict:

@@ -35,7 +35,8 @@ from app.errors import UserError
 from app.io import write_atomically
 from app.planning.cell import CellRoadmap
 from app.planning.ik import pose_goal, robot_frame
-from app.planning.planner import PlanSettings, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings
 from app.samplers import SAMPLERS
 from app.viewer import PATH_COLOUR, Viewer, start_meshcat
 
@@ -288,8 +289,8 @@ class Panel:
             "success": True,
             "sampler": result.sampler,
             "collision_checks": result.collision_checks,
-            "seconds": result.seconds["total"],
-            "path_length": result.smoothing.get("length_after"),
+            "seconds": result.stats.seconds.total,
+            "path_length": result.smoothing.length_after,
             "waypoints": len(result.path),
             "duration": result.trajectory.duration,
             "certified": result.trajectory.certified,

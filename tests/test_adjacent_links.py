@@ -57,7 +57,8 @@ def virtual_link_chain(tmp_path):
 
 def test_links_meeting_across_a_link_without_geometry_are_adjacent(tmp_path, virtual_link_chain, cli):
     from app.checking.oracle import CollisionOracle
-    from app.planning.planner import PlanSettings, plan
+    from app.planning.query import plan
+    from app.planning.settings import PlanSettings
 
     scene = _scene(tmp_path, virtual_link_chain, start=[0.0], goal=[1.0])
     assert scene.adjacent_pairs == [("link_a", "link_b")]
@@ -122,7 +123,8 @@ def test_links_that_touch_across_a_link_with_geometry_are_checked_and_the_refusa
 
 def test_a_start_refused_over_the_environment_names_no_self_collision_flags(tmp_path):
     from app.checking.oracle import CollisionOracle
-    from app.planning.planner import PlanSettings, plan
+    from app.planning.query import plan
+    from app.planning.settings import PlanSettings
 
     robot = _urdf(
         tmp_path / "one.urdf", _link("link_a"), _link("link_b"), _joint("elbow", "revolute", "link_a", "link_b")

@@ -11,8 +11,8 @@ import pytest
 from app.checking.budget import Budget
 from app.errors import NoPath, UserError
 from app.planning.cell import BuildSettings, CellRoadmap
-from app.planning.planner import PlanSettings
 from app.planning.roadmap_file import read
+from app.planning.settings import PlanSettings
 from app.scene.files import SCENES_DIR
 
 SMALL = BuildSettings(nodes=250, seed=0)  # one build round on bar: a few seconds
@@ -60,9 +60,9 @@ def test_the_same_query_again_costs_fewer_checks_and_decides_no_edge_twice(oracl
     first = cell.solve(settings=QUERY)
     decided = cell.graph.edges_tried
     second = cell.solve(settings=QUERY)
-    assert first.success and second.success
+    assert first.certified and second.certified
     assert second.collision_checks < first.collision_checks
-    assert second.rounds == 0  # answered from the roadmap: no sample drawn
+    assert second.stats.rounds == 0  # answered from the roadmap: no sample drawn
     assert cell.graph.edges_tried == decided  # every edge the second query used was decided by the first
 
 
@@ -72,7 +72,7 @@ def test_a_query_reports_its_own_certificate_time_not_the_cells(oracles, bar_fil
     cell = CellRoadmap.load(bar_file, oracles("bar"))
     for _ in range(3):
         r = cell.solve(settings=QUERY)
-        assert 0 < r.certificate_seconds <= r.seconds["certify"] + r.seconds["timing"]
+        assert 0 < r.stats.certificate_seconds <= r.stats.seconds.certify + r.stats.seconds.timing
 
 
 def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
@@ -83,14 +83,14 @@ def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
     oracle = oracles("bar")
     cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))  # far too few to cross the wall
     result = cell.solve(settings=QUERY)
-    assert result.success and result.rounds > 0 and len(cell) > 22
+    assert result.certified and result.stats.rounds > 0 and len(cell) > 22
     kinds, joined = np.array(cell.graph.kinds[20:]), cell.graph.joined_nodes()[20:]
     assert {START, GOAL} <= set(kinds) and joined[~np.isin(kinds, [START, GOAL])].all()
-    assert result.roadmap["nodes"] > len(cell)  # some left
+    assert result.stats.roadmap.nodes > len(cell)  # some left
     assert np.array_equal(cell.graph.Q[result.path_nodes], result.roadmap_path)
     size = len(cell)
     again = cell.solve(settings=QUERY)
-    assert again.rounds == 0 and len(cell) == size and again.collision_checks < result.collision_checks
+    assert again.stats.rounds == 0 and len(cell) == size and again.collision_checks < result.collision_checks
 
 
 def test_a_failed_query_takes_its_samples_away_and_keeps_its_verdicts(oracles):
@@ -105,7 +105,7 @@ def test_a_failed_query_takes_its_samples_away_and_keeps_its_verdicts(oracles):
     assert (cell.graph.edges() < size).all() and len(cell.graph.edges(checked=True)) >= checked
     untouched = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))
     after, fresh = cell.solve(settings=QUERY), untouched.solve(settings=QUERY)
-    assert after.success and fresh.success and after.collision_checks <= fresh.collision_checks
+    assert after.certified and fresh.certified and after.collision_checks <= fresh.collision_checks
 
 
 def test_an_edge_known_to_collide_is_never_used_or_checked_again(oracles, bar_file):
@@ -122,7 +122,7 @@ def test_an_edge_known_to_collide_is_never_used_or_checked_again(oracles, bar_fi
 def test_components_counted_again_after_an_edge_leaves_are_those_the_free_edges_make(oracles, bar_file):
     """The skip-connected rule's components, rebuilt in one pass after an edge leaves, partition the nodes as joining
     the remaining free edges one by one does; and later joins keep working on them."""
-    from app.planning.roadmap import _joined
+    from app.planning.graph import joined_labels
 
     cell = CellRoadmap.load(bar_file, oracles("bar"))
     graph, edges = cell.graph, cell.graph.edges(checked=True)
@@ -130,14 +130,14 @@ def test_components_counted_again_after_an_edge_leaves_are_those_the_free_edges_
     graph.remove_edge(a, b)
     joined = np.arange(len(graph.Q))
     for u, v in graph.edges(checked=True).tolist():
-        joined = _joined(joined, np.array([[u, v]]))
+        joined = joined_labels(joined, np.array([[u, v]]))
     recounted = graph._free
     partition = {}
     for node in range(len(graph.Q)):
         partition.setdefault(recounted[node], set()).add(joined[node])
     assert all(len(roots) == 1 for roots in partition.values())
     assert len(partition) == len(set(joined.tolist())) > 1
-    later = _joined(recounted, np.array([[a, b]]))
+    later = joined_labels(recounted, np.array([[a, b]]))
     assert later[a] == later[b]
 
 

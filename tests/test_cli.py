@@ -17,7 +17,7 @@ from app.checking.budget import SAFETY_NET_SECONDS, Budget
 from app.cli import EXIT_CODES, build_parser, exit_code
 from app.commands.common import comma_list, names_from, parse_budget, parse_build_budget, sampler_names
 from app.errors import UserError
-from app.planning.planner import DEFAULT_BUDGET, PlanSettings
+from app.planning.settings import DEFAULT_BUDGET, PlanSettings
 from app.scene.files import ROOT, SCENES_DIR
 from app.scene.model import Scene
 
@@ -311,7 +311,7 @@ def test_no_progress_with_json():
 
 
 def test_sample_takes_the_scenes_own_step(cli, tmp_path):
-    from app.planning.planner import default_step
+    from app.planning.settings import default_step
     from app.scene.model import Scene
 
     png = tmp_path / "window.png"

@@ -270,7 +270,7 @@ def test_ctrl_c_during_plan_answers_preempted_with_what_the_query_spent(cli, mon
     import os
     import signal
 
-    from app.planning.planner import Query
+    from app.planning.query import Query
 
     grow = Query.grow
 

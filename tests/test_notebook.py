@@ -37,7 +37,7 @@ def test_the_example_notebook_runs_and_plans(monkeypatch):
         notebook, kernel_name="python3", timeout=120, resources={"metadata": {"path": str(Path(NOTEBOOK).parent)}}
     ).execute()  # raises CellExecutionError on any failing cell
 
-    assert "success: True" in text_of(tagged(notebook, "plan"))
+    assert "certified: True" in text_of(tagged(notebook, "plan"))
     assert "Meshcat: http://localhost:" in text_of(tagged(notebook, "meshcat"))
     figure = tagged(notebook, "figure")
     assert any("image/png" in out.get("data", {}) for out in figure.outputs), figure.outputs

@@ -30,7 +30,7 @@ from app.ompl_bridge import (
     motion_check_steps,
     motion_spacing,
 )
-from app.planning.planner import default_step
+from app.planning.settings import default_step
 from app.scene.cspace import ConfigurationSpace
 from app.scene.model import Scene
 

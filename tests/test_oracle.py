@@ -384,10 +384,11 @@ def test_two_contexts_on_one_oracle_keep_their_own_counts_and_budgets(oracles):
 
     oracle = oracles("bar")
     Q = oracle.space.uniform(np.random.default_rng(3), 30)
-    bounded, free = oracle.context(Budget(checks=10)), oracle.context()
-    free.are_free(Q)
+    bounded, free = oracle.context(), oracle.context()
+    stop = bounded.stop(Budget(checks=10))  # a budget runs against the counters of the context it was made on
+    free.are_free(Q, stop=free.stop())
     with pytest.raises(BudgetSpent):
-        bounded.are_free(Q)
+        bounded.are_free(Q, stop=stop)
     assert bounded.checks == 10  # checked as far as its own limit allowed, then stopped
     free.are_free(Q)  # the other context is not bound by it, and counts only its own
     assert free.checks == 60

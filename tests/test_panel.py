@@ -163,7 +163,7 @@ def test_panel_plans_in_chromium(panel, browser):
 def make_panel(oracles, monkeypatch):
     """`make_panel(scene)`: a Panel over the session's oracle of `scene`."""
     from app.panel import Panel
-    from app.planning.planner import PlanSettings
+    from app.planning.settings import PlanSettings
 
     monkeypatch.setenv("DRAKE_ALLOW_NETWORK", "meshcat")
     made = []
@@ -222,7 +222,7 @@ def test_the_panel_keeps_its_roadmap_between_plan_presses(make_panel):
     panel.press("Plan")  # the same start and goal again: answered on what the first press built
     second = settle(panel)
     assert first["last"]["success"] and second["last"]["success"]
-    assert panel.result.rounds == 0 and len(panel.cell) == nodes
+    assert panel.result.stats.rounds == 0 and len(panel.cell) == nodes
     assert second["last"]["collision_checks"] < first["last"]["collision_checks"]
 
 
@@ -305,7 +305,8 @@ def test_an_arms_goal_pose_is_solved_by_ik_into_the_goal_sliders(make_panel):
 
 
 def test_the_panel_plans_what_plan_plans(make_panel, oracles):
-    from app.planning.planner import PlanSettings, plan
+    from app.planning.query import plan
+    from app.planning.settings import PlanSettings
 
     panel = make_panel(SCENE)
     panel.press("Plan")

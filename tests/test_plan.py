@@ -10,8 +10,10 @@ import pytest
 
 from app.checking.budget import Budget
 from app.errors import InvalidEndpoint, NoPath, UserError
-from app.planning.planner import PHASES, PlanSettings, plan
+from app.planning.query import plan
+from app.planning.result import PHASES
 from app.planning.roadmap import Roadmap
+from app.planning.settings import PlanSettings
 from independent import fine_points, raw_free
 
 # The bar crossing needs the narrow samples: with 500 uniform samples alone it succeeds in under 10 % of seeds
@@ -153,7 +155,7 @@ def test_nodes_kept_are_numbered_again_with_every_verdict_between_them(oracles):
 @pytest.mark.parametrize("name", ["bar", "joint3d"])
 def test_path_is_collision_free_under_an_independent_fine_check(oracles, planned, name):
     oracle, result = oracles(name), planned(name)
-    assert result.success
+    assert result.certified
     P = result.path
     assert same_configuration(oracle, P[0], result.start) and same_configuration(oracle, P[-1], result.goal)
     points = fine_points(oracle, P, oracle.space.resolution / 8)
@@ -188,37 +190,38 @@ def test_trajectory_respects_limits_and_joins_start_to_goal(oracles, planned, na
     )
     assert np.allclose(traj.velocities[[0, -1]], 0) and traj.joint_names == scene.coordinate_names
     # Corners are blended (velocity never jumps: the acceleration bound above), and the blended curve is proved.
-    assert traj.certified and result.distance_queries > 0
+    assert traj.certified and result.stats.distance_queries > 0
 
 
 def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
     result = planned("bar")
     assert result.narrow_on_path + result.workspace_on_path >= 1
-    assert result.smoothing["length_after"] <= result.smoothing["raw_length"] + 1e-9
-    assert set(result.seconds) >= {"sampling", "roadmap", "search", "smoothing", "timing", "total"}
+    assert result.smoothing.length_after <= result.smoothing.raw_length + 1e-9
+    assert result.stats.seconds.total >= result.stats.seconds.sampling > 0
 
 
 def test_a_query_stops_at_the_first_round_that_connects_and_checks_edges_lazily(oracles, planned):
     result = planned("bar")  # 75 uniform samples a round; narrow ones from round 2, 13, 26, 50, 50, ...
-    assert result.roadmap["uniform_nodes"] == 75 * result.rounds
-    assert result.narrow_from_round == 2 and result.rounds >= 2  # bar's gap is not found by 75 uniform samples
-    ramp = [min(50, 13 * 2**k) for k in range(result.rounds - 1)]
+    assert result.stats.roadmap.uniform_nodes == 75 * result.stats.rounds
+    # bar's gap is not found by 75 uniform samples
+    assert result.stats.narrow_from_round == 2 and result.stats.rounds >= 2
+    ramp = [min(50, 13 * 2**k) for k in range(result.stats.rounds - 1)]
     # that share of each round's narrow-passage samples are placements in workspace gaps, the rest the sampler's
-    assert result.roadmap["workspace_nodes"] == sum(round(PlanSettings().workspace * n) for n in ramp)
-    assert result.roadmap["narrow_nodes"] + result.roadmap["workspace_nodes"] == sum(ramp)
+    assert result.stats.roadmap.workspace_nodes == sum(round(PlanSettings().workspace * n) for n in ramp)
+    assert result.stats.roadmap.narrow_nodes + result.stats.roadmap.workspace_nodes == sum(ramp)
     assert result.narrow_on_path + result.workspace_on_path >= 1
-    assert result.rounds < 6 and result.roadmap["lazy"]
-    assert result.roadmap["edges_unchecked"] > 0  # most candidate edges never lay on a candidate path
-    assert result.roadmap["edges_tried"] < result.roadmap["edges_proposed"] / 2
+    assert result.stats.rounds < 6 and result.stats.roadmap.lazy
+    assert result.stats.roadmap.edges_unchecked > 0  # most candidate edges never lay on a candidate path
+    assert result.stats.roadmap.edges_tried < result.stats.roadmap.edges_proposed / 2
     checked = {tuple(edge) for edge in result.graph.edges(checked=True).tolist()}
     assert all((min(u, v), max(u, v)) in checked for u, v in zip(result.path_nodes[:-1], result.path_nodes[1:]))
 
 
 def test_full_roadmap_builds_every_sample_and_checks_every_edge(oracles):
     result = plan(oracles("bar"), PlanSettings(**BAR, full_roadmap=True, smooth_rounds=0))
-    assert result.roadmap["nodes"] == 502 and result.roadmap["narrow_nodes"] == 200 and result.rounds == 1
-    assert not result.roadmap["lazy"] and result.roadmap["edges_unchecked"] == 0
-    assert result.roadmap["k"] == 19  # k-PRM*: e (1 + 1/9) ln 502 = 18.8, for 502 nodes in 9 dimensions
+    assert result.stats.roadmap.nodes == 502 and result.stats.roadmap.narrow_nodes == 200 and result.stats.rounds == 1
+    assert not result.stats.roadmap.lazy and result.stats.roadmap.edges_unchecked == 0
+    assert result.stats.roadmap.k == 19  # k-PRM*: e (1 + 1/9) ln 502 = 18.8, for 502 nodes in 9 dimensions
 
 
 def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
@@ -230,7 +233,7 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
     oracle = CollisionOracle(Scene("maze"))
     oracle.space = dataclasses.replace(oracle.space, resolution=2.0)
     result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
-    assert result.smoothing["fine_only"]
+    assert result.smoothing.fine_only
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.5))
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.roadmap_path, 0.5))
 
@@ -238,16 +241,16 @@ def test_a_path_that_fails_the_fine_recheck_is_replanned_fine_only():
 def test_a_careful_query_fine_checks_roadmap_paths_once_the_certificate_refused_an_edge(oracles):
     """The fine check filters roadmap edges that slip between checked points; until the certificate has refused one,
     a careful query proves the path's edges directly and the fine check would be work for nothing."""
-    from app.planning.planner import Query
+    from app.planning.query import Query
 
     query = Query(oracles("bar"), PlanSettings(**BAR))
     query.solve()
-    query.fine_only = True
+    query.refinement.fine_only = True
     before = query.checker.checks
-    nodes = query.search()
+    nodes = query.search(query.stop)
     assert nodes is not None and query.checker.checks == before
-    query.unproved_edges = 1
-    assert query.search() == nodes and query.checker.checks > before
+    query.refinement.unproved_edges = 1
+    assert query.search(query.stop) == nodes and query.checker.checks > before
 
 
 def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
@@ -260,7 +263,7 @@ def test_an_edge_the_certificate_cannot_prove_is_treated_as_colliding():
     oracle.space = dataclasses.replace(oracle.space, resolution=4.0)
     result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
     # Hundreds of edges step over a wall; after the first refusal the fine check finds most of them first.
-    assert 0 < result.smoothing["certificate"]["unproved_edges_dropped"] <= 20
+    assert 0 < result.certificate.unproved_edges <= 20
     assert result.trajectory.certified
     assert all(raw_free(oracle, q) for q in fine_points(oracle, result.path, 0.05))
 
@@ -269,17 +272,19 @@ def test_once_careful_a_roadmap_path_is_proved_before_smoothing_is_spent_on_it(m
     """Smoothing a candidate the certificate then refuses wastes it: after the first refusal, candidates are proved
     first, so a query smooths at most two roadmap paths (once optimistic, once careful) however many edges it drops."""
     from app.checking.oracle import CollisionOracle
-    from app.planning.planner import Query
+    from app.planning.refine import Refinement
     from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("maze"))
     oracle.space = dataclasses.replace(oracle.space, resolution=4.0)  # edges that pass the checks, then fail
-    smoothed, smooth = [], Query.smooth
+    smoothed, smooth = [], Refinement.smooth
     monkeypatch.setattr(
-        Query, "smooth", lambda self, nodes, memo=None: smoothed.append(tuple(nodes)) or smooth(self, nodes, memo)
+        Refinement,
+        "smooth",
+        lambda self, nodes, stop, memo=None: smoothed.append(tuple(nodes)) or smooth(self, nodes, stop, memo),
     )
     result = plan(oracle, PlanSettings(seed=0, smooth_rounds=10))
-    assert result.smoothing["certificate"]["unproved_edges_dropped"] > 0 and result.trajectory.certified
+    assert result.certificate.unproved_edges > 0 and result.trajectory.certified
     # Repairs smooth the same roadmap path again; what is limited is the roadmap paths smoothing is spent on.
     assert 1 <= len(set(smoothed)) <= 2 and smoothed[-1] == tuple(result.path_nodes)
 
@@ -344,7 +349,7 @@ def test_every_edge_of_a_shortened_path_lies_on_the_path_or_on_a_shortcut_checke
         for u, v in zip(smoothed[:-1], smoothed[1:]):
             carriers = [*zip(P[:-1], P[1:]), *free]
             assert any(on_segment(oracle.space, a, b, np.array([u, v])) for a, b in carriers), seed
-        shortened += stats["length_after"] < stats["length_before"]
+        shortened += stats.length_after < stats.length_before
     assert shortened >= 45
 
 
@@ -399,29 +404,30 @@ def test_an_angle_wound_a_whole_turn_along_the_path_is_turned_the_short_way():
     assert not oracle.edges_free(P[:1], P[2:3]).any() and not oracle.edges_free(P[1:2], P[3:]).any()
     smoothed, stats = shortcut(oracle, P, np.random.default_rng(0), rounds=0)
     turn = oracle.space.unwrap(smoothed)[:, 1]
-    assert stats["unwound"] == 1 and turn[-1] - turn[0] == pytest.approx(6.0 - 2 * np.pi)
+    assert stats.unwound == 1 and turn[-1] - turn[0] == pytest.approx(6.0 - 2 * np.pi)
     assert np.array_equal(smoothed[[0, -1]], P[[0, -1]])
     assert oracle.edges_free(smoothed[:-1], smoothed[1:]).all()
-    assert stats["length_after"] < stats["length_before"]
+    assert stats.length_after < stats.length_before
 
 
 def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkeypatch):
     """The certificate is made to refuse the first smoothed path's longest shortcut: smoothing is replayed without
     it, the result is proved and still shorter than the roadmap path, and the shortcuts stay within smoothing's cap
-    (turning a joint wound a whole turn back the short way is exempt: Query.smooth)."""
+    (turning a joint wound a whole turn back the short way is exempt: Refinement.smooth)."""
     from app.checking.oracle import CollisionOracle
-    from app.motion.path import on_segment
-    from app.planning import planner
-    from app.planning.planner import SMOOTHING_CAP, Query, unwind
+    from app.motion.path import on_segment, unwind
+    from app.planning import refine
+    from app.planning.refine import Refinement
+    from app.planning.settings import SMOOTHING_CAP
     from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar-3link"))
-    raw, refused, smooth = [], [], Query.smooth
-    certify, certify_blends = Query.certify, Query.certify_blends
+    raw, refused, smooth = [], [], Refinement.smooth
+    certify, certify_blends = Refinement.certify, Refinement.certify_blends
 
-    def recording(self, nodes, memo=None):
+    def recording(self, nodes, stop, memo=None):
         raw.append(self.roadmap.Q[nodes])
-        return smooth(self, nodes, memo)
+        return smooth(self, nodes, stop, memo)
 
     def on_raw(path, i):
         return any(on_segment(oracle.space, a, b, path[i : i + 2]) for a, b in zip(raw[-1][:-1], raw[-1][1:]))
@@ -434,15 +440,15 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
             refused.append(path[worst : worst + 2].copy())
         return [i for i in edges if refused and np.array_equal(path[i : i + 2], refused[0])]
 
-    def refusing(self, path, edges=None):
-        proved, stats = certify(self, path, edges)
+    def refusing(self, path, stop, edges=None):
+        certificate = certify(self, path, stop, edges)
         failed = refuse(path, range(len(path) - 1) if edges is None else edges)
-        return (False, {**stats, "failed": failed}) if failed else (proved, stats)
+        return dataclasses.replace(certificate, proved=False, failed=failed) if failed else certificate
 
-    def refusing_blends(self, path):
-        proved, stats = certify_blends(self, path)
+    def refusing_blends(self, path, stop):
+        certificate = certify_blends(self, path, stop)
         failed = refuse(path, range(len(path) - 1))
-        return (False, {**stats, "failed": failed}) if failed else (proved, stats)
+        return dataclasses.replace(certificate, proved=False, failed=failed) if failed else certificate
 
     unwinding = []
 
@@ -453,18 +459,18 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
         finally:
             unwinding.append(o.checks - checks)
 
-    monkeypatch.setattr(Query, "smooth", recording)
-    monkeypatch.setattr(Query, "certify", refusing)
-    monkeypatch.setattr(Query, "certify_blends", refusing_blends)
-    monkeypatch.setattr(planner, "unwind", counted_unwind)
+    monkeypatch.setattr(Refinement, "smooth", recording)
+    monkeypatch.setattr(Refinement, "certify", refusing)
+    monkeypatch.setattr(Refinement, "certify_blends", refusing_blends)
+    monkeypatch.setattr(refine, "unwind", counted_unwind)
     result = plan(oracle, PlanSettings(seed=0))
-    assert refused and result.smoothing["repairs"] == 1 and not result.smoothing["fine_only"]
+    assert refused and result.smoothing.repairs == 1 and not result.smoothing.fine_only
     assert result.trajectory.certified
     P = result.path
     assert not any(on_segment(oracle.space, *refused[0], P[i : i + 2]) for i in range(len(P) - 1))
-    assert result.smoothing["length_after"] < result.smoothing["raw_length"]
-    finding = result.collision_checks - result.checks["smoothing"] - result.checks.get("timing", 0)
-    assert result.checks["smoothing"] - sum(unwinding) <= SMOOTHING_CAP * finding + 1
+    assert result.smoothing.length_after < result.smoothing.raw_length
+    finding = result.collision_checks - result.stats.checks.smoothing - result.stats.checks.timing
+    assert result.stats.checks.smoothing - sum(unwinding) <= SMOOTHING_CAP * finding + 1
 
 
 def test_same_seed_same_path(oracles, planned):
@@ -495,7 +501,7 @@ def test_a_free_straight_motion_is_the_answer_after_one_edge_check(oracles):
     oracle = oracles("joint3d")
     start, goal = [20, 25, 75, 0, 0, 0], [30, 25, 75, 0.5, 0, 0]
     result = plan(oracle, PlanSettings(seed=0), start=start, goal=goal)
-    assert result.rounds == 0 and len(result.path) == 2 and result.smoothing["straight"]
+    assert result.stats.rounds == 0 and len(result.path) == 2 and result.route == "straight"
     inner = len(oracle.space.interpolate(start, goal, oracle.space.resolution)) - 2
     # the endpoints, then every inner point of one edge check; the certificate proves the rest (distance queries)
     assert result.collision_checks == 2 + inner and result.trajectory.certified
@@ -509,7 +515,7 @@ def test_a_free_route_through_via_points_is_the_answer_without_a_roadmap(oracles
     via = found.path[1:-1]
     assert len(via) >= 1 and not oracle.context().edge_free(oracle.scene.start, oracle.scene.goal)
     result = plan(oracle, PlanSettings(seed=1, narrow=0, uniform=0), via=via)
-    assert result.rounds == 0 and result.smoothing["straight"] and result.smoothing["via"] == len(via)
+    assert result.stats.rounds == 0 and result.route == "via" and result.via == len(via)
     assert np.array_equal(result.path[1:-1], via) and result.trajectory.certified
     assert np.array_equal(result.roadmap_path, result.path)
     with pytest.raises(NoPath):
@@ -525,13 +531,13 @@ def test_a_plan_without_timing_returns_the_certified_path_alone(oracles):
 
     oracle = oracles("bar-3link")
     timed, bare = (plan(oracle, PlanSettings(seed=0, timing=t)) for t in (True, False))
-    assert bare.trajectory is None and timed.trajectory is not None and bare.seconds["timing"] == 0
+    assert bare.trajectory is None and timed.trajectory is not None and bare.stats.seconds.timing == 0
     assert np.array_equal(bare.path, timed.path)
     answer = json.loads(json.dumps(bare.to_json()))
     assert answer["trajectory"] is None and answer["certified"] is True
-    assert bare.smoothing["certificate"]["blended"] is False and bare.blends is None
+    assert bare.certificate.blended is False and bare.blends is None
     assert certify_path(oracle.context(), bare.path)[0]
-    assert timed.smoothing["certificate"]["blended"] is True and timed.trajectory.certified
+    assert timed.certificate.blended is True and timed.trajectory.certified
     assert np.array_equal(timed.blends.path, timed.path) and not timed.blends.failed
 
 
@@ -563,7 +569,7 @@ def test_a_spent_check_budget_is_a_planning_failure_that_says_so_and_names_a_lar
 def test_ctrl_c_during_a_query_carries_what_it_spent(oracles, monkeypatch):
     """A KeyboardInterrupt stays one (the command line answers PREEMPTED, exit code 130), with the query's figures
     as its `details`, as a failure's NoPath has them."""
-    from app.planning.planner import Query
+    from app.planning.query import Query
 
     grow, rounds = Query.grow, []
 
@@ -604,7 +610,7 @@ def test_a_query_cancelled_from_another_thread_stops_with_moveits_preempted(orac
         plan(oracle, PlanSettings(seed=0, budget=budget, workspace=0.0), cancel=SetAfterPolls())
     assert info.value.code == "PREEMPTED" and info.value.details["stopped"] == "cancelled"
     assert info.value.details["collision_checks"] < budget.checks / 10
-    assert plan(oracle, PlanSettings(seed=0), start=[20, 25, 75, 0, 0, 0], goal=[30, 25, 75, 0, 0, 0]).success
+    assert plan(oracle, PlanSettings(seed=0), start=[20, 25, 75, 0, 0, 0], goal=[30, 25, 75, 0, 0, 0]).certified
 
 
 def test_proving_a_path_keeps_to_the_time_limit_and_cancel_but_not_the_check_limit(oracles, monkeypatch):
@@ -631,7 +637,7 @@ def test_proving_a_path_keeps_to_the_time_limit_and_cancel_but_not_the_check_lim
 
     spent = plan(oracle, PlanSettings(seed=0)).collision_checks  # the whole query's checks: search and smoothing
     tight = plan(oracle, PlanSettings(seed=0, budget=Budget(checks=spent)))
-    assert tight.trajectory.certified and tight.distance_queries > 0
+    assert tight.trajectory.certified and tight.stats.distance_queries > 0
 
 
 def test_a_time_budget_ends_sampling_within_a_round(oracles, monkeypatch):
@@ -939,7 +945,7 @@ def test_an_edge_proved_to_keep_a_smaller_clearance_is_proved_again_for_a_larger
 
 
 def test_the_default_budget_is_counted_in_checks_so_answers_do_not_depend_on_the_machine():
-    from app.planning.planner import DEFAULT_BUDGET
+    from app.planning.settings import DEFAULT_BUDGET
 
     assert PlanSettings().budget == DEFAULT_BUDGET and DEFAULT_BUDGET.checks is not None
     # its seconds are a safety net far beyond what the checks take on this project's 2-core machines

@@ -5,7 +5,8 @@ import pytest
 
 from app.checking.budget import Budget, BudgetSpent
 from app.errors import NoPath
-from app.planning.planner import PlanSettings, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings
 from app.samplers.workspace import SEARCH_LIMIT, WorkspaceGaps
 
 
@@ -77,19 +78,19 @@ def test_joint3d_needs_the_gap_placements_to_pass_the_hole_on_a_small_budget(ora
 
 def test_the_papers_protocol_draws_no_placements(oracles):
     result = plan(oracles("bar-3link"), PlanSettings(seed=0, narrow=40, uniform=40, full_roadmap=True))
-    assert result.roadmap["workspace_nodes"] == 0 and result.point_queries == 0
+    assert result.stats.roadmap.workspace_nodes == 0 and result.stats.point_queries == 0
 
 
 def test_gaps_out_of_the_robots_reach_hand_the_rounds_back_to_the_sampler(oracles, monkeypatch):
     from app.samplers.workspace import WorkspaceGaps as Gaps
 
-    def unreachable(self, rng, n=0):  # a gap no placement can bring a piece to (far outside the bounds)
+    def unreachable(self, rng, n=0, stop=None):  # a gap no placement can bring a piece to (far outside the bounds)
         self.points, self.searched = np.array([[1e4, 1e4, 0.0]]), self.searched + 1
         return 1
 
     monkeypatch.setattr(Gaps, "search", unreachable)
     result = plan(oracles("bar"), PlanSettings(seed=0))
-    assert result.roadmap["workspace_nodes"] == 0 and result.roadmap["narrow_nodes"] > 0
+    assert result.stats.roadmap.workspace_nodes == 0 and result.stats.roadmap.narrow_nodes > 0
     assert result.trajectory.certified
 
 
@@ -188,8 +189,8 @@ def test_a_turned_boxs_distances_are_exact_inside_and_out():
 
 
 def test_a_gap_search_ends_when_the_budget_is_spent(oracles):
-    oracle = oracles("maze").context(Budget(seconds=0.0))
+    checker = oracles("maze").context()
     P = np.random.default_rng(0).uniform(0, 20, (4096, 3))
     with pytest.raises(BudgetSpent):
-        oracle.environment_gaps(P, 1.0)
-    assert oracle.point_queries == 0  # polled before the first batch of points
+        checker.environment_gaps(P, 1.0, stop=checker.stop(Budget(seconds=0.0)))
+    assert checker.point_queries == 0  # polled before the first batch of points

@@ -14,7 +14,8 @@ from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath
-from app.planning.planner import PlanSettings, default_step, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings, default_step
 from app.scene.model import Scene
 
 # variant -> (narrow-passage sampler, share of the narrow samples placed in workspace gaps)
@@ -49,13 +50,13 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     except NoPath as exc:
         checks = getattr(exc, "details", {}).get("collision_checks")
         return {"success": 0.0, "checks": checks, "code": getattr(exc, "code", None)}
-    after = r.checks["smoothing"] + r.checks.get("timing", 0)
+    after = r.stats.checks.smoothing + r.stats.checks.timing
     path_nodes = len(r.path_nodes)
     return {
         "success": 1.0,
         "checks": r.collision_checks - after,
         "checks_total": r.collision_checks,
-        "rounds": r.rounds,
+        "rounds": r.stats.rounds,
         "path_nodes": path_nodes,
         "narrow_on_path": r.narrow_on_path,
         "workspace_on_path": r.workspace_on_path,

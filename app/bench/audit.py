@@ -49,7 +49,8 @@ from app.checking.budget import Budget
 from app.errors import NoPath
 from app.motion.timing import time_path
 from app.planning.cell import BuildSettings, CellRoadmap
-from app.planning.planner import PlanSettings, default_step, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings, default_step
 from app.scene.model import Scene, scene_names
 
 # The re-check looks at states this fraction of the scene's resolution apart.
@@ -338,7 +339,7 @@ def audit_lines(recheck: Recheck, oracle, result) -> dict:
         settings.dt,
         proof=result.blends,
         edges_proved=result.blends is None,
-        clearance=result.clearance,
+        clearance=result.certificate.clearance,
     )
     space, spacing = oracle.space, oracle.space.resolution / DIVISOR
     out = {}

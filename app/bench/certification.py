@@ -24,7 +24,8 @@ from app.errors import NoPath, UserError
 from app.jobs import JOB_SETTINGS, run_job
 from app.motion.path import verify
 from app.motion.timing import parameterize
-from app.planning.planner import PlanSettings, default_step, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings, default_step
 from app.scene.model import Scene
 
 
@@ -57,17 +58,17 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     clock = time.perf_counter()
     verify(oracle.context(), r.path)
     seconds += time.perf_counter() - clock
-    s = r.seconds
+    s = r.stats.seconds
     return {
         "success": True,
-        "seconds": s["total"],
+        "seconds": s.total,
         "seconds_drake": drake,
-        "seconds_certify": s["certify"],
-        "seconds_timing": s["timing"],
-        "seconds_without": s["total"] - s["certify"] - s["timing"] + seconds,
+        "seconds_certify": s.certify,
+        "seconds_timing": s.timing,
+        "seconds_without": s.total - s.certify - s.timing + seconds,
         "certified": bool(r.trajectory.certified),
-        "distance_queries": r.distance_queries,
-        "seconds_certificate": r.certificate_seconds,
+        "distance_queries": r.stats.distance_queries,
+        "seconds_certificate": r.stats.certificate_seconds,
         "seconds_distances": distances,
         "duration": r.trajectory.duration,
         "duration_rest_to_rest": duration,

@@ -18,7 +18,7 @@ from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import UserError
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
-from app.planning.planner import default_step
+from app.planning.settings import default_step
 from app.scene.model import Scene
 
 JOBS = list(ROUTES)  # the scripted jobs: welding, window

@@ -30,7 +30,8 @@ from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath, UserError
 from app.motion.path import FINE, path_length
-from app.planning.planner import PlanSettings, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings
 from app.samplers import check_name
 from app.scene.model import Scene
 
@@ -105,15 +106,15 @@ def _ours(oracle, spec: TrialSpec, method: dict, budget: float) -> dict:
     except NoPath as failure:
         checks = getattr(failure, "details", {}).get("collision_checks")
         return {"solved": 0.0, "seconds": time.perf_counter() - start, "checks": checks}
-    smoothing, timing = r.checks["smoothing"], r.checks.get("timing", 0)
+    checks, seconds = r.stats.checks, r.stats.seconds
     out = {
         "solved": 1.0,
-        "checks": r.collision_checks - smoothing - timing,
-        "seconds": r.seconds["total"] - r.seconds["smoothing"] - r.seconds.get("timing", 0.0),
-        "smoothing_checks": smoothing,
-        "smoothing_seconds": r.seconds["smoothing"],
-        "raw_length": r.smoothing["raw_length"],
-        "path_length": r.smoothing["length_after"],
+        "checks": r.collision_checks - checks.smoothing - checks.timing,
+        "seconds": seconds.total - seconds.smoothing - seconds.timing,
+        "smoothing_checks": checks.smoothing,
+        "smoothing_seconds": seconds.smoothing,
+        "raw_length": r.smoothing.raw_length,
+        "path_length": r.smoothing.length_after,
     }
     return {**out, **_fine_check(oracle, r.path)}
 
@@ -312,66 +313,17 @@ def figure(report: dict, path: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
-    from matplotlib.ticker import NullFormatter
 
     from app.draw import save
 
     scenes = report["scenes"]
     methods = list(dict.fromkeys(r["method"] for s in scenes for r in s["methods"]))
-    ompl_markers = iter(["o", "s", "^", "D", "v", "P", "X", "<", ">", "h", "p", "8"])
-    # Ours are stars, the default red and every other variant a colour of its own.
-    other_ours = iter(["tab:orange", "tab:purple", "tab:cyan", "tab:olive", "gold", "black"])
-    style = {}
-    for i, m in enumerate(methods):
-        if m.startswith("ours:"):
-            colour = "tab:red" if m == OURS else next(other_ours, "tab:orange")
-            style[m] = {"marker": "*", "color": colour, "ms": 15, "zorder": 5}
-        else:
-            style[m] = {
-                "marker": next(ompl_markers, "o"),
-                "color": f"C{[0, 2, 4, 5, 6, 7, 8, 9, 1, 3][i % 10]}",
-                "ms": 8,
-                "zorder": 3,
-            }
+    style = _styles(methods)
     cols = min(5, len(scenes))
     rows = -(-len(scenes) // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.3 * cols, 3.0 * rows), squeeze=False)
     for ax, s in zip(axes.flat, scenes):
-        for r in s["methods"]:
-            st = style[r["method"]]
-            solved = r["median_checks"] is not None
-            x = r["median_checks"] if solved else r["checks_spent"]
-            if not x:
-                continue
-            y = r["success_rate"]
-            err = [[y - r["success_ci"][0]], [r["success_ci"][1] - y]]
-            ax.errorbar(
-                [x], [y], yerr=err, fmt="none", ecolor=st["color"], alpha=0.5, capsize=2, zorder=st["zorder"] - 1
-            )
-            ax.plot(
-                [x],
-                [y],
-                linestyle="none",
-                marker=st["marker"],
-                ms=st["ms"],
-                color=st["color"],
-                markerfacecolor=st["color"] if solved else "none",
-                markeredgecolor=st["color"],
-                zorder=st["zorder"],
-            )
-        ax.set_xscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())  # labels at 2x, 3x ... 10^k overlapped on narrow panels
-        ax.set_ylim(-0.08, 1.08)
-        ax.margins(x=0.25)
-        c = s["comparison"]
-        best = (c["best_ompl"] or "").split(":", 1)[-1]
-        ratio = c["checks_ratio"]
-        if ratio is not None:
-            ratio = f"{ratio:.0f}" if ratio >= 10 else f"{ratio:.2g}"
-        title = s["scene"] + (f"\n{OURS} / {best}: {ratio}x checks" if ratio is not None else "")
-        ax.set_title(title, fontsize=9)
-        ax.grid(alpha=0.3, which="both")
-        ax.tick_params(labelsize=8)
+        _panel(ax, s, style)
     for ax in axes.flat[len(scenes) :]:
         ax.set_visible(False)
     for ax in axes[:, 0]:
@@ -379,25 +331,12 @@ def figure(report: dict, path: str) -> None:
     for ax in axes[-1, :]:
         ax.set_xlabel("median checks to first solution", fontsize=9)
     handles = [
-        Line2D(
-            [],
-            [],
-            linestyle="none",
-            marker=style[m]["marker"],
-            color=style[m]["color"],
-            ms=min(style[m]["ms"], 11),
-            label=m,
-        )
+        Line2D([], [], linestyle="none", marker=style[m]["marker"], color=style[m]["color"], ms=min(style[m]["ms"], 11),
+               label=m)
         for m in methods
-    ]
-    fig.legend(
-        handles=handles,
-        loc="lower center",
-        ncol=min(len(methods), 6),
-        fontsize=9,
-        frameon=False,
-        bbox_to_anchor=(0.5, -0.02),
-    )
+    ]  # fmt: skip
+    legend = {"loc": "lower center", "fontsize": 9, "frameon": False, "bbox_to_anchor": (0.5, -0.02)}
+    fig.legend(handles=handles, ncol=min(len(methods), 6), **legend)
     fig.suptitle(
         f"{report['seeds']} runs per method, {report['budget_seconds']:g} s budget each; bars: 95 % binomial "
         f"interval; hollow: no successful run (x: median checks spent)\npanel titles: our median checks over the "
@@ -406,3 +345,49 @@ def figure(report: dict, path: str) -> None:
     )
     fig.tight_layout(rect=(0, 0.06 + 0.02 * (len(methods) > 6), 1, 1))
     save(fig, path)
+
+
+def _styles(methods: list[str]) -> dict:
+    """A marker and colour per method: ours are stars, the default red and every other variant a colour of its own;
+    OMPL's planners a marker each."""
+    ompl_markers = iter(["o", "s", "^", "D", "v", "P", "X", "<", ">", "h", "p", "8"])
+    other_ours = iter(["tab:orange", "tab:purple", "tab:cyan", "tab:olive", "gold", "black"])
+    style = {}
+    for i, m in enumerate(methods):
+        if m.startswith("ours:"):
+            colour = "tab:red" if m == OURS else next(other_ours, "tab:orange")
+            style[m] = {"marker": "*", "color": colour, "ms": 15, "zorder": 5}
+        else:
+            colour = f"C{[0, 2, 4, 5, 6, 7, 8, 9, 1, 3][i % 10]}"
+            style[m] = {"marker": next(ompl_markers, "o"), "color": colour, "ms": 8, "zorder": 3}
+    return style
+
+
+def _panel(ax, scene: dict, style: dict) -> None:
+    """One scene's panel: each method's success rate (with its interval) at its median checks."""
+    from matplotlib.ticker import NullFormatter
+
+    for r in scene["methods"]:
+        st = style[r["method"]]
+        solved = r["median_checks"] is not None
+        x = r["median_checks"] if solved else r["checks_spent"]
+        if not x:
+            continue
+        y = r["success_rate"]
+        err = [[y - r["success_ci"][0]], [r["success_ci"][1] - y]]
+        ax.errorbar([x], [y], yerr=err, fmt="none", ecolor=st["color"], alpha=0.5, capsize=2, zorder=st["zorder"] - 1)
+        face = st["color"] if solved else "none"
+        ax.plot([x], [y], linestyle="none", marker=st["marker"], ms=st["ms"], color=st["color"],
+                markerfacecolor=face, markeredgecolor=st["color"], zorder=st["zorder"])  # fmt: skip
+    ax.set_xscale("log")
+    ax.xaxis.set_minor_formatter(NullFormatter())  # labels at 2x, 3x ... 10^k overlapped on narrow panels
+    ax.set_ylim(-0.08, 1.08)
+    ax.margins(x=0.25)
+    c = scene["comparison"]
+    best = (c["best_ompl"] or "").split(":", 1)[-1]
+    ratio = c["checks_ratio"]
+    if ratio is not None:
+        ratio = f"{ratio:.0f}" if ratio >= 10 else f"{ratio:.2g}"
+    ax.set_title(scene["scene"] + (f"\n{OURS} / {best}: {ratio}x checks" if ratio is not None else ""), fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.tick_params(labelsize=8)

@@ -38,7 +38,7 @@ from app.bench.runner import run_sweep
 from app.bench.store import ResultStore, TrialSpec, is_results_store
 from app.errors import UserError
 from app.io import check_input, write_atomically
-from app.planning.planner import default_step
+from app.planning.settings import default_step
 from app.scene.model import Scene
 
 SAMPLING_SCENES = ["bar", "joint", "joint3d", "teeth3d"]

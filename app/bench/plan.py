@@ -17,7 +17,8 @@ from app.bench.runner import sweep
 from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath
-from app.planning.planner import DEFAULT_BUDGET, PlanSettings, default_step, plan
+from app.planning.query import plan
+from app.planning.settings import DEFAULT_BUDGET, PlanSettings, default_step
 from app.scene.cspace import ConfigurationSpace
 from app.scene.model import Scene
 
@@ -84,23 +85,23 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
             "components": d.get("roadmap", {}).get("components"),
             "rounds": d.get("rounds"),
         }
-    s = r.seconds
+    s = r.stats.seconds
     drake = drake_seconds(oracle) - drake
     return {
         "success": 1.0,
-        "seconds": s["total"],
+        "seconds": s.total,
         "seconds_drake": drake,
         # beside the plan, so that its ratio is to Drake's pace on this machine at this moment
         "raw_checks_per_second": raw_checks_per_second(oracle, seed=spec.seed),
-        "seconds_sampling": s["sampling"],
-        "seconds_to_path": s["sampling"] + s["roadmap"] + s["search"],
+        "seconds_sampling": s.sampling,
+        "seconds_to_path": s.sampling + s.roadmap + s.search,
         "collision_checks": r.collision_checks,
-        "nodes": r.roadmap["nodes"],
-        "components": r.roadmap["components"],
-        "rounds": r.rounds,
+        "nodes": r.stats.roadmap.nodes,
+        "components": r.stats.roadmap.components,
+        "rounds": r.stats.rounds,
         "narrow_on_path": r.narrow_on_path,
         "workspace_on_path": r.workspace_on_path,
-        "path_length": r.smoothing["length_after"],
+        "path_length": r.smoothing.length_after,
         "duration": r.trajectory.duration,
     }
 

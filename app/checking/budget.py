@@ -55,6 +55,12 @@ def spell_checks(checks: int) -> str:
     return f"{checks // 1000}kchecks" if checks % 1000 == 0 else f"{checks}checks"
 
 
+def poll(stop: Stop | None) -> None:
+    """BudgetSpent if `stop` is spent (None: never): for loops that may go round without asking for a check."""
+    if stop is not None:
+        stop.allow(0)
+
+
 class BudgetSpent(Exception):
     """Raised by a query context when its Stop runs out; the query that set the stop catches it."""
 

@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from app.checking.budget import Stop
 from app.checking.end_distances import EndDistances
 from app.checking.motion_bound import MotionBound, motion_bound
 from app.checking.protocol import Checker
@@ -94,12 +95,14 @@ class Certifier(EndDistances):
         self.floor = floor if floor is not None else checker.oracle.space.resolution / FLOOR_DIVISOR
         self.seconds = time.perf_counter() - clock  # all this certifier's work: set-up, then every certify()
 
-    def certify(self, curve, intervals, clearance=0.0, floor=None) -> tuple[bool, dict]:
+    def certify(self, curve, intervals, clearance=0.0, floor=None, stop: Stop | None = None) -> tuple[bool, dict]:
         """Whether the curve keeps at least `clearance` (0: is free; one for all intervals or one per interval)
         from everything over each interval (s0, s1) of `intervals`: every pair's bound on a piece is taken
         2 x clearance larger, so that d(a) + d(b) > B + 2c leaves d >= c all along (see the module doc). floor: how
         short a failing piece may be cut before its interval fails (one for all or one per interval; default the
-        certifier's), for a caller with a cheaper way round a failure than proving it finer.
+        certifier's), for a caller with a cheaper way round a failure than proving it finer. stop: what bounds the
+        proof (its time limit and cancel flag: the certificate asks for distances, not checks), polled between its
+        batches of distance queries.
 
         The curve (a Motion, or any object with the same methods) gives position(s), and variation(s0, s1), a bound
         on each coordinate's travel between s0 and s1, for s0 < s1 within one interval; and, if it has them,
@@ -119,7 +122,7 @@ class Certifier(EndDistances):
         closing: set[int] = set()  # intervals with a piece that fell CLOSING short or more in the last round
         while heaps:
             todo = self._take(heaps, closing)
-            judged = self._judge(motion, todo, margins)
+            judged = self._judge(motion, todo, margins, stop)
             closing = {i for (i, _), far in zip(todo, judged.closing) if far}
             pieces += self._cut(heaps, todo, judged, floors, failed)
             heaps = {i: heap for i, heap in heaps.items() if heap}
@@ -155,9 +158,9 @@ class Certifier(EndDistances):
             for _ in range(min(self.WIDTH if i in closing else wide, len(heap)))
         ]
 
-    def _judge(self, motion: Motion, todo: list, margins: np.ndarray) -> _Judged:
+    def _judge(self, motion: Motion, todo: list, margins: np.ndarray, stop: Stop | None) -> _Judged:
         """The certificate on a round's pieces (see _take), their ends bounded together; margins: 2 x the
-        clearance, per interval."""
+        clearance, per interval; stop: polled between batches of distance queries."""
         spans = np.array([ab for _, ab in todo])
         variations = motion.variation(spans[:, 0], spans[:, 1]).reshape(len(todo), -1)
         ends = list(dict.fromkeys(s for _, ab in todo for s in ab))
@@ -169,7 +172,7 @@ class Certifier(EndDistances):
         # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
         # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
         certain = self.certain_shortfall(Q, by_end, travel)
-        found = self.at_ends(Q, ends, by_end, travel, certain)
+        found = self.at_ends(Q, ends, by_end, travel, certain, stop)
         lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
         clear, short = _clear([found.get(a) for _, (a, b) in todo], [found.get(b) for _, (a, b) in todo], travel)
         worst = np.maximum(short, certain)

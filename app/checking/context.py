@@ -3,9 +3,10 @@
 OMPL splits a planner's state the same way: the `SpaceInformation` and its validity checker are shared, while each
 `solve()` gets its own `PlannerTerminationCondition`. Here the `CollisionOracle` (one per scene: the Drake model, its
 contexts, the measured cost of each batch path) is shared by every query, and a `QueryContext` is made per query:
-`checks` (the paper's gamma_c), `distance_queries` and `point_queries` count only what this query asked, and its
-`stop` (a Budget running against these counters, plus an optional cancel flag) bounds only this query. Two queries
-on one oracle never mix their counts or budgets.
+`checks` (the paper's gamma_c), `distance_queries` and `point_queries` count only what this query asked. What
+bounds the work is an argument of every counted call, as OMPL passes its termination condition to `solve(ptc)`: a
+`Stop` (app.checking.budget: a Budget running against these counters, plus an optional cancel flag), or None for
+none. Two queries on one oracle never mix their counts or budgets.
 
 A context is used from one thread at a time. The oracle behind it may be shared between threads: it serializes its
 Drake queries with a lock (see CollisionOracle).
@@ -33,22 +34,21 @@ _POINT_BATCH, _POINT_SECONDS = 64, 0.005
 
 
 class QueryContext:
-    """What one query (or one script) asks of a shared `CollisionOracle`, counted and bounded.
+    """What one query (or one script) asks of a shared `CollisionOracle`, counted; each counted call bounded by the
+    `stop` it is given (`Stop(budget, context, cancel)`; None: no limit)."""
 
-    budget: what the context may spend (None: no limit); cancel: a threading.Event (or anything with `is_set()`)
-    that stops it from another thread. `stop` may be replaced for part of the work (`Stop.within`) and restored.
-    """
-
-    def __init__(self, oracle, budget: Budget | None = None, cancel=None):
+    def __init__(self, oracle):
         self.oracle = oracle  # the shared oracle: the Drake model and uncounted distances (protocol.DistanceSource)
         self.space = oracle.space
         self.scene = oracle.scene
         self.checks = 0
         self.distance_queries = 0  # signed-distance queries (continuous certification), apart from `checks`
         self.point_queries = 0  # workspace points asked for their distances to the environment
-        self.stop: Stop | None = None
-        if budget is not None or cancel is not None:
-            self.stop = Stop(budget or Budget(), self, cancel)
+
+    def stop(self, budget: Budget | None = None, cancel=None) -> Stop:
+        """A Stop running from now against this context's counters (and the clock): `budget` (None: no limit) and
+        `cancel` (a threading.Event, or anything with `is_set()`, that stops it from another thread)."""
+        return Stop(budget or Budget(), self, cancel)
 
     @property
     def threads(self) -> int:
@@ -66,30 +66,24 @@ class QueryContext:
         """What a configuration touches, named (app.checking.diagnostics): uncounted."""
         return self.oracle.diagnostics
 
-    # ---- collision answers (counted, bounded by the stop) ------------------------------------------------------
-    def poll(self) -> None:
-        """BudgetSpent if the stop is spent: for loops that may go round without asking Drake anything (a
-        sampler whose proposals all leave the bounds)."""
-        if self.stop is not None:
-            self.stop.allow(0)
-
-    def is_free(self, q: np.ndarray) -> bool:
+    # ---- collision answers (counted, each bounded by its stop) --------------------------------------------------
+    def is_free(self, q: np.ndarray, stop: Stop | None = None) -> bool:
         q = np.asarray(q, float)
         if not self.space.within_bounds(q)[0]:
             return False
-        if self.stop is not None:
-            self.stop.allow(1)
+        if stop is not None:
+            stop.allow(1)
         self.checks += 1
         return self.oracle.free(q)
 
-    def are_free(self, Q: np.ndarray) -> np.ndarray:
+    def are_free(self, Q: np.ndarray, stop: Stop | None = None) -> np.ndarray:
         """Free flags for a batch (n, dim), spread over the oracle's threads. Under a `stop`, a batch the check
         limit cannot hold is checked as far as it goes, then BudgetSpent is raised."""
         Q = np.atleast_2d(np.asarray(Q, float))
         free = self.space.within_bounds(Q)
         inside = np.flatnonzero(free)
-        if self.stop is not None and len(inside):
-            allowed = self.stop.allow(len(inside))
+        if stop is not None and len(inside):
+            allowed = stop.allow(len(inside))
             if allowed < len(inside):
                 self.checks += allowed
                 free[inside[:allowed]] = self.oracle.free_batch(Q[inside[:allowed]])
@@ -99,7 +93,12 @@ class QueryContext:
         return free
 
     def edges_free(
-        self, Q1: np.ndarray, Q2: np.ndarray, resolution: float | None = None, ends_free: bool = False
+        self,
+        Q1: np.ndarray,
+        Q2: np.ndarray,
+        resolution: float | None = None,
+        ends_free: bool = False,
+        stop: Stop | None = None,
     ) -> np.ndarray:
         """Free flags for the straight edges Q1[i] -> Q2[i], checked at `resolution` (default: the scene's).
 
@@ -108,7 +107,7 @@ class QueryContext:
         _MAX_BATCH), and the stop is polled before each.
         ends_free: the endpoints are known to be free (roadmap nodes) and are not checked again.
         """
-        return self.edges_status(Q1, Q2, resolution, ends_free)[0]
+        return self.edges_status(Q1, Q2, resolution, ends_free, stop=stop)[0]
 
     def edges_status(
         self,
@@ -118,6 +117,7 @@ class QueryContext:
         ends_free: bool = False,
         until_one_collides: bool = False,
         progress: np.ndarray | None = None,
+        stop: Stop | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(free, decided) flags for the edges, checked as `edges_free` does. With `until_one_collides` the check
         ends with the coarse-to-fine round of the first collision (the edges of one candidate path: one collision
@@ -155,7 +155,7 @@ class QueryContext:
         stop_at_hit = until_one_collides
         while passed < end:
             more = min(end - passed, size, _MAX_BATCH)
-            allowed = self.stop.allow(more) if self.stop is not None else more
+            allowed = stop.allow(more) if stop is not None else more
             part = slice(passed, passed + allowed)
             points = space.wrap(Q1[owner[part]] + t[part, None] * D[owner[part]])
             inside = space.within_bounds(points)
@@ -188,8 +188,10 @@ class QueryContext:
             decided = ~free | (last < passed) | (sizes == 0)
         return free, decided
 
-    def edge_free(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> bool:
-        return bool(self.edges_free(q1, q2, resolution)[0])
+    def edge_free(
+        self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None, stop: Stop | None = None
+    ) -> bool:
+        return bool(self.edges_free(q1, q2, resolution, stop=stop)[0])
 
     # ---- measurements (counted apart from collision checks) -----------------------------------------------------
     def signed_distances(self, q: np.ndarray, max_distance: float) -> list:
@@ -214,7 +216,7 @@ class QueryContext:
         configuration, as signed_distances counts."""
         self.distance_queries += n
 
-    def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
+    def environment_gaps(self, P: np.ndarray, width: float, stop: Stop | None = None) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`
         (app.checking.workspace); counted in `point_queries`. Asked in batches, polling the stop before
         each, so BudgetSpent may end it part way."""
@@ -222,7 +224,8 @@ class QueryContext:
         gap = np.zeros(len(P), bool)
         b, size = 0, _POINT_BATCH
         while b < len(P):
-            self.poll()
+            if stop is not None:
+                stop.allow(0)
             batch = P[b : b + size]
             self.point_queries += len(batch)
             clock = time.perf_counter()

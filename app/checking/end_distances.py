@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from app.checking.budget import poll
 from app.checking.kinematics import TreeKinematics
 from app.checking.motion_bound import MAX_DISTANCE_MARGIN, motion_bound
 from app.checking.protocol import Checker
@@ -100,7 +101,9 @@ class EndDistances:
         self._anchors = self._p + np.einsum("gij,gj->gi", self._R, self._inside)
         self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
 
-    def at_ends(self, Q: np.ndarray, ends: list, by_end: np.ndarray, travel: np.ndarray, certain: np.ndarray):
+    def at_ends(
+        self, Q: np.ndarray, ends: list, by_end: np.ndarray, travel: np.ndarray, certain: np.ndarray, stop=None
+    ):
         """{s: its PairDistances, or None where it collides} for the ends (s, at Q) of the pieces not cut unasked
         (certain <= 1; piece p's ends are Q[by_end[2p]] and Q[by_end[2p + 1]], its pair bounds travel[p]): each end
         asked at the largest max_distance of the pieces it bounds, and each pair there bounded until it reaches the
@@ -116,7 +119,7 @@ class EndDistances:
             limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel), 2)[rows], first)
             if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
                 need = _largest_by_group(travel[rows // 2][:, pairs[:, 0], pairs[:, 1]], first)
-        found = self._distances(list(Q[asked]), limits.tolist(), need)
+        found = self._distances(list(Q[asked]), limits.tolist(), need, stop)
         return dict(zip([ends[j] for j in asked.tolist()], found))
 
     def certain_shortfall(self, Q: np.ndarray, by_end: np.ndarray, travel: np.ndarray) -> np.ndarray:
@@ -149,13 +152,14 @@ class EndDistances:
             for k, d in zip(end.keys.tolist(), end.distance.tolist())
         }
 
-    def _distances(self, Q: list, limits: list, pair_travel: np.ndarray | None = None) -> list:
+    def _distances(self, Q: list, limits: list, pair_travel: np.ndarray | None = None, stop=None) -> list:
         """For each configuration, the pairs within its limit (a PairDistances), from the cache when it was asked at
         a limit at least as large; None if it collides or lies outside the bounds. pair_travel[k, pair] (pairs of the
         gaps): the largest bound on the pair's change over the pieces configuration k ends; a pair's lower bound
         that reaches it at this end is enough for those pieces, given any positive one at their other end (so no
         tighter bound is sought); without it every pair below the limit is bounded as tightly as the certificate
-        can."""
+        can. stop: polled before each batch (a proof keeps to its query's time limit: among many pieces a batch is
+        dear)."""
         keys = [np.asarray(q, float).tobytes() for q in Q]
         todo = []
         for k, (key, q, limit) in enumerate(zip(keys, Q, limits)):
@@ -164,7 +168,7 @@ class EndDistances:
                 todo.append((key, np.asarray(q, float), limit, None if pair_travel is None else pair_travel[k]))
         per_batch = max(1, self.BATCH_ROWS // max(1, len(self._gaps.pairs)))
         for first in range(0, len(todo), per_batch):
-            self.checker.poll()  # a proof keeps to its query's time limit (among many pieces a batch is dear)
+            poll(stop)
             self._ends(todo[first : first + per_batch])
         return [self._cache[key] for key in keys]
 

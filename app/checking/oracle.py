@@ -20,7 +20,7 @@ query context (geometry filter), and a test holds them to agreement. An SRDF's d
 Scene filters them on the SceneGraph model, which the checker and every context start from.
 
 One oracle per scene is shared by every query on it; a query counts and bounds what it asks through its own
-`QueryContext` (app.checking.context; `oracle.context(budget)`), so the oracle holds no per-query state. It may be
+`QueryContext` (app.checking.context; `oracle.context()`), so the oracle holds no per-query state. It may be
 shared between threads: its Drake contexts are one set, so every query on them holds the oracle's lock (pydrake holds
 the GIL inside them anyway, so the lock costs no parallelism; the batch path spreads over Drake's own threads).
 """
@@ -36,7 +36,6 @@ import time
 import numpy as np
 
 from app.checking.batch_paths import SPLIT_MIN, BatchPaths, splits
-from app.checking.budget import Budget
 from app.checking.context import QueryContext
 from app.checking.diagnostics import Diagnostics
 from app.checking.helpers import CONFIGURATIONS, Helpers
@@ -132,9 +131,9 @@ class CollisionOracle:
             )
         return root
 
-    def context(self, budget: Budget | None = None, cancel=None) -> QueryContext:
-        """A new QueryContext on this oracle: one query's counters, budget and cancel flag."""
-        return QueryContext(self, budget, cancel)
+    def context(self) -> QueryContext:
+        """A new QueryContext on this oracle: one query's counters (its calls each take the stop that bounds them)."""
+        return QueryContext(self)
 
     @functools.cached_property
     def workspace(self) -> Workspace:

@@ -28,7 +28,8 @@ from app.commands.common import (
 from app.errors import UserError
 from app.planning.cell import CellRoadmap
 from app.planning.ik import pose_goal, robot_frame
-from app.planning.planner import PlanSettings, plan
+from app.planning.query import plan
+from app.planning.settings import PlanSettings
 
 DEFAULTS = PlanSettings()
 
@@ -288,20 +289,20 @@ def collisions(scene) -> str:
 
 
 def summary(r, scene) -> str:
-    m, s, t = r.roadmap, r.seconds, r.trajectory
+    m, s, t = r.stats.roadmap, r.stats.seconds, r.trajectory
     scope = "" if scene.self_collisions or scene.one_body else "; self-collision not checked"
     edges = (
-        f"{m['edges']} candidate edges, {m['edges_tried']} checked when a search used them (lazy)"
-        if m["lazy"]
-        else f"{m['edges']} edges, {m['components']} components, {m['edges_tried']} edges tried"
+        f"{m.edges} candidate edges, {m.edges_tried} checked when a search used them (lazy)"
+        if m.lazy
+        else f"{m.edges} edges, {m.components} components, {m.edges_tried} edges tried"
     )
     lines = [
         f"plan {r.scene}: path found with {r.sampler} (seed {r.seed}, step {r.step:g})",
-        f"  roadmap   {m['nodes']} nodes ({m['narrow_nodes']} {r.sampler}, {m['workspace_nodes']} in workspace gaps, "
-        f"{m['uniform_nodes']} uniform), {edges}, {r.rounds} round(s)",
+        f"  roadmap   {m.nodes} nodes ({m.narrow_nodes} {r.sampler}, {m.workspace_nodes} in workspace gaps, "
+        f"{m.uniform_nodes} uniform), {edges}, {r.stats.rounds} round(s)",
         f"  path      {len(r.roadmap_path)} roadmap nodes ({r.narrow_on_path} from {r.sampler}, "
         f"{r.workspace_on_path} from workspace gaps), length "
-        f"{r.smoothing['raw_length']:.1f} -> {len(r.path)} waypoints, length {r.smoothing['length_after']:.1f} "
+        f"{r.smoothing.raw_length:.1f} -> {len(r.path)} waypoints, length {r.smoothing.length_after:.1f} "
         f"after smoothing",
         f"  motion    {t.duration:.2f} s trajectory, {len(t.times)} samples, corners blended, "
         + (
@@ -309,9 +310,9 @@ def summary(r, scene) -> str:
             if t.certified
             else f"NOT certified: fine-checked only{scope}"
         ),
-        f"  cost      {r.collision_checks} collision checks + {r.distance_queries} distance queries "
-        f"+ {r.point_queries} point queries, "
-        f"{s['total']:.2f} s (sampling {s['sampling']:.2f}, roadmap {s['roadmap']:.2f}, search {s['search']:.2f}, "
-        f"smoothing {s['smoothing']:.2f}, certify {s['certify']:.2f}, timing {s['timing']:.2f})",
+        f"  cost      {r.collision_checks} collision checks + {r.stats.distance_queries} distance queries "
+        f"+ {r.stats.point_queries} point queries, "
+        f"{s.total:.2f} s (sampling {s.sampling:.2f}, roadmap {s.roadmap:.2f}, search {s.search:.2f}, "
+        f"smoothing {s.smoothing:.2f}, certify {s.certify:.2f}, timing {s.timing:.2f})",
     ]
     return "\n".join(lines)

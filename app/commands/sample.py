@@ -16,7 +16,7 @@ from app.commands.common import (
     seed,
 )
 from app.errors import SamplerBudgetExceeded
-from app.planning.planner import default_step
+from app.planning.settings import default_step
 
 
 def register(subparsers) -> None:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
+from app.checking.budget import Stop
 from app.checking.certify import CLEARANCE, Certifier, straight_edges
 from app.motion.path import distinct
 
@@ -140,6 +141,7 @@ def certified_radii(
     known: np.ndarray,
     clearance: float,
     give_up: bool = False,
+    stop: Stop | None = None,
 ) -> tuple[np.ndarray, list[int], dict]:
     """Blend radii tightened until every blend keeps `clearance` and the corner of the polyline it cuts off is
     free (a corner that never is becomes a stop), the segments whose straight part failed (indices into W's
@@ -152,8 +154,9 @@ def certified_radii(
     clearance / 2 (the path polyline is part of the answer: a controller may follow it). Each round proves the
     blends, corners and straight parts it has in one certifier call. known: per segment, whether it is certified
     already (then so is its straight part, and its half of each corner). give_up: a straight part that fails ends
-    the proof (for a caller that will prove the path another way or change it, rather than time it uncertified)."""
-    rounds = _BlendRounds(certifier, W, tangent, arc, known, clearance)
+    the proof (for a caller that will prove the path another way or change it, rather than time it uncertified).
+    stop: what bounds the proofs (Certifier.certify)."""
+    rounds = _BlendRounds(certifier, W, tangent, arc, known, clearance, stop)
     radii, halvings = radii.copy(), np.zeros(len(W), int)
     while True:
         corners = rounds.prove(radii)
@@ -170,9 +173,9 @@ class _BlendRounds:
     the polyline it cuts off is proved, and the blends proved (as pieces of the curve: a blend of another radius is
     another piece)."""
 
-    def __init__(self, certifier: Certifier, W, tangent, arc, known: np.ndarray, clearance: float):
+    def __init__(self, certifier: Certifier, W, tangent, arc, known: np.ndarray, clearance: float, stop: Stop | None):
         self.certifier, self.W, self.tangent, self.arc = certifier, W, tangent, arc
-        self.known, self.clearance = known, clearance
+        self.known, self.clearance, self.stop = known, clearance, stop
         self.line, self.tiny = straight_edges(W, arc), 1e-12 * max(arc[-1], 1.0)
         self.weights = certifier.checker.space.weights
         self.proved = np.tile([np.inf, -np.inf], (len(W) - 1, 1))  # per segment, the span of its straight part proved
@@ -203,7 +206,8 @@ class _BlendRounds:
             max(floor, np.linalg.norm(variation(np.array([s0]), np.array([s1]))[0] * self.weights) / LINE_CUTS)
             for _, s0, s1 in corners
         ]
-        failed = _certify(self.certifier, _Both(self.line, curve, self.W.shape[1]), intervals, margins, floors)
+        both = _Both(self.line, curve, self.W.shape[1])
+        failed = _certify(self.certifier, both, intervals, margins, floors, self.stop)
         for key in ("pieces", "distance_queries", "seconds"):
             self.cost[key] += failed[key]
         return self._record(radii, straight, blends, near, corners, failed["failed"])
@@ -255,12 +259,12 @@ class _BlendRounds:
         return {blends[k][2] for k in failed_blends} | failed_corners
 
 
-def _certify(certifier: Certifier, curve, intervals: list, clearances: list, floors: list) -> dict:
+def _certify(certifier: Certifier, curve, intervals: list, clearances: list, floors: list, stop: Stop | None) -> dict:
     """The certifier's stats on the intervals of `curve`, each to keep its clearance, cut no finer than its floor
     (none asked for: no cost)."""
     if not intervals:
         return {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0}
-    return certifier.certify(curve, intervals, np.array(clearances, float), np.array(floors, float))[1]
+    return certifier.certify(curve, intervals, np.array(clearances, float), np.array(floors, float), stop)[1]
 
 
 class _Both:
@@ -335,12 +339,18 @@ class BlendProof:
 
 
 def prove_blends(
-    certifier: Certifier, path: np.ndarray, known=(), clearance: float = CLEARANCE, tighten: int = TIGHTEN
+    certifier: Certifier,
+    path: np.ndarray,
+    known=(),
+    clearance: float = CLEARANCE,
+    tighten: int = TIGHTEN,
+    stop: Stop | None = None,
 ) -> BlendProof:
     """The curve time_path makes of `path` (a path of the certifier's checker, wrapped) certified to keep
     `clearance`: its blends, the straight parts of its edges between them, and the corners the blends cut off (to
     keep half of it, see certified_radii). Stops at the first straight part that fails. known: indices of the
-    path's edges certified already (to keep `clearance`), whose straight parts are not proved again."""
+    path's edges certified already (to keep `clearance`), whose straight parts are not proved again. stop: what
+    bounds the proofs."""
     space = certifier.checker.space
     W, tangent, arc, kept = path_geometry(space.unwrap(path), space.weights)
     edge = kept[1:] - 1  # each of W's segments as an edge of the path (repeated waypoints are skipped)
@@ -349,6 +359,6 @@ def prove_blends(
         return BlendProof(path.copy(), np.zeros(len(W)), [], cost, clearance)
     known = np.isin(edge, list(known))
     radii, failed, cost = certified_radii(
-        certifier, W, tangent, arc, first_radii(np.diff(arc)), tighten, known, clearance, give_up=True
+        certifier, W, tangent, arc, first_radii(np.diff(arc)), tighten, known, clearance, give_up=True, stop=stop
     )
     return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost, clearance)

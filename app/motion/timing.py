@@ -14,6 +14,7 @@ import dataclasses
 
 import numpy as np
 
+from app.checking.budget import Stop
 from app.checking.certify import CLEARANCE, Certifier
 from app.errors import UserError
 from app.motion.blends import (
@@ -128,11 +129,12 @@ def time_path(
     velocity_scale: float = 1.0,
     acceleration_scale: float = 1.0,
     clearance: float = CLEARANCE,
+    stop: Stop | None = None,
 ) -> Trajectory:
     """A path of the checker's scene (wrapped waypoints) timed by parameterize_smooth under the scene's limits, scaled
     by velocity_scale and acceleration_scale (see scaled_limits), certified to keep `clearance`; it carries the
     scene's mimic joints. proof: the path's curve certified already (prove_blends), whose radii are then used as
-    they are."""
+    they are. stop: what bounds its proofs (their time limit and cancel flag)."""
     trajectory = parameterize_smooth(
         checker,
         checker.space.unwrap(path),
@@ -143,6 +145,7 @@ def time_path(
         edges_proved=edges_proved,
         proof=proof,
         clearance=clearance,
+        stop=stop,
     )
     return dataclasses.replace(trajectory, position_map=checker.scene.position_map)
 
@@ -161,6 +164,7 @@ def parameterize_smooth(
     edges_proved: bool = False,
     proof: BlendProof | None = None,
     clearance: float = CLEARANCE,
+    stop: Stop | None = None,
 ) -> Trajectory:
     """Blended corners, certified to keep `clearance` (app.motion.blends), timed with Toppra.
 
@@ -173,7 +177,8 @@ def parameterize_smooth(
     distance_queries and seconds (certification), rounds (of blend tightening). certifier: one to reuse (its
     distances are cached). edges_proved: every straight edge of the waypoints' polyline is certified already (the
     planner's certificate, to keep `clearance`): then only the blends are. proof: the curve certified already
-    (prove_blends on the wrapped waypoints these are unwrapped from): its radii and clearance are used.
+    (prove_blends on the wrapped waypoints these are unwrapped from): its radii and clearance are used. stop: what
+    bounds the proofs.
     """
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, checker.space.weights)
     known = np.full(max(len(W) - 1, 0), edges_proved)
@@ -186,7 +191,7 @@ def parameterize_smooth(
     elif len(W) > 1:
         certifier = certifier or Certifier(checker, floor)
         first = first_radii(np.diff(arc))
-        radii, failed, cost = certified_radii(certifier, W, tangent, arc, first, tighten, known, clearance)
+        radii, failed, cost = certified_radii(certifier, W, tangent, arc, first, tighten, known, clearance, stop=stop)
         certified = not failed
     while True:
         legs = legs_between_stops(W, tangent, arc, radii) if len(W) > 1 else []
@@ -194,7 +199,7 @@ def parameterize_smooth(
             chords = None
             if certified:
                 certifier = certifier or Certifier(checker, floor)
-                chords = Chords(clearance, certifier)
+                chords = Chords(clearance, certifier, stop)
             trajectory = time_legs(checker.oracle.plant, W, arc, legs, v, a, dt, joint_names, chords)
             if chords is not None:
                 cost = {k: cost[k] + chords.cost.get(k, 0) for k in cost}
@@ -210,7 +215,9 @@ def parameterize_smooth(
             radii[corners[np.argmin(radii[corners])]] = 0.0
             if certified and not edges_proved:  # the polyline by that corner was cut off by its blend: prove it
                 certifier = certifier or Certifier(checker, floor)
-                radii, refused, more = certified_radii(certifier, W, tangent, arc, radii, tighten, known, clearance)
+                radii, refused, more = certified_radii(
+                    certifier, W, tangent, arc, radii, tighten, known, clearance, stop=stop
+                )
                 cost = {k: cost[k] + more[k] for k in cost}
                 certified = not refused
     if stats is not None:

@@ -205,20 +205,24 @@ class TrajectoryFile:
             position_map,
             None if clearance is None else float(clearance),
         )
-        narrow = on_path = None
-        if ("narrow_samples" in obj) != ("narrow_on_path" in obj):
-            raise UserError(f"{source}: 'narrow_samples' and 'narrow_on_path' go together")
-        if "narrow_samples" in obj:
-            narrow = _coordinates(
-                _matrix(obj["narrow_samples"], "narrow_samples", joints, source), position_map, "narrow_samples", source
-            )
-            flags = obj["narrow_on_path"]
-            if not isinstance(flags, list) or not all(isinstance(f, bool) for f in flags):
-                raise UserError(f"{source}: 'narrow_on_path' must be a list of true/false")
-            if len(flags) != len(narrow):
-                raise UserError(f"{source}: {len(flags)} 'narrow_on_path' flags for {len(narrow)} narrow samples")
-            on_path = np.array(flags, bool)
+        narrow, on_path = _narrow_samples(obj, joints, position_map, source)
         return cls(scene=str(obj["scene"]), trajectory=trajectory, narrow=narrow, on_path=on_path)
+
+
+def _narrow_samples(obj: dict, joints: int, position_map, source: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The file's narrow-passage samples and which of them the path used, or (None, None) when it has none."""
+    if ("narrow_samples" in obj) != ("narrow_on_path" in obj):
+        raise UserError(f"{source}: 'narrow_samples' and 'narrow_on_path' go together")
+    if "narrow_samples" not in obj:
+        return None, None
+    matrix = _matrix(obj["narrow_samples"], "narrow_samples", joints, source)
+    narrow = _coordinates(matrix, position_map, "narrow_samples", source)
+    flags = obj["narrow_on_path"]
+    if not isinstance(flags, list) or not all(isinstance(f, bool) for f in flags):
+        raise UserError(f"{source}: 'narrow_on_path' must be a list of true/false")
+    if len(flags) != len(narrow):
+        raise UserError(f"{source}: {len(flags)} 'narrow_on_path' flags for {len(narrow)} narrow samples")
+    return narrow, np.array(flags, bool)
 
 
 def _coordinates(P: np.ndarray, position_map: PositionMap | None, key: str, source: str, rates=False) -> np.ndarray:

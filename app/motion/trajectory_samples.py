@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from app.checking.budget import Stop
 from app.checking.certify import Certifier, straight_edges
 from app.motion.blends import CURVE_SLACK, LINE_CUTS, Leg
 from app.motion.leg_timing import LegNotTimed, timed_leg, times_at
@@ -44,10 +45,10 @@ def time_legs(plant, W, arc, legs, v, a, dt, joint_names, chords: Chords | None)
 class Chords:
     """How the straight lines between a certified curve's samples are proved: the curve keeps `clearance`, the lines
     must keep half of it; `certifier` (its motion bound says how far a pair's distance can change over a change of
-    q, and it proves the lines the bound alone does not cover); `cost` sums those proofs."""
+    q, and it proves the lines the bound alone does not cover), `stop` what bounds those proofs; `cost` sums them."""
 
-    def __init__(self, clearance: float, certifier: Certifier):
-        self.clearance, self.certifier = clearance, certifier
+    def __init__(self, clearance: float, certifier: Certifier, stop: Stop | None = None):
+        self.clearance, self.certifier, self.stop = clearance, certifier, stop
         self.cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0}
 
 
@@ -108,7 +109,8 @@ def _prove_lines(chords: Chords, path, a: np.ndarray, b: np.ndarray) -> np.ndarr
     # curve each) than to prove finer.
     weights = chords.certifier.checker.space.weights
     floor = np.linalg.norm((ends[1::2] - ends[0::2]) * weights, axis=1) / LINE_CUTS
-    _, stats = chords.certifier.certify(straight_edges(ends, knots), intervals, chords.clearance / 2, floor)
+    lines = straight_edges(ends, knots)
+    _, stats = chords.certifier.certify(lines, intervals, chords.clearance / 2, floor, stop=chords.stop)
     for key in chords.cost:
         chords.cost[key] += stats[key]
     return np.array(stats["failed"], int)

@@ -53,7 +53,8 @@ import numpy as np
 from app.checking.budget import Budget
 from app.errors import NoPath, SamplerBudgetExceeded, UserError
 from app.io import exclusive, write_atomically
-from app.planning.planner import PlanResult, PlanSettings, Query, Samples, default_step
+from app.planning.query import Query
+from app.planning.result import PlanResult
 from app.planning.roadmap_file import (
     FINGERPRINT_PARTS,
     FORMAT,
@@ -65,6 +66,8 @@ from app.planning.roadmap_file import (
     stored_revision,
     summary,
 )
+from app.planning.settings import PlanSettings, default_step
+from app.planning.sources import Samples
 
 # The roadmap graph pulls in scipy: imported when a cell roadmap is made, not when the package is.
 
@@ -223,7 +226,7 @@ class CellRoadmap:
             self.graph.truncate(size)
             raise
         finally:
-            self._certifier = query.certifier
+            self._certifier = query.refinement.certifier
             self.provenance["queries"] += 1
         # Of the nodes an answered query added, its start and goals stay (few, and where queries go: often the hard
         # region), and the samples it joined by edges decided free; the samples it never joined (nearly all of a

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -92,10 +93,6 @@ def solve_pose(
     a RigidTransform in the world), the nearest to `reference` (default: the scene's start) among the first `keep`
     found; with `every`, all the distinct ones found, nearest first, (k, dim): goals a planner may reach any of.
     `label` names the pose in errors. Raises InvalidEndpoint if no seed gives one."""
-    from pydrake.math import RotationMatrix
-    from pydrake.multibody.inverse_kinematics import InverseKinematics
-    from pydrake.solvers import Solve
-
     default_label, X_WT = _pose(oracle, pose)
     label = label or default_label
     scene = oracle.scene
@@ -103,62 +100,10 @@ def solve_pose(
     if frame is None:
         raise UserError(f"scene {scene.name} names no tool frame, so it has no tool poses to reach")
     reference = scene.start if reference is None else oracle.space.check_configuration(reference, "reference")
-    plant, mimic = oracle.plant, scene.position_map
+    target = _Target(X_WT, frame, reference, position_tolerance, angle_tolerance, clearance)
 
     def attempt(seed_list, with_clearance: bool, colliding: list) -> list[np.ndarray]:
-        root = oracle.policy_context()
-        context = plant.GetMyMutableContextFromRoot(root)
-        ik = InverseKinematics(plant, context, with_joint_limits=False)
-        positions = ik.q()  # the plant's: mimic joints' positions are bound to their coordinates' below
-        q = positions if mimic is None else positions[mimic.planned]
-        prog = ik.get_mutable_prog()
-        if mimic is not None:
-            prog.AddLinearEqualityConstraint(*mimic.equalities(), positions)
-        p = X_WT.translation()
-        # A box inside the tolerance ball and a tighter angle, leaving room for SNOPT's feasibility tolerance.
-        half = 0.9 * position_tolerance / math.sqrt(3.0)
-        ik.AddPositionConstraint(
-            frameB=frame, p_BQ=np.zeros(3), frameA=plant.world_frame(), p_AQ_lower=p - half, p_AQ_upper=p + half
-        )
-        ik.AddOrientationConstraint(
-            frameAbar=plant.world_frame(),
-            R_AbarA=X_WT.rotation(),
-            frameBbar=frame,
-            R_BbarB=RotationMatrix(),
-            theta_bound=0.9 * angle_tolerance,
-        )
-        # Translations are bounded; angles are not (SNOPT converges far more often without them): a revolute
-        # joint's kinematics repeat every 2 pi, so a solution is shifted into the bounds afterwards.
-        prog.AddBoundingBoxConstraint(
-            np.where(oracle.space.angular, -np.inf, oracle.space.lower),
-            np.where(oracle.space.angular, np.inf, oracle.space.upper),
-            q,
-        )
-        # Small, so it picks among nearby solutions without fighting the constraints.
-        prog.AddQuadraticErrorCost(1e-2 * np.diag(oracle.space.weights**2), reference, q)
-        if with_clearance:
-            ik.AddMinimumDistanceLowerBoundConstraint(clearance, 0.05)
-        found = []
-        for seed in seed_list:
-            result = Solve(prog, scene.positions(seed))
-            if not result.is_success():
-                continue
-            candidate = _into_bounds(oracle, result.GetSolution(q))
-            position, angle = pose_error(oracle, candidate, X_WT, frame)
-            if position > position_tolerance or angle > angle_tolerance:
-                continue
-            # Touching counts as colliding: no motion out of a contact can be certified (planner.check_endpoint).
-            if (
-                oracle.space.within_bounds(candidate)[0]
-                and oracle.free(candidate)
-                and not oracle.diagnostics.touching(candidate)
-            ):
-                found.append(candidate)
-                if len(found) >= keep:
-                    break
-            else:
-                colliding.append(candidate)
-        return found
+        return _solutions(oracle, target, seed_list, with_clearance, keep, colliding)
 
     colliding: list[np.ndarray] = []
     first = [reference] + [rng.uniform(oracle.space.lower, oracle.space.upper) for _ in range(seeds - 1)]
@@ -260,6 +205,84 @@ def tool_line(oracle, qa, qb, rng: np.random.Generator, *, frame=None, step: flo
     if oracle.space.distance(q, qb) > jump:
         return None
     return np.array(out).reshape(-1, oracle.space.dim)
+
+
+class _Target(NamedTuple):
+    """What solve_pose asks of IK: the frame at the pose X_WT, within the tolerances, near `reference`, and (when
+    its solutions collide) this far from everything."""
+
+    X_WT: object
+    frame: object
+    reference: np.ndarray
+    position_tolerance: float
+    angle_tolerance: float
+    clearance: float
+
+
+def _solutions(oracle, target: _Target, seed_list, with_clearance: bool, keep: int, colliding: list) -> list:
+    """Up to `keep` free configurations in bounds that put the target's frame at its pose, solved from each seed of
+    `seed_list` in turn; those that solve but collide go to `colliding`."""
+    from pydrake.solvers import Solve
+
+    scene, prog, q = oracle.scene, *_program(oracle, target, with_clearance)
+    found = []
+    for seed in seed_list:
+        result = Solve(prog, scene.positions(seed))
+        if not result.is_success():
+            continue
+        candidate = _into_bounds(oracle, result.GetSolution(q))
+        position, angle = pose_error(oracle, candidate, target.X_WT, target.frame)
+        if position > target.position_tolerance or angle > target.angle_tolerance:
+            continue
+        # Touching counts as colliding: no motion out of a contact can be certified (endpoints.check_endpoint).
+        inside = oracle.space.within_bounds(candidate)[0]
+        if inside and oracle.free(candidate) and not oracle.diagnostics.touching(candidate):
+            found.append(candidate)
+            if len(found) >= keep:
+                break
+        else:
+            colliding.append(candidate)
+    return found
+
+
+def _program(oracle, target: _Target, with_clearance: bool):
+    """(the IK program, its coordinates' decision variables) for the target, on a context of the scene's policy."""
+    from pydrake.math import RotationMatrix
+    from pydrake.multibody.inverse_kinematics import InverseKinematics
+
+    plant, mimic = oracle.plant, oracle.scene.position_map
+    context = plant.GetMyMutableContextFromRoot(oracle.policy_context())
+    ik = InverseKinematics(plant, context, with_joint_limits=False)
+    positions = ik.q()  # the plant's: mimic joints' positions are bound to their coordinates' below
+    q = positions if mimic is None else positions[mimic.planned]
+    prog = ik.get_mutable_prog()
+    if mimic is not None:
+        prog.AddLinearEqualityConstraint(*mimic.equalities(), positions)
+    p = target.X_WT.translation()
+    # A box inside the tolerance ball and a tighter angle, leaving room for SNOPT's feasibility tolerance.
+    half = 0.9 * target.position_tolerance / math.sqrt(3.0)
+    frame = target.frame
+    ik.AddPositionConstraint(
+        frameB=frame, p_BQ=np.zeros(3), frameA=plant.world_frame(), p_AQ_lower=p - half, p_AQ_upper=p + half
+    )
+    ik.AddOrientationConstraint(
+        frameAbar=plant.world_frame(),
+        R_AbarA=target.X_WT.rotation(),
+        frameBbar=frame,
+        R_BbarB=RotationMatrix(),
+        theta_bound=0.9 * target.angle_tolerance,
+    )
+    # Translations are bounded; angles are not (SNOPT converges far more often without them): a revolute
+    # joint's kinematics repeat every 2 pi, so a solution is shifted into the bounds afterwards.
+    space = oracle.space
+    prog.AddBoundingBoxConstraint(
+        np.where(space.angular, -np.inf, space.lower), np.where(space.angular, np.inf, space.upper), q
+    )
+    # Small, so it picks among nearby solutions without fighting the constraints.
+    prog.AddQuadraticErrorCost(1e-2 * np.diag(space.weights**2), target.reference, q)
+    if with_clearance:
+        ik.AddMinimumDistanceLowerBoundConstraint(target.clearance, 0.05)
+    return prog, q
 
 
 def solve_poses(oracle, rng: np.random.Generator, names=None, reference=None, **options) -> dict[str, np.ndarray]:

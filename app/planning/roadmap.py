@@ -22,13 +22,16 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
+from app.checking.budget import Stop
 from app.checking.protocol import Checker
+from app.planning.graph import SearchTree, drop_entry, joined_labels, labels_by_least, pair_key
 
 START, GOAL, UNIFORM, NARROW, WORKSPACE = "start", "goal", "uniform", "narrow", "workspace"
 
@@ -70,13 +73,13 @@ class Roadmap:
         # k-nearest edge is checked, a denser graph with shorter raw paths for many more collision checks.
         self.skip_connected = skip_connected
         self.chunk = max(1, int(chunk))
-        # That rule's components: a label per node, shared by the nodes edges decided free join (see `_joined`).
+        # That rule's components: a label per node, shared by the nodes edges decided free join (see `joined_labels`).
         self._free = np.empty(0, np.int64)
         self.resolution = resolution or checker.space.resolution
         self.Q = np.empty((0, checker.space.dim))
         self.kinds: list[str] = []
         # The edges, as arrays (the search builds its sparse matrix from them, in C): rows in insertion order, every
-        # pair ever decided or proposed, (a, b) with a < b; `_rows` finds a pair's row by its `_key(a, b)`. A row
+        # pair ever decided or proposed, (a, b) with a < b; `_rows` finds a pair's row by its `pair_key(a, b)`. A row
         # stays when its edge is found to collide. Columns per row: `_ends` (a, b); `_lengths`; `_alive`, not known
         # to collide; `_checked`, decided free (or known to collide); `_progress`, of an edge not yet decided, how
         # many of its points (coarse to fine) a check found free before it stopped at another edge's collision (its
@@ -86,7 +89,7 @@ class Roadmap:
         self._set_rows(np.empty((0, 2), int), empty, empty.astype(bool), empty.astype(bool), empty.astype(np.int64))
         self.edges_tried = 0  # decided: checked in full, or found to collide
         self.edges_proposed = 0  # lazy candidates ever added
-        self._tried: set[int] = set()  # `_key`s of the pairs ever proposed
+        self._tried: set[int] = set()  # `pair_key`s of the pairs ever proposed
         # Edges the certificate proved, (smaller, larger) -> the clearance they were proved to keep.
         self.proved: dict[tuple[int, int], float] = {}
         self._labelled = None  # (graph sizes, connected components) of the last `_labels`
@@ -104,7 +107,7 @@ class Roadmap:
         self._search = (np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0))
         self._search_synced = 0  # edge rows merged in so far
         self._search_dead = 0  # entries of edges known to collide still in `_search`
-        # A label per node such that nodes joined by edges not known to collide share it (`_joined`): different
+        # A label per node such that nodes joined by edges not known to collide share it (`joined_labels`): different
         # labels are certainly apart, so a search between them is not run. Edges that die later are not undone here
         # (they would need the components counted again), but each search's tree from the start sets its
         # component's labels exactly.
@@ -187,10 +190,10 @@ class Roadmap:
         found = self._nodes.get(self.space.wrap(np.asarray(q, float)).tobytes())
         return found if found is not None else int(self.add(q, kind, connect=False)[0])
 
-    def connect(self, nodes: np.ndarray) -> int:
+    def connect(self, nodes: np.ndarray, stop: Stop | None = None) -> int:
         """Try the edges from `nodes` to their k nearest neighbours not tried before; return how many were free.
 
-        Nodes go in chunks; each chunk's candidate edges are one `edges_free` batch.
+        Nodes go in chunks; each chunk's candidate edges are one `edges_free` batch, bounded by `stop`.
         """
         nodes = np.asarray(nodes, int)
         if len(self) < 2 or len(nodes) == 0:
@@ -198,7 +201,7 @@ class Roadmap:
         step = self.chunk if self.skip_connected and not self.lazy else len(nodes)
         added = 0
         for begin in range(0, len(nodes), step):
-            added += self._connect_chunk(nodes[begin : begin + step])
+            added += self._connect_chunk(nodes[begin : begin + step], stop)
         return added
 
     def candidates(self, nodes: np.ndarray) -> np.ndarray:
@@ -209,7 +212,7 @@ class Roadmap:
         a, b = np.repeat(np.asarray(nodes, np.int64), idx.shape[1]), idx.ravel().astype(np.int64)
         real = (a != b) & (b < len(self))  # (a missing neighbour of a small map is numbered len(self))
         P = np.column_stack([np.minimum(a, b), np.maximum(a, b)])[real]
-        keys = _key(P[:, 0], P[:, 1])
+        keys = pair_key(P[:, 0], P[:, 1])
         first = np.sort(np.unique(keys, return_index=True)[1])  # each pair once, where it first comes
         P, keys = P[first], keys[first].tolist()
         new = np.array([key not in self._tried for key in keys], bool)
@@ -232,7 +235,7 @@ class Roadmap:
             return
         self._append_rows(P, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]), alive=False, checked=True)
 
-    def _connect_chunk(self, nodes: np.ndarray) -> int:
+    def _connect_chunk(self, nodes: np.ndarray, stop: Stop | None) -> int:
         P = self.candidates(nodes)
         if not len(P):
             return 0
@@ -242,29 +245,29 @@ class Roadmap:
             self._add_edges(P, checked=False)
             self.edges_proposed += len(P)
             return len(P)
-        free = self._check(P)
+        free = self._check(P, stop)
         self._add_edges(P[free], checked=True)
         self._add_dead(P[~free])
         return int(free.sum())
 
-    def _check(self, P: np.ndarray) -> np.ndarray:
+    def _check(self, P: np.ndarray, stop: Stop | None) -> np.ndarray:
         """Free flags of the edges (node index pairs) P, checked in one batch."""
         self.edges_tried += len(P)
-        return self.checker.edges_free(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True)
+        return self.checker.edges_free(self.Q[P[:, 0]], self.Q[P[:, 1]], self.resolution, ends_free=True, stop=stop)
 
     def _add_edges(self, P: np.ndarray, checked: bool) -> None:
         """Add edges (node index pairs, smaller index first) of the given state, to the graph and the arrays."""
         lengths = self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]) if len(P) else np.empty(0)
         self._append_rows(P, lengths, alive=True, checked=checked)
-        self._reach = _joined(self._reach, P)
+        self._reach = joined_labels(self._reach, P)
         if checked:
-            self._free = _joined(self._free, P)
+            self._free = joined_labels(self._free, P)
 
     def _set_rows(self, ends, lengths, alive, checked, progress) -> None:
         """The edge rows, whole (as `keep_nodes` leaves them), and `_rows` to find them."""
         self._columns = [ends, lengths, alive, checked, progress]
         self._ends, self._lengths, self._alive, self._checked, self._progress = self._columns
-        self._rows = dict(zip(_key(ends[:, 0], ends[:, 1]).tolist(), range(len(ends))))
+        self._rows = dict(zip(pair_key(ends[:, 0], ends[:, 1]).tolist(), range(len(ends))))
 
     def _append_rows(self, P: np.ndarray, lengths: np.ndarray, alive: bool, checked: bool) -> None:
         """New edge rows after the others, in arrays that double when full."""
@@ -275,7 +278,7 @@ class Roadmap:
         for column, new in zip(self._columns, (P, lengths, alive, checked, 0)):
             column[first:last] = new
         self._ends, self._lengths, self._alive, self._checked, self._progress = (c[:last] for c in self._columns)
-        self._rows.update(zip(_key(P[:, 0], P[:, 1]).tolist(), range(first, last)))
+        self._rows.update(zip(pair_key(P[:, 0], P[:, 1]).tolist(), range(first, last)))
 
     # ---- queries ------------------------------------------------------------------------------------------------
     def edges(self, checked: bool | None = None) -> np.ndarray:
@@ -303,9 +306,9 @@ class Roadmap:
         labels = self._labels()[1]
         return [int(np.sum(labels == labels[n])) for n in nodes]
 
-    def shortest_path(self, a: int, b) -> list[int] | None:
+    def shortest_path(self, a: int, b, stop: Stop | None = None) -> list[int] | None:
         """Node indices of a short path by metric length from a to b (a node, or a list of nodes: to the nearest
-        that can be reached) whose every edge is checked free, or None.
+        that can be reached) whose every edge is checked free, or None; its edge checks bounded by `stop`.
 
         Lazy PRM's search: the unchecked edges of a candidate path are checked together, coarse to fine, until one
         collides; those decided free are marked checked, those that collide are removed. Candidates come from two
@@ -334,7 +337,7 @@ class Roadmap:
             through = dist_a + dist_b
             reachable = np.flatnonzero(np.isfinite(through))
             order = reachable[np.argsort(through[reachable], kind="stable")]
-            trees = _Tree(pred_a), _Tree(pred_b)
+            trees = SearchTree(pred_a), SearchTree(pred_b)
             taken = np.zeros(len(self), bool)  # nodes of the candidate paths tried on these trees
             candidates = 0
             while candidates < CANDIDATES:
@@ -350,8 +353,8 @@ class Roadmap:
                     break  # no candidate left on these trees: grow them again
                 candidates += 1
                 taken[nodes] = True
-                rows = np.array([self._rows[_key(u, v)] for u, v in itertools.pairwise(nodes)], int)
-                if self._check_path(matrix, rows, trees):
+                rows = np.array([self._rows[pair_key(u, v)] for u, v in itertools.pairwise(nodes)], int)
+                if self._check_path(matrix, rows, trees, stop):
                     return nodes
 
     def _label_component(self, a: int, reached: np.ndarray) -> None:
@@ -364,7 +367,7 @@ class Roadmap:
             self._reach[rest] = np.argmax(rest)
 
     def _search_graph(self, compact: bool = False) -> csr_matrix:
-        """The edges not known to collide as a symmetric CSR matrix of their lengths, with sorted indices (`_drop`
+        """The edges not known to collide as a symmetric CSR matrix of their lengths, with sorted indices (`drop_entry`
         looks entries up by bisection): the kept graph with the edges added since merged in, in C. Its lengths are
         the kept ones: an edge the search drops stays dropped. compact: without entries of edges known to collide
         (a structural count, such as components, needs that)."""
@@ -388,7 +391,7 @@ class Roadmap:
         matrix.has_sorted_indices = True
         return matrix
 
-    def _check_path(self, matrix: csr_matrix, rows: np.ndarray, trees) -> bool:
+    def _check_path(self, matrix: csr_matrix, rows: np.ndarray, trees, stop: Stop | None) -> bool:
         """Check a candidate path's unchecked edges (rows) until one collides; whether all are free. A colliding
         edge leaves the graph, the search's matrix and the trees."""
         rows = rows[~self._checked[rows]]
@@ -402,6 +405,7 @@ class Roadmap:
             ends_free=True,
             until_one_collides=True,
             progress=progress,
+            stop=stop,
         )
         self._progress[rows] = progress
         self.edges_tried += int(decided.sum())
@@ -410,8 +414,8 @@ class Roadmap:
                 self._checked[row] = True
             else:
                 self._alive[row] = False
-                _drop(matrix, u, v)
-                _drop(matrix, v, u)
+                drop_entry(matrix, u, v)
+                drop_entry(matrix, v, u)
                 self._search_dead += 2
                 for tree in trees:
                     tree.cut(int(u), int(v))
@@ -419,7 +423,7 @@ class Roadmap:
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
-        row = self._rows.get(_key(a, b))
+        row = self._rows.get(pair_key(a, b))
         if row is not None and self._alive[row]:
             self._alive[row] = False
             if row < self._search_synced:  # merged into the search's graph: out of it too
@@ -450,11 +454,11 @@ class Roadmap:
         tried = np.fromiter(self._tried, np.int64, len(self._tried))
         a, b = tried >> 32, tried & 0xFFFFFFFF
         kept = keep[a] & keep[b]
-        self._tried = set(_key(index[a[kept]], index[b[kept]]).tolist())
+        self._tried = set(pair_key(index[a[kept]], index[b[kept]]).tolist())
         self.proved = {(int(index[u]), int(index[v])): c for (u, v), c in self.proved.items() if keep[u] and keep[v]}
         self._search, self._search_synced, self._search_dead = tuple(column[:0] for column in self._search), 0, 0
         # Each label's nodes kept stay together, under the least of them (labels may only join more than is true).
-        self._reach = _by_least(self._reach[keep])
+        self._reach = labels_by_least(self._reach[keep])
         self._labelled = None
         self._recount_components()
         return index
@@ -470,7 +474,7 @@ class Roadmap:
         left, which joining labels cannot undo."""
         n, ends = len(self.Q), self._ends[self._alive & self._checked]
         graph = csr_matrix((np.ones(len(ends), bool), (ends[:, 0], ends[:, 1])), shape=(n, n))
-        self._free = _by_least(connected_components(graph, directed=False)[1])  # as `_joined` keeps them
+        self._free = labels_by_least(connected_components(graph, directed=False)[1])  # as `joined_labels` keeps them
 
     def edge_pairs(self, P: np.ndarray) -> list[tuple[int, int] | None]:
         """For each straight segment of the polyline P, the roadmap edge (node pair, smaller first) not known to
@@ -478,7 +482,7 @@ class Roadmap:
         nodes = [self._nodes.get(np.asarray(q, float).tobytes()) for q in P]
         pairs = []
         for a, b in itertools.pairwise(nodes):
-            row = None if a is None or b is None else self._rows.get(_key(a, b))
+            row = None if a is None or b is None else self._rows.get(pair_key(a, b))
             pairs.append((min(a, b), max(a, b)) if row is not None and self._alive[row] else None)
         return pairs
 
@@ -534,77 +538,51 @@ class Roadmap:
         graph._progress[: int(alive.sum())] = np.asarray(data["progress"], np.int64)[alive]
         graph._add_dead(ends[~alive])
         graph._recount_components()
-        graph._tried = set(_key(ends[:, 0], ends[:, 1]).tolist())
+        graph._tried = set(pair_key(ends[:, 0], ends[:, 1]).tolist())
         # The file's `proved` flags are not read: a certified answer rests only on proofs made in this process
         # (anyone can write a file; its checked verdicts only steer the search, which the certificate then decides).
         graph.edges_tried, graph.edges_proposed = (int(c) for c in data["counters"])
         return graph
 
-    def stats(self) -> dict:
-        """Sizes and counters. Lazy: `edges` and `components` are of the candidate graph (edges not known to
-        collide), `edges_tried` counts edges checked in full."""
+    def stats(self) -> RoadmapStats:
+        """Sizes and counters (see RoadmapStats)."""
         counts = {kind: self.kinds.count(kind) for kind in (UNIFORM, NARROW, WORKSPACE)}
-        unchecked = int((self._alive & ~self._checked).sum())
-        return {
-            "nodes": len(self),
-            "edges": int(self._alive.sum()),
-            "edges_unchecked": unchecked,
-            "components": self.components(),
-            "edges_tried": self.edges_tried,
-            "edges_proposed": self.edges_proposed,
-            "uniform_nodes": counts[UNIFORM],
-            "narrow_nodes": counts[NARROW],
-            "workspace_nodes": counts[WORKSPACE],
-            "k": self.k_used,
-            "lazy": self.lazy,
-            "skip_connected": self.skip_connected and not self.lazy,
-        }
+        return RoadmapStats(
+            nodes=len(self),
+            edges=int(self._alive.sum()),
+            edges_unchecked=int((self._alive & ~self._checked).sum()),
+            components=self.components(),
+            edges_tried=self.edges_tried,
+            edges_proposed=self.edges_proposed,
+            uniform_nodes=counts[UNIFORM],
+            narrow_nodes=counts[NARROW],
+            workspace_nodes=counts[WORKSPACE],
+            k=self.k_used,
+            lazy=self.lazy,
+            skip_connected=self.skip_connected and not self.lazy,
+        )
 
 
-class _Tree:
-    """A shortest-path tree (scipy's predecessors) that knows which nodes' tree paths lost an edge."""
+@dataclass(frozen=True)
+class RoadmapStats:
+    """A roadmap's sizes and counters. Lazy: `edges` and `components` are of the candidate graph (edges not known
+    to collide), `edges_tried` counts edges checked in full, `edges_proposed` the candidates added unchecked."""
 
-    def __init__(self, pred: np.ndarray):
-        self.pred = pred
-        # Each node's ancestor 1, 2, 4... levels up (the root, and nodes off the tree, are their own), to the table
-        # where every node has reached its root: a cut marks the subtree below it in that many fancy-index steps.
-        up = np.where(pred >= 0, pred, np.arange(len(pred)))
-        self._ups = [up]
-        while True:
-            higher = up[up]
-            if np.array_equal(higher, up):
-                break
-            self._ups.append(higher)
-            up = higher
-        self._cut = np.zeros(len(pred), bool)  # the edge from a node to its parent is gone
-        self.dead = self._cut.copy()  # a node's tree path to the root has lost an edge
+    nodes: int
+    edges: int
+    edges_unchecked: int
+    components: int
+    edges_tried: int
+    edges_proposed: int
+    uniform_nodes: int
+    narrow_nodes: int
+    workspace_nodes: int
+    k: int | None
+    lazy: bool
+    skip_connected: bool
 
-    def path(self, m: int) -> list[int]:
-        """Nodes from m up the tree to its root."""
-        nodes, pred = [m], self.pred
-        while pred[nodes[-1]] >= 0:
-            nodes.append(int(pred[nodes[-1]]))
-        return nodes
-
-    def cut(self, u: int, v: int) -> None:
-        """The edge (u, v) is gone: if it is a tree edge, every node below it has lost its tree path."""
-        child = v if self.pred[v] == u else u if self.pred[u] == v else None
-        if child is None:
-            return
-        self._cut[child] = True
-        # Pointer doubling: after the step with the 2^k-th ancestors a node has looked at the 2^(k+1) - 1 edges above.
-        dead = self._cut.copy()
-        for up in self._ups:
-            dead |= dead[up]
-        self.dead = dead
-
-
-def _key(a, b):
-    """One integer for the unordered node pair (a, b), of ints or int arrays: the smaller in the high bits."""
-    if isinstance(a, np.ndarray):
-        return np.minimum(a, b).astype(np.int64) << 32 | np.maximum(a, b)
-    a, b = int(a), int(b)
-    return min(a, b) << 32 | max(a, b)
+    def to_json(self) -> dict:
+        return asdict(self)
 
 
 def _query(tree: cKDTree, X: np.ndarray, k: int, first: int, workers: int) -> tuple[np.ndarray, np.ndarray]:
@@ -613,36 +591,3 @@ def _query(tree: cKDTree, X: np.ndarray, k: int, first: int, workers: int) -> tu
     k = min(k, tree.n)
     d, i = tree.query(X, k=k, workers=workers)
     return np.asarray(d).reshape(len(X), k), np.asarray(i).reshape(len(X), k) + first
-
-
-def _drop(matrix: csr_matrix, u: int, v: int) -> None:
-    """Make the entry (u, v) of a sorted CSR graph unusable (an infinite length) without changing its structure."""
-    row = slice(matrix.indptr[u], matrix.indptr[u + 1])
-    k = row.start + np.searchsorted(matrix.indices[row], v)
-    matrix.data[k] = np.inf
-
-
-def _by_least(groups: np.ndarray) -> np.ndarray:
-    """Per node, the least node of its group (groups: a non-negative int per node): component labels as `_joined`
-    keeps them."""
-    least = np.full(int(groups.max()) + 1 if len(groups) else 0, len(groups))
-    np.minimum.at(least, groups, np.arange(len(groups)))
-    return least[groups]
-
-
-def _joined(labels: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Component labels (one per node, each the index of one of its component's nodes) after the edges P (node
-    index pairs) join their components: each joined group under the least of its labels."""
-    if not len(P):
-        return labels
-    values, inverse = np.unique(labels[P], return_inverse=True)
-    inverse = inverse.reshape(P.shape)
-    joins = csr_matrix((np.ones(len(P), bool), (inverse[:, 0], inverse[:, 1])), shape=(len(values),) * 2)
-    count, group = connected_components(joins, directed=False)
-    least = np.full(count, len(labels))
-    np.minimum.at(least, group, values)
-    if (least[group] == values).all():
-        return labels
-    relabel = np.arange(len(labels))
-    relabel[values] = least[group]
-    return relabel[labels]

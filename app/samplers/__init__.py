@@ -1,8 +1,8 @@
 """The seven samplers, registered by name: the CLI, the benchmarks and the planner share this one table.
 
 Every sampler talks only to a Checker (app.checking.protocol: a query's QueryContext).
-`make_sampler(name, checker, step=..., **params)` builds one; `sampler.sample(k, rng)` returns k free configurations
-and leaves its statistics in `sampler.stats`.
+`make_sampler(name, checker, step=..., **params)` builds one; `sampler.sample(k, rng, stop=...)` returns k free
+configurations and leaves its statistics in `sampler.stats`.
 """
 
 from __future__ import annotations
@@ -33,11 +33,11 @@ def check_name(name: str) -> str:
     return name
 
 
-def make_sampler(name: str, oracle, **params) -> Sampler:
-    """The sampler registered as `name`, built on `oracle` with `params` (e.g. step=10)."""
+def make_sampler(name: str, checker, **params) -> Sampler:
+    """The sampler registered as `name`, built on `checker` with `params` (e.g. step=10)."""
     factory = SAMPLERS[check_name(name)]
     try:
-        return factory(oracle, **params)
+        return factory(checker, **params)
     except TypeError as exc:  # an unknown or misspelt parameter
         raise UserError(f"sampler '{name}': {exc}") from None
 

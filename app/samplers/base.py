@@ -1,11 +1,11 @@
 """What every sampler shares: the sampling loop with its budget and statistics, and bounded random steps.
 
-A sampler is built with the oracle and its parameters and answers `sample(k, rng)` with k free, in-bounds
-configurations. It works in rounds: each round makes a vectorised batch of candidates and asks the oracle about
-all of them in as few `are_free` calls as possible, and the loop stops as soon as k samples exist. Work done on
-candidates that are then not needed is still counted by the oracle (gamma_c is honest).
+A sampler is built with a checker and its parameters and answers `sample(k, rng, stop=...)` with k free, in-bounds
+configurations. It works in rounds: each round makes a vectorised batch of candidates and asks the checker about
+all of them in as few `are_free` calls as possible, and the loop stops as soon as k samples exist, or when the stop
+says so (BudgetSpent). Work done on candidates that are then not needed is still counted (gamma_c is honest).
 
-Steps are measured in the oracle's weighted metric: a coordinate's weight is the lever arm it swings, so a
+Steps are measured in the space's weighted metric: a coordinate's weight is the lever arm it swings, so a
 displacement of `s` workspace units along an angle is s / weight radians.
 """
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from app.checking.budget import Stop, poll
 from app.checking.protocol import Checker
 from app.errors import SamplerBudgetExceeded, UserError
 
@@ -25,13 +26,13 @@ def unit_directions(rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
 
 
 class Sampler:
-    """Base class. Subclasses implement `_round(rng, need) -> (samples, bridges or None)`."""
+    """Base class. Subclasses implement `_round(rng, need, stop) -> (samples, bridges or None)`."""
 
     name = ""
 
     def __init__(
         self,
-        oracle: Checker,
+        checker: Checker,
         step: float = 10.0,
         max_checks: int = 2_000_000,
         max_rounds: int = 100_000,
@@ -39,10 +40,11 @@ class Sampler:
     ):
         if not np.isfinite(step) or step <= 0:
             raise UserError(f"step must be a positive finite number, got {step}")
-        self.oracle = oracle
-        self.space = oracle.space
+        self.checker = checker
+        self.space = checker.space
         self.step = float(step)
-        self.max_checks = int(max_checks)  # collision checks one sample() call may spend
+        # A guard on one sample() call, not a budget (that is its stop): a sampler that finds nothing stops here.
+        self.max_checks = int(max_checks)
         self.max_rounds = int(max_rounds)  # rounds one sample() call may run (guards rounds that check nothing)
         self.redraws = int(redraws)  # how often an out-of-bounds step is redrawn before that proposal is dropped
         self.stats: dict = {}
@@ -50,8 +52,9 @@ class Sampler:
         self.bridges: np.ndarray | None = None  # (k, 2, dim) colliding bridge endpoints of the last samples
 
     # ---- the loop ------------------------------------------------------------------------------------------
-    def sample(self, k: int, rng: np.random.Generator, resume: bool = False) -> np.ndarray:
-        """k free, in-bounds configurations (continuous angles wrapped), shape (k, dim).
+    def sample(self, k: int, rng: np.random.Generator, *, stop: Stop | None = None, resume: bool = False) -> np.ndarray:
+        """k free, in-bounds configurations (continuous angles wrapped), shape (k, dim); BudgetSpent when `stop`
+        ends it first.
 
         resume: carry on from the previous call (running yield estimates, walkers still under way) instead of
         starting afresh, so drawing a roadmap's samples in batches wastes no work between batches. `stats` always
@@ -60,15 +63,15 @@ class Sampler:
         k = int(k)
         if k <= 0:
             raise UserError(f"k must be positive, got {k}")
-        oracle = self.oracle
+        checker = self.checker
         self.stats = {"attempts": 0, "gave_up": 0, "rounds": 0, "checks": 0}
         if not (resume and self._begun):
             self._begin(rng)
             self._begun = True
         samples, bridges, have = [], [], 0
-        start = oracle.checks
+        start = checker.checks
         while have < k:
-            spent = oracle.checks - start
+            spent = checker.checks - start
             if spent > self.max_checks or self.stats["rounds"] >= self.max_rounds:
                 self.stats["checks"] = spent
                 raise SamplerBudgetExceeded(
@@ -78,15 +81,15 @@ class Sampler:
                     samples=np.concatenate(samples) if samples else np.empty((0, self.space.dim)),
                 )
             self.stats["rounds"] += 1
-            oracle.poll()
-            got, ends = self._round(rng, k - have)
+            poll(stop)  # a round may ask nothing (every proposal out of bounds)
+            got, ends = self._round(rng, k - have, stop)
             if len(got):
                 got = got[: k - have]
                 samples.append(got)
                 if ends is not None:
                     bridges.append(ends[: len(got)])
                 have += len(got)
-        self.stats["checks"] = oracle.checks - start
+        self.stats["checks"] = checker.checks - start
         out = np.concatenate(samples)
         self.bridges = np.concatenate(bridges) if bridges else None
         return out
@@ -94,7 +97,7 @@ class Sampler:
     def _begin(self, rng: np.random.Generator) -> None:
         """Reset per-call state (so the same seed gives the same samples whatever ran before)."""
 
-    def _round(self, rng: np.random.Generator, need: int):
+    def _round(self, rng: np.random.Generator, need: int, stop: Stop | None):
         raise NotImplementedError
 
     # ---- helpers -------------------------------------------------------------------------------------------
@@ -118,16 +121,16 @@ class Sampler:
         call and keeps the first in bounds (fewer numpy calls than redrawing row by row). Returns the proposals
         and a mask of those in bounds; each row still out of bounds after all redraws counts one gave_up.
         """
-        oracle = self.oracle
+        space = self.space
         n, dim = Q.shape
-        P = oracle.space.wrap(Q + draw(rng, n))  # first try: one candidate per row (most steps stay in bounds)
-        ok = oracle.space.within_bounds(P) if n else np.zeros(0, bool)
+        P = space.wrap(Q + draw(rng, n))  # first try: one candidate per row (most steps stay in bounds)
+        ok = space.within_bounds(P) if n else np.zeros(0, bool)
         todo = np.flatnonzero(~ok)
         for _ in range(-(-self.redraws // spare)):
             if not len(todo):
                 break
-            C = oracle.space.wrap(Q[todo, None, :] + draw(rng, len(todo) * spare).reshape(len(todo), spare, dim))
-            good = oracle.space.within_bounds(C.reshape(-1, dim)).reshape(len(todo), spare)
+            C = space.wrap(Q[todo, None, :] + draw(rng, len(todo) * spare).reshape(len(todo), spare, dim))
+            good = space.within_bounds(C.reshape(-1, dim)).reshape(len(todo), spare)
             found = good.any(axis=1)
             first = good.argmax(axis=1)
             hit = todo[found]
@@ -138,10 +141,10 @@ class Sampler:
         self.stats["gave_up"] += len(todo)
         return P, ok
 
-    def _collides(self, Q: np.ndarray) -> np.ndarray:
-        """In bounds and in collision (one batched oracle call). Out of bounds is not a collision: no obstacle there."""
+    def _collides(self, Q: np.ndarray, stop: Stop | None) -> np.ndarray:
+        """In bounds and in collision (one batched call). Out of bounds is not a collision: no obstacle there."""
         inside = self.space.within_bounds(Q) if len(Q) else np.zeros(0, bool)
         hit = np.zeros(len(Q), bool)
         if inside.any():
-            hit[inside] = ~self.oracle.are_free(Q[inside])
+            hit[inside] = ~self.checker.are_free(Q[inside], stop)
         return hit

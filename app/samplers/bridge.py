@@ -14,17 +14,17 @@ class BridgeSampler(Sampler):
     def _begin(self, rng):
         self._rate = 0.01
 
-    def _round(self, rng, need):
-        oracle = self.oracle
+    def _round(self, rng, need, stop):
+        space = self.space
         n = self._batch_size(need, self._rate, low=64, high=1024)
         self.stats["attempts"] += n
-        A = oracle.space.uniform(rng, n)
-        A = A[self._collides(A)]
+        A = space.uniform(rng, n)
+        A = A[self._collides(A, stop)]
         B, ok = self._propose(rng, A, lambda r, m: self._offsets(r, m, self.step, exact=True))
         A, B = A[ok], B[ok]
-        hit = self._collides(B)
+        hit = self._collides(B, stop)
         A, B = A[hit], B[hit]
-        M = oracle.space.wrap(A + 0.5 * oracle.space.difference(A, B))
-        free = oracle.are_free(M)
+        M = space.wrap(A + 0.5 * space.difference(A, B))
+        free = self.checker.are_free(M, stop)
         self._rate = max(free.sum() / n, 0.002)
         return M[free], np.stack([A[free], B[free]], axis=1)

@@ -14,8 +14,8 @@ class UniformSampler(Sampler):
 
     name = "uniform"
 
-    def __init__(self, oracle, step: float = 10.0, batch: int | None = None, **kw):
-        super().__init__(oracle, step=step, **kw)
+    def __init__(self, checker, step: float = 10.0, batch: int | None = None, **kw):
+        super().__init__(checker, step=step, **kw)
         if batch is not None and (isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1):
             raise UserError(f"batch must be a whole number of at least 1, got {batch!r}")
         self.batch = None if batch is None else int(batch)
@@ -23,10 +23,10 @@ class UniformSampler(Sampler):
     def _begin(self, rng):
         self._rate = 0.5  # running estimate of the free fraction, to size batches
 
-    def _round(self, rng, need):
+    def _round(self, rng, need, stop):
         n = self.batch or self._batch_size(need, self._rate)
         Q = self.space.uniform(rng, n)
-        free = self.oracle.are_free(Q)
+        free = self.checker.are_free(Q, stop)
         self.stats["attempts"] += n
         self._rate = max(free.mean(), 0.01) if n else self._rate
         return Q[free], None
@@ -34,24 +34,23 @@ class UniformSampler(Sampler):
 
 class GaussianSampler(Sampler):
     """q1 uniform, q2 ~ N(q1, sigma) (weighted rms distance sigma, default the step); keep the free one when exactly
-    one of the two is free. Both of a batch's configurations go to the oracle in one call."""
+    one of the two is free. Both of a batch's configurations go to the checker in one call."""
 
     name = "gaussian"
 
-    def __init__(self, oracle, step: float = 10.0, sigma: float | None = None, **kw):
-        super().__init__(oracle, step=step, **kw)
+    def __init__(self, checker, step: float = 10.0, sigma: float | None = None, **kw):
+        super().__init__(checker, step=step, **kw)
         self.sigma = float(sigma) if sigma is not None else self.step
 
     def _begin(self, rng):
         self._rate = 0.05
 
-    def _round(self, rng, need):
-        oracle = self.oracle
+    def _round(self, rng, need, stop):
         n = self._batch_size(need, self._rate, low=32, high=512)
-        Q1 = oracle.space.uniform(rng, n)
+        Q1 = self.space.uniform(rng, n)
         Q2, ok = self._propose(rng, Q1, lambda r, m: self._offsets(r, m, self.sigma, exact=False))
         Q1, Q2 = Q1[ok], Q2[ok]  # a pair whose second point left the bounds is dropped (bounds are no obstacle)
-        free = oracle.are_free(np.concatenate([Q1, Q2]))
+        free = self.checker.are_free(np.concatenate([Q1, Q2]), stop)
         f1, f2 = free[: len(Q1)], free[len(Q1) :]
         self.stats["attempts"] += n
         keep = f1 != f2

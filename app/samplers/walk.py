@@ -47,7 +47,7 @@ class Walker(Sampler):
 
     def __init__(
         self,
-        oracle,
+        checker,
         step: float = 10.0,
         step_law: str = "levy",
         bridge: bool = False,
@@ -61,7 +61,7 @@ class Walker(Sampler):
         name: str | None = None,
         **kw,
     ):
-        super().__init__(oracle, step=step, **kw)
+        super().__init__(checker, step=step, **kw)
         if step_law not in ("gaussian", "levy"):
             raise ValueError(f"step_law must be 'gaussian' or 'levy', not {step_law!r}")
         self.step_law, self.bridge = step_law, bool(bridge)
@@ -84,27 +84,27 @@ class Walker(Sampler):
                 (step_law, self.bridge)
             ]
         )
-        self._angular = np.asarray(oracle.space.angular, bool)
+        self._angular = np.asarray(checker.space.angular, bool)
 
     # ---- steps ---------------------------------------------------------------------------------------------
     def _draw(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """n configuration-space displacements for the chosen step law."""
-        oracle, a = self.oracle, self.step
+        space, a = self.space, self.step
         if self.step_law == "gaussian":
             return self._offsets(rng, n, a, exact=False)
         # Lévy: a random direction u in the weighted space; every coordinate moves u_i * (a + a|L|) workspace
         # units, with one L ~ S(alpha) per step for the translational coordinates (so they move on a line) and an
         # independent L ~ S(alpha_angle) per angle. An angle's linear move delta (radians) then goes through the
         # paper's law theta' = 2 pi (1 - e^f) with f = -delta / (2 pi), which is delta for small moves.
-        dim, ang = oracle.space.dim, self._angular
+        dim, ang = space.dim, self._angular
         m = int(ang.sum())
         G = rng.standard_normal((n, dim + 2 + 2 * m))  # direction, (U, V) for the length, (U, V) per angle
         u = G[:, :dim] / np.sqrt(np.einsum("ij,ij->i", G[:, :dim], G[:, :dim]))[:, None]
         length = a * (1.0 + np.abs(mantegna(G[:, dim : dim + 1], G[:, dim + 1 : dim + 2], self.alpha)))
-        d = u * length / oracle.space.weights
+        d = u * length / space.weights
         if m and self.angle_law == "paper":
             L = mantegna(G[:, dim + 2 : dim + 2 + m], G[:, dim + 2 + m :], self.alpha_angle)
-            delta = u[:, ang] * a * (1.0 + np.abs(L)) / oracle.space.weights[ang]
+            delta = u[:, ang] * a * (1.0 + np.abs(L)) / space.weights[ang]
             d[:, ang] = 2 * np.pi * (1.0 - np.exp(np.minimum(-delta / (2 * np.pi), _EXP_CLIP)))
         elif m and self.angle_law == "gaussian":
             d[:, ang] = self._offsets(rng, n, a, exact=False)[:, ang]
@@ -125,7 +125,7 @@ class Walker(Sampler):
         # the unfinished walks it leaves, and its batches are fuller (benchmark pages, "Tuning notes").
         return int(np.clip(4 * need, 32, 256))
 
-    def _refill(self, rng, size: int) -> None:
+    def _refill(self, rng, size: int, stop) -> None:
         """Top the pool up to `size` walkers from colliding uniform configurations (checked in one call)."""
         missing = size - len(self._Q)
         if missing <= 0:
@@ -133,7 +133,7 @@ class Walker(Sampler):
         if len(self._reserve) < missing:
             n = int(np.clip(np.ceil(1.2 * (missing - len(self._reserve)) / max(self._hit_rate, 0.02)), 8, 4096))
             C = self.space.uniform(rng, n)
-            hit = self._collides(C)
+            hit = self._collides(C, stop)
             self._hit_rate = max(hit.mean(), 0.02)
             self._reserve = np.concatenate([self._reserve, C[hit]])
         take = min(missing, len(self._reserve))
@@ -142,21 +142,21 @@ class Walker(Sampler):
         self._reserve = self._reserve[take:]
         self.stats["attempts"] += take
 
-    def _round(self, rng, need):
-        oracle = self.oracle
-        self._refill(rng, self._pool_size(need))
+    def _round(self, rng, need, stop):
+        space = self.space
+        self._refill(rng, self._pool_size(need), stop)
         Q = self._Q
         if not len(Q):
-            return np.empty((0, oracle.space.dim)), None
+            return np.empty((0, space.dim)), None
         P, ok = self._propose(rng, Q, self._draw)  # out of bounds after all redraws: the walker stays this step
         free = np.zeros(len(Q), bool)
-        free[ok] = oracle.are_free(P[ok])
+        free[ok] = self.checker.are_free(P[ok], stop)
         accept, ends = free, None
         if self.bridge:
             # extend(q, q'): q' is the midpoint of q q''. q'' out of bounds is no collision (no obstacle there).
             cand = np.flatnonzero(free)
-            R = oracle.space.wrap(P[cand] + oracle.space.difference(Q[cand], P[cand]))
-            hit = self._collides(R)
+            R = space.wrap(P[cand] + space.difference(Q[cand], P[cand]))
+            hit = self._collides(R, stop)
             accept = np.zeros(len(Q), bool)
             accept[cand[hit]] = True
             ends = np.stack([Q[cand[hit]], R[hit]], axis=1)

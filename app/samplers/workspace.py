@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from app.checking.budget import Stop
 from app.checking.protocol import Checker
 from app.errors import SamplerBudgetExceeded
 from app.samplers.base import Sampler
@@ -41,11 +42,11 @@ IDLE_ROUNDS = 16
 class WorkspaceGaps:
     """Points in the narrow gaps of a scene's environment, found on demand, and placements of the robot there."""
 
-    def __init__(self, oracle: Checker, rng: np.random.Generator):
-        self.oracle, self.space = oracle, oracle.space
+    def __init__(self, checker: Checker, rng: np.random.Generator):
+        self.checker, self.space = checker, checker.space
         Q = self.space.uniform(rng, 64)
-        C = oracle.workspace.robot_geometry_centres(Q)
-        radii = oracle.workspace.robot_geometry_radii()
+        C = checker.workspace.robot_geometry_centres(Q)
+        radii = checker.workspace.robot_geometry_radii()
         scale = float(np.max(np.ptp(C.reshape(-1, 3), axis=0))) if C.size else 0.0
         # Pieces that move with the configuration (a cart or base welded to the world does not).
         self.moving = np.flatnonzero(np.ptp(C, axis=0).max(axis=1) > 1e-9 * max(scale, 1.0))
@@ -74,7 +75,7 @@ class WorkspaceGaps:
                 continue
             moved = Q.copy()
             moved[:, i] += delta
-            D = (self.oracle.workspace.robot_geometry_centres(moved) - C)[:, self.moving] / delta
+            D = (self.checker.workspace.robot_geometry_centres(moved) - C)[:, self.moving] / delta
             if np.abs(D - D[0, 0]).max() < 1e-6 and np.linalg.norm(D[0, 0]) > 1e-6:
                 axes.append(int(i))
                 directions.append(D[0, 0])
@@ -85,8 +86,8 @@ class WorkspaceGaps:
         """Searched long enough to say the scene has no narrow gap."""
         return not len(self.points) and (self.searched >= SEARCH_LIMIT or not len(self.moving))
 
-    def search(self, rng: np.random.Generator, n: int = BATCH) -> int:
-        """Ask n more candidate points; returns how many gap points were found."""
+    def search(self, rng: np.random.Generator, n: int = BATCH, stop: Stop | None = None) -> int:
+        """Ask n more candidate points (BudgetSpent when `stop` ends it); returns how many gap points were found."""
         if not len(self.moving):
             return 0
         local = n // 2 if len(self.points) else 0
@@ -94,7 +95,7 @@ class WorkspaceGaps:
         if local:
             around = self.points[rng.integers(len(self.points), size=local)]
             P = np.concatenate([P, around + rng.normal(0.0, self.width / 4, size=(local, 3))])
-        found = P[self.oracle.environment_gaps(P, self.width)]
+        found = P[self.checker.environment_gaps(P, self.width, stop)]
         self.searched += n
         if len(found):
             self.points = np.concatenate([self.points, found])
@@ -108,7 +109,7 @@ class WorkspaceGaps:
             return np.empty((0, self.space.dim))
         Q = self.space.uniform(rng, n)
         piece = self.moving[rng.integers(len(self.moving), size=n)]
-        x = self.oracle.workspace.robot_geometry_centres(Q, piece)
+        x = self.checker.workspace.robot_geometry_centres(Q, piece)
         if len(self.axes):
             p = self.points[rng.integers(len(self.points), size=n)]
             shift = (p - x) @ np.linalg.pinv(self.directions).T
@@ -128,16 +129,16 @@ class WorkspaceSampler(Sampler):
 
     name = "workspace"
 
-    def __init__(self, oracle, gaps: WorkspaceGaps, **kw):
-        super().__init__(oracle, **kw)
+    def __init__(self, checker, gaps: WorkspaceGaps, **kw):
+        super().__init__(checker, **kw)
         self.gaps = gaps
         self._rate = 0.05  # running free fraction of placements
         self._idle = 0  # rounds in a row without a placement
 
-    def _round(self, rng, need):
+    def _round(self, rng, need, stop):
         gaps = self.gaps
         if len(gaps.points) < POINTS and gaps.searched < SEARCH_MAX:
-            gaps.search(rng)
+            gaps.search(rng, stop=stop)
         n = self._batch_size(need, self._rate)
         Q = gaps.place(rng, n)
         self.stats["attempts"] += n
@@ -146,6 +147,6 @@ class WorkspaceSampler(Sampler):
             raise SamplerBudgetExceeded(f"workspace: {IDLE_ROUNDS} rounds of {n} placements, none at a gap")
         if not len(Q):
             return Q, None
-        free = self.oracle.are_free(Q)
+        free = self.checker.are_free(Q, stop)
         self._rate = 0.7 * self._rate + 0.3 * max(free.sum() / n, 1e-3)
         return Q[free], None

@@ -1,0 +1,87 @@
+"""The roadmap's sparse-graph tools: one integer key per node pair, component labels that join as edges come, and
+shortest-path trees that know which nodes lost their tree path (app.planning.roadmap's search)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+
+class SearchTree:
+    """A shortest-path tree (scipy's predecessors) that knows which nodes' tree paths lost an edge."""
+
+    def __init__(self, pred: np.ndarray):
+        self.pred = pred
+        # Each node's ancestor 1, 2, 4... levels up (the root, and nodes off the tree, are their own), to the table
+        # where every node has reached its root: a cut marks the subtree below it in that many fancy-index steps.
+        up = np.where(pred >= 0, pred, np.arange(len(pred)))
+        self._ups = [up]
+        while True:
+            higher = up[up]
+            if np.array_equal(higher, up):
+                break
+            self._ups.append(higher)
+            up = higher
+        self._cut = np.zeros(len(pred), bool)  # the edge from a node to its parent is gone
+        self.dead = self._cut.copy()  # a node's tree path to the root has lost an edge
+
+    def path(self, m: int) -> list[int]:
+        """Nodes from m up the tree to its root."""
+        nodes, pred = [m], self.pred
+        while pred[nodes[-1]] >= 0:
+            nodes.append(int(pred[nodes[-1]]))
+        return nodes
+
+    def cut(self, u: int, v: int) -> None:
+        """The edge (u, v) is gone: if it is a tree edge, every node below it has lost its tree path."""
+        child = v if self.pred[v] == u else u if self.pred[u] == v else None
+        if child is None:
+            return
+        self._cut[child] = True
+        # Pointer doubling: after the step with the 2^k-th ancestors a node has looked at the 2^(k+1) - 1 edges above.
+        dead = self._cut.copy()
+        for up in self._ups:
+            dead |= dead[up]
+        self.dead = dead
+
+
+def pair_key(a, b):
+    """One integer for the unordered node pair (a, b), of ints or int arrays: the smaller in the high bits."""
+    if isinstance(a, np.ndarray):
+        return np.minimum(a, b).astype(np.int64) << 32 | np.maximum(a, b)
+    a, b = int(a), int(b)
+    return min(a, b) << 32 | max(a, b)
+
+
+def drop_entry(matrix: csr_matrix, u: int, v: int) -> None:
+    """Make the entry (u, v) of a sorted CSR graph unusable (an infinite length) without changing its structure."""
+    row = slice(matrix.indptr[u], matrix.indptr[u + 1])
+    k = row.start + np.searchsorted(matrix.indices[row], v)
+    matrix.data[k] = np.inf
+
+
+def labels_by_least(groups: np.ndarray) -> np.ndarray:
+    """Per node, the least node of its group (groups: a non-negative int per node): component labels as `joined_labels`
+    keeps them."""
+    least = np.full(int(groups.max()) + 1 if len(groups) else 0, len(groups))
+    np.minimum.at(least, groups, np.arange(len(groups)))
+    return least[groups]
+
+
+def joined_labels(labels: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Component labels (one per node, each the index of one of its component's nodes) after the edges P (node
+    index pairs) join their components: each joined group under the least of its labels."""
+    if not len(P):
+        return labels
+    values, inverse = np.unique(labels[P], return_inverse=True)
+    inverse = inverse.reshape(P.shape)
+    joins = csr_matrix((np.ones(len(P), bool), (inverse[:, 0], inverse[:, 1])), shape=(len(values),) * 2)
+    count, group = connected_components(joins, directed=False)
+    least = np.full(count, len(labels))
+    np.minimum.at(least, group, values)
+    if (least[group] == values).all():
+        return labels
+    relabel = np.arange(len(labels))
+    relabel[values] = least[group]
+    return relabel[labels]

@@ -1,0 +1,408 @@
+"""The planner: one query on a lazy PRM whose key samples come from a narrow-passage sampler.
+
+    endpoints checked -> the straight motion -> uniform, then narrow-passage samples (the sampler's walks and
+    placements in workspace gaps), in rounds until start and goal connect -> roadmap (k-nearest; lazy edge checks
+    for a single query) -> shortest path -> smoothed, proved and repaired (app.planning.refine) -> timed along a
+    blended curve (app.motion.timing)
+
+`plan(oracle, PlanSettings(...))` runs one `Query` through those stages and returns a PlanResult
+(app.planning.result). What its budget covers: app.planning.settings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from app.checking.budget import MAX_SECONDS, BudgetSpent, Stop, spell_checks
+from app.errors import NoPath, SamplerBudgetExceeded, UserError
+from app.motion.path import path_length, verify
+from app.motion.timing import check_duration, scaled_limits, time_path
+from app.motion.trajectory import Trajectory
+from app.planning.endpoints import check_endpoint, check_goals
+from app.planning.refine import Refined, Refinement
+from app.planning.result import Ledger, PlanResult, PlanStats, Smoothing
+from app.planning.settings import NARROW_RAMP, PlanSettings, default_step
+from app.planning.sources import Samples
+
+
+def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None, via=None, cancel=None) -> PlanResult:
+    """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()); `via`: waypoints
+    of the easy route to try instead of the straight motion (an arm's tool line, app.planning.ik.tool_line).
+
+    Returns a PlanResult; raises InvalidEndpoint for a bad start or goal, NoPath (with `.details`, Query.figures)
+    when the samples or the budget run out before start and goal connect (code PREEMPTED when `cancel`, a
+    threading.Event, was set from another thread; TIMED_OUT when the time limit ran out), UserError for bad
+    parameters. A KeyboardInterrupt (Ctrl-C) while the query runs leaves it with the same `.details`."""
+    return Query(oracle, settings or PlanSettings(), start=start, goal=goal, via=via, cancel=cancel).solve()
+
+
+class Query:
+    """One planning query in explicit stages, as OMPL splits its PRM (setup / grow / solve):
+
+    setup (the constructor): endpoints checked, samplers made, start and goal put in the roadmap, the budget's stop
+    started; `straight(stop)`: the easy route first -- the straight motion from start to goal (or the polyline
+    through the caller's `via` points), checked at the resolution; `grow(narrow, uniform, stop)`: one round of
+    samples, added and connected to their k nearest neighbours; `search(stop)`: the shortest roadmap path whose
+    edges are free, or None while start and goal are apart; then the path is smoothed, proved and repaired
+    (`refinement`, app.planning.refine) and timed (`time`); `solve()`: the loop that runs them and answers.
+
+    How much narrow-passage effort a query spends is decided from what the roadmap shows. The straight motion is
+    tried first. Then one round of cheap uniform samples with lazy edges (nothing is checked until a candidate path
+    uses it): that alone solves the open queries (the UR3's, most of the tunnel's) for a few hundred checks. If
+    start and goal are still apart after it, a passage uniform samples rarely hit is in the way, and the
+    narrow-passage sampler joins every later round: narrow/NARROW_RAMP samples at first, doubling each round up to
+    narrow/4, so a query that needs few pays for few and one that needs many spends at most twice what it needed.
+
+    Three quarters of every narrow round (`workspace`) are placed rather than walked to: configurations with a piece
+    of the robot in a narrow gap of the workspace (app.samplers.workspace). The walkers find a passage wherever
+    obstacles leave one, but in a passage narrow in many dimensions they end on the obstacles' faces; placements go
+    straight to the gap, and the walkers still cover passages with no workspace gap behind them (the maze's window).
+    What each source adds: the ablation (`bench ablation`, docs/paper.md).
+
+    `full_roadmap` is the paper's protocol instead: one round of all `narrow` + `uniform` samples, every edge
+    checked, then the query."""
+
+    def __init__(
+        self,
+        oracle,
+        settings: PlanSettings,
+        *,
+        start=None,
+        goal=None,
+        via=None,
+        cancel=None,
+        roadmap=None,
+        certifier=None,
+    ):
+        # The roadmap and samplers pull in scipy: imported when a query is made, not at CLI start-up.
+        from app.planning.roadmap import GOAL, START, Roadmap
+
+        # The query's own counters on the shared oracle, and its budget, which runs from now: the endpoint checks
+        # count against it, and it bounds every counted call from solve() on (handed to each as its `stop`).
+        self.oracle, self.settings = oracle, settings
+        self.checker = checker = oracle.context()
+        self.stop = Stop(settings.budget, checker, cancel)
+        self.ledger = Ledger(checker)
+        self.step = oracle.space.check_step(default_step(oracle.scene) if settings.step is None else settings.step)
+
+        self.clearance = settings.clearance
+        self.start = check_endpoint(checker, oracle.scene.start if start is None else start, "start", self.clearance)
+        self.goals = check_goals(checker, oracle.scene.goal if goal is None else goal, self.clearance)
+        self.goal = self.goals[0]  # until the query has reached one of them
+        self.ledger.checks.endpoints = self.ledger.elapsed()[1]
+        if settings.timing:  # limits scaled so far down that even the straight motion would take days: refused now
+            limits = scaled_limits(oracle.scene, settings.velocity_scale, settings.acceleration_scale)
+            nearest = self.goals[np.argmin(oracle.space.distance(self.start, self.goals))]
+            check_duration(oracle.space.unwrap(np.array([self.start, nearest])), *limits)
+        # The easy route: the straight motion, or the polyline through `via`.
+        via = [] if via is None or len(via) == 0 else np.atleast_2d(np.asarray(via, float))
+        via = [oracle.space.check_configuration(q, "via point") for q in via]
+        outside = [fault for q in via for fault in oracle.space.out_of_bounds(q)]
+        if outside:
+            raise UserError(f"via point out of bounds: {outside[0]}")
+        self.via = via
+        self.route = np.vstack([self.start, *via, self.goal])
+
+        # A roadmap that already holds samples gets a seed of its own per size, so that its next query does not draw
+        # the same samples again.
+        given = roadmap is not None and len(roadmap) > 0
+        seeds = np.random.SeedSequence(settings.seed, spawn_key=(len(roadmap),) if given else ()).spawn(4)
+        workspace = 0.0 if settings.full_roadmap else settings.workspace  # a full roadmap places none
+        self.samples = Samples(checker, settings.sampler, self.step, seeds, workspace, settings.sampler_params)
+        self.rounds = 0
+        # Narrow-passage samples from the round after the first one that left start and goal apart.
+        self.narrow_from_round: int | None = 1 if settings.full_roadmap else None
+        # A single query checks only the edges its candidate paths use; a full roadmap is checked whole. A persistent
+        # roadmap (app.planning.cell) is handed in with every verdict it holds, and answers this query's checker.
+        if roadmap is None:
+            roadmap = Roadmap(
+                checker, k=settings.k, skip_connected=settings.skip_connected, lazy=not settings.full_roadmap
+            )
+        roadmap.checker = checker
+        self.roadmap = roadmap
+        before = len(roadmap)
+        self.start_node = roadmap.node(self.start, START)
+        self.goal_nodes = [roadmap.node(g, GOAL) for g in self.goals]
+        # Endpoints are connected with the first round's samples, or at once where the roadmap has nodes already.
+        self._unconnected = list(dict.fromkeys([self.start_node, *self.goal_nodes]))
+        self._searchable = before > 0
+        self.refinement = Refinement(checker, roadmap, settings, self.ledger, seeds[2], certifier)
+        # What a shared certifier had spent before this query: the answer reports only this query's share.
+        self._certificate_before = certifier.seconds if certifier is not None else 0.0
+        self.stopped: str | None = None  # why the query's work ended early: "time", "checks" or "cancelled"
+
+    # ---- the easy route -----------------------------------------------------------------------------------------
+    def straight(self, stop: Stop) -> bool:
+        """Whether an easy route (the straight motion from start to a goal, or the polyline through `via`; the
+        nearest goal first) is free at the resolution (one batched edge check each; the certificate then proves it
+        between the checked points); it is then `route`, and its goal `goal`. Via points are checked too: only the
+        endpoints are known free."""
+        resolution = self.roadmap.resolution
+        for g in self.goals[np.argsort(self.checker.space.distance(self.start, self.goals), kind="stable")]:
+            R = np.vstack([self.start, *self.via, g])
+            free = self.ledger.run(
+                "search", self.checker.edges_free, R[:-1], R[1:], resolution, ends_free=len(R) == 2, stop=stop
+            )
+            if free.all():
+                self.route, self.goal = R, g
+                return True
+        return False
+
+    # ---- grow -------------------------------------------------------------------------------------------------------
+    def round_sizes(self) -> tuple[int, int] | None:
+        """How many narrow and uniform samples the next round draws, or None when the query may draw no more."""
+        s = self.settings
+        if s.full_roadmap:
+            return (s.narrow, s.uniform) if self.rounds == 0 else None
+        if s.narrow == 0 and s.uniform == 0:
+            return None
+        if self.narrow_from_round is None or self.rounds + 1 < self.narrow_from_round:
+            return 0, math.ceil(s.uniform / 4)
+        k = self.rounds + 1 - self.narrow_from_round
+        return min(math.ceil(s.narrow / 4), math.ceil(s.narrow / NARROW_RAMP) * 2**k), math.ceil(s.uniform / 4)
+
+    def grow(self, narrow: int, uniform: int, stop: Stop) -> np.ndarray:
+        """One round: draw the samples, add them as nodes (the first round also connects start and goal) and
+        connect the new nodes to their neighbours. Returns the new nodes."""
+        self.rounds += 1
+        try:
+            drawn = self.ledger.run("sampling", self.samples.draw, narrow, uniform, stop)
+        except SamplerBudgetExceeded as exc:
+            raise self._failure(f"no path on {self.checker.scene.name}: {exc}", sampler=str(exc)) from None
+        new = np.concatenate([self.roadmap.add(Q, kind, connect=False) for kind, Q in drawn])
+        new = np.concatenate([np.array(self._unconnected, int), new])
+        self._unconnected = []
+        self.ledger.run("roadmap", self.roadmap.connect, new, stop)
+        return new
+
+    # ---- search -----------------------------------------------------------------------------------------------------
+    def search(self, stop: Stop) -> list[int] | None:
+        """Node indices of the shortest start-goal path whose edges are checked free, or None while start and goal
+        are apart. Once the certificate has refused a roadmap edge of a careful (fine-only) query, the path's edges
+        are checked at the fine resolution too and those failing it are dropped: a cheap filter where many edges
+        slip between checked points, work for nothing where the certificate proves them all (benchmark pages)."""
+        roadmap, refinement = self.roadmap, self.refinement
+        while True:
+            nodes = self.ledger.run("search", roadmap.shortest_path, self.start_node, self.goal_nodes, stop)
+            if nodes is None or not (refinement.fine_only and refinement.unproved_edges):
+                return nodes
+            ok = self.ledger.run("search", verify, self.checker, roadmap.Q[nodes], refinement.fine, stop)
+            if ok.all():
+                return nodes
+            for i in np.flatnonzero(~ok):
+                roadmap.remove_edge(nodes[i], nodes[i + 1])
+
+    def search_and_refine(self, stop: Stop, proving: Stop) -> Refined | None:
+        """A roadmap path smoothed and proved (app.planning.refine) once start and goal connect, else None: the
+        optimistic pass first; once the certificate has refused a roadmap path, careful (fine-only) passes, whose
+        roadmap paths are proved before any smoothing is spent on them, and whose unprovable edges leave the
+        roadmap while the search goes on."""
+        refinement = self.refinement
+        while True:
+            nodes = self.search(stop)
+            if nodes is None:
+                return None
+            if not refinement.fine_only:
+                path, shortcuts, repairs, certificate = refinement.smooth_and_prove(nodes, stop, proving)
+                if certificate is not None:
+                    return Refined(nodes, path, shortcuts, repairs, False, certificate)
+                refinement.fine_only = True
+                continue
+            raw_proof = refinement.prove_roadmap_path(nodes, stop, proving)
+            if raw_proof is None:
+                continue
+            path, shortcuts, repairs, certificate = refinement.smooth_and_prove(nodes, stop, proving, raw_proof)
+            if certificate is None:  # the roadmap path is the answer
+                return Refined(nodes, self.roadmap.Q[nodes], shortcuts, repairs, True, raw_proof)
+            return Refined(nodes, path, shortcuts, repairs, False, certificate)
+
+    # ---- time -------------------------------------------------------------------------------------------------------
+    def time(self, path: np.ndarray, stop: Stop, proved: bool = False) -> Trajectory:
+        """Toppra along the path with its corners blended where the blends can be proved (app.motion.timing);
+        proved: the path's edges are certified already (by this query's certifier), so only the blends need to be,
+        unless its blended curve is (certify_blends), whose radii are then used."""
+        blends = self.refinement.blends
+        if blends is None or blends.failed or not np.array_equal(blends.path, path):
+            blends = None
+        s = self.settings
+        try:
+            return self.ledger.run(
+                "timing",
+                time_path,
+                self.checker,
+                path,
+                s.dt,
+                certifier=self.refinement.certifier,
+                edges_proved=proved and blends is None,
+                proof=blends,
+                clearance=self.clearance,
+                velocity_scale=s.velocity_scale,
+                acceleration_scale=s.acceleration_scale,
+                stop=stop,
+            )
+        except (RuntimeError, ValueError) as exc:  # Toppra infeasible, or limits that are not positive
+            raise self._failure(
+                f"path found on {self.checker.scene.name} but not time-parameterized: {' '.join(str(exc).split())}"
+            ) from None
+
+    # ---- solve ------------------------------------------------------------------------------------------------------
+    def solve(self) -> PlanResult:
+        """The easy route (straight, or through `via`) if it is free and proved; else grow round by round until start
+        and goal connect, then smooth, certify and time the path. The budget's time limit bounds all of it; its
+        check limit bounds the search and smoothing, not the proof and timing (they ask for distances, not
+        checks: the `proving` stop)."""
+        stop = self.stop
+        proving = stop.without_check_limit()
+        try:
+            found = self._find(stop, proving)
+            if found is not None:
+                return self.refinement.prove(self._result, found, proving)
+        except BudgetSpent as spent:
+            self.stopped = spent.reason
+        except KeyboardInterrupt as interrupt:
+            # Ctrl-C stays an interrupt (the command line answers PREEMPTED, exit code 130), carrying what the query
+            # had spent, as a failure's NoPath.details does.
+            interrupt.details = self.figures("interrupted").to_json()
+            raise
+        if self.refinement.proof_unfinished:
+            raise self._failure(
+                f"a path was found on {self.checker.scene.name} but proving and timing it did not finish within the "
+                f"budget {self.settings.budget} ({self.stopped}): a larger time budget lets it finish"
+            )
+        raise self._not_connected()
+
+    def _find(self, stop: Stop, proving: Stop) -> tuple[str, Refined] | None:
+        """How the path was found ("straight" or "via", else "roadmap") and the path smoothed and proved, or None
+        when the samples run out first; BudgetSpent when the budget does."""
+        if self.straight(stop):
+            path = self.route
+            certificate = self.refinement.prove(self.refinement.certify, path, proving)
+            if certificate.proved:  # else the roadmap may find a route it can prove
+                nodes = [self.start_node, self.goal_nodes[self._goal_index(self.goal)]]
+                return ("via" if self.via else "straight"), Refined(nodes, path, None, 0, False, certificate)
+        found = None
+        if self._searchable:  # a persistent roadmap: search what it holds before drawing any sample
+            self.ledger.run("roadmap", self.roadmap.connect, np.array(self._unconnected, int), stop)
+            self._unconnected = []
+            found = self.search_and_refine(stop, proving)
+        sizes = None if found is not None else self.round_sizes()
+        while sizes is not None:
+            self.grow(*sizes, stop)
+            found = self.search_and_refine(stop, proving)
+            if found is not None:
+                break
+            if self.narrow_from_round is None:  # uniform samples alone did not do it: a passage in the way
+                self.narrow_from_round = self.rounds + 1
+            sizes = self.round_sizes()
+        return None if found is None else ("roadmap", found)
+
+    def _goal_index(self, q: np.ndarray) -> int:
+        return int(np.argmin(self.checker.space.distance(q, self.goals)))
+
+    # ---- answers ----------------------------------------------------------------------------------------------------
+    def figures(self, stopped: str | None = None) -> PlanStats:
+        """What the query has spent so far, counted as a success answer counts it; `stopped`: why it stopped (else
+        the budget's reason: "time", "checks", "cancelled", or None)."""
+        seconds, spent = self.ledger.elapsed()
+        certifier = self.refinement.certifier
+        return PlanStats(
+            collision_checks=spent,
+            distance_queries=self.checker.distance_queries,
+            point_queries=self.checker.point_queries,
+            checks=dataclasses.replace(self.ledger.checks),
+            seconds=dataclasses.replace(self.ledger.seconds, total=seconds),
+            certificate_seconds=0.0 if certifier is None else certifier.seconds - self._certificate_before,
+            rounds=self.rounds,
+            narrow_from_round=self.narrow_from_round,
+            roadmap=self.roadmap.stats(),
+            sampler_stats=self.samples.stats,
+            budget=str(self.settings.budget),
+            stopped=stopped or self.stopped,
+        )
+
+    def _failure(self, message: str, **details) -> NoPath:
+        """NoPath with the query's figures in `details`. Its code says why: PREEMPTED when cancelled, TIMED_OUT when
+        the time limit ended it (MoveIt's code for time), else PLANNING_FAILED -- a spent check limit too, whose
+        details say stopped: "checks"."""
+        code = {"cancelled": "PREEMPTED", "time": "TIMED_OUT"}.get(self.stopped)
+        error = NoPath(message, code)
+        error.details = {**self.figures().to_json(), **details}
+        return error
+
+    def _not_connected(self) -> NoPath:
+        stats, s = self.roadmap.stats(), self.settings
+        sizes = self.roadmap.component_sizes(self.start_node, *self.goal_nodes)
+        seconds, spent = self.ledger.elapsed()
+        if self.stopped == "cancelled":
+            ending = ", cancelled"
+        elif self.stopped == "checks":
+            ending = (
+                f"; budget of {s.budget.checks} collision check{'s' if s.budget.checks != 1 else ''} spent (stopped: "
+                f"checks): a larger one may find a path, try --budget {s.budget.larger(seconds)}"
+            )
+        elif self.stopped == "time" and s.budget.checks is not None:
+            ending = (
+                f", stopped by the budget's {s.budget.seconds:g} s before its {s.budget.checks} checks were spent: "
+                "on a faster or less loaded machine the same seed may get further; --budget "
+                f"{spell_checks(s.budget.checks)},nolimit lets the checks alone decide"
+            )
+        elif self.stopped == "time":
+            ending = (
+                f"; time limit of {s.budget.seconds:g} s spent (stopped: time): try a longer one, e.g. --budget "
+                f"{min(MAX_SECONDS, 10 * s.budget.seconds):g}s"
+            )
+        else:
+            ending = "; the roadmap may not grow further"
+        unproved = self.refinement.unproved_edges
+        if unproved:
+            ending += f"; {unproved} edge(s) checked free but not provably free were dropped"
+        return self._failure(
+            f"no path from start to goal on {self.checker.scene.name}: roadmap of {stats.nodes} nodes "
+            f"({stats.narrow_nodes} narrow-passage samples from {s.sampler}, {stats.uniform_nodes} uniform), "
+            f"start and goal not joined by edges checked free; {stats.edges_tried} edges decided, {spent} "
+            f"collision checks, {seconds:.1f} s, {self.rounds} round(s)" + ending,
+            components_of_start_goal=sizes,
+            unproved_edges=unproved,
+        )
+
+    def _result(self, found: tuple[str, Refined], proving: Stop) -> PlanResult:
+        from app.planning.roadmap import NARROW, WORKSPACE
+
+        route, (nodes, path, shortcuts, repairs, dropped, certificate) = found
+        roadmap, s = self.roadmap, self.settings
+        raw = self.route if route != "roadmap" else roadmap.Q[nodes]
+        self.goal = self.goals[self._goal_index(raw[-1])]
+        smoothing = Smoothing(
+            raw_length=path_length(self.checker, raw),
+            length_after=path_length(self.checker, path),
+            shortcuts=shortcuts,
+            repairs=repairs,
+            fine_only=self.refinement.fine_only,
+            dropped=dropped,
+        )
+        certificate = dataclasses.replace(certificate, unproved_edges=self.refinement.unproved_edges)
+        trajectory = self.time(path, proving, certificate.proved) if s.timing else None
+        return PlanResult(
+            scene=self.checker.scene.name,
+            sampler=s.sampler,
+            seed=int(s.seed),
+            step=self.step,
+            start=self.start,
+            goal=self.goal,
+            path=path,
+            roadmap_path=raw,
+            trajectory=trajectory,
+            route=route,
+            via=len(self.via),
+            stats=self.figures(),
+            smoothing=smoothing,
+            certificate=certificate,
+            narrow_on_path=int(sum(roadmap.kinds[i] == NARROW for i in nodes)),
+            workspace_on_path=int(sum(roadmap.kinds[i] == WORKSPACE for i in nodes)),
+            graph=roadmap,
+            path_nodes=list(nodes),
+            blends=self.refinement.blends if certificate.blended else None,
+        )
