@@ -123,8 +123,7 @@ def test_default_step_follows_the_robot_not_its_face_plates(files, cache):
 
 
 def test_plan_goes_through_the_channel(channel_oracle):
-    from app.planning.query import plan
-    from app.planning.settings import PlanSettings
+    from app.planning.planner import PlanSettings, plan
 
     result = plan(channel_oracle, PlanSettings(narrow=60, uniform=120, seed=1, smooth_rounds=10))
     path = result.path
@@ -408,7 +407,6 @@ TWO_BODIES = """<?xml version="1.0"?>
     "change, keys, message",
     [
         (lambda t: t.replace("</robot>", '<link name="loose"/></robot>'), dict(floating=True, bounds=BOX), "found 2"),
-        (lambda t: t, dict(floating=True), "a floating robot with no environment needs bounds"),
         (lambda t: re.sub(r"<collision>.*?</collision>", "", t, flags=re.S), {}, "has no collision geometry"),
         (lambda t: t.replace("</robot>", MIMIC_WITHOUT_ROOM), {}, "joint 'j1': no position keeps the joints"),
         (lambda t: t, dict(env=["two.urdf"]), "two.urdf: an environment model must be static or one rigid body"),
@@ -416,8 +414,8 @@ TWO_BODIES = """<?xml version="1.0"?>
 )
 def test_what_a_urdfs_bodies_tell_is_refused_before_any_mesh_work(arm_package, tmp_path, change, keys, message):
     """Drake's parser on the URDF without its geometry tells its root bodies and joints, and the XML its collision
-    elements: a floating robot with two roots or no bounds, a robot without collision geometry, a mimic joint that
-    leaves no room, an environment URDF of two free bodies are refused before the arm's STL link is converted."""
+    elements: a floating robot with two roots, a robot without collision geometry, a mimic joint that leaves no room,
+    an environment URDF of two free bodies are refused before the arm's STL link is converted."""
     robot = arm_package / "body_fault.urdf"
     robot.write_text(change((arm_package / "arm_stl.urdf").read_text()))
     (tmp_path / "two.urdf").write_text(TWO_BODIES)
@@ -541,8 +539,7 @@ def test_an_sdf_robots_limits_are_refused_naming_the_joint(tmp_path, lower, uppe
 
 
 def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):
-    from app.planning.query import plan
-    from app.planning.settings import PlanSettings
+    from app.planning.planner import PlanSettings, plan
 
     with pytest.raises(InvalidEndpoint):
         plan(channel_oracle, PlanSettings(narrow=5, uniform=5), start=[0.0, 1.25, 1.5, 0, 0, 0])

@@ -256,7 +256,9 @@ def _custom_limits(
             lower, upper = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
         else:
             lower[:3], upper[:3] = [b[0] for b in bounds], [b[1] for b in bounds]
-    elif floating:  # (with an environment mesh: app.scene.spec.check_floating_bounds)
+    elif floating:
+        if not env_boxes:
+            raise UserError("a floating robot with no environment needs bounds for x, y, z")
         margin = robot.reach
         env_lo = np.min([lo for lo, _ in env_boxes], axis=0)
         env_hi = np.max([hi for _, hi in env_boxes], axis=0)

@@ -4,10 +4,11 @@
 file types and sizes, env poses, bounds, each model file (app.scene.model_files: its XML, numbers, <mimic> elements,
 references) and, for a URDF, Drake's parser on it without its geometry (which reads no mesh): its joints, their
 types and limits, mimic joints that cannot follow, its root bodies (a floating robot has one; an environment model
-is static or one rigid body), the SRDF's links, the number of start, goal, limit and bounds values, and bounds for a
-floating robot where no environment mesh gives them. An SDF is read by Drake only with its meshes, once they are
-converted (app.scene.emit): what Drake's parser refuses in it, and its coordinates, are known then. Notes on what a
-model file had ignored follow once all passed.
+is static or one rigid body), the SRDF's links, and the number of start, goal, limit and bounds values. An SDF is
+read by Drake only with its meshes, once they are converted (app.scene.emit): what Drake's parser refuses in it, and
+its coordinates, are known then. (So is one refusal that the meshes decide: a floating robot given no bounds takes
+them from the environment meshes' box, and with none of them is refused in app.scene.coordinates; a robot mesh that
+cannot be read is named first.) Notes on what a model file had ignored follow once all passed.
 """
 
 import sys
@@ -23,7 +24,6 @@ from app.scene.spec import (
     SceneInputs,
     check_bounds_count,
     check_environment_roots,
-    check_floating_bounds,
     check_keys,
     check_robot_roots,
     check_srdf_links,
@@ -71,7 +71,6 @@ def read_inputs(spec: CustomSpec, base: Path) -> SceneInputs:
     if names is not None:
         check_vectors(spec, names)
         check_bounds_count(bounds, names, floating)
-    check_floating_bounds(floating, bounds, env_kinds)
     _check_urdf_bodies(models, robot_path, floating, zip(env_paths, poses))
     for path, model in models.items():
         _say_notes(path, model.notes)

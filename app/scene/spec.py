@@ -219,12 +219,6 @@ def check_vectors(spec: CustomSpec, names: list[str]) -> None:
             check_vector(values, len(names), what, names)
 
 
-def check_floating_bounds(floating: bool, bounds: list, env_kinds: list[str]) -> None:
-    """A floating robot's x, y, z are bounded by the bounds given, else by the environment meshes' box."""
-    if floating and not bounds and "mesh" not in env_kinds:
-        raise UserError("a floating robot with no environment needs bounds for x, y, z")
-
-
 def check_bounds_count(bounds: list[tuple[float, float]], names: list[str], floating: bool) -> None:
     if bounds and not (len(bounds) == len(names) or (floating and len(bounds) == 3)):
         raise UserError(
