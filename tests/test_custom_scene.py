@@ -123,7 +123,8 @@ def test_default_step_follows_the_robot_not_its_face_plates(files, cache):
 
 
 def test_plan_goes_through_the_channel(channel_oracle):
-    from app.planning.planner import PlanSettings, plan
+    from app.planning.query import plan
+    from app.planning.settings import PlanSettings
 
     result = plan(channel_oracle, PlanSettings(narrow=60, uniform=120, seed=1, smooth_rounds=10))
     path = result.path
@@ -539,7 +540,8 @@ def test_an_sdf_robots_limits_are_refused_naming_the_joint(tmp_path, lower, uppe
 
 
 def test_start_in_collision_is_an_invalid_endpoint(channel_oracle):
-    from app.planning.planner import PlanSettings, plan
+    from app.planning.query import plan
+    from app.planning.settings import PlanSettings
 
     with pytest.raises(InvalidEndpoint):
         plan(channel_oracle, PlanSettings(narrow=5, uniform=5), start=[0.0, 1.25, 1.5, 0, 0, 0])
