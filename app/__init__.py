@@ -22,7 +22,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 from app.checking.budget import Budget  # noqa: E402
 from app.checking.certify import certify_path  # noqa: E402
 from app.checking.context import QueryContext  # noqa: E402
-from app.checking.oracle import CollisionOracle  # noqa: E402
+from app.checking.oracle import CollisionOracle, from_checker  # noqa: E402
 from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError  # noqa: E402
 from app.motion.trajectory import Trajectory, TrajectoryFile  # noqa: E402
 from app.planning.cell import BuildSettings, CellRoadmap  # noqa: E402
@@ -43,6 +43,7 @@ __all__ = [
     "CustomSpec",
     "build_scene",
     "CollisionOracle",
+    "from_checker",
     "QueryContext",
     "ConfigurationSpace",
     # a path of the user's, proved free between its points

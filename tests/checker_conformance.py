@@ -6,6 +6,7 @@ from app.checking.diagnostics import Diagnostics as OracleDiagnostics
 from app.checking.oracle import CollisionOracle
 from app.checking.protocol import Checker, Diagnostics, DistanceSource, SceneFacts, WorkspaceQueries
 from app.checking.workspace import Workspace
+from app.scene.checker_scene import CheckerScene
 from app.scene.model import Scene
 from toy_checker import ToyScene, toy_checker
 
@@ -35,4 +36,8 @@ def a_scene_has_the_facts(scene: Scene) -> SceneFacts:
 
 
 def the_toy_scene_has_the_facts(scene: ToyScene) -> SceneFacts:
+    return scene
+
+
+def a_scene_from_a_users_checker_has_the_facts(scene: CheckerScene) -> SceneFacts:
     return scene

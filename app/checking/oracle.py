@@ -77,7 +77,9 @@ class CollisionOracle:
         # Processes a batch or a cell build's edges may be spread over: this one and its helpers, no more than the
         # machine's cores (more would only take turns on them).
         self.processes = max(1, min(self.threads, os.cpu_count() or 1))
-        self._helpers = Helpers(scene.recipe, self.processes - 1) if self.processes > 1 else None
+        # (A scene another process cannot rebuild, from a user's own checker, has no recipe: no helpers.)
+        with_helpers = self.processes > 1 and scene.recipe is not None
+        self._helpers = Helpers(scene.recipe, self.processes - 1) if with_helpers else None
         self._split_seconds = 0.0  # spent on batches large enough to split, until the helpers start
         self.lock = threading.RLock()  # held by every query on the shared Drake contexts
         # Configurations answered for every query since the oracle was made: for a progress display that watches
@@ -91,8 +93,8 @@ class CollisionOracle:
 
         # The checker takes ownership of the diagram; everything below goes through checker.model(). Drake requires
         # an edge step, but nothing calls the checker's edge methods (edges are checked on the raw loop: first_hits),
-        # so edge_step_size is unused here.
-        self.checker = SceneGraphCollisionChecker(
+        # so edge_step_size is unused here. A scene from a user's own checker (from_checker) brings it along.
+        self.checker = getattr(scene, "collision_checker", None) or SceneGraphCollisionChecker(
             model=scene.diagram,
             robot_model_instances=scene.robot_instances,
             edge_step_size=scene.resolution,
@@ -122,13 +124,18 @@ class CollisionOracle:
         """A new root context of the model whose SceneGraph sees exactly the scene's collision pairs (the same
         pairs the checker is told to filter), for any Drake query that must agree with the oracle's answers."""
         from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+        from pydrake.multibody.tree import BodyIndex
 
         root = self.model.CreateDefaultContext()
+        scene_graph = self.model.scene_graph()
+        manager = scene_graph.collision_filter_manager(scene_graph.GetMyMutableContextFromRoot(root))
         if not self.scene.self_collisions:
-            scene_graph = self.model.scene_graph()
-            scene_graph.collision_filter_manager(scene_graph.GetMyMutableContextFromRoot(root)).Apply(
-                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(list(self.robot_geometries)))
-            )
+            manager.Apply(CollisionFilterDeclaration().ExcludeWithin(GeometrySet(list(self.robot_geometries))))
+        # A user's own checker filters body pairs in its own contexts (its collision filter matrix): the same here.
+        for a, b in getattr(self.scene, "filtered_body_pairs", ()):
+            geometries = [self.plant.GetCollisionGeometriesForBody(self.plant.get_body(BodyIndex(i))) for i in (a, b)]
+            if geometries[0] and geometries[1]:
+                manager.Apply(CollisionFilterDeclaration().ExcludeBetween(*(GeometrySet(g) for g in geometries)))
         return root
 
     def context(self) -> QueryContext:
@@ -344,3 +351,14 @@ def serve(fd: int) -> None:
                 pipe.send_bytes(pickle.dumps((free, checker.checks)))
     except Exception:  # the pipe closed, or the scene did not load here: the parent answers alone
         return
+
+
+def from_checker(checker, name: str = "own", threads: int | None = None, **problem) -> CollisionOracle:
+    """An oracle on a user's own Drake SceneGraphCollisionChecker: its diagram, robot model instances and collision
+    filter matrix as they are, every plant position a coordinate. `problem`: what a problem file would say
+    (app.scene.problem.ProblemFile: lower, upper, start, goal, weights, resolution, step, velocity_limits, ...;
+    bounds default to the joints' limits, start and goal to the plant's default positions). The checker is the
+    oracle's from then on (do not change its filters behind it)."""
+    from app.scene.checker_scene import CheckerScene
+
+    return CollisionOracle(CheckerScene(checker, name, **problem), threads=threads)
