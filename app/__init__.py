@@ -23,7 +23,7 @@ from app.checking.budget import Budget  # noqa: E402
 from app.checking.certify import certify_path  # noqa: E402
 from app.checking.context import QueryContext  # noqa: E402
 from app.checking.oracle import CollisionOracle, from_checker  # noqa: E402
-from app.errors import InvalidEndpoint, NoPath, SamplerBudgetExceeded, UserError  # noqa: E402
+from app.errors import InvalidEndpoint, NoPath, Note, PlannerWarning, SamplerBudgetExceeded, UserError  # noqa: E402
 from app.motion.trajectory import Trajectory, TrajectoryFile  # noqa: E402
 from app.planning.cell import BuildSettings, CellRoadmap  # noqa: E402
 from app.planning.query import Query, plan  # noqa: E402
@@ -69,4 +69,7 @@ __all__ = [
     "InvalidEndpoint",
     "NoPath",
     "SamplerBudgetExceeded",
+    # warnings (one line each on the command line)
+    "PlannerWarning",
+    "Note",
 ]

@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import app
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -46,7 +48,6 @@ def test_getting_started_python_example_runs_as_printed(tmp_path):
 
 
 def test_settings_are_validated_once_when_built():
-    import pytest
 
     for bad in [
         dict(sampler="nope"),
@@ -72,3 +73,11 @@ def test_a_users_polyline_is_certified_free_or_refused_through_an_obstacle(check
     assert ok and stats["failed"] == []
     ok, stats = app.certify_path(checkers("bar"), np.array([scene.start, beside, scene.goal]))
     assert not ok and stats["failed"] == [1]
+    # A path of the wrong shape is one clear refusal, not an IndexError from inside the proof.
+    for bad in (
+        np.zeros((2, len(scene.start) + 1)),
+        [[np.nan] * len(scene.start)] * 2,
+        np.zeros((0, len(scene.start))),
+    ):
+        with pytest.raises(app.UserError, match="certify_path"):
+            app.certify_path(checkers("bar"), bad)

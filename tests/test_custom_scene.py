@@ -12,7 +12,7 @@ pytest.importorskip("trimesh")
 
 import trimesh  # noqa: E402
 
-from app.errors import InvalidEndpoint, UserError  # noqa: E402
+from app.errors import InvalidEndpoint, Note, UserError  # noqa: E402
 from app.scene.custom import ENV_TOLERANCE_PER_STEP, CustomSpec, build_scene, load_scene  # noqa: E402
 from mesh_shapes import open_u, u_channel  # noqa: E402
 from meshcat_page import commands  # noqa: E402
@@ -444,7 +444,7 @@ MATERIALS = {
 }
 
 
-def test_materials_ros_tools_take_are_fixed_up_for_drake_with_one_note(arm_package, tmp_path, capsys):
+def test_materials_ros_tools_take_are_fixed_up_for_drake_with_one_note(arm_package, tmp_path):
     """As seen in a Kinova j2s6s200 description (carbon_fiber defined twice) and a UR5 + Robotiq one (black used,
     never defined): urdfdom and RViz load them, Drake refuses them; only visual colour is at stake."""
     robot = arm_package / "arm_colours.urdf"
@@ -453,17 +453,17 @@ def test_materials_ros_tools_take_are_fixed_up_for_drake_with_one_note(arm_packa
             '<link name="base">', f'<link name="base">{MATERIALS["visual"]}'
         )
     )
-    capsys.readouterr()
     spec = CustomSpec(robot=str(robot), package_path=[f"my_arm={arm_package}"], start=[1.0], goal=[-1.0])
-    scene = build_scene(spec, cache_dir=tmp_path, progress=False)
+    with pytest.warns(Note) as given:
+        scene = build_scene(spec, cache_dir=tmp_path, progress=False)
     assert scene.dim == 1
-    assert capsys.readouterr().err.splitlines() == [
-        "note: arm_colours.urdf: material 'carbon_fiber' is defined twice (the first definition is used); material "
+    assert [str(w.message) for w in given if w.category is Note] == [
+        "arm_colours.urdf: material 'carbon_fiber' is defined twice (the first definition is used); material "
         "'black' is used but never defined (visual colour left default)"
     ]
 
 
-def test_drakes_warnings_about_elements_a_planner_does_not_use_are_one_line(arm_package, tmp_path, capsys):
+def test_drakes_warnings_about_elements_a_planner_does_not_use_are_one_line(arm_package, tmp_path):
     """ROS descriptions carry transmissions, joint friction and Gazebo settings (an xArm7's drew 70 warnings)."""
     ros = """  <link name="link2"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>
     </inertial><collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>
@@ -483,13 +483,12 @@ def test_drakes_warnings_about_elements_a_planner_does_not_use_are_one_line(arm_
             "</robot>", ros
         )
     )
-    capsys.readouterr()
     spec = CustomSpec(robot=str(robot), package_path=[f"my_arm={arm_package}"], start=[1.0, 0], goal=[-1.0, 0])
-    build_scene(spec, cache_dir=tmp_path, progress=False)
-    build_scene(spec, cache_dir=tmp_path, progress=False)  # (said once per process)
-    assert capsys.readouterr().err.splitlines() == [
-        "note: arm_ros.urdf: Drake ignored 4 elements it does not use for planning "
-        "(friction x2, mechanicalReduction x2)"
+    with pytest.warns(Note) as given:
+        build_scene(spec, cache_dir=tmp_path, progress=False)
+        build_scene(spec, cache_dir=tmp_path, progress=False)  # (said once per process)
+    assert [str(w.message) for w in given if w.category is Note] == [
+        "arm_ros.urdf: Drake ignored 4 elements it does not use for planning (friction x2, mechanicalReduction x2)"
     ]
 
 

@@ -7,7 +7,7 @@ pytest.importorskip("trimesh")
 
 import trimesh  # noqa: E402
 
-from app.errors import UserError  # noqa: E402
+from app.errors import PlannerWarning, UserError  # noqa: E402
 from app.scene.meshes import cache, coacd_process, decomposition, pieces, reading, validation  # noqa: E402
 from mesh_shapes import bent_sheet, holed_shell, open_u, u_boxes, u_channel  # noqa: E402
 
@@ -125,20 +125,26 @@ def test_conservative_hulls_merge_slivers_and_keep_an_l_two_hulls():
     assert np.all(np.vstack([bar.vertices, sliver]) @ merged.equations[:, :3].T + merged.equations[:, 3] <= 1e-9)
 
 
-def test_damaged_cache_entry_is_rebuilt(tmp_path, capsys):
+def said(given) -> list[str]:
+    """The PlannerWarnings' messages among warnings recorded by pytest.warns."""
+    return [str(w.message) for w in given if issubclass(w.category, PlannerWarning)]
+
+
+def test_damaged_cache_entry_is_rebuilt(tmp_path):
     path = tmp_path / "u.stl"
     open_u().export(path)
     first = cache.decompose(path, cache_dir=tmp_path, progress=False)
     good = first.pieces[3].read_bytes()
     first.pieces[3].write_bytes(good[: len(good) // 2])  # truncated
-    rebuilt = cache.decompose(path, cache_dir=tmp_path, progress=False)
+    with pytest.warns(PlannerWarning, match="damaged"):
+        rebuilt = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert not rebuilt.from_cache and rebuilt.pieces[3].read_bytes() == good
-    assert "damaged" in capsys.readouterr().err
     (rebuilt.directory / "manifest.json").write_text("{not json")
-    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    with pytest.warns(PlannerWarning, match="damaged"):
+        assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
 
 
-def test_a_forged_cache_entry_with_matching_checksums_is_rebuilt(tmp_path, capsys):
+def test_a_forged_cache_entry_with_matching_checksums_is_rebuilt(tmp_path):
     """Checksums in the manifest catch accidents only: a piece replaced by a smaller one, with the manifest's checksum
     updated to match, would leave part of the mesh outside every piece. The manifest's seal (an HMAC under this
     user's key, which is not in the cache) no longer matches: the entry is rebuilt."""
@@ -155,16 +161,17 @@ def test_a_forged_cache_entry_with_matching_checksums_is_rebuilt(tmp_path, capsy
     manifest = json.loads(manifest_file.read_text())
     manifest["files"][manifest["pieces"][0]] = hashlib.sha256(forged).hexdigest()
     manifest_file.write_text(json.dumps(manifest, indent=1))
-    capsys.readouterr()
-    rebuilt = cache.decompose(path, cache_dir=tmp_path, progress=False)
+    with pytest.warns(PlannerWarning) as given:
+        rebuilt = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert not rebuilt.from_cache and rebuilt.pieces[0].read_bytes() == good
-    assert capsys.readouterr().err == f"warning: mesh cache entry {first.directory} is damaged; rebuilding it\n"
+    assert said(given) == [f"mesh cache entry {first.directory} is damaged; rebuilding it"]
     assert cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache  # sealed again, with this key
     (rebuilt.directory / "manifest.mac").unlink()  # no seal at all: damaged too
-    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    with pytest.warns(PlannerWarning, match="damaged"):
+        assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
 
 
-def test_a_cache_made_with_another_key_is_rebuilt(tmp_path, monkeypatch, capsys):
+def test_a_cache_made_with_another_key_is_rebuilt(tmp_path, monkeypatch):
     """Another user's cache folder (or one handed over) is sealed under their key, not this user's."""
     path = tmp_path / "u.stl"
     open_u().export(path)
@@ -172,13 +179,12 @@ def test_a_cache_made_with_another_key_is_rebuilt(tmp_path, monkeypatch, capsys)
     theirs = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
     monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "mine.key"))
-    capsys.readouterr()
-    mine = cache.decompose(path, cache_dir=tmp_path, progress=False)
+    with pytest.warns(PlannerWarning, match="is damaged; rebuilding it"):
+        mine = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert mine.directory == theirs.directory and not mine.from_cache
-    assert "is damaged; rebuilding it" in capsys.readouterr().err
 
 
-def test_a_converted_obj_is_sealed_and_a_forged_one_is_converted_again(tmp_path, monkeypatch, capsys):
+def test_a_converted_obj_is_sealed_and_a_forged_one_is_converted_again(tmp_path, monkeypatch):
     path = tmp_path / "u.stl"
     u_boxes().export(path)
     converted = cache.converted_obj(path, cache_dir=tmp_path)
@@ -186,18 +192,17 @@ def test_a_converted_obj_is_sealed_and_a_forged_one_is_converted_again(tmp_path,
     assert converted.with_name(converted.name + ".mac").is_file()
     assert cache.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
     converted.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")  # another shape under the same name
-    capsys.readouterr()
-    assert cache.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
-    assert "is damaged; rebuilding it" in capsys.readouterr().err
+    with pytest.warns(PlannerWarning, match="is damaged; rebuilding it"):
+        assert cache.converted_obj(path, cache_dir=tmp_path).read_bytes() == good
     # The same file and seal made under another key: converted again.
     monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "other.key"))
     seal = converted.with_name(converted.name + ".mac").read_text()
-    cache.converted_obj(path, cache_dir=tmp_path)
+    with pytest.warns(PlannerWarning, match="is damaged; rebuilding it"):
+        cache.converted_obj(path, cache_dir=tmp_path)
     assert converted.with_name(converted.name + ".mac").read_text() != seal
-    assert "is damaged; rebuilding it" in capsys.readouterr().err
 
 
-def test_the_key_is_made_private_and_a_key_that_cannot_be_made_means_no_reuse(tmp_path, monkeypatch, capsys):
+def test_the_key_is_made_private_and_a_key_that_cannot_be_made_means_no_reuse(tmp_path, monkeypatch):
     monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "config" / "npp" / "cache.key"))
     key = cache.cache_key()
     stat = (tmp_path / "config" / "npp" / "cache.key").stat()
@@ -209,18 +214,19 @@ def test_the_key_is_made_private_and_a_key_that_cannot_be_made_means_no_reuse(tm
     # nothing cached is reused, not even what this process writes.
     (tmp_path / "file").write_text("x")
     monkeypatch.setenv(cache.KEY_ENV, str(tmp_path / "file" / "cache.key"))
-    capsys.readouterr()
-    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
-    assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
-    err = capsys.readouterr().err.splitlines()
-    assert len(err) == 1 and err[0].startswith(f"warning: cannot use the mesh cache key {tmp_path / 'file'}")
+    with pytest.warns(PlannerWarning) as given:
+        assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+        assert not cache.decompose(path, cache_dir=tmp_path, progress=False).from_cache
+    err = said(given)
+    assert len(err) == 1 and err[0].startswith(f"cannot use the mesh cache key {tmp_path / 'file'}")
     assert "cached meshes are not reused" in err[0]
     # A key file others may read is no secret: refused the same way.
     loose = tmp_path / "loose.key"
     loose.write_bytes(b"k" * 32)
     loose.chmod(0o644)
     monkeypatch.setenv(cache.KEY_ENV, str(loose))
-    assert cache.cache_key() is None and "chmod 600 it" in capsys.readouterr().err
+    with pytest.warns(PlannerWarning, match="chmod 600 it"):
+        assert cache.cache_key() is None
 
 
 def test_a_changed_mesh_is_a_new_entry(tmp_path):

@@ -33,6 +33,7 @@ from app.checking.budget import Stop
 from app.checking.end_distances import EndDistances
 from app.checking.motion_bound import MotionBound, motion_bound
 from app.checking.protocol import Checker
+from app.errors import UserError
 
 # What a planned motion is proved to keep from everything by default (scene length units: metres for the robots): a
 # margin for the proofs that the straight lines a controller draws between its samples, and the path polyline, are
@@ -339,6 +340,9 @@ def certify_path(oracle, P: np.ndarray, floor: float | None = None, clearance: f
     """Certify that every straight edge of the polyline P (in oracle.space) keeps at least `clearance` from
     everything (0: is free). stats["failed"]: the edges that failed."""
     P = np.atleast_2d(np.asarray(P, float))
+    dim = oracle.space.dim
+    if P.ndim != 2 or P.shape[1] != dim or not len(P) or not np.isfinite(P).all():
+        raise UserError(f"certify_path: P must be finite configurations of {dim} coordinates, shape (n, {dim})")
     if len(P) < 2:
         P = np.vstack([P, P])
     return certify_curve(oracle, polyline(oracle.space, P), np.arange(len(P)), floor, clearance)

@@ -8,9 +8,9 @@ from a point `radius` before the corner, through the corner as control point, to
 the path is C1 and Toppra slows down just as much as its curvature needs. A blend leaves the checked polyline, so
 the whole curve is certified (app.checking.certify); a blend that cannot be certified is halved, and after TIGHTEN
 halvings the corner becomes a stop (the path is cut there into legs, each timed from rest to rest). What is proved
-is that curve, not the polyline: where the polyline's edges are proved already only the blends are, and otherwise
-(`prove_blends`, what the planner asks first) the straight parts between the blends are, not the corners the blends
-cut off.
+is that curve and the corners the blends cut off, so the returned polyline is proved too (a controller may follow
+either): where the polyline's edges are proved already only the blends are; otherwise (`prove_blends`, what the
+planner asks first) the straight parts between the blends and the cut-off corners are.
 
 The path parameter s is arc length in the space's weighted metric along the polyline, and a blend of radius r
 spans s in [corner - r, corner + r], so straight parts keep their s whatever the blends: a straight piece that was

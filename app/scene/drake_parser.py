@@ -7,10 +7,10 @@ import collections
 import contextlib
 import logging
 import re
-import sys
+import warnings
 from pathlib import Path
 
-from app.errors import UserError
+from app.errors import Note, UserError
 from app.scene.files import PACKAGES
 
 # pydrake is imported inside the functions that use it, so that importing the package does not load Drake.
@@ -74,10 +74,11 @@ def model_loading():
         for name, counts in found.items():
             parts = ", ".join(f"{element} x{count}" for element, count in sorted(counts.items()))
             total = sum(counts.values())
-            print(
-                f"note: {name}: Drake ignored {total} element{'s' if total > 1 else ''} it does not use for planning "
+            warnings.warn(
+                f"{name}: Drake ignored {total} element{'s' if total > 1 else ''} it does not use for planning "
                 f"({parts})",
-                file=sys.stderr,
+                Note,
+                stacklevel=3,
             )
 
 

@@ -11,10 +11,10 @@ them from the environment meshes' box, and with none of them is refused in app.s
 cannot be read is named first.) Notes on what a model file had ignored follow once all passed.
 """
 
-import sys
+import warnings
 from pathlib import Path
 
-from app.errors import UserError
+from app.errors import Note, UserError
 from app.io import check_input
 from app.scene.drake_parser import read_bare_urdf
 from app.scene.files import MESH_METHODS
@@ -104,10 +104,10 @@ def _check_urdf_bodies(models: dict[Path, ModelFile], robot_path: Path, floating
 
 
 def _say_notes(path: Path, notes: list[str]) -> None:
-    line = f"note: {path.name}: {'; '.join(notes)}"
+    line = f"{path.name}: {'; '.join(notes)}"
     if notes and line not in _notes_said:
         _notes_said.add(line)
-        print(line, file=sys.stderr)
+        warnings.warn(line, Note, stacklevel=3)
 
 
 # ---- scene files --------------------------------------------------------------------------------------------------

@@ -8,12 +8,13 @@ change. The environment's: each mesh, and each <collision> mesh of its models, a
 sets (so it comes after the robot, whose size sets the step), with each mesh's box placed at its pose.
 """
 
-import sys
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from app.errors import PlannerWarning
 from app.scene.meshes import cache
 from app.scene.meshes.cache import Decomposition
 from app.scene.model_files import ModelFile, is_convertible
@@ -131,11 +132,12 @@ def world_box(bounds: np.ndarray, pose: list[float]) -> tuple[np.ndarray, np.nda
 def describe(path: Path, d: Decomposition) -> dict:
     """What a decomposition did, for the scene's info and `plan`'s answer; a warning when it made many pieces."""
     if len(d.pieces) > 400:
-        print(
-            f"warning: {path.name} became {len(d.pieces)} convex pieces (tolerance "
+        warnings.warn(
+            f"{path.name} became {len(d.pieces)} convex pieces (tolerance "
             f"{d.validation.get('tolerance', 0):.3g} m); Drake's set-up time grows with the square of that (about "
             f"5 s at 1000, 20 s at 2000); a larger --mesh-tolerance gives fewer",
-            file=sys.stderr,
+            PlannerWarning,
+            stacklevel=2,
         )
     return {
         "mesh": path.name,

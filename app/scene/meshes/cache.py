@@ -10,15 +10,15 @@ import json
 import os
 import secrets
 import shutil
-import sys
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from app.errors import UserError
+from app.errors import PlannerWarning, UserError
 from app.io import check_input, write_atomically
 from app.scene.files import MESH_METHODS
 from app.scene.meshes import decomposition
@@ -139,8 +139,8 @@ def _canonical(record: dict) -> bytes:
 
 
 def _warn(message: str) -> None:
-    """A line on stderr, as this module reports everything it does not raise (its progress bars go there too)."""
-    print(f"warning: {message}", file=sys.stderr)
+    """What this module reports without raising: a PlannerWarning (one line on the command line)."""
+    warnings.warn(message, PlannerWarning, stacklevel=3)
 
 
 # ---- decompositions -----------------------------------------------------------------------------------------------
