@@ -48,7 +48,6 @@ def test_getting_started_python_example_runs_as_printed(tmp_path):
 
 
 def test_settings_are_validated_once_when_built():
-
     for bad in [
         dict(sampler="nope"),
         dict(narrow=-1),
