@@ -122,6 +122,25 @@ CHEAP = [
             "1",
         ],
     ),
+    (
+        "bench-ablation",
+        [
+            "bench",
+            "ablation",
+            "--scenes",
+            "bar",
+            "--variants",
+            "default,lfbs-alone",
+            "--seeds",
+            "2",
+            "--checks",
+            "20000",
+            "--out",
+            "{tmp}/ablation",
+            "--store",
+            "{tmp}/ablation.sqlite",
+        ],
+    ),
 ]
 # Minutes rather than seconds (IK, several planned legs, OMPL, the paper's UAV roadmaps).
 COSTLY = [
@@ -185,6 +204,20 @@ def test_gui_answer_and_state_file_follow_their_schema(cli, tmp_path, monkeypatc
     assert kept == {k: v for k, v in answer.items() if k not in ("success", "html")}
 
 
+def test_roadmap_build_and_info_answer_the_same_object_by_their_schema(cli, tmp_path):
+    """`roadmap build --json` answers what it wrote; `roadmap info --json` of that file answers the same object."""
+    from app.planning.roadmap_file import FINGERPRINT_PARTS
+
+    file = tmp_path / "bar.npz"
+    built = check(cli("roadmap", "build", "bar", "--out", file, "--nodes", "60", "--json"), "roadmap")
+    assert file.is_file() and built["file"] == str(file) and built["nodes"] == 60
+    assert sum(built["nodes_by_kind"].values()) == 60 and sum(built["edges"].values()) > 0
+    (record,) = built["provenance"]["builds"]
+    assert record["ended"] == "nodes" and record["settings"]["nodes"] == 60 and built["provenance"]["queries"] == 0
+    assert tuple(built["fingerprint"]) == FINGERPRINT_PARTS
+    assert check(cli("roadmap", "info", file, "--json"), "roadmap") == built
+
+
 # One failure per command (most refused before any work), and the planner's own failures.
 FAILURES = [
     (["scenes", "--verbose"], 2, "INVALID_INPUT"),
@@ -196,6 +229,9 @@ FAILURES = [
     (["view", "bar", "--trajectory", "{tmp}/missing.json", "--html", "{tmp}/x.html"], 2, "INVALID_INPUT"),
     (["gui", "nowhere"], 2, "INVALID_INPUT"),
     (["gui", "bar", "--sampler", "nope"], 2, "INVALID_INPUT"),
+    (["roadmap", "build", "nowhere", "--out", "{tmp}/r.npz"], 2, "INVALID_INPUT"),
+    (["roadmap", "info", "{tmp}/missing.npz"], 2, "INVALID_INPUT"),
+    (["roadmap"], 2, "INVALID_INPUT"),
     (["bench", "oracle", "-n", "0"], 2, "INVALID_INPUT"),
     (["bench", "sampling", "--png", "{tmp}"], 2, "INVALID_INPUT"),
     (["bench", "plan", "--store", "{tmp}"], 2, "INVALID_INPUT"),
