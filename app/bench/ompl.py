@@ -20,6 +20,7 @@ state spaces and motion-check spacing are described in app.ompl_bridge; `motion_
 measured per scene. OMPL's RNG is seeded once per process, so an OMPL run is not reproducible from its seed.
 """
 
+import os
 import time
 
 import numpy as np
@@ -80,12 +81,14 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     """One run of `spec.method` on `spec.scene` (see the module docstring for what is measured)."""
     method = parse_method(spec.method)
     budget = float(spec.params["budget"])
+    load = os.getloadavg()[0]  # the machine's 1-minute load as the run starts: its budget is wall-clock seconds
     metrics = (_ours if method["ours"] else _ompl)(oracle, spec, method, budget)
     # A run succeeds when its first solution came within the budget and its smoothed path passes the fine check.
     metrics["late"] = float(bool(metrics["solved"]) and metrics["seconds"] > budget)
     metrics["success"] = float(
         bool(metrics["solved"]) and not metrics["late"] and bool(metrics.get("fine_check_passed", 0.0))
     )
+    metrics["load_average"] = load
     return metrics
 
 

@@ -8,6 +8,7 @@ rows go to the results store (`experiment` "prm"), so a killed run resumes and t
 connected or out of time (as `plan --budget 30s`).
 """
 
+import os
 import time
 
 import numpy as np
@@ -56,6 +57,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
     uniform = int(p.get("uniform", SIZE["uniform"]))
     if spec.method == "uniform":  # the same roadmap size, all of it uniform
         narrow, uniform = 0, narrow + uniform
+    load = os.getloadavg()[0]  # the machine's 1-minute load as the trial starts: what its seconds were measured under
     start, drake = time.perf_counter(), drake_seconds(oracle)
     try:
         r = plan(
@@ -84,6 +86,7 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
             "nodes": d.get("roadmap", {}).get("nodes"),
             "components": d.get("roadmap", {}).get("components"),
             "rounds": d.get("rounds"),
+            "load_average": load,
         }
     s = r.stats.seconds
     drake = drake_seconds(oracle) - drake
@@ -103,6 +106,8 @@ def run_trial_spec(oracle, spec: TrialSpec) -> dict:
         "workspace_on_path": r.workspace_on_path,
         "path_length": r.smoothing.length_after,
         "duration": r.trajectory.duration,
+        "certified": bool(r.certified),
+        "load_average": load,
     }
 
 
@@ -133,6 +138,7 @@ def summarise(rows) -> list[dict]:
         checks = np.array([m["collision_checks"] for m in metrics])
         to_path = np.array([m["seconds_to_path"] for m in metrics if m["success"]])
         narrow = np.array([m["narrow_on_path"] for m in metrics if m["success"]])
+        certified = [m["certified"] for m in metrics if m["success"] and "certified" in m]
         placed = [m["workspace_on_path"] for m in metrics if m["success"] and "workspace_on_path" in m]
         # rows stored before the time in Drake's queries was measured have none
         shares = [m["seconds_drake"] / m["seconds"] for m in metrics if "seconds_drake" in m and m["seconds"] > 0]
@@ -155,6 +161,8 @@ def summarise(rows) -> list[dict]:
                 "median_narrow_on_path": float(np.median(narrow)) if ok.any() else None,
                 "median_workspace_on_path": float(np.median(placed)) if placed else None,
                 "median_checks_per_second": float(np.median(checks / seconds)),
+                # of the successes; rows stored before this was recorded have none
+                "certified_share": float(np.mean(certified)) if certified else None,
                 "median_drake_share": float(np.median(shares)) if shares else None,
                 # a plan's checks per second over a raw HasCollisions loop's beside it (rows stored before this
                 # was measured have none)

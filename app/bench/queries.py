@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import re
 import time
 from dataclasses import dataclass
@@ -486,7 +487,9 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
                         metrics = RUNNERS[spec.method](oracle, queries, settings, bar.update, build_seconds)
                     finally:
                         bar.close()
-                    store.add(spec, {**metrics, "query_set": queries.digest()})
+                    # the machine's 5-minute load as the method ends: what its seconds were measured under
+                    load = os.getloadavg()[1]
+                    store.add(spec, {**metrics, "query_set": queries.digest(), "load_average": load})
                 rows[spec.method] = store.rows_for([spec])[0]["metrics"]
             table = [summarise(m, rows[m]) for m in methods]
             out.append({"scene": name, "query_set": queries.to_json(), "methods": table, "ratios": ratios(table)})
