@@ -1,7 +1,10 @@
 """Plan for your own robot from Python: a URDF among obstacles, start to goal; the trajectory written as JSON.
 
-Run from the repository's root: `python examples/own_robot.py`. Put in your own files and joint values.
+Run from the repository's root: `python examples/own_robot.py` (writes out/motion.json). Put in your own files and
+joint values.
 """
+
+from pathlib import Path
 
 import app
 
@@ -12,4 +15,5 @@ oracle = app.CollisionOracle(scene)  # self-collision counts (unless CustomSpec(
 settings = app.PlanSettings(seed=0)  # budget: 200k collision checks and at most 600 s, unless budget=app.Budget(...)
 result = app.plan(oracle, settings, start=[20, 80, -1.57, 0, 0], goal=[80, 80, -1.57, 0, 0])
 print(f"{len(result.path)} waypoints, {result.trajectory.duration:.1f} s of motion")
-result.trajectory_file().write("motion.json")  # joint names, times, positions, velocities, accelerations
+Path("out").mkdir(exist_ok=True)  # out/ is ignored by git
+result.trajectory_file().write("out/motion.json")  # joint names, times, positions, velocities, accelerations

@@ -43,7 +43,8 @@ def test_getting_started_python_example_runs_as_printed(tmp_path):
     lines = result.stdout.strip().splitlines()
     assert re.fullmatch(r"\d+ waypoints, \d+ collision checks, \d+\.\d s of motion", lines[0]), lines
     assert re.fullmatch(r"\d+% of 30 lfbs samples are in the passage", lines[1]), lines
-    written = app.TrajectoryFile.read(tmp_path / "bar-motion.json", 9)
+    assert [path.name for path in tmp_path.iterdir()] == ["out"]  # its file goes under out/, made if missing
+    written = app.TrajectoryFile.read(tmp_path / "out" / "bar-motion.json", 9)
     assert written.scene == "bar" and len(written.trajectory.joint_names) == 9
 
 

@@ -26,6 +26,13 @@ def test_readme_python_example_is_examples_own_robot():
     assert EXAMPLE.read_text().split('"""\n\n', 1)[1] == code
 
 
+def test_own_robot_page_includes_the_example_from_its_first_line_of_code():
+    """docs/own-robot.md includes examples/own_robot.py from a line number: the one after the docstring."""
+    start = int(re.search(r'--8<-- "examples/own_robot.py:(\d+):"', (ROOT / "docs" / "own-robot.md").read_text())[1])
+    lines = EXAMPLE.read_text().splitlines(keepends=True)
+    assert "".join(lines[start - 1 :]) == EXAMPLE.read_text().split('"""\n\n', 1)[1]
+
+
 def test_own_robot_example_plans_the_shipped_planar_arm_and_writes_its_trajectory(tmp_path):
     for folder in ("robots", "scenes"):  # the example's paths are relative to the repository's root
         (tmp_path / folder).symlink_to(ROOT / folder)
@@ -34,10 +41,12 @@ def test_own_robot_example_plans_the_shipped_planar_arm_and_writes_its_trajector
         [sys.executable, str(EXAMPLE)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300
     )
     assert result.returncode == 0, result.stderr
+    # it writes under out/ (ignored by git, made if missing), nothing else in the folder it is run from
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["cache", "out", "robots", "scenes"]
     assert re.search(r"^\d+ waypoints, \d+\.\d s of motion$", result.stdout, re.M), result.stdout
     from app.motion.trajectory import TrajectoryFile
 
-    written = TrajectoryFile.read(tmp_path / "motion.json", 5)
+    written = TrajectoryFile.read(tmp_path / "out" / "motion.json", 5)
     assert written.trajectory.joint_names == ["base_x", "base_y", "joint1", "joint2", "joint3"]
     assert written.trajectory.certified
 
