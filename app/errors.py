@@ -18,7 +18,12 @@ class Note(PlannerWarning):
 
 
 class UserError(Exception):
-    """Bad input: unknown name, malformed file, wrong-length or non-finite numbers."""
+    """Bad input: unknown name, malformed file, wrong-length or non-finite numbers.
+
+    Attributes:
+        code: The failure's stable name, as a `--json` answer gives it: INVALID_INPUT here; each subclass says its
+            own (MoveIt's error-code names where they fit).
+    """
 
     code = "INVALID_INPUT"
 

@@ -48,6 +48,23 @@ def test_getting_started_python_example_runs_as_printed(tmp_path):
     assert written.scene == "bar" and len(written.trajectory.joint_names) == 9
 
 
+def test_every_public_dataclass_field_is_described_in_its_docstring():
+    """The API reference (docs/api.md) shows a dataclass's fields as its docstring's Attributes table, not as empty
+    headings of their own: every field of every public dataclass, and of PlanResult's parts, has a line there."""
+    import dataclasses
+    import inspect
+
+    from app.planning.result import Certificate, PlanStats, Smoothing
+
+    public = [getattr(app, name) for name in app.__all__]
+    classes = [c for c in public if dataclasses.is_dataclass(c)] + [PlanStats, Smoothing, Certificate]
+    assert {app.PlanSettings, app.BuildSettings, app.Budget, app.PlanResult, app.Trajectory} <= set(classes)
+    for cls in classes:
+        section = inspect.getdoc(cls).partition("\nAttributes:\n")[2]
+        described = set(re.findall(r"^    (\w+): ", section, re.M))
+        assert {f.name for f in dataclasses.fields(cls)} <= described, cls.__name__
+
+
 def test_settings_are_validated_once_when_built():
     for bad in [
         dict(sampler="nope"),

@@ -19,12 +19,19 @@ MAX_CHECKS = 10**9
 
 @dataclass(frozen=True)
 class Budget:
-    """A limit on seconds and/or collision checks (None: no limit of that kind)."""
+    """A limit on seconds and/or collision checks (None: no limit of that kind). `str(budget)` writes it as
+    `--budget` takes it ("30s,200000checks"; "none" for no limit).
+
+    Attributes:
+        seconds: Wall-clock seconds.
+        checks: Collision checks.
+    """
 
     seconds: float | None = None
     checks: int | None = None
 
     def spent(self, seconds: float, checks: int) -> bool:
+        """Whether `seconds` and `checks` spent reach either limit."""
         return (self.seconds is not None and seconds >= self.seconds) or (
             self.checks is not None and checks >= self.checks
         )

@@ -35,15 +35,24 @@ _POINT_BATCH, _POINT_SECONDS = 64, 0.005
 
 class QueryContext:
     """What one query (or one script) asks of a shared `CollisionOracle`, counted; each counted call bounded by the
-    `stop` it is given (`Stop(budget, context, cancel)`; None: no limit)."""
+    `stop` it is given (`Stop(budget, context, cancel)`; None: no limit).
+
+    Attributes:
+        oracle: The shared oracle: the Drake model and uncounted distances.
+        space: The oracle's configuration space.
+        scene: The oracle's scene.
+        checks: Collision checks asked through this context.
+        distance_queries: Signed-distance queries (continuous certification), apart from `checks`.
+        point_queries: Workspace points asked for their distances to the environment.
+    """
 
     def __init__(self, oracle):
-        self.oracle = oracle  # the shared oracle: the Drake model and uncounted distances (protocol.DistanceSource)
+        self.oracle = oracle  # (protocol.DistanceSource)
         self.space = oracle.space
         self.scene = oracle.scene
         self.checks = 0
-        self.distance_queries = 0  # signed-distance queries (continuous certification), apart from `checks`
-        self.point_queries = 0  # workspace points asked for their distances to the environment
+        self.distance_queries = 0
+        self.point_queries = 0
 
     def stop(self, budget: Budget | None = None, cancel=None) -> Stop:
         """A Stop running from now against this context's counters (and the clock): `budget` (None: no limit) and
@@ -68,6 +77,7 @@ class QueryContext:
 
     # ---- collision answers (counted, each bounded by its stop) --------------------------------------------------
     def is_free(self, q: np.ndarray, stop: Stop | None = None) -> bool:
+        """Whether configuration `q` is within bounds and collision-free (one check; none when out of bounds)."""
         q = np.asarray(q, float)
         if not self.space.within_bounds(q)[0]:
             return False
@@ -191,6 +201,8 @@ class QueryContext:
     def edge_free(
         self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None, stop: Stop | None = None
     ) -> bool:
+        """Whether the straight edge from `q1` to `q2` is free at `resolution` (default: the scene's), as
+        `edges_free` checks it."""
         return bool(self.edges_free(q1, q2, resolution, stop=stop)[0])
 
     # ---- measurements (counted apart from collision checks) -----------------------------------------------------

@@ -59,6 +59,24 @@ def default_threads() -> int:
 
 
 class CollisionOracle:
+    """The one object every collision question about `scene` goes through: made once per scene and shared by every
+    query on it, also between threads (its Drake queries hold its lock). A query counts and bounds what it asks
+    through its own QueryContext (`context()`); the oracle keeps no per-query state.
+
+    `threads` (default: up to 2, at most the machine's cores) are the cores it may use: Drake's threaded batch, or
+    threads - 1 helper processes with their own copy of the scene, which share large batches once they have taken
+    half a second (`start_helpers()` starts them at once). Answers and counts are the same on any number.
+
+    Attributes:
+        scene: The scene.
+        space: Its configuration space: bounds, metric, edge-check resolution.
+        threads: The cores it may use.
+        processes: The processes a batch or a cell build's edges may be spread over: this one and its helpers.
+        answered: Configurations answered for every query since it was made (a query's own count is its context's
+            `checks`).
+        seconds: Seconds spent answering since it was made, by kind: "checks", "distances", "points".
+    """
+
     def __init__(self, scene: Scene, threads: int | None = None):
         from pydrake.common import Parallelism
         from pydrake.planning import SceneGraphCollisionChecker

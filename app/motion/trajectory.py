@@ -45,21 +45,37 @@ SCHEMA = "npp-trajectory/1"
 
 @dataclass
 class Trajectory:
+    """A timed motion of the scene's coordinates, sampled every PlanSettings.dt seconds (`PlanResult.trajectory`).
+
+    Attributes:
+        joint_names: One name per coordinate.
+        times: (N,) seconds from 0 to `duration`.
+        positions: (N, dim), continuous angles unwrapped (no 2 pi jumps).
+        velocities: (N, dim) per second.
+        accelerations: (N, dim) per second squared.
+        waypoints: (K, dim) the path the motion follows, unwrapped like `positions`.
+        waypoint_times: (K,) when the motion passes each waypoint.
+        certified: Whether the whole motion, not only its samples, was proved collision-free.
+        position_map: The scene's mimic joints (None: every joint is a coordinate); `joints()` gives every joint.
+        clearance: Certified: the distance the motion keeps from everything; the straight lines between its samples
+            (what a controller interpolating linearly follows) and the waypoints' polyline keep half of it. None:
+            not certified.
+    """
+
     joint_names: list[str]
-    times: np.ndarray  # (N,) from 0 to duration
-    positions: np.ndarray  # (N, dim) unwrapped
-    velocities: np.ndarray  # (N, dim)
-    accelerations: np.ndarray  # (N, dim)
-    waypoints: np.ndarray  # (K, dim) unwrapped
-    waypoint_times: np.ndarray  # (K,)
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    waypoints: np.ndarray
+    waypoint_times: np.ndarray
     certified: bool = False
-    position_map: PositionMap | None = None  # the scene's mimic joints (None: every joint is a coordinate)
-    # Certified: the distance the motion keeps from everything; the straight lines between its samples (what a
-    # controller interpolating linearly follows) and the waypoints' polyline keep half of it. None: not certified.
+    position_map: PositionMap | None = None
     clearance: float | None = None
 
     @property
     def duration(self) -> float:
+        """Seconds from the first sample to the last."""
         return float(self.times[-1]) if len(self.times) else 0.0
 
     def joints(self) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
@@ -70,6 +86,7 @@ class Trajectory:
         return list(m.names), m.positions(self.positions), m.rates(self.velocities), m.rates(self.accelerations)
 
     def to_json(self) -> dict:
+        """The motion's part of the trajectory file: every joint's columns (see this module's docstring)."""
         names, positions, velocities, accelerations = self.joints()
         waypoints = self.waypoints if self.position_map is None else self.position_map.positions(self.waypoints)
         return {
@@ -87,14 +104,23 @@ class Trajectory:
 
 @dataclass
 class TrajectoryFile:
-    """What a trajectory file holds: the motion, the scene it is for, and optionally the narrow-passage samples."""
+    """What a trajectory file holds: the motion, the scene it is for, and optionally the narrow-passage samples
+    (`PlanResult.trajectory_file()`; `write` it, `read` or `read_for` it back).
+
+    Attributes:
+        scene: The scene's name.
+        trajectory: The motion.
+        narrow: (M, dim) the planner's narrow-passage samples, or None.
+        on_path: (M,) booleans: which of them the roadmap path used.
+    """
 
     scene: str
     trajectory: Trajectory
-    narrow: np.ndarray | None = None  # (M, dim)
-    on_path: np.ndarray | None = field(default=None)  # (M,) bool
+    narrow: np.ndarray | None = None
+    on_path: np.ndarray | None = field(default=None)
 
     def to_json(self) -> dict:
+        """The file's JSON object (docs/schemas/trajectory.json)."""
         out = {"schema": SCHEMA, "scene": self.scene, **self.trajectory.to_json()}
         if self.narrow is not None:
             m = self.trajectory.position_map
@@ -103,6 +129,7 @@ class TrajectoryFile:
         return out
 
     def write(self, path: str | os.PathLike) -> Path:
+        """Write the file to `path`, atomically (whole or not at all); its folder must exist (UserError if not)."""
         return write_atomically(path, json.dumps(self.to_json(), separators=(",", ":")))
 
     @classmethod
@@ -136,6 +163,7 @@ class TrajectoryFile:
     def from_json(
         cls, obj, dim: int, source: str = "trajectory", position_map: PositionMap | None = None
     ) -> TrajectoryFile:
+        """A trajectory file's JSON object checked as `read` checks a file (`source` names it in messages)."""
         if not isinstance(obj, dict):
             raise UserError(f"{source}: expected a JSON object (schema {SCHEMA})")
         if obj.get("schema") != SCHEMA:

@@ -84,10 +84,20 @@ FIRST_PART = 64
 
 @dataclass(frozen=True)
 class BuildSettings:
-    """How a cell roadmap is built. nodes: the samples it holds when the build ends (the budget may end it first);
-    narrow: the share of each round's samples from the narrow-passage sampler (with `workspace` of those placed in
-    workspace gaps; the rest uniform); sampler, step, sampler_params, workspace: as in PlanSettings; k: neighbours
-    per node (None: k-PRM*'s); seed; budget: what the build may spend, looked at between rounds."""
+    """How a cell roadmap is built (`CellRoadmap.build`), validated once when built (a bad value raises UserError).
+
+    Attributes:
+        nodes: The samples the roadmap holds when the build ends (the budget may end it first).
+        narrow: The share of each round's samples from the narrow-passage sampler (with `workspace` of those placed
+            in workspace gaps); the rest are uniform.
+        sampler: As in PlanSettings.
+        step: As in PlanSettings.
+        sampler_params: As in PlanSettings.
+        workspace: As in PlanSettings.
+        k: Neighbours per node (None: k-PRM*'s).
+        seed: The random seed.
+        budget: What the build may spend, looked at between rounds (no time limit unless it says `seconds=...`).
+    """
 
     nodes: int = 1500
     narrow: float = 0.25
@@ -121,7 +131,13 @@ class BuildSettings:
 class CellRoadmap:
     """A persistent roadmap of one cell (one scene): build it once, `solve` many queries, `save` and `load` it.
 
-    Not for two threads at once (a query changes the graph); one oracle may serve it and other queries."""
+    Not for two threads at once (a query changes the graph); one oracle may serve it and other queries.
+
+    Attributes:
+        oracle: The cell's CollisionOracle.
+        provenance: Its builds (each one's settings, workers, why it ended, nodes, collision checks, seconds) and
+            the number of queries answered with it, as saved in its file and shown by `roadmap info`.
+    """
 
     def __init__(self, oracle, graph=None, provenance: dict | None = None):
         from app.planning.roadmap import Roadmap

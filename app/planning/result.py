@@ -74,11 +74,22 @@ class Ledger:
 
 @dataclass
 class PlanStats:
-    """What a query spent, a success's or a failure's alike: collision checks (in all and per phase), the
-    certificate's distance queries, the workspace points asked, seconds per phase, the certificate's own seconds
-    (set-up and every proof, Drake's queries included), the rounds of samples, the first round with narrow-passage
-    samples (None: never needed), the roadmap's sizes, each sample source's counters, the budget, and why the work
-    stopped early ("time", "checks", "cancelled", "interrupted"; None when it did not)."""
+    """What a query spent, a success's or a failure's alike (`PlanResult.stats`).
+
+    Attributes:
+        collision_checks: Collision checks in all.
+        distance_queries: The certificate's signed-distance queries.
+        point_queries: Workspace points asked for their distances to the environment.
+        checks: Collision checks per phase.
+        seconds: Seconds per phase and in all.
+        certificate_seconds: The certificate's own seconds (set-up and every proof, Drake's queries included).
+        rounds: Rounds of samples drawn.
+        narrow_from_round: The first round with narrow-passage samples (None: never needed).
+        roadmap: The roadmap's sizes and counters (app.planning.roadmap.RoadmapStats).
+        sampler_stats: Each sample source's counters, by name.
+        budget: The query's budget, as `--budget` writes it.
+        stopped: Why the work stopped early: "time", "checks", "cancelled" or "interrupted"; None when it did not.
+    """
 
     collision_checks: int
     distance_queries: int
@@ -94,6 +105,7 @@ class PlanStats:
     stopped: str | None = None
 
     def to_json(self) -> dict:
+        """Its part of a `plan --json` answer (docs/schemas/plan.json)."""
         out = {f.name: getattr(self, f.name) for f in fields(self)}
         out.update(checks=asdict(self.checks), seconds=asdict(self.seconds), roadmap=self.roadmap.to_json())
         return out
@@ -101,12 +113,19 @@ class PlanStats:
 
 @dataclass
 class Certificate:
-    """What was proved of an answer (app.checking.certify), and what proving it cost.
+    """What was proved of an answer (app.checking.certify), and what proving it cost (`PlanResult.certificate`).
 
-    proved: every edge of the path (or, `blended`, the curve its trajectory follows: blends, the straight parts
-    between them and the corners they cut off) keeps `clearance` from everything; pieces, distance_queries,
-    seconds: the proof's; failed: the path's edges that could not be proved (none when proved); unproved_edges:
-    roadmap edges checked free that no proof could hold, dropped from the roadmap on the way."""
+    Attributes:
+        proved: Every edge of the path (or, `blended`, the curve its trajectory follows: blends, the straight parts
+            between them and the corners they cut off) keeps `clearance` from everything.
+        clearance: The distance proved (scene length units).
+        blended: Whether the trajectory's curve, not the polyline, was proved.
+        pieces: Pieces the proof cut the motion into.
+        distance_queries: The proof's signed-distance queries.
+        seconds: The proof's seconds.
+        failed: The path's edges that could not be proved (none when proved).
+        unproved_edges: Roadmap edges checked free that no proof could hold, dropped from the roadmap on the way.
+    """
 
     proved: bool
     clearance: float
@@ -136,10 +155,18 @@ class Certificate:
 
 @dataclass
 class Smoothing:
-    """What became of the roadmap path: its length and the answer's (weighted metric), the shortcut pass's record
-    (None for the easy route, which is not smoothed), the smoothed paths the certificate refused and smoothing redid
-    (`repairs`), whether the query had turned careful (`fine_only`: shortcuts checked at the fine resolution), and
-    whether the smoothed path was dropped for the roadmap path, which could be proved where it could not."""
+    """What became of the roadmap path (`PlanResult.smoothing`).
+
+    Attributes:
+        raw_length: The roadmap path's length (weighted metric).
+        length_after: The answer's length.
+        shortcuts: The shortcut pass's record (app.motion.path.ShortcutStats; None for the easy route, which is not
+            smoothed).
+        repairs: Smoothed paths the certificate refused and smoothing redid.
+        fine_only: Whether the query had turned careful (shortcuts checked at the fine resolution).
+        dropped: Whether the smoothed path was dropped for the roadmap path, which could be proved where it could
+            not.
+    """
 
     raw_length: float
     length_after: float
@@ -149,6 +176,7 @@ class Smoothing:
     dropped: bool = False
 
     def to_json(self) -> dict:
+        """Its part of a `plan --json` answer (docs/schemas/plan.json)."""
         out = asdict(self)
         out["shortcuts"] = self.shortcuts.to_json() if self.shortcuts else None
         return out
@@ -156,10 +184,30 @@ class Smoothing:
 
 @dataclass
 class PlanResult:
-    """A query's answer: the smoothed path (wrapped waypoints, every edge proved), the roadmap's path before
-    smoothing, the timed trajectory (None when PlanSettings.timing is off), how the path was found (`route`, one of
-    ROUTES; `via`: the caller's via points it went through), what it cost, what was proved, and how much of the
-    roadmap path came from the narrow-passage sampler and from workspace-gap placements."""
+    """A query's answer (`app.plan`, `CellRoadmap.solve`): the path and its motion, what it cost, what was proved.
+
+    Attributes:
+        scene: The scene's name.
+        sampler: The narrow-passage sampler's name.
+        seed: The query's seed.
+        step: The sampler's base step used.
+        start: (dim,) the start.
+        goal: (dim,) the goal reached (one of several, when several were given).
+        path: (n, dim) the smoothed path: wrapped waypoints, every edge proved.
+        roadmap_path: (m, dim) the roadmap's path before smoothing.
+        trajectory: The timed motion (None when PlanSettings.timing is off).
+        route: How the path was found: "straight", "via" (the caller's polyline) or "roadmap".
+        via: How many via points the caller gave (0: none).
+        stats: What the query spent.
+        smoothing: What became of the roadmap path.
+        certificate: What was proved of the path, and what proving it cost.
+        narrow_on_path: Nodes of the roadmap path from the narrow-passage sampler.
+        workspace_on_path: Nodes of the roadmap path from workspace-gap placements.
+        graph: The roadmap itself (nodes `Q`, their `kinds`, `edges()`), for viewers; not part of the JSON.
+        path_nodes: The roadmap path's node indices in `graph`.
+        blends: The certified curve of the trajectory where that, and not the polyline `path`, is what was proved
+            (certificate.blended); for timing the path again the same way.
+    """
 
     scene: str
     sampler: str
@@ -177,16 +225,13 @@ class PlanResult:
     certificate: Certificate
     narrow_on_path: int
     workspace_on_path: int
-    # The roadmap itself (nodes `Q`, provenance `kinds`, `edges()`) and the roadmap path's node indices,
-    # for viewers; not part of the JSON.
     graph: Roadmap | None = field(default=None, repr=False)
     path_nodes: list = field(default_factory=list, repr=False)
-    # The certified curve of the trajectory where that, and not the polyline `path`, is what was proved
-    # (certificate.blended); for timing the path again the same way.
     blends: BlendProof | None = field(default=None, repr=False)
 
     @property
     def collision_checks(self) -> int:
+        """Collision checks the query spent in all (`stats.collision_checks`)."""
         return self.stats.collision_checks
 
     @property
@@ -210,6 +255,7 @@ class PlanResult:
         return TrajectoryFile(scene=self.scene, trajectory=self.trajectory, narrow=narrow, on_path=on_path)
 
     def to_json(self) -> dict:
+        """The `plan --json` answer's fields (docs/schemas/plan.json)."""
         stats = self.stats.to_json()
         stats.pop("stopped")
         return {

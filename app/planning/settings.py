@@ -58,24 +58,36 @@ def default_step(scene) -> float:
 class PlanSettings:
     """Everything a query may be told, validated once when built (a bad value raises UserError).
 
-    sampler: the narrow-passage sampler's registered name; narrow / uniform: the sample counts that size a
-    query's rounds (see Query) or, with full_roadmap, the whole roadmap; step: the sampler's base step a (None:
-    the scene's default); budget: what the search for a path may spend (seconds and/or collision checks; Budget()
-    has no limit; the default, DEFAULT_BUDGET, stops on checks, with SAFETY_NET_SECONDS as a safety net: a budget
-    built here as Budget(checks=N) has no time limit unless it says seconds=..., where the command line's
-    `--budget Nchecks` keeps the safety net). Its time limit bounds the whole query, the proof
-    (the certificate) and timing of the path found included; its check limit bounds the search and smoothing, as
-    proving and timing ask for distances, not checks; k: neighbours per node (None: k-PRM*'s);
-    smooth_rounds: random shortcut rounds; dt: trajectory sample period (s); sampler_params: extra keyword
-    arguments of the sampler (e.g. alpha_angle); skip_connected: Kavraki's rule for a full roadmap;
-    full_roadmap: the paper's protocol (every sample drawn, every edge checked, then the query); workspace: the
-    share of a query's narrow-passage samples placed in narrow gaps of the workspace (app.samplers.workspace; 0: the
-    sampler alone; a full roadmap draws none); timing: time the path with Toppra (False: the result's trajectory is
-    None, for a caller that times several paths as one motion, as a job does through its pass-through poses).
-    velocity_scale, acceleration_scale: fractions in (0, 1] of the scene's velocity and acceleration limits that the
-    trajectory keeps to (MoveIt's scaling factors); clearance: the distance (scene length units) the certified
-    motion keeps from everything the scene counts (CLEARANCE; at least MIN_CLEARANCE), of which the straight lines
-    between its samples and the path polyline keep at least half: start and goal must be that far off too."""
+    Attributes:
+        sampler: The narrow-passage sampler's registered name (one of `app.SAMPLERS`).
+        narrow: Narrow-passage samples that size a query's rounds (see Query); with `full_roadmap`, the whole
+            roadmap's.
+        uniform: Uniform samples, as `narrow`.
+        step: The sampler's base step a in the weighted metric (None: the scene's default).
+        seed: The random seed (on a check budget, the same seed gives the same answer on any machine).
+        budget: What the query may spend (seconds and/or collision checks; `Budget()` has no limit). The default,
+            DEFAULT_BUDGET, stops on checks with SAFETY_NET_SECONDS as a safety net; a budget built here as
+            `Budget(checks=N)` has no time limit unless it says `seconds=...` (the command line's `--budget Nchecks`
+            keeps the safety net). Its time limit bounds the whole query, the proof (the certificate) and timing of
+            the path found included; its check limit bounds the search and smoothing, as proving and timing ask for
+            distances, not checks.
+        k: Neighbours per node (None: k-PRM*'s).
+        smooth_rounds: Random shortcut rounds.
+        dt: Trajectory sample period (s).
+        sampler_params: Extra keyword arguments of the sampler (e.g. `alpha_angle`).
+        skip_connected: Kavraki's rule for a full roadmap.
+        full_roadmap: The paper's protocol: every sample drawn, every edge checked, then the query.
+        workspace: The share of a query's narrow-passage samples placed in narrow gaps of the workspace
+            (app.samplers.workspace; 0: the sampler alone; a full roadmap draws none).
+        timing: Time the path with Toppra (False: the result's trajectory is None, for a caller that times several
+            paths as one motion, as a job does through its pass-through poses).
+        velocity_scale: The fraction in (0, 1] of the scene's velocity limits that the trajectory keeps to
+            (MoveIt's scaling factor).
+        acceleration_scale: The same for the acceleration limits.
+        clearance: The distance (scene length units) the certified motion keeps from everything the scene counts
+            (CLEARANCE; at least MIN_CLEARANCE), of which the straight lines between its samples and the path
+            polyline keep at least half: start and goal must be that far off too.
+    """
 
     sampler: str = "lfbs"
     narrow: int = 200

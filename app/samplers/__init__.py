@@ -24,6 +24,9 @@ SAMPLERS = {
     "rwbs": partial(Walker, step_law="gaussian", bridge=True, name="rwbs"),
     "lfbs": partial(Walker, step_law="levy", bridge=True, name="lfbs"),
 }
+"""The seven samplers by name, each called as `SAMPLERS[name](checker, step=...)` (see `make_sampler`): uniform,
+gaussian, Hsu's bridge builder (rbbs), and random (Gaussian steps) and Lévy-flight walks without and with the bridge
+test (rws, lfs, rwbs, lfbs)."""
 
 
 def check_name(name: str) -> str:

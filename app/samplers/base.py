@@ -26,7 +26,15 @@ def unit_directions(rng: np.random.Generator, n: int, dim: int) -> np.ndarray:
 
 
 class Sampler:
-    """Base class. Subclasses implement `_round(rng, need, stop) -> (samples, bridges or None)`."""
+    """Base class. Subclasses implement `_round(rng, need, stop) -> (samples, bridges or None)`.
+
+    Attributes:
+        name: The name it is registered under in SAMPLERS.
+        step: The base step a in the weighted metric.
+        max_checks: A guard on one `sample` call that finds nothing, not a budget (that is its `stop`).
+        stats: Its counters (collision checks, rounds, ...).
+        bridges: (k, 2, dim) the colliding bridge endpoints of the last samples (bridge samplers; else None).
+    """
 
     name = ""
 

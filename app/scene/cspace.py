@@ -17,13 +17,26 @@ from app.errors import UserError
 
 @dataclass(frozen=True, eq=False)
 class ConfigurationSpace:
-    lower: np.ndarray  # (dim,) bounds; continuous angles get [-pi, pi] for sampling
+    """A scene's coordinates: their bounds, the weighted metric, and straight motions between configurations
+    (`oracle.space`, `ConfigurationSpace.of(scene)`).
+
+    Attributes:
+        lower: (dim,) lower bounds; continuous angles get -pi for sampling.
+        upper: (dim,) upper bounds; continuous angles get pi.
+        weights: (dim,) positive metric weight per coordinate: the lever arm it swings.
+        angular: (dim,) bool: revolute coordinates.
+        continuous: (dim,) bool: angles without limits, which wrap.
+        resolution: The edge-check step in the weighted metric.
+        names: Coordinate names, for messages.
+    """
+
+    lower: np.ndarray
     upper: np.ndarray
-    weights: np.ndarray  # (dim,) metric weight per coordinate, positive
-    angular: np.ndarray  # (dim,) bool: revolute coordinates
-    continuous: np.ndarray  # (dim,) bool: angles without limits, which wrap
-    resolution: float  # the edge-check step in the weighted metric
-    names: list[str] = field(default_factory=list)  # coordinate names, for messages
+    weights: np.ndarray
+    angular: np.ndarray
+    continuous: np.ndarray
+    resolution: float
+    names: list[str] = field(default_factory=list)
 
     def __post_init__(self):
         # Continuous angles may take any finite value: huge finite bounds let one comparison serve every coordinate
@@ -46,6 +59,7 @@ class ConfigurationSpace:
 
     @property
     def dim(self) -> int:
+        """The number of coordinates."""
         return len(self.lower)
 
     # ---- points ---------------------------------------------------------------------------------------------

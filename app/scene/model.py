@@ -25,6 +25,7 @@ from app.scene.problem import ProblemFile, directives_file, named_file, read_pro
 
 
 def scene_names() -> list[str]:
+    """The shipped scenes' names, sorted (`python -m app scenes`)."""
     return sorted(p.stem for p in SCENES_DIR.glob("*.yaml") if not p.name.endswith(".dmd.yaml"))
 
 
@@ -40,7 +41,24 @@ def scene_path(name_or_path: str) -> Path:
 
 
 class Scene:
-    """A loaded scene: the Drake RobotDiagram and the configuration-space facts read from it and the problem file."""
+    """A loaded scene: the Drake RobotDiagram and the configuration-space facts read from it and the problem file.
+
+    Attributes:
+        name: The scene's name (its problem file's stem).
+        path: Its problem file.
+        diagram: The Drake RobotDiagram (robot and obstacles).
+        plant: Its MultibodyPlant.
+        dim: The number of coordinates.
+        coordinate_names: One name per coordinate: the order of start, goal and every configuration.
+        joint_names: Every joint position's name, mimic joints' included: what a trajectory file carries.
+        lower: (dim,) lower bounds.
+        upper: (dim,) upper bounds.
+        start: (dim,) the problem file's start.
+        goal: (dim,) the problem file's goal.
+        resolution: The edge-check step in the weighted metric.
+        step: The sampler step the problem file sets (None: `default_step`'s).
+        self_collisions: Whether the robot's collisions with itself count.
+    """
 
     def __init__(self, name_or_path: str):
         self.path = scene_path(name_or_path)
@@ -114,6 +132,7 @@ class Scene:
         add_directives(parser, path, self.packages(), self.problem.directives)
 
     def summary(self) -> dict:
+        """What `python -m app scenes --json` says of the scene (docs/schemas/scenes.json)."""
         return {
             "name": self.name,
             "description": self.problem.description,

@@ -21,24 +21,44 @@ CARRIER_JOINTS = ("x", "y", "z", "yaw", "pitch", "roll")
 
 @dataclass
 class CustomSpec:
-    """The keys of a custom scene file (YAML), also built from `plan`'s flags. Paths in a file are relative to it."""
+    """The keys of a custom scene file (YAML), also built from `plan`'s flags. Paths in a file are relative to it.
+
+    Attributes:
+        description: A line about the scene.
+        robot: The robot: .urdf/.sdf, or a mesh file (a free-flying body).
+        package_path: NAME=DIR entries that resolve package://NAME/... in the robot's files.
+        floating: Carry a URDF/SDF robot's root in SE(3) instead of welding it to the world.
+        env: Obstacles: mesh or .sdf/.urdf files.
+        env_pose: 6 numbers (x, y, z in m; roll, pitch, yaw in degrees), or 6 per env file.
+        start: The start, one value per coordinate; empty: the robot's home (zero, clipped into the bounds).
+        goal: The goal; empty: the home too (a caller then sets it, e.g. from a pose).
+        bounds: "lo..hi" per coordinate, or per x, y, z of a floating robot.
+        collisions: "all": the robot against itself too; "environment": only against the obstacles.
+        srdf: A MoveIt SRDF whose <disable_collisions> body pairs are not checked.
+        resolution: The edge-check step in the weighted metric; 0: default_resolution (the robot's size).
+        mesh_method: auto, convex, shell, coacd or faces.
+        mesh_tolerance: How far a decomposition may reach beyond the mesh surface; 0: half the edge-check step
+            (environment), 0.2 % of its size (robot mesh).
+        velocity_limits: Per coordinate; empty: the model's (else 1).
+        acceleration_limits: Per coordinate; empty: twice the velocity limits.
+    """
 
     description: str = ""
-    robot: str = ""  # .urdf/.sdf, or a mesh file (a free-flying body)
-    package_path: list[str] = field(default_factory=list)  # NAME=DIR
-    floating: bool = False  # carry a URDF/SDF robot's root in SE(3) instead of welding it to the world
-    env: list[str] = field(default_factory=list)  # mesh or .sdf/.urdf files
-    env_pose: list[float] = field(default_factory=list)  # 6 numbers (x,y,z m; roll,pitch,yaw deg), or 6 per env
-    start: list[float] = field(default_factory=list)  # empty: the robot's home (zero, clipped into the bounds)
-    goal: list[float] = field(default_factory=list)  # empty: the home too (a caller then sets it, e.g. from a pose)
-    bounds: list[str] = field(default_factory=list)  # "lo..hi" per coordinate, or per x,y,z of a floating robot
-    collisions: str = "all"  # "all": the robot against itself too; "environment": only against the obstacles
-    srdf: str = ""  # MoveIt SRDF whose <disable_collisions> body pairs are not checked
-    resolution: float = 0.0  # edge-check step in the weighted metric; 0: default_resolution (the robot's size)
-    mesh_method: str = "auto"  # auto | convex | shell | coacd | faces
-    mesh_tolerance: float = 0.0  # 0: half the edge-check step (environment), 0.2 % of its size (robot mesh)
-    velocity_limits: list[float] = field(default_factory=list)  # per coordinate; empty: the model's (else 1)
-    acceleration_limits: list[float] = field(default_factory=list)  # per coordinate; empty: 2x the velocity limits
+    robot: str = ""
+    package_path: list[str] = field(default_factory=list)
+    floating: bool = False
+    env: list[str] = field(default_factory=list)
+    env_pose: list[float] = field(default_factory=list)
+    start: list[float] = field(default_factory=list)
+    goal: list[float] = field(default_factory=list)
+    bounds: list[str] = field(default_factory=list)
+    collisions: str = "all"
+    srdf: str = ""
+    resolution: float = 0.0
+    mesh_method: str = "auto"
+    mesh_tolerance: float = 0.0
+    velocity_limits: list[float] = field(default_factory=list)
+    acceleration_limits: list[float] = field(default_factory=list)
 
 
 @dataclass
