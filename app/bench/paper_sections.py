@@ -276,8 +276,15 @@ def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
     if not prm_rows:
         return lines + ["No rows.", ""], []
     cells = prm_cells(prm_rows)
+    prm_figure(cells, folder / "prm.png")
+    trends, found = _prm_trends(prm_rows, cells)
+    return lines + _prm_table(prm_rows, cells) + trends + _prm_ratios(cells), _censored(prm_rows, cells) + found
+
+
+def _prm_table(prm_rows, cells) -> list[str]:
+    """The table of the PRM cells, the paper's seconds in brackets, then the figure and what the runs can tell."""
     gave_up = sum(c["gave_up"] for c in cells)
-    lines += [
+    lines = [
         "The whole roadmap, every edge checked, k = 10 (maze 200 narrow + 300 uniform, tunnel 100 + 200). "
         "t_eps = sampling time (runs that built a roadmap), T_PRM = whole plan, median [95 % bootstrap interval] over "
         "the runs that built a roadmap; paper seconds in brackets. The trial gives the plan no budget, but each call "
@@ -302,7 +309,6 @@ def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
             f"{c['successes']}/{c['runs']} [{lo:.0%}, {hi:.0%}] | {eps} ({pe}) | "
             f"{mark}{med:.2f} [{tlo:.2f}, {thi:.2f}] ({pt}) | {c['checks']:.0f} |"
         )
-    prm_figure(cells, folder / "prm.png")
     runs = min(c["runs"] for c in cells)
     hours_at = {n: n * sum(c["t_prm"][0] for c in cells) / 3600 for n in (runs, TARGET_TRIALS)}
 
@@ -310,7 +316,7 @@ def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
         edge = detectable_drop(runs, successes)
         return f"LFBS at {edge}/{runs} or fewer" if edge >= 0 else "no LFBS count (too few runs)"
 
-    lines += [
+    return lines + [
         "",
         "![PRM success and time](prm.png)",
         "",
@@ -320,6 +326,27 @@ def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
         f"apart: the C4 success test (one-sided, p < {ALPHA:g}) flags {flagged(runs)} against RBBS's "
         f"{runs}/{runs} and {flagged(round(0.9 * runs))} against {round(0.9 * runs)}/{runs}; each cell's p values "
         "are in C4's evidence above.",
+    ]
+
+
+def _censored(prm_rows, cells) -> list[str]:
+    """The finding that some runs built no roadmap (their sampler's cap ended them), if any did."""
+    gave_up = sum(c["gave_up"] for c in cells)
+    if not gave_up:
+        return []
+    where = ", ".join(
+        f"{c['scene']} a={c['step']:g} {c['sampler']} {c['gave_up']}/{c['runs']}" for c in cells if c["gave_up"]
+    )
+    return [
+        f"PRM: {gave_up} of {len(prm_rows)} runs ({where}) built no roadmap: their sampler gave up at its own "
+        f"{SAMPLER_CAP:,}-check cap. They are censored (the cap, not the planner, ended them) and left out of C4."
+    ]
+
+
+def _prm_trends(prm_rows, cells) -> tuple[list[str], list[str]]:
+    """T_PRM against the step per scene and sampler, ours (Spearman) beside the paper's direction; a finding where
+    the directions differ."""
+    lines = [
         "",
         "**Side by side with the paper.** T_PRM against the step, per scene and sampler (ours: Spearman's rank "
         f"correlation over the runs that built a roadmap, falls/rises when p < {ALPHA:g}; the paper's: the direction "
@@ -330,14 +357,6 @@ def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
         "|---|---|---|---|---|---|",
     ]
     found = []
-    if gave_up:
-        where = ", ".join(
-            f"{c['scene']} a={c['step']:g} {c['sampler']} {c['gave_up']}/{c['runs']}" for c in cells if c["gave_up"]
-        )
-        found.append(
-            f"PRM: {gave_up} of {len(prm_rows)} runs ({where}) built no roadmap: their sampler gave up at its own "
-            f"{SAMPLER_CAP:,}-check cap. They are censored (the cap, not the planner, ended them) and left out of C4."
-        )
     for scene in uav.PAPER:
         steps = uav.PAPER[scene]["steps"]
         for sampler in uav.COMPARED_SAMPLERS:
@@ -375,7 +394,12 @@ def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
                     f"{scene} {sampler}: the paper's T_PRM {_moves(paper['word'])} with a; ours {_moves(ours['word'])} "
                     f"(Spearman rho {ours['rho']:+.2f}, {p_text(ours['p'])})."
                 )
-    lines += ["", "| scene | step | paper LFBS/RBBS T_PRM | ours LFBS/RBBS T_PRM |", "|---|---:|---:|---:|"]
+    return lines, found
+
+
+def _prm_ratios(cells) -> list[str]:
+    """LFBS's median T_PRM over RBBS's per cell, the paper's beside."""
+    lines = ["", "| scene | step | paper LFBS/RBBS T_PRM | ours LFBS/RBBS T_PRM |", "|---|---:|---:|---:|"]
     for (scene, step), paper in uav.PAPER_SECONDS.items():
         pair = {c["sampler"]: c for c in cells if c["scene"] == scene and c["step"] == step}
         if set(pair) != {"lfbs", "rbbs"}:
@@ -383,8 +407,7 @@ def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
         ours = pair["lfbs"]["t_prm"][0] / pair["rbbs"]["t_prm"][0]
         note = " (RBBS censored: time to the cap)" if pair["rbbs"]["gave_up_only"] else ""
         lines.append(f"| {scene} | {step:g} | {paper[1] / paper[3]:.2f} | {ours:.2f}{note} |")
-    lines.append("")
-    return lines, found
+    return lines + [""]
 
 
 def ur3_section(rows) -> tuple[list[str], list[str]]:
