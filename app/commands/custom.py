@@ -49,6 +49,12 @@ def add_arguments(parser) -> None:
         default=[],
         help="place the environment: metres and roll,pitch,yaw in degrees (once, or once per --env)",
     )
+    _space_and_collision_arguments(group)
+
+
+def _space_and_collision_arguments(group) -> None:
+    """The flags of the same group that shape the configuration space, the meshes' decomposition and the pairs
+    checked."""
     group.add_argument(
         "--bounds",
         metavar="LO..HI,...",
