@@ -66,7 +66,7 @@ def motion_check_steps(extents, resolution: float) -> np.ndarray:
     which is l_c in our metric when L_c = l_c / weight_c. Our metric is the Euclidean norm over the subspaces, so a
     piece is at most sqrt(sum_c l_c^2) = r long. Steps growing with sqrt(e_c) keep a small subspace (a wrist
     angle) from being checked far finer than the motion needs, which steps proportional to e_c (what one fraction
-    for every subspace amounts to) do (docs/benchmarks.md, "Side by side with OMPL")."""
+    for every subspace amounts to) do (docs/benchmarks-history.md, "Side by side with OMPL")."""
     extents = np.asarray(extents, float)
     return resolution * np.sqrt(extents / extents.sum())
 

@@ -306,5 +306,9 @@ class ResultStore:
             )
         return out
 
+    def finished(self) -> dict[str, float]:
+        """key -> when its row was written (seconds since the epoch): a table made from rows can date them."""
+        return dict(self._db.execute("SELECT key, finished FROM trials"))
+
     def count(self) -> int:
         return self._db.execute("SELECT COUNT(*) FROM trials").fetchone()[0]

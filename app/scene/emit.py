@@ -218,7 +218,7 @@ def env_urdf(name: str, decomposition: Decomposition, pose: list[float]) -> str:
     (which Drake takes as the world body itself), placed at pose. On the world body SceneGraph registers them as
     *anchored* geometry: its broad phase keeps them in a tree built once, whereas geometry on a body (even one welded
     to the world, as in a static SDF model) is dynamic: re-posed and re-sorted on every query, which makes a check
-    among many pieces far dearer (docs/benchmarks.md, "Mesh scenes")."""
+    among many pieces far dearer (docs/benchmarks-history.md, "Mesh scenes")."""
     x, y, z, r, p, w = pose
     origin = f'<origin xyz="{x!r} {y!r} {z!r}" rpy="' + " ".join(f"{math.radians(a)!r}" for a in (r, p, w)) + '"/>'
     lines = [

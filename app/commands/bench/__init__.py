@@ -1,9 +1,22 @@
 """`bench KIND ...`: one module per benchmark; each adds its sub-command, runs its experiment (app.bench.KIND) and
 prints the result."""
 
-from app.commands.bench import ablation, audit, certify, jobs, ompl, oracle, paper, plan, queries, sampling, uav
+from app.commands.bench import (
+    ablation,
+    audit,
+    certify,
+    jobs,
+    ompl,
+    oracle,
+    paper,
+    plan,
+    queries,
+    sampling,
+    summary,
+    uav,
+)
 
-KINDS = [oracle, sampling, plan, uav, jobs, ompl, paper, audit, certify, queries, ablation]
+KINDS = [oracle, sampling, plan, uav, jobs, ompl, paper, audit, certify, queries, ablation, summary]
 
 
 def register(subparsers) -> None:

@@ -13,7 +13,7 @@ edge) and a method is chosen per part (`decomposition.choose_method`):
   hull, grows while it holds no other point of the surface deeper than SHELL_REACH * tolerance. A side that bulges
   outward (a sphere seen from outside, a thick wall's face) becomes a few large caps; a hollow side stays within
   reach of flat. Seconds on a few thousand triangles, with far fewer pieces than "faces" makes and where CoACD can
-  fail validation (docs/benchmarks.md, "Mesh scenes"). Pieces that fail validation become face pieces (once); if
+  fail validation (docs/benchmarks-history.md, "Mesh scenes"). Pieces that fail validation become face pieces (once); if
   the part still fails, it moves on to "coacd".
 - "coacd": CoACD approximate decomposition, pre-processing off (it thickens thin walls), in a child process with a
   time limit (it can crash or run for minutes). Falls back to "faces" when it fails or its pieces fail validation.
@@ -39,7 +39,7 @@ matching checksums for pieces that do not contain the mesh (a false "free" for t
 missing or wrong is rebuilt, not trusted; so is a converted .obj (`converted_obj`), sealed the same way. Entries are
 built in a staging folder and renamed into place, so concurrent runs see a whole entry or none.
 
-Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (docs/benchmarks.md,
+Load cost: SceneGraph's registration cost grows quadratically with the number of geometries (docs/benchmarks-history.md,
 "Mesh scenes"), so merging faces into few pieces matters as much as the decomposition.
 (Check cost need not grow so: app.scene.emit anchors environment pieces to the world, see `env_urdf`.)
 
