@@ -17,6 +17,7 @@ from app.bench.audit import (
     measure_bad_input,
     measure_roadmaps,
     states,
+    summarise,
 )
 from app.motion.timing import parameterize
 
@@ -145,3 +146,20 @@ def test_every_bad_input_case_behaves_as_its_own_process(tmp_path):
     expected = [{"exit_code": code, "fragment": fragment} for _, code, fragment in bad_input.ROWS]
     assert len(table) == len(expected) and not [case["command"] for case in table if case["exit_code"] is None]
     assert [c["command"] for c, e in zip(table, expected) if not behaved({**c, "seconds": 0.0}, e)] == []
+
+
+def test_the_total_row_counts_each_roadmap_files_forged_edges_once():
+    """Every problem on one file sees all its forged edges; the total adds the files' counts, not the problems'."""
+
+    def row(scene, variant, forged):
+        metrics = {
+            "drawn": True, "solved": True, "certified": True, "colliding_states": 0, "max_penetration": 0.0,
+            "limit_violations": 0, "endpoints_exact": True, "states": 1, "seconds": 0.1,
+            "forged_edges": forged, "forged_edges_on_path": 0,
+        }  # fmt: skip
+        return {"scene": scene, "method": variant, "metrics": metrics}
+
+    rows = [row("bar", "tampered", 10), row("bar", "tampered", 10), row("maze", "tampered", 25), row("bar", "saved", 0)]
+    labels = ["bar saved", "bar tampered", "maze tampered"]
+    table = summarise(rows, labels, label=lambda r: f"{r['scene']} {r['method']}")
+    assert [r["forged_edges"] for r in table] == [0, 10, 25, 35]
