@@ -41,6 +41,7 @@ INPUT_LIMITS = {
     "model file": 64 << 20,  # URDF, SDF
     "mesh file": 64 << 20,
     "trajectory file": 64 << 20,
+    "ROS 2 bag file": 256 << 20,  # each file of a bag folder (view --trajectory BAG)
     "results store": 8 << 30,  # SQLite: read row by row, never whole
     "trials file": 256 << 20,  # trials.csv.gz (compressed)
 }

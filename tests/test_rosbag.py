@@ -144,3 +144,70 @@ def test_ros_distro_picks_the_bag_version_from_the_command_line(cli, tmp_path, o
     assert "--ros-distro needs --bag" in one_line_error(cli("plan", "bar", "--ros-distro", "humble"), 2)
     assert "--ros-distro" in one_line_error(cli("view", "bar", "--trajectory", out, "--bag", tmp_path / "x",
                                                 "--ros-distro", "foxy"), 2)  # fmt: skip
+
+
+def write_ros_bag(folder, names, times, positions, messages=1):
+    """A bag as a ROS tool might record it: `messages` copies of one JointTrajectory, its points positions only."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = store.types
+    points = [
+        types["trajectory_msgs/msg/JointTrajectoryPoint"](
+            positions=np.ascontiguousarray(q, float),
+            velocities=np.zeros(0),
+            accelerations=np.zeros(0),
+            effort=np.zeros(0),
+            time_from_start=types["builtin_interfaces/msg/Duration"](sec=int(t), nanosec=int(round(t % 1 * 1e9))),
+        )
+        for t, q in zip(times, positions)
+    ]
+    header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=5, nanosec=0), frame_id="")
+    message = types[MESSAGE_TYPE](header=header, joint_names=names, points=points)
+    with Writer(folder, version=8) as writer:
+        connection = writer.add_connection(TOPIC, MESSAGE_TYPE, typestore=store)
+        for i in range(messages):
+            writer.write(connection, i, store.serialize_cdr(message, MESSAGE_TYPE))
+
+
+def test_view_replays_the_bag_plan_wrote(cli, tmp_path):
+    """`view --trajectory BAG` reads a bag back: written again, it holds the same points as the plan's file."""
+    out, bag, again = tmp_path / "t.json", tmp_path / "bag", tmp_path / "again"
+    assert cli("plan", "bar-3link", "--out", out, "--bag", bag).returncode == 0
+    result = cli("view", "bar-3link", "--trajectory", bag, "--bag", again)
+    assert result.returncode == 0, result.stderr
+    file = json.loads(out.read_text())
+    (_, _, message), *_ = read_bag(again)
+    for key in ("positions", "velocities", "accelerations"):
+        assert np.array_equal(np.array([getattr(p, key) for p in message.points]), np.array(file[key])), key
+
+
+def test_a_ros_tools_bag_is_read_by_joint_name_with_rates_estimated(cli, tmp_path):
+    """Joints in another order, positions only, two messages: the first is read, its joints put in the scene's
+    order, its velocities estimated; a note says which message was read."""
+    out = tmp_path / "t.json"
+    assert cli("plan", "bar", "--out", out).returncode == 0
+    file = json.loads(out.read_text())
+    names, times, P = file["joint_names"], np.array(file["time_from_start"]), np.array(file["positions"])
+    write_ros_bag(tmp_path / "ros", names[::-1], times, P[:, ::-1], messages=2)
+    result = cli("view", "bar", "--trajectory", tmp_path / "ros", "--bag", tmp_path / "again")
+    assert result.returncode == 0, result.stderr
+    assert "note: bag ros holds 2 joint trajectories: the first is read" in result.stderr.splitlines()
+    (_, _, message), *_ = read_bag(tmp_path / "again")
+    assert message.joint_names == names
+    assert np.allclose([p.positions for p in message.points], P)
+    V = np.array([p.velocities for p in message.points])
+    inner = slice(1, -1)  # central differences of the samples: close to the planned velocities inside
+    assert np.allclose(V[inner], np.array(file["velocities"])[inner], atol=0.05 * np.abs(file["velocities"]).max())
+
+
+def test_a_folder_that_is_no_bag_or_a_bag_without_the_scenes_joints_is_one_line(cli, tmp_path, one_line_error):
+    (tmp_path / "empty").mkdir()
+    args = ("--bag", tmp_path / "again")
+    said = one_line_error(cli("view", "bar", "--trajectory", tmp_path / "empty", *args), 2)
+    assert "empty is not a ROS 2 bag" in said
+    write_ros_bag(tmp_path / "other", ["a", "b"], [0.0, 1.0], [[0, 0], [1, 1]])
+    said = one_line_error(cli("view", "bar", "--trajectory", tmp_path / "other", *args), 2)
+    assert "other: the trajectory has no joint" in said
+    assert not (tmp_path / "again").exists()

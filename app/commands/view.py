@@ -14,12 +14,13 @@ import os
 import signal
 import sys
 import threading
+from pathlib import Path
 
 from app.commands import custom
 from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json
 from app.errors import UserError
 from app.io import all_or_nothing, exclusive
-from app.motion.rosbag import DEFAULT_DISTRO, DISTROS, write_bag
+from app.motion.rosbag import DEFAULT_DISTRO, DISTROS, read_bag_for, write_bag
 from app.motion.trajectory import TrajectoryFile
 from app.viewer import ViewData, check_meshcat_allowed, publish
 
@@ -153,7 +154,11 @@ def register(subparsers) -> None:
         "scene", nargs="?", help="scene name, problem-file path or custom scene file (or --robot/--env instead)"
     )
     p.add_argument(
-        "--trajectory", required=True, metavar="FILE.json", help="a trajectory file written by plan --out or run --out"
+        "--trajectory",
+        required=True,
+        metavar="FILE.json|BAG",
+        help="a trajectory file written by plan --out or run --out, or a ROS 2 bag folder holding a "
+        "trajectory_msgs/msg/JointTrajectory (plan --bag writes one; its first is shown, not certified)",
     )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     add_arguments(p)
@@ -166,7 +171,8 @@ def run_view(args) -> int:
         raise UserError("view: nothing to do; give --html FILE, --bag DIR and/or --meshcat")
     check_outputs(args.html)
     scene = custom.scene_from_args(args, args.scene)
-    file = TrajectoryFile.read_for(args.trajectory, scene)
+    read = read_bag_for if Path(args.trajectory).is_dir() else TrajectoryFile.read_for
+    file = read(args.trajectory, scene)
     check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
     with answering():
         viewer = write_outputs(args, scene, file)

@@ -15,6 +15,8 @@ version that distribution's rosbag2 writes itself (Humble's 5, Jazzy's 9), or 8 
 later rosbag2 read. rosbags writes versions 8 and 9; a Humble bag is its version 8 with the metadata (metadata.yaml
 and the database's copy) rewritten as Humble's rosbag2 0.15 writes and reads it: version 5, without the fields later
 versions added (a topic's type_description_hash, custom_data, ros_distro).
+
+`read_bag_for` reads one back for `view --trajectory BAG`: ours, or any bag holding a JointTrajectory (a ROS tool's).
 """
 
 from __future__ import annotations
@@ -22,14 +24,15 @@ from __future__ import annotations
 import contextlib
 import os
 import sqlite3
+import warnings
 from io import StringIO
 from pathlib import Path
 
 import numpy as np
 
-from app.errors import UserError
-from app.io import write_folder_atomically
-from app.motion.trajectory import Trajectory
+from app.errors import Note, UserError
+from app.io import check_input, write_folder_atomically
+from app.motion.trajectory import SCHEMA, Trajectory, TrajectoryFile
 
 TOPIC = "/joint_trajectory"
 MESSAGE_TYPE = "trajectory_msgs/msg/JointTrajectory"
@@ -112,3 +115,72 @@ def _rewrite_metadata(folder: Path, version: int) -> None:
             database.execute(
                 "UPDATE metadata SET metadata_version = ?, metadata = ?", (version, copy.getvalue().strip())
             )
+
+
+def read_bag_for(path: str | os.PathLike, scene) -> TrajectoryFile:
+    """The first JointTrajectory of the ROS 2 bag folder `path` as a trajectory of `scene` (app.scene.model.Scene),
+    checked as a trajectory file is: its joints taken by name in the scene's order (a ROS tool may order them
+    otherwise), velocities and accelerations estimated by finite differences where its points carry none. A bag
+    carries no certificate, so the trajectory is not certified. Every fault is one UserError."""
+    from rosbags.rosbag2 import Reader, ReaderError
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import Stores, get_typestore
+
+    folder = Path(path)
+    name = folder.resolve().name
+    if not (folder / "metadata.yaml").is_file():
+        raise UserError(f"{name} is not a ROS 2 bag: a bag is a folder holding metadata.yaml")
+    for file in folder.iterdir():
+        check_input(file, "ROS 2 bag file")
+    store = get_typestore(Stores.ROS2_JAZZY)
+    try:
+        with Reader(folder) as reader:
+            found = [c for c in reader.connections if c.msgtype == MESSAGE_TYPE]
+            if not found:
+                raise UserError(f"bag {name} holds no {MESSAGE_TYPE} message")
+            count = sum(c.msgcount for c in found)
+            _, _, data = next(reader.messages(connections=found))
+            message = store.deserialize_cdr(data, MESSAGE_TYPE)
+    except (ReaderError, SerdeError, sqlite3.Error, StopIteration, KeyError, ValueError) as exc:
+        raise UserError(f"cannot read bag {name}: {' '.join(str(exc).split())[:200]}") from None
+    if count > 1:
+        warnings.warn(f"bag {name} holds {count} joint trajectories: the first is read", Note, stacklevel=2)
+    return TrajectoryFile.from_json(_as_file(message, scene, name), scene.dim, name, scene.position_map)
+
+
+def _as_file(message, scene, source: str) -> dict:
+    """The trajectory file's JSON object (docs/schemas/trajectory.json) of a JointTrajectory message."""
+    names, points = list(message.joint_names), message.points
+    missing = [name for name in scene.joint_names if name not in names]
+    if missing or len(names) != len(set(names)):
+        said = f"has no joint '{missing[0]}'" if missing else "names a joint twice"
+        raise UserError(f"{source}: the trajectory {said} (scene '{scene.name}' has {', '.join(scene.joint_names)})")
+    if not points:
+        raise UserError(f"{source}: the trajectory is empty")
+    order = [names.index(name) for name in scene.joint_names]
+    times = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in points])
+    columns = {}
+    for key in ("positions", "velocities", "accelerations"):
+        rows = [np.asarray(getattr(p, key), float) for p in points]
+        if all(len(row) == 0 for row in rows) and key != "positions":
+            # d/dt of the column before (np.gradient: one-sided at the ends); a single point stands still.
+            before = columns["velocities" if key == "accelerations" else "positions"]
+            if len(times) > 1 and np.any(np.diff(times) <= 0):
+                raise UserError(f"{source}: points without {key} need increasing times_from_start")
+            rows = list(np.gradient(before, times, axis=0)) if len(times) > 1 else [np.zeros(len(order))]
+        elif any(len(row) != len(names) for row in rows):
+            raise UserError(f"{source}: a point's {key} do not match its {len(names)} joint names")
+        else:
+            rows = [row[order] for row in rows]
+        columns[key] = np.asarray(rows)
+    positions = columns["positions"]
+    return {
+        "schema": SCHEMA,
+        "scene": scene.name,
+        "joint_names": list(scene.joint_names),
+        "time_from_start": times.tolist(),
+        **{key: value.tolist() for key, value in columns.items()},
+        "waypoints": positions.tolist(),
+        "waypoint_times": times.tolist(),
+        "certified": False,
+    }
