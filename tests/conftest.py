@@ -11,6 +11,7 @@ by the `cli` fixture when a test uses it.
 
 import atexit
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -26,6 +27,10 @@ os.environ["XDG_CACHE_HOME"] = str(offline_drake_cache(Path(tempfile.mkdtemp(pre
 # The mesh cache's secret key (app.scene.meshes.cache.key_path): the session's own, never the user's ~/.config/npp.
 os.environ["NPP_KEY_FILE"] = str(Path(tempfile.mkdtemp(prefix="npp-key-")) / "cache.key")
 os.environ.setdefault("MPLBACKEND", "Agg")
+# The Ctrl-C tests need Ctrl-C to raise KeyboardInterrupt, as in a terminal; a run started in the background by a
+# script (`make test &`) inherits SIGINT ignored, in this process and in the commands it starts.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 _CPU_COUNT = os.cpu_count() or 1
