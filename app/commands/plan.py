@@ -306,7 +306,8 @@ def summary(r, scene) -> str:
         f"after smoothing",
         f"  motion    {t.duration:.2f} s trajectory, {len(t.times)} samples, corners blended, "
         + (
-            f"certified to keep {t.clearance:g} from everything (continuous{scope}), the lines between samples half"
+            f"certified to keep {t.clearance:g} from everything (continuous{scope}); "
+            "the lines between its samples and the waypoints keep half that"
             if t.certified
             else f"NOT certified: fine-checked only{scope}"
         ),
