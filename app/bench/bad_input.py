@@ -226,7 +226,7 @@ ROWS = [
     (["plan", "bar", "--ompl-app", "{file}"], 2, "--ompl-app sets the robot, environment and bounds"),
     (["roadmap", "info", "{file}"], 2, "is not a roadmap file of this planner (not an .npz archive)"),
     (["plan", "bar", "--roadmap", "{file}"], 2, "is not a roadmap file of this planner (not an .npz archive)"),
-    (["view", "bar", "--trajectory", "{dir}", "--html", "{out}/x.html"], 2, "is not a file"),
+    (["view", "bar", "--trajectory", "{dir}", "--html", "{out}/x.html"], 2, "is not a ROS 2 bag"),
     (["view", "bar", "--trajectory", "{long}", "--html", "{out}/x.html"], 2, "cannot read trajectory file"),
     (["view", "tunnel", "--trajectory", "{maze_motion}", "--html", "{out}/x.html"], 2, "scene 'maze', not of 'tunnel'"),
     (["view", "maze", "--trajectory", "{renamed_motion}", "--html", "{out}/x.html"], 2, "joint 4 is 'heading'"),

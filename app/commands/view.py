@@ -14,7 +14,6 @@ import os
 import signal
 import sys
 import threading
-from pathlib import Path
 
 from app.commands import custom
 from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json
@@ -171,7 +170,7 @@ def run_view(args) -> int:
         raise UserError("view: nothing to do; give --html FILE, --bag DIR and/or --meshcat")
     check_outputs(args.html)
     scene = custom.scene_from_args(args, args.scene)
-    read = read_bag_for if Path(args.trajectory).is_dir() else TrajectoryFile.read_for
+    read = read_bag_for if os.path.isdir(args.trajectory) else TrajectoryFile.read_for  # (False for a bad name)
     file = read(args.trajectory, scene)
     check_from_args(args)  # Meshcat allowed? (a bad trajectory file is said first: it is the input)
     with answering():
