@@ -148,6 +148,31 @@ def test_report_only_runs_no_trial_and_links_the_pictures_an_earlier_run_drew(tm
     assert "1 of 2 pictures as an earlier run drew them; 1 not drawn" in report
 
 
+def test_report_only_rebuilds_the_runs_report_byte_for_byte_but_its_time(tmp_path, monkeypatch):
+    """The machine and the pictures' captions are the run's (recorded in run.json beside the report), not the
+    rebuilding machine's; without the record the machine line says it is the rebuild's."""
+    out = tmp_path / "paper"
+    assert main([*TINY, "--out", str(out)]) == 0
+    first = (out / "report.md").read_text()
+    record = json.loads((out / "run.json").read_text())
+    assert set(record["pictures"]) == {"samples-bar-3link-lfbs.png", "samples-bar-3link-rbbs.png"}
+    (out / "run.json").write_text(json.dumps({**record, "machine": ["the machine that ran the trials"]}))
+    monkeypatch.setattr(paper, "run_sweep", lambda *a, **k: pytest.fail("--report-only ran trials"))
+    monkeypatch.setattr(sampling, "run_trial", lambda *a, **k: pytest.fail("--report-only drew pictures"))
+    assert main([*TINY, "--out", str(out), "--report-only"]) == 0
+    again = (out / "report.md").read_text()
+
+    def unstamped(report: str, machine: str) -> str:
+        lines = [line for line in report.splitlines() if not line.startswith("Generated ")]
+        return "\n".join(lines).replace(machine, "MACHINE")
+
+    ran_on = "\n".join(f"- Machine: {line}" for line in record["machine"])
+    assert unstamped(again, "- Machine: the machine that ran the trials") == unstamped(first, ran_on)
+    (out / "run.json").unlink()
+    assert main([*TINY, "--out", str(out), "--report-only"]) == 0
+    assert "(this rebuild's; the trials' machine was not recorded)" in (out / "report.md").read_text()
+
+
 def test_sampling_trial_spec_is_deterministic_and_marks_censoring(oracles):
     from app.bench.sampling import run_trial_spec
 

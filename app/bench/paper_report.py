@@ -20,8 +20,12 @@ from app.bench.paper_sections import (
     ur3_section,
 )
 from app.bench.store import ResultStore
-from app.io import write_atomically
+from app.io import all_or_nothing, write_atomically
 from app.samplers import SAMPLERS
+
+# What the last run that added trials recorded beside its report, for `--report-only`, which runs nothing: the
+# machine it ran on and its sample pictures' captions (whether a sampler ran over its budget is not in the store).
+RUN_RECORD = "run.json"
 
 
 def build_report(
@@ -50,13 +54,39 @@ def build_report(
     table1, table1_found = table1_section(summary, rows)
     prm, prm_found = prm_section(rows, folder)
     ur3, ur3_found = ur3_section(rows)
-    lines = _overview_section(store, stored, folder, config, wall_seconds)
+    record = _run_record(folder, run_nothing, wall_seconds)
+    lines = _overview_section(store, stored, folder, config, record)
     lines += _findings_section(verdicts, rows, table1_found + prm_found + ur3_found + per_passage_found)
     lines += claims + readings + sampling_lines + per_passage + table1
     if pictures and config is not None:
-        lines += pictures_section(config, folder, run_nothing)
+        section, captions = pictures_section(config, folder, run_nothing, record.get("pictures"))
+        record["pictures"] = captions
+        lines += section
     lines += prm + ur3
-    return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
+    with all_or_nothing():
+        if not run_nothing:
+            write_atomically(folder / RUN_RECORD, json.dumps(record, indent=1) + "\n")
+        return write_atomically(folder / "report.md", "\n".join(lines) + "\n")
+
+
+def _run_record(folder: Path, run_nothing: bool, wall_seconds: float | None) -> dict:
+    """This run's record (its machine and the wall time of its sweeps), or with `run_nothing` the one the last run
+    left in `folder`; without one, this machine's, said to be the rebuild's."""
+    if not run_nothing:
+        return {"machine": machine(), "wall_seconds": wall_seconds}
+    try:
+        record = json.loads((folder / RUN_RECORD).read_text())
+    except (OSError, ValueError):
+        record = None
+    lines = record.get("machine") if isinstance(record, dict) else None
+    if not (isinstance(lines, list) and all(isinstance(line, str) for line in lines)):
+        return {"machine": [f"{line} (this rebuild's; the trials' machine was not recorded)" for line in machine()]}
+    captions = record.get("pictures")
+    if not (isinstance(captions, dict) and all(isinstance(c, str) for c in captions.values())):
+        captions = {}
+    wall = record.get("wall_seconds")
+    wall = wall if isinstance(wall, (int, float)) and not isinstance(wall, bool) else None
+    return {"machine": lines, "pictures": captions, "wall_seconds": wall}
 
 
 def _sampling_rows(rows) -> list[dict]:
@@ -73,10 +103,9 @@ def _sampling_rows(rows) -> list[dict]:
     return out
 
 
-def _overview_section(
-    store: ResultStore, rows, folder: Path, config: Config | None, wall_seconds: float | None
-) -> list[str]:
-    """Title, then the machine, the code versions and trial counts in the store, and this invocation's options."""
+def _overview_section(store: ResultStore, rows, folder: Path, config: Config | None, record: dict) -> list[str]:
+    """Title, then the machine and wall time (the run record), the code versions and trial counts in the store, and
+    this invocation's options."""
     lines = ["# Levy-flight narrow-passage PRM: the paper's Section IV, reproduced", ""]
     lines += [
         f"Generated {time.strftime('%Y-%m-%d %H:%M:%S UTC', time.gmtime())} from `{store.path.name}` "
@@ -89,7 +118,7 @@ def _overview_section(
         by_experiment[r["experiment"]] = by_experiment.get(r["experiment"], 0) + 1
     versions = sorted({r["code_version"] for r in rows})
     lines += ["## Machine, code, trials", ""]
-    lines += [f"- Machine: {m}" for m in machine()]
+    lines += [f"- Machine: {m}" for m in record["machine"]]
     spent = sum(float(r["metrics"].get("seconds") or 0.0) for r in rows)
     lines += [
         f"- Code version(s) of the stored trials: {', '.join(f'`{v}`' for v in versions) or '–'}",
@@ -104,8 +133,8 @@ def _overview_section(
             f"{config.max_checks} per sampling trial, {config.prm_seeds} seeds per PRM cell, "
             f"{config.ur3_runs} run(s) per UR3 job and sampler; parts: {', '.join(config.parts)}"
         ]
-    if wall_seconds is not None:
-        lines.append(f"- Wall time of this run's sweeps: {wall_seconds:.0f} s")
+    if record.get("wall_seconds") is not None:
+        lines.append(f"- Wall time of the run's sweeps: {record['wall_seconds']:.0f} s")
     if config is not None and config.quick:
         lines.append(
             "- **Quick run**: a handful of trials per cell. The verdicts below show the pipeline works; "

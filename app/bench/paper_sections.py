@@ -234,9 +234,12 @@ def checks_per_passage_section(rows) -> tuple[list[str], list[str]]:
     return lines, found
 
 
-def pictures_section(config: Config, folder: Path, run_nothing: bool) -> list[str]:
+def pictures_section(
+    config: Config, folder: Path, run_nothing: bool, labels: dict | None = None
+) -> tuple[list[str], dict[str, str]]:
     """One seed's samples per scene and sampler of this invocation, drawn into `folder` (not read from the store);
-    with `run_nothing`, the pictures earlier runs drew there, and a note for those missing."""
+    with `run_nothing`, the pictures earlier runs drew there, captioned as `labels` (picture name -> caption, what
+    the run that drew them recorded), and a note for those missing. Also the captions shown, by picture name."""
     lines = [
         "## Sample pictures (Figs. 3, 5, 6)",
         "",
@@ -244,18 +247,23 @@ def pictures_section(config: Config, folder: Path, run_nothing: bool) -> list[st
         "",
     ]
     if run_nothing:
+        labels = labels or {}
         wanted = [
             (scene, sampler, picture_name(scene, sampler)) for scene in config.scenes for sampler in config.samplers
         ]
         found = [w for w in wanted if (folder / w[2]).is_file()]
         missing = len(wanted) - len(found)
-        lines += [
-            f"Rebuilt with `--report-only`, which runs no trial: {len(found)} of {len(wanted)} pictures as an earlier "
-            "run drew them" + (f"; {missing} not drawn (a run without --report-only draws them)." if missing else "."),
-            "",
-        ]
+        if missing:
+            lines += [
+                f"Rebuilt with `--report-only`, which runs no trial: {len(found)} of {len(wanted)} pictures as an "
+                f"earlier run drew them; {missing} not drawn (a run without --report-only draws them).",
+                "",
+            ]
         sections = [
-            (f"{scene} (step {PICTURE_STEPS.get(scene, 10.0):g})", [(s, n) for sc, s, n in found if sc == scene])
+            (
+                f"{scene} (step {PICTURE_STEPS.get(scene, 10.0):g})",
+                [(labels.get(n, s), n) for sc, s, n in found if sc == scene],
+            )
             for scene in config.scenes
         ]
     else:
@@ -265,7 +273,7 @@ def pictures_section(config: Config, folder: Path, run_nothing: bool) -> list[st
             lines += [f"### {title}", ""]
             lines += [f"![{label}]({name})" for label, name in items]
             lines.append("")
-    return lines
+    return lines, {name: label for _, items in sections for label, name in items}
 
 
 def prm_section(rows, folder: Path) -> tuple[list[str], list[str]]:
