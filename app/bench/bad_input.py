@@ -13,7 +13,8 @@ weight), {inverted_box} (a passage box with lo > hi), {negative_velocity}, {zero
 trajectories {maze_motion} (of scene maze) and {renamed_motion} (its last joint renamed); roadmap files (a roadmap of
 bar's shape with a made-up fingerprint, each damaged one way: app.bench.damaged_roadmaps) {flipped_roadmap} (a member's
 compressed data damaged), {crc_roadmap} (a member's checksum wrong), {bomb_roadmap} (a member declaring 4 GB),
-{huge_rows_roadmap} (an npy header claiming 10^12 nodes), {negative_k_roadmap} (k = -5) and {fifo} (a named pipe).
+{huge_rows_roadmap} (an npy header claiming 10^12 nodes), {negative_k_roadmap} (k = -5) and {fifo} (a named pipe);
+ROS 2 bag folders {broken_bag} (metadata no bag has) and {fifo_bag} (a named pipe for its data).
 One-joint URDF robots: {huge_limits} (limits +-1e300), {nan_limit}, {inverted_limits} (lower above upper: Drake's
 parser would stop the process), {two_mimics} (two <mimic> in one joint), {huge_origin} (a link offset of 1e300 m)
 and {stuck_joint} (lower = upper); OMPL.app problems {huge_volume} (volume bounds +-1e308) and {repeated_key} (a
@@ -230,6 +231,8 @@ ROWS = [
     (["view", "bar", "--trajectory", "{long}", "--html", "{out}/x.html"], 2, "cannot read trajectory file"),
     (["view", "tunnel", "--trajectory", "{maze_motion}", "--html", "{out}/x.html"], 2, "scene 'maze', not of 'tunnel'"),
     (["view", "maze", "--trajectory", "{renamed_motion}", "--html", "{out}/x.html"], 2, "joint 4 is 'heading'"),
+    (["view", "bar", "--trajectory", "{broken_bag}", "--bag", "{out}/b"], 2, "cannot read bag broken_bag"),
+    (["view", "bar", "--trajectory", "{fifo_bag}", "--bag", "{out}/b"], 2, "fifo_bag/fifo_bag.db3 is not a file"),
     # -- roadmap files: damaged, hostile or not files at all, refused before anything is planned or written ---------
     (["plan", "bar", "--roadmap", "{fifo}"], 2, "is a named pipe (FIFO), not a file"),
     (["roadmap", "info", "{fifo}"], 2, "is a named pipe (FIFO), not a file"),
@@ -362,6 +365,11 @@ def prepare(folder: Path) -> dict[str, Path]:
     (folder / "maze_motion.json").write_text(_motion("maze", ["x", "y", "z", "yaw"]))
     (folder / "renamed_motion.json").write_text(_motion("maze", ["x", "y", "z", "heading"]))
     os.mkfifo(folder / "pipe.npz")
+    for name in ("broken_bag", "fifo_bag"):  # ROS 2 bag folders: metadata that is no bag's; a named pipe as its data
+        (folder / name).mkdir()
+    (folder / "broken_bag" / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  version: 8\n")
+    (folder / "fifo_bag" / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  version: 8\n")
+    os.mkfifo(folder / "fifo_bag" / "fifo_bag.db3")
     good = roadmap_file()
     (folder / "flipped.npz").write_bytes(invalid_deflate(good, "Q.npy"))
     (folder / "crc.npz").write_bytes(patch_member(good, "Q.npy", crc=0))
@@ -405,6 +413,8 @@ _FILES = {
     "other_db": "other.sqlite",
     "long": "out/" + "a" * 300 + ".json",
     "fifo": "pipe.npz",
+    "broken_bag": "broken_bag",
+    "fifo_bag": "fifo_bag",
     "flipped_roadmap": "flipped.npz",
     "crc_roadmap": "crc.npz",
     "bomb_roadmap": "bomb.npz",
