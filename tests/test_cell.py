@@ -265,6 +265,44 @@ def test_build_info_plan_and_update_from_the_command_line(cli, tmp_path):
     assert info["fingerprint"] == answer["fingerprint"]
 
 
+def test_a_failed_plan_update_writes_back_what_it_decided(cli, tmp_path):
+    """The query finds no path within its budget: exit 1 with the failure's one JSON object, and the file is
+    written back with the query counted and every verdict kept (the query's own samples leave, as in memory)."""
+    import json
+
+    path = tmp_path / "bar.npz"
+    assert cli("roadmap", "build", "bar", "--out", path, "--nodes", 20).returncode == 0  # too few to cross the wall
+    before = json.loads(cli("roadmap", "info", path, "--json").stdout)
+    failed = cli("plan", "bar", "--roadmap", path, "--update", "--budget", "3000checks", "--json")
+    assert failed.returncode == 1 and json.loads(failed.stdout)["error"]["code"] == "PLANNING_FAILED"
+    assert f"wrote {path}" in failed.stderr.splitlines()
+    after = json.loads(cli("roadmap", "info", path, "--json").stdout)
+    assert after["provenance"]["queries"] == before["provenance"]["queries"] + 1
+    assert after["nodes"] == before["nodes"]
+    for verdict in ("free", "colliding_or_unprovable"):
+        assert after["edges"][verdict] >= before["edges"][verdict]
+
+
+def test_a_query_stopped_from_outside_writes_nothing_back(tmp_path):
+    """kept_on_failure saves on a failure to find a path, never on PREEMPTED (an interrupt or a cancel)."""
+    from app.commands.view import kept_on_failure
+
+    class Cell:
+        saved: list = []
+
+        def save(self, path):
+            self.saved.append(path)
+
+    cell, path = Cell(), tmp_path / "cell.npz"
+    for code, saved in (("PREEMPTED", []), (None, [path])):
+        Cell.saved = []
+        with pytest.raises(NoPath), kept_on_failure((cell, path)):
+            raise NoPath("no path", code)
+        assert Cell.saved == saved
+    with pytest.raises(NoPath), kept_on_failure(None):  # no --update: nothing to write
+        raise NoPath("no path")
+
+
 @pytest.mark.parametrize(
     "args",
     [

@@ -369,12 +369,13 @@ def forget_answer() -> None:
 
 
 @contextlib.contextmanager
-def answering():
+def answering(*, final: bool = True):
     """The block in which a command writes its answer: its output files (app.io.all_or_nothing) and what it prints
-    on stdout. A command enters it once it has its answer; inside it SIGINT (Ctrl-C) and SIGTERM wait until the
-    block ends, so the answer is written whole, and the command then ends as it would have (exit 0 on success),
-    with one line on stderr saying an interrupt came too late to matter. Before the block an interrupt stops the
-    command as before (exit 130, nothing written).
+    on stdout (with `final` False: files written on the way to a failure, whose answer app.cli prints after it). A
+    command enters it once it has its answer; inside it SIGINT (Ctrl-C) and SIGTERM wait until the block ends, so
+    the answer is written whole, and the command then ends as it would have (exit 0 on success), with one line on
+    stderr saying an interrupt came too late to matter. Before the block an interrupt stops the command as before
+    (exit 130, nothing written).
 
     What the block prints on stdout is held and written when it ends, all of it (`_write_whole`), before the
     signals are let through; if the block fails, none of it (as none of its files): the failure is the answer.
@@ -394,7 +395,7 @@ def answering():
         finally:
             sys.stdout = stdout
         _write_whole(stdout, held.getvalue())
-        _answer.written = True
+        _answer.written = final
         if received:
             print(INTERRUPTED_WHILE_ANSWERING, file=sys.stderr, flush=True)
     finally:

@@ -67,7 +67,8 @@ def register(subparsers) -> None:
     p.add_argument(
         "--update",
         action="store_true",
-        help="write back to --roadmap what the query learned (its samples, the edges it decided or proved)",
+        help="write back to --roadmap what the query learned (its samples, the edges it decided or proved); a "
+        "query that finds no path writes back its edge verdicts",
     )
     p.add_argument("--json", action="store_true", help="one JSON object on stdout")
     p.add_argument(
@@ -201,7 +202,12 @@ def run(args) -> int:
         start, goal = args.start, args.goal
         # A failure or Ctrl-C from here on answers with what the query spent and, for a custom scene, what loading it
         # took (app.cli prints them as the failure's details).
-        with progress(args, oracle, f"plan {oracle.scene.name}"), failure_details(scene_details(oracle.scene)):
+        saved = (cell, args.roadmap) if args.update else None
+        with (
+            progress(args, oracle, f"plan {oracle.scene.name}"),
+            failure_details(scene_details(oracle.scene)),
+            view.kept_on_failure(saved),
+        ):
             if args.start_pose is not None:
                 start = pose_goal(oracle, args.start_pose, tool=args.tool, seed=args.seed)
             if args.goal_pose is not None:
@@ -210,7 +216,6 @@ def run(args) -> int:
                 plan(oracle, settings, start=start, goal=goal) if cell is None else cell.solve(start, goal, settings)
             )
         # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-        saved = (cell, args.roadmap) if args.update else None
         with answering():  # from here an interrupt waits until the files and the answer are written
             viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
             if args.json:

@@ -116,7 +116,7 @@ def _describe(answer: dict) -> str:
             f"  built     {record['nodes']} nodes, {record['collision_checks']} collision checks, "
             f"{record['seconds']:.1f} s on {record['workers']} process(es), ended by {record['ended']}"
         )
-    lines.append(f"  queries   {answer['provenance']['queries']} answered with it and written back")
+    lines.append(f"  queries   {answer['provenance']['queries']} made on it and written back (answered or not)")
     return "\n".join(lines)
 
 

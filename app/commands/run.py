@@ -17,7 +17,7 @@ from app.commands.common import (
     sampler_name,
     seed,
 )
-from app.commands.view import add_arguments, check_from_args, roadmap_lock, wait, write_outputs
+from app.commands.view import add_arguments, check_from_args, kept_on_failure, roadmap_lock, wait, write_outputs
 from app.errors import UserError
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
 from app.planning.cell import CellRoadmap
@@ -87,10 +87,10 @@ def run(args) -> int:
     # --update: the roadmap's lock from before the file is read until it is written back, as plan --update takes it.
     with roadmap_lock(args.roadmap) if args.update else contextlib.nullcontext():
         cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
-        with progress(args, oracle, f"run {args.job}"):
+        saved = (cell, args.roadmap) if args.update else None
+        with progress(args, oracle, f"run {args.job}"), kept_on_failure(saved):
             result = run_job(oracle, args.job, settings, cell)
         # Files first (all or none), the answer last: a failure writing one leaves no success printed.
-        saved = (cell, args.roadmap) if args.update else None
         with answering():  # the files and the table are the answer
             viewer = write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
             if args.json:

@@ -17,7 +17,7 @@ import threading
 
 from app.commands import custom
 from app.commands.common import announce, answering, check_outputs, non_negative_float, print_json
-from app.errors import UserError
+from app.errors import NoPath, UserError
 from app.io import all_or_nothing, exclusive
 from app.motion.rosbag import DEFAULT_DISTRO, DISTROS, read_bag_for, write_bag
 from app.motion.trajectory import TrajectoryFile
@@ -100,6 +100,22 @@ def write_outputs(args, scene, file: TrajectoryFile, out: str | None = None, roa
     if args.meshcat:
         print(f"meshcat: {viewer.url()}", file=sys.stderr, flush=True)
     return viewer
+
+
+@contextlib.contextmanager
+def kept_on_failure(roadmap):
+    """With --update (`roadmap`: a cell roadmap and its path, else None), a query that finds no path still writes
+    back what it learned: its verdicts on the roadmap's edges (CellRoadmap.solve keeps them and takes its samples
+    away), which the next query need not check again. Not when it was stopped from outside (PREEMPTED): an interrupt
+    writes nothing."""
+    try:
+        yield
+    except NoPath as failure:
+        if roadmap is not None and failure.code != "PREEMPTED":
+            with answering(final=False), exclusive(roadmap[1], _refuse_busy(roadmap[1])):
+                roadmap[0].save(roadmap[1])
+            announce(roadmap[1])
+        raise
 
 
 def roadmap_lock(path):
