@@ -322,3 +322,16 @@ def test_trend_says_which_way_and_only_when_the_test_says_so():
     # five published values: the word comes from rho alone
     assert trend([2, 5, 10, 15, 20], [6.96, 6.18, 6.35, 6.47, 6.84])["word"] == "flat"
     assert trend([2, 5, 10, 15, 20], [7.4, 7.6, 7.9, 9.9, 12.0])["word"] == "rises"
+
+
+def test_a_trend_that_moves_both_ways_is_named_by_its_moves():
+    """Down from the first step to the second, up to the third (as the tunnel's LFBS plan times): a rank correlation
+    over all of them is significant one way, yet the word names both moves."""
+    rng = np.random.default_rng(0)
+    steps = np.repeat([0.2, 0.5, 1.0], 30)
+    times = np.select([steps == 0.2, steps == 0.5], [3.5, 1.7], 2.3) + 0.2 * rng.random(len(steps))
+    t = trend(steps, times)
+    assert t["p"] < 0.05 and t["rho"] < 0  # Spearman alone would say "falls"
+    assert t["word"] == "falls, then rises"
+    steady = np.select([steps == 0.2, steps == 0.5], [3.5, 2.3], 1.7) + 0.2 * rng.random(len(steps))
+    assert trend(steps, steady)["word"] == "falls"

@@ -124,7 +124,9 @@ def table1_section(summary: list[dict], rows) -> tuple[list[str], list[str]]:
     lines += [
         "**Trend with the step.** Ours: Spearman's rank correlation of every trial's t_eps with a (censored trials at "
         "their lower bounds, which lie at the small steps where t_eps is largest, so a falling trend is if anything "
-        f"understated), falls/rises when p < {ALPHA:g}. The paper's: the rank correlation of its five RBBS values "
+        f"understated), falls/rises when p < {ALPHA:g}, or named by its moves (e.g. 'falls, then rises') when "
+        "neighbouring steps differ significantly both ways (Mann-Whitney, Bonferroni over the pairs). The paper's: "
+        "the rank correlation of its five RBBS values "
         "(no spread is published to test), rises/falls when |rho| ≥ 0.5.",
         "",
         "| scene | sampler | paper | ours | trend compared |",
@@ -357,8 +359,10 @@ def _prm_trends(prm_rows, cells) -> tuple[list[str], list[str]]:
     lines = [
         "",
         "**Side by side with the paper.** T_PRM against the step, per scene and sampler (ours: Spearman's rank "
-        f"correlation over the runs that built a roadmap, falls/rises when p < {ALPHA:g}; the paper's: the direction "
-        "of its published values), and LFBS's median T_PRM over RBBS's per cell. Absolute seconds differ by two orders "
+        f"correlation over the runs that built a roadmap, falls/rises when p < {ALPHA:g}, or named by its moves, e.g. "
+        "'falls, then rises', when neighbouring steps differ significantly both ways (Mann-Whitney, Bonferroni over "
+        "the pairs); the paper's: the direction of its published values), and LFBS's median T_PRM over RBBS's per "
+        "cell. Absolute seconds differ by two orders "
         "of magnitude (other machine, other implementation); the ratios and directions are what compare.",
         "",
         "| scene | sampler | paper T_PRM by a | ours median T_PRM by a | paper trend | ours trend |",

@@ -185,8 +185,10 @@ def detectable_drop(runs: int, successes: int) -> int:
 
 def trend(x, y) -> dict:
     """How y moves with x: Spearman's rank correlation, its two-sided p, and a word (rises / falls when p < ALPHA,
-    else flat). For a handful of published values with no spread to test, the word comes from rho alone (|rho| >=
-    0.5)."""
+    else flat). A trend that is not monotone is named by its moves instead (e.g. "falls, then rises"): where y
+    moves significantly both ways between neighbouring values of x (Mann-Whitney, two-sided, Bonferroni over the
+    neighbouring pairs), a rank correlation over all of them would name only the larger move. For a handful of
+    published values with no spread to test, the word comes from rho alone (|rho| >= 0.5)."""
     from scipy.stats import spearmanr
 
     x, y = np.asarray(x, float), np.asarray(y, float)
@@ -198,4 +200,22 @@ def trend(x, y) -> dict:
         word = "rises" if rho >= 0.5 else "falls" if rho <= -0.5 else "flat"
     else:
         word = ("rises" if rho > 0 else "falls") if p < ALPHA else "flat"
+        moves = _moves_between_neighbours(x, y)
+        if {"rises", "falls"} <= set(moves):
+            word = ", then ".join(m for i, m in enumerate(moves) if i == 0 or m != moves[i - 1])
     return {"rho": rho, "p": p, "word": word, "n": len(x)}
+
+
+def _moves_between_neighbours(x: np.ndarray, y: np.ndarray) -> list[str]:
+    """'rises' or 'falls' for each pair of neighbouring x values whose y differ significantly (Mann-Whitney,
+    two-sided, p < ALPHA / the number of pairs), in order of x."""
+    from scipy.stats import mannwhitneyu
+
+    levels = np.unique(x)
+    pairs = list(zip(levels[:-1], levels[1:]))
+    moves = []
+    for a, b in pairs:
+        ya, yb = y[x == a], y[x == b]
+        if len(ya) > 1 and len(yb) > 1 and mannwhitneyu(ya, yb).pvalue < ALPHA / len(pairs):
+            moves.append("rises" if np.median(yb) > np.median(ya) else "falls")
+    return moves
