@@ -76,7 +76,8 @@ def prm_cells(prm_rows) -> list[dict]:
 def prm_figure(cells: list[dict], path: Path) -> None:
     """Success rate (exact 95 % interval) and median T_PRM (95 % bootstrap interval, log scale) per maze/tunnel cell
     and sampler; a cell whose runs all gave up at the sampler's check cap is drawn hollow and hatched (censored, not
-    a result); the legend below the panels."""
+    a result): a stub without height among the success rates, its time to the cap (a lower bound) among the times;
+    the legend below the panels."""
     # matplotlib (and app.draw, which loads it) only when a report is drawn: the command line imports this module.
     import matplotlib
 
@@ -108,8 +109,8 @@ def prm_figure(cells: list[dict], path: Path) -> None:
             )
             rate = c["successes"] / c["runs"]
             lo, hi = c["success_ci"]
-            if censored:  # no roadmap was built: the runs measured the cap, and the rate is unknown (all of [0, 1])
-                axes[0].bar(xi, 1.0, width, alpha=0.45, **style)
+            if censored:  # no roadmap was built: the runs measured the cap, and the rate is unknown: no bar height
+                axes[0].bar(xi, 0.03, width, **style)
                 axes[0].text(
                     xi, 0.5, "censored: rate unknown", ha="center", va="center", fontsize=7, rotation=90, color=colour
                 )
