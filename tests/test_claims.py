@@ -1,9 +1,10 @@
 """The claim judge on small synthetic stores whose answers are known."""
 
 import numpy as np
+import pytest
 
 from app.bench.claims import SAMPLER_CAP, checks_per_passage_sample, judge, passage_yield
-from app.bench.statistics import detectable_drop, median_ci, spread_difference, success_ci, trend
+from app.bench.statistics import detectable_drop, holm, median_ci, paired_tests, spread_difference, success_ci, trend
 from app.bench.store import ResultStore, TrialSpec
 
 
@@ -335,3 +336,19 @@ def test_a_trend_that_moves_both_ways_is_named_by_its_moves():
     assert t["word"] == "falls, then rises"
     steady = np.select([steps == 0.2, steps == 0.5], [3.5, 2.3], 1.7) + 0.2 * rng.random(len(steps))
     assert trend(steps, steady)["word"] == "falls"
+
+
+def test_holm_adjusts_every_p_of_a_family_alike_and_keeps_their_order():
+    assert holm([0.01, None, 0.04, 0.03]) == pytest.approx([0.03, None, 0.06, 0.06])
+    assert holm([0.5, 0.9]) == pytest.approx([1.0, 1.0])  # capped at 1
+    assert holm([]) == []
+
+
+def test_paired_tests_count_the_seeds_each_way_and_test_only_the_pairs_that_differ():
+    same = paired_tests([1, 1, 0], [10, 20, 100], [1, 1, 0], [10, 20, 100])
+    assert same["success_mcnemar_p"] == same["checks_wilcoxon_p"] == 1.0
+    assert (same["fewer_checks"], same["more_checks"], same["pairs"]) == (0, 0, 3)
+    # 10 seeds, the first planner solves all, the second 2 of them: McNemar on the 8 discordant pairs
+    a = paired_tests([1] * 10, list(range(10, 20)), [1, 1] + [0] * 8, [20, 30] + [100] * 8)
+    assert a["success_mcnemar_p"] == pytest.approx(2 * 0.5**8)
+    assert (a["fewer_checks"], a["more_checks"]) == (10, 0) and a["checks_wilcoxon_p"] < 0.01

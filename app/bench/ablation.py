@@ -11,6 +11,7 @@ supplied.
 import numpy as np
 
 from app.bench.runner import sweep
+from app.bench.statistics import holm, paired_tests
 from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath
@@ -27,6 +28,7 @@ VARIANTS = {
     "rbbs+placements": ("rbbs", PlanSettings.workspace),
 }
 DEFAULT_CHECKS = 100_000
+ALPHA = 0.05  # a difference from the default is named when its Holm-adjusted p is below this (family-wise)
 # Run after every other variant's seeds: uniform samples alone cost one check each, so within a check budget the lazy
 # roadmap grows far larger than the other variants' and its searches take far longer (benchmark pages). A sweep
 # stopped early then still holds the same seeds of every other variant.
@@ -92,17 +94,18 @@ def _bootstrap_median(values: np.ndarray, seed: int = 0) -> tuple[float, float] 
 def summarise(rows: list[dict], scenes: list[str], variants: list[str]) -> list[dict]:
     """One row per scene x variant (in that order, cells with no trial left out): success with its 95 % binomial
     interval; median checks to the first solution over successful runs with a bootstrap interval; and, summed over
-    the successful runs, the path nodes each source supplied. `vs_default`: a two-sided Fisher test of success against
-    the default's, and a Mann-Whitney test of checks with every unsolved run counted as the budget (a censored value
-    no solved run exceeds), so a variant that fails more is not flattered by its medians over fewer runs."""
-    from scipy.stats import binomtest, fisher_exact, mannwhitneyu
+    the successful runs, the path nodes each source supplied. `vs_default`: the variant against the default on the
+    seeds both ran (every variant runs the same seeds, so the runs pair up): an exact McNemar test of success and a
+    Wilcoxon signed-rank test of checks with every unsolved run counted at the budget (a censored value no solved
+    run exceeds), each also Holm-adjusted over every comparison in the table, so all are corrected alike."""
+    from scipy.stats import binomtest
 
     cells = {}
     for r in rows:
         cells.setdefault((r["scene"], r["method"]), []).append(r)
     table = []
     for scene in scenes:
-        base = cells.get((scene, "default"), [])
+        base = {r["seed"]: r["metrics"] for r in cells.get((scene, "default"), [])}
         for variant in variants:
             runs = cells.get((scene, variant))
             if not runs:
@@ -128,19 +131,22 @@ def summarise(rows: list[dict], scenes: list[str], variants: list[str]) -> list[
                 },
                 "vs_default": None,
             }
-            if variant != "default" and base:
-                b = [m["success"] for m in (r["metrics"] for r in base)]
-                table_2x2 = [[k, n - k], [int(sum(b)), len(b) - int(sum(b))]]
-                censored = [m["checks"] if m["success"] else budget for m in metrics]
-                censored_base = [m["checks"] if m["success"] else budget for m in (r["metrics"] for r in base)]
+            paired = sorted(r["seed"] for r in runs if r["seed"] in base)
+            if variant != "default" and paired:
+                mine = {r["seed"]: r["metrics"] for r in runs}
+                a, b = [mine[s] for s in paired], [base[s] for s in paired]
+                censored = [[m["checks"] if m["success"] else budget for m in side] for side in (a, b)]
+                default_median = _median_of([{"metrics": m} for m in base.values()])
                 row["vs_default"] = {
-                    "success_fisher_p": float(fisher_exact(table_2x2).pvalue),
-                    "checks_mannwhitney_p": float(mannwhitneyu(censored, censored_base).pvalue),
-                    "checks_ratio": (
-                        row["median_checks"] / _median_of(base) if k and _median_of(base) is not None else None
-                    ),
+                    **paired_tests([m["success"] for m in a], censored[0], [m["success"] for m in b], censored[1]),
+                    "checks_ratio": row["median_checks"] / default_median if k and default_median else None,
                 }
             table.append(row)
+    comparisons = [r["vs_default"] for r in table if r["vs_default"]]
+    tests = ("success_mcnemar_p", "checks_wilcoxon_p")
+    adjusted = holm([c[t] for c in comparisons for t in tests])
+    for i, c in enumerate(comparisons):
+        c["success_p_adjusted"], c["checks_p_adjusted"] = adjusted[2 * i], adjusted[2 * i + 1]
     return table
 
 
@@ -174,8 +180,9 @@ def _fmt_checks(value) -> str:
     return f"{value / 1000:.1f}k" if value >= 1000 else f"{value:.0f}"
 
 
-def markdown(table: list[dict], held: int, planned: int, checks: int, seeds: int) -> str:
-    """The ablation's table and what each source put on the paths, as markdown."""
+def markdown(table: list[dict], held: int, planned: int, checks: int, seeds: int, versions=()) -> str:
+    """The ablation's table and what each source put on the paths, as markdown; `versions`: the code versions of
+    the trials it summarises."""
     lines = [
         "# Ablation: what each source of narrow-passage samples adds",
         "",
@@ -190,19 +197,35 @@ def markdown(table: list[dict], held: int, planned: int, checks: int, seeds: int
             if held < planned
             else ""
         ),
+        *(
+            [
+                "",
+                f"Code version(s) of the trials: {', '.join(f'`{v}`' for v in versions)}"
+                + (
+                    " -- mixed: not every trial ran on the same code, so the comparisons mix versions "
+                    "(`--fresh` runs the trials of other versions again)."
+                    if len(versions) > 1
+                    else "."
+                ),
+            ]
+            if versions
+            else []
+        ),
         "",
         "success: solved within the budget, with its 95 % Clopper-Pearson interval. checks: median checks to the "
-        "first solution over the solved runs, with a 95 % bootstrap interval. p (success): two-sided Fisher test "
-        "against `default`; p (checks): Mann-Whitney test against `default`, unsolved runs counted at the budget. "
-        "path nodes: the roadmap path's nodes (start and goal left out) over all solved runs, by the source that "
-        "drew them: workspace-gap placements / the narrow-passage sampler (for the uniform variants: the uniform "
-        "samples drawn in its place in the narrow rounds) / the uniform rounds.",
+        "first solution over the solved runs, with a 95 % bootstrap interval. Against `default`, on the seeds both "
+        "ran (the runs pair up by seed): p (success), an exact McNemar test; p (checks), a Wilcoxon signed-rank test "
+        "of the checks with unsolved runs counted at the budget; both Holm-adjusted over every comparison in the "
+        f"table (a difference is named when below {ALPHA:g}); fewer / more: the seeds on which the variant needed "
+        "fewer / more checks than `default`. path nodes: the roadmap path's nodes (start and goal left out) over all "
+        "solved runs, by the source that drew them: workspace-gap placements / the narrow-passage sampler (for the "
+        "uniform variants: the uniform samples drawn in its place in the narrow rounds) / the uniform rounds.",
         "",
         *reading(table),
         "",
-        "| scene | variant | success | 95 % CI | checks | 95 % CI | p (success) | p (checks) | path nodes "
-        "placed / sampler / uniform |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| scene | variant | success | 95 % CI | checks | 95 % CI | p (success) | p (checks) | fewer / more "
+        "| path nodes placed / sampler / uniform |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in table:
         lo, hi = r["success_ci"]
@@ -214,13 +237,15 @@ def markdown(table: list[dict], held: int, planned: int, checks: int, seeds: int
             f"{_fmt_checks(r['median_checks'])} | "
             + (f"{_fmt_checks(cci[0])}-{_fmt_checks(cci[1])}" if cci else "-")
             + " | "
-            + (f"{vs['success_fisher_p']:.2g} | {vs['checks_mannwhitney_p']:.2g}" if vs else "- | -")
+            + (
+                f"{vs['success_p_adjusted']:.2g} | {vs['checks_p_adjusted']:.2g} | "
+                f"{vs['fewer_checks']} / {vs['more_checks']}"
+                if vs
+                else "- | - | -"
+            )
             + f" | {src['workspace']} / {src['narrow']} / {src['uniform']} |"
         )
     return "\n".join(lines) + "\n"
-
-
-ALPHA = 0.01  # a difference from the default is named when its test's p is below this
 
 
 def best(rows: list[dict]) -> dict:
@@ -230,7 +255,7 @@ def best(rows: list[dict]) -> dict:
 
 def reading(table: list[dict]) -> list[str]:
     """What the table says about the default: per scene the best variant, where a variant differs from the default
-    by the tests (p < ALPHA), and which source put the narrow nodes on the default's paths."""
+    by the paired tests (Holm-adjusted p < ALPHA), and which source put the narrow nodes on the default's paths."""
     scenes = list(dict.fromkeys(r["scene"] for r in table))
     if not scenes:
         return []
@@ -251,15 +276,17 @@ def reading(table: list[dict]) -> list[str]:
             if r["variant"] != variant or vs is None:
                 continue
             base = next(b for b in table if b["scene"] == r["scene"] and b["variant"] == "default")
-            if vs["success_fisher_p"] < ALPHA or vs["checks_mannwhitney_p"] < ALPHA:
-                ahead = (r["successes"], -(r["median_checks"] or 1e18)) > (
-                    base["successes"],
-                    -(base["median_checks"] or 1e18),
-                )
-                (better if ahead else worse).append(
-                    f"{r['scene']} ({r['successes']}/{r['runs']} vs {base['successes']}/{base['runs']}, "
-                    f"{_fmt_checks(r['median_checks'])} vs {_fmt_checks(base['median_checks'])} checks)"
-                )
+            if vs["success_p_adjusted"] < ALPHA:
+                ahead = r["successes"] > base["successes"]
+            elif vs["checks_p_adjusted"] < ALPHA:
+                ahead = vs["fewer_checks"] > vs["more_checks"]
+            else:
+                continue
+            (better if ahead else worse).append(
+                f"{r['scene']} ({r['successes']}/{r['runs']} vs {base['successes']}/{base['runs']}, "
+                f"{_fmt_checks(r['median_checks'])} vs {_fmt_checks(base['median_checks'])} checks, fewer in "
+                f"{vs['fewer_checks']} of {vs['pairs']} seeds)"
+            )
         same = len([r for r in table if r["variant"] == variant]) - len(better) - len(worse)
         lines.append(
             f"- `{variant}` against `default`: better in {len(better)} scene(s)"

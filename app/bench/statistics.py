@@ -219,3 +219,37 @@ def _moves_between_neighbours(x: np.ndarray, y: np.ndarray) -> list[str]:
         if len(ya) > 1 and len(yb) > 1 and mannwhitneyu(ya, yb).pvalue < ALPHA / len(pairs):
             moves.append("rises" if np.median(yb) > np.median(ya) else "falls")
     return moves
+
+
+def holm(pvalues: list[float | None]) -> list[float | None]:
+    """Holm's step-down adjustment of a family of p-values (None: no test, kept None): each adjusted p is compared
+    with the family's level as it is, every comparison corrected alike; it holds the family-wise error rate as
+    Bonferroni's does and rejects at least what Bonferroni's rejects."""
+    tested = sorted((p, i) for i, p in enumerate(pvalues) if p is not None)
+    out: list[float | None] = [None] * len(pvalues)
+    running = 0.0
+    for rank, (p, i) in enumerate(tested):
+        running = max(running, min(1.0, (len(tested) - rank) * p))
+        out[i] = running
+    return out
+
+
+def paired_tests(a_success, a_checks, b_success, b_checks) -> dict:
+    """Two planners on the same seeds (pairs in order): an exact McNemar test of success (a two-sided binomial test
+    of the discordant pairs), and a Wilcoxon signed-rank test of checks to the first solution with an unsolved run
+    counted at its budget (a censored value no solved run exceeds); how many pairs a needs fewer and more checks."""
+    from scipy.stats import binomtest, wilcoxon
+
+    a_success, b_success = np.asarray(a_success, bool), np.asarray(b_success, bool)
+    a_checks, b_checks = np.asarray(a_checks, float), np.asarray(b_checks, float)
+    only_a, only_b = int(np.sum(a_success & ~b_success)), int(np.sum(b_success & ~a_success))
+    success_p = float(binomtest(only_a, only_a + only_b).pvalue) if only_a + only_b else 1.0
+    differ = a_checks != b_checks
+    checks_p = float(wilcoxon(a_checks[differ], b_checks[differ]).pvalue) if differ.sum() >= 1 else 1.0
+    return {
+        "pairs": len(a_checks),
+        "success_mcnemar_p": success_p,
+        "checks_wilcoxon_p": checks_p,
+        "fewer_checks": int(np.sum(a_checks < b_checks)),
+        "more_checks": int(np.sum(a_checks > b_checks)),
+    }

@@ -50,7 +50,7 @@ def run(args) -> int:
     )
     results.say_reused(reuse)
     planned = len(args.scenes) * len(args.variants) * args.seeds
-    text = markdown(table, held, planned, args.checks, args.seeds)
+    text = markdown(table, held, planned, args.checks, args.seeds, reuse.versions)
     with answering():  # the table, the figure and what is printed are the answer
         out.mkdir(parents=True, exist_ok=True)
         if table:
