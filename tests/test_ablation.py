@@ -79,3 +79,13 @@ def test_the_command_fills_its_store_and_rebuilds_the_table_from_it_alone(cli, t
     assert again.returncode == 0, again.stderr
     assert json.loads(again.stdout)["trials"] == 4
     assert "4 of 6 trials" in (tmp_path / "out" / "table.md").read_text()
+    # a trial of other code is reused, and named in the table, until --fresh runs it again
+    import sqlite3
+
+    with sqlite3.connect(tmp_path / "a.sqlite") as db:
+        db.execute("UPDATE trials SET code_version = 'older' WHERE seed = 0 AND method = 'default'")
+    kept = cli(*argv)
+    assert json.loads(kept.stdout)["reused"]["reused"] == 4 and "`older`" in (tmp_path / "out" / "table.md").read_text()
+    fresh = cli(*argv, "--fresh")
+    assert json.loads(fresh.stdout)["reused"]["reused"] == 3
+    assert "older" not in (tmp_path / "out" / "table.md").read_text()

@@ -156,15 +156,22 @@ def _median_of(runs: list[dict]) -> float | None:
 
 
 def measure(
-    scenes: list[str], variants: list[str], seeds: int, checks: int, store, workers: int = 1, run: bool = True
+    scenes: list[str],
+    variants: list[str],
+    seeds: int,
+    checks: int,
+    store,
+    workers: int = 1,
+    run: bool = True,
+    fresh: bool = False,
 ) -> tuple[list[dict], Reuse, int]:
-    """Run what `store` has no row for (none with run=False), then the summary of the stored trials; what was
-    reused, and how many of the trials the store holds."""
+    """Run what `store` has no row for (none with run=False; with `fresh`, also the trials of other code versions),
+    then the summary of the stored trials; what was reused, and how many of the trials the store holds."""
     from app.bench.store import ResultStore
 
     todo = specs(scenes, variants, seeds, checks)
     if run:
-        rows, reuse = sweep(todo, store, workers=workers, desc="bench ablation")
+        rows, reuse = sweep(todo, store, workers=workers, desc="bench ablation", fresh=fresh)
     else:
         s = ResultStore(store)
         try:

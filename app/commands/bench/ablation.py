@@ -46,7 +46,14 @@ def run(args) -> int:
     table_path, png_path = out / "table.md", out / "ablation.png"
     check_outputs(creating_folders=(args.store, str(table_path), str(png_path)))
     table, reuse, held = measure(
-        args.scenes, args.variants, args.seeds, args.checks, args.store, workers=args.workers, run=not args.report_only
+        args.scenes,
+        args.variants,
+        args.seeds,
+        args.checks,
+        args.store,
+        workers=args.workers,
+        run=not args.report_only,
+        fresh=args.fresh,
     )
     results.say_reused(reuse)
     planned = len(args.scenes) * len(args.variants) * args.seeds
