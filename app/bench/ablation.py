@@ -136,7 +136,7 @@ def summarise(rows: list[dict], scenes: list[str], variants: list[str]) -> list[
                 mine = {r["seed"]: r["metrics"] for r in runs}
                 a, b = [mine[s] for s in paired], [base[s] for s in paired]
                 censored = [[m["checks"] if m["success"] else budget for m in side] for side in (a, b)]
-                default_median = _median_of([{"metrics": m} for m in base.values()])
+                default_median = _median_of(base.values())
                 row["vs_default"] = {
                     **paired_tests([m["success"] for m in a], censored[0], [m["success"] for m in b], censored[1]),
                     "checks_ratio": row["median_checks"] / default_median if k and default_median else None,
@@ -150,8 +150,9 @@ def summarise(rows: list[dict], scenes: list[str], variants: list[str]) -> list[
     return table
 
 
-def _median_of(runs: list[dict]) -> float | None:
-    won = [r["metrics"]["checks"] for r in runs if r["metrics"]["success"]]
+def _median_of(metrics) -> float | None:
+    """Median checks to the first solution over the solved runs (their metrics), or None when none solved."""
+    won = [m["checks"] for m in metrics if m["success"]]
     return float(np.median(won)) if won else None
 
 

@@ -24,7 +24,8 @@ from app.io import all_or_nothing, write_atomically
 from app.samplers import SAMPLERS
 
 # What the last run that added trials recorded beside its report, for `--report-only`, which runs nothing: the
-# machine it ran on and its sample pictures' captions (whether a sampler ran over its budget is not in the store).
+# machine it ran on, its sweeps' wall time and its sample pictures' captions (whether a sampler ran over its budget
+# is not in the store).
 RUN_RECORD = "run.json"
 
 
