@@ -26,6 +26,7 @@ VARIANTS = {
     "placements+uniform": ("uniform", PlanSettings.workspace),
     "uniform-alone": ("uniform", 0.0),
     "rbbs+placements": ("rbbs", PlanSettings.workspace),
+    "adaptive": ("adaptive", PlanSettings.workspace),
 }
 DEFAULT_CHECKS = 100_000
 ALPHA = 0.05  # a difference from the default is named when its Holm-adjusted p is below this (family-wise)

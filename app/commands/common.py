@@ -20,6 +20,7 @@ from app.checking.budget import MAX_CHECKS, MAX_SECONDS, SAFETY_NET_SECONDS, Bud
 from app.checking.certify import CLEARANCE
 from app.errors import NoPath, UserError
 from app.io import check_output
+from app.planning.sources import ADAPTIVE, check_source_name
 from app.samplers import SAMPLERS, check_name
 
 
@@ -181,6 +182,15 @@ def sampler_name(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def source_name(text: str) -> str:
+    """A registered sampler's name or the adaptive mixture's (app.planning.sources.check_source_name): where a
+    query's narrow-passage samples come from."""
+    try:
+        return check_source_name(text)
+    except UserError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def sampler_names(text: str) -> list[str]:
     """Comma-separated registered sampler names."""
     return [sampler_name(name) for name in comma_list(text)]
@@ -189,6 +199,11 @@ def sampler_names(text: str) -> list[str]:
 def known_samplers() -> str:
     """The registered samplers' names (app.samplers.SAMPLERS), for a flag's help."""
     return ", ".join(SAMPLERS)
+
+
+def known_sources() -> str:
+    """The names `source_name` takes, for a flag's help."""
+    return f"{ADAPTIVE} (a mix learned while the query runs), or one sampler with placements: {known_samplers()}"
 
 
 _BUDGET_PART = re.compile(r"^(?P<number>\d+(?:\.\d*)?|\.\d+)\s*(?P<unit>s|min|k?checks|M?checks)$")

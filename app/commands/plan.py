@@ -12,7 +12,7 @@ from app.commands.common import (
     answering,
     failure_details,
     float_list,
-    known_samplers,
+    known_sources,
     neighbours,
     parse_budget,
     positive_float,
@@ -20,10 +20,10 @@ from app.commands.common import (
     progress,
     sample_count,
     sample_period,
-    sampler_name,
     seed,
     share,
     shortcut_rounds,
+    source_name,
 )
 from app.errors import UserError
 from app.planning.cell import CellRoadmap
@@ -87,9 +87,9 @@ def add_sampling_arguments(p) -> None:
     build` alike (their defaults are the same)."""
     p.add_argument(
         "--sampler",
-        type=sampler_name,
+        type=source_name,
         default=DEFAULTS.sampler,
-        help=f"narrow-passage sampler: {known_samplers()} (default {DEFAULTS.sampler})",
+        help=f"where narrow-passage samples come from: {known_sources()} (default {DEFAULTS.sampler})",
     )
     p.add_argument(
         "--step",

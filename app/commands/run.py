@@ -8,14 +8,14 @@ from app.commands.common import (
     BUDGET_HELP,
     add_scaling_arguments,
     answering,
-    known_samplers,
+    known_sources,
     parse_budget,
     positive_float,
     print_json,
     progress,
     sample_count,
-    sampler_name,
     seed,
+    source_name,
 )
 from app.commands.view import add_arguments, check_from_args, kept_on_failure, roadmap_lock, wait, write_outputs
 from app.errors import UserError
@@ -29,9 +29,9 @@ def register(subparsers) -> None:
     p.add_argument("job", help="welding or window (the scene of the same name)")
     p.add_argument(
         "--sampler",
-        type=sampler_name,
+        type=source_name,
         default=JOB_SETTINGS.sampler,
-        help=f"narrow-passage sampler: {known_samplers()} (default {JOB_SETTINGS.sampler})",
+        help=f"where narrow-passage samples come from: {known_sources()} (default {JOB_SETTINGS.sampler})",
     )
     p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--narrow", type=sample_count, default=40, help="narrow-passage samples per planned leg")

@@ -185,7 +185,7 @@ class CellRoadmap:
             except SamplerBudgetExceeded:
                 ended = "sampler"  # the sampler found no more samples within its own cap
                 break
-            new = np.concatenate([graph.add(Q, kind, connect=False) for kind, Q in drawn])
+            new = np.concatenate([graph.add(Q, kind, connect=False) for kind, _, Q in drawn])
             P = graph.candidates(new)
             free, before, done, size = np.zeros(len(P), bool), len(graph) - len(new), 0, FIRST_PART
             while True:

@@ -133,6 +133,9 @@ class Query:
         # What a shared certifier had spent before this query: the answer reports only this query's share.
         self._certificate_before = certifier.seconds if certifier is not None else 0.0
         self.stopped: str | None = None  # why the query's work ended early: "time", "checks" or "cancelled"
+        # Per node, the source that drew it ("" for nodes the query did not draw).
+        self._source_of = np.full(len(roadmap), "", object)
+        self._sides: tuple[np.ndarray, np.ndarray] | None = None  # see `_apart`
 
     # ---- the easy route -----------------------------------------------------------------------------------------
     def straight(self, stop: Stop) -> bool:
@@ -172,10 +175,14 @@ class Query:
             drawn = self.ledger.run("sampling", self.samples.draw, narrow, uniform, stop)
         except SamplerBudgetExceeded as exc:
             raise self._failure(f"no path on {self.checker.scene.name}: {exc}", sampler=str(exc)) from None
-        new = np.concatenate([self.roadmap.add(Q, kind, connect=False) for kind, Q in drawn])
-        new = np.concatenate([np.array(self._unconnected, int), new])
+        added = [(source, self.roadmap.add(Q, kind, connect=False)) for kind, source, Q in drawn]
+        self._source_of = np.concatenate(
+            [self._source_of, *(np.full(len(nodes), source, object) for source, nodes in added)]
+        )
+        new = np.concatenate([np.array(self._unconnected, int), *(nodes for _, nodes in added)])
         self._unconnected = []
         self.ledger.run("roadmap", self.roadmap.connect, new, stop)
+        self._reward(new)
         return new
 
     # ---- search -----------------------------------------------------------------------------------------------------
@@ -294,10 +301,48 @@ class Query:
             found = self.search_and_refine(stop, proving)
             if found is not None:
                 break
+            self._apart()
             if self.narrow_from_round is None:  # uniform samples alone did not do it: a passage in the way
                 self.narrow_from_round = self.rounds + 1
             sizes = self.round_sizes()
         return None if found is None else ("roadmap", found)
+
+    def _apart(self) -> None:
+        """After a search that left start and goal apart: remember which nodes the start's and the goals' components
+        of edges not known to collide hold, for the next round's rewards (`_reward`)."""
+        if self.samples.mixture is None:
+            return
+        labels = self.roadmap.labels()
+        self._sides = (labels == labels[self.start_node], np.isin(labels, labels[self.goal_nodes]))
+
+    def _reward(self, new: np.ndarray) -> None:
+        """Teach the mixture what a round's samples (`new`, just connected) achieved: a reward for each that lies
+        between the start's side and a goal's, where the last search left them apart.
+
+        Hybrid PRM rewards a sample that makes a new component or merges two: visibility a roadmap that checks every
+        edge knows. A lazy one decides only the edges of the candidate paths it tries, and after a search that found
+        no path, every candidate edge between the start's component and the goals' has been found to collide: the
+        passage lies between them. A new sample with candidate edges to both sides lies in that gap of the roadmap,
+        and the next search tries the paths through it; a sample with neighbours on one side only is one more in a
+        region the roadmap already covers."""
+        if self.samples.mixture is None or self._sides is None or not len(new):
+            return
+        start_side, goal_side = self._sides
+        old = len(start_side)
+        E = self.roadmap.edges()
+        E = E[(E[:, 1] >= old) & (E[:, 0] < old)]  # new node (the larger index) to a node the last search knew
+        near_start = np.zeros(len(self.roadmap), bool)
+        near_goal = near_start.copy()
+        near_start[E[start_side[E[:, 0]], 1]] = True
+        near_goal[E[goal_side[E[:, 0]], 1]] = True
+        between = np.flatnonzero(near_start & near_goal)
+        sources, counts = np.unique(self._source_of[between], return_counts=True)
+        self.samples.reward({str(s): float(c) for s, c in zip(sources, counts) if s})
+
+    def _sources_on(self, nodes: list[int]) -> dict[str, int]:
+        """How many of the path's nodes each source drew (nodes the query did not draw left out)."""
+        drawn = [str(self._source_of[i]) for i in nodes if i < len(self._source_of) and self._source_of[i]]
+        return {name: drawn.count(name) for name in sorted(set(drawn))}
 
     def _goal_index(self, q: np.ndarray) -> int:
         return int(np.argmin(self.checker.space.distance(q, self.goals)))
@@ -318,7 +363,7 @@ class Query:
             rounds=self.rounds,
             narrow_from_round=self.narrow_from_round,
             roadmap=self.roadmap.stats(),
-            sampler_stats=self.samples.stats,
+            sampler_stats=self.samples.record(),
             budget=str(self.settings.budget),
             stopped=stopped or self.stopped,
         )
@@ -402,6 +447,7 @@ class Query:
             certificate=certificate,
             narrow_on_path=int(sum(roadmap.kinds[i] == NARROW for i in nodes)),
             workspace_on_path=int(sum(roadmap.kinds[i] == WORKSPACE for i in nodes)),
+            sources_on_path=self._sources_on(nodes),
             graph=roadmap,
             path_nodes=list(nodes),
             blends=self.refinement.blends if certificate.blended else None,

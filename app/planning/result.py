@@ -203,6 +203,8 @@ class PlanResult:
         certificate: What was proved of the path, and what proving it cost.
         narrow_on_path: Nodes of the roadmap path from the narrow-passage sampler.
         workspace_on_path: Nodes of the roadmap path from workspace-gap placements.
+        sources_on_path: Nodes of the roadmap path by the source that drew them ("workspace", "uniform", or a
+            sampler's name); nodes the query did not draw (its endpoints, a stored roadmap's) are not counted.
         graph: The roadmap itself (nodes `Q`, their `kinds`, `edges()`), for viewers; not part of the JSON.
         path_nodes: The roadmap path's node indices in `graph`.
         blends: The certified curve of the trajectory where that, and not the polyline `path`, is what was proved
@@ -225,6 +227,7 @@ class PlanResult:
     certificate: Certificate
     narrow_on_path: int
     workspace_on_path: int
+    sources_on_path: dict[str, int] = field(default_factory=dict)
     graph: Roadmap | None = field(default=None, repr=False)
     path_nodes: list = field(default_factory=list, repr=False)
     blends: BlendProof | None = field(default=None, repr=False)
@@ -275,6 +278,7 @@ class PlanResult:
             **stats,
             "narrow_on_path": self.narrow_on_path,
             "workspace_on_path": self.workspace_on_path,
+            "sources_on_path": self.sources_on_path,
             "smoothing": self.smoothing.to_json(),
             "certificate": self.certificate.to_json(),
             "certified": self.certified,

@@ -299,6 +299,10 @@ class Roadmap:
             self._labelled = (state, connected_components(graph, directed=True, connection="strong"))
         return self._labelled[1]
 
+    def labels(self) -> np.ndarray:
+        """A component label per node, of the graph of edges not known to collide."""
+        return self._labels()[1]
+
     def components(self) -> int:
         return int(self._labels()[0])
 

@@ -59,7 +59,9 @@ class PlanSettings:
     """Everything a query may be told, validated once when built (a bad value raises UserError).
 
     Attributes:
-        sampler: The narrow-passage sampler's registered name (one of `app.SAMPLERS`).
+        sampler: Where the narrow-passage samples come from: a sampler's registered name (one of `app.SAMPLERS`),
+            with `workspace` of them placements, or "adaptive": placements and the narrow-passage samplers in
+            shares learned while the query runs (app.planning.sources.Mixture).
         narrow: Narrow-passage samples that size a query's rounds (see Query); with `full_roadmap`, the whole
             roadmap's.
         uniform: Uniform samples, as `narrow`.
@@ -108,9 +110,12 @@ class PlanSettings:
     clearance: float = CLEARANCE
 
     def __post_init__(self):
-        from app.samplers import check_name
+        from app.planning.sources import ADAPTIVE, check_source_name
 
-        check_name(self.sampler)
+        check_source_name(self.sampler)
+        if self.sampler == ADAPTIVE and self.sampler_params:
+            names = ", ".join(self.sampler_params)
+            raise UserError(f"sampler parameters ({names}) need a named sampler, not {ADAPTIVE}")
         for name in ("narrow", "uniform", "smooth_rounds", "seed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:

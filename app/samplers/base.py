@@ -57,6 +57,9 @@ class Sampler:
         self.redraws = int(redraws)  # how often an out-of-bounds step is redrawn before that proposal is dropped
         self.stats: dict = {}
         self._begun = False  # _begin has run: there is state to resume from
+        # Checks the current call may still spend before `max_checks`: a round's batch is no larger (a caller that
+        # caps a call tightly, as the adaptive mixture does, is not overrun by a batch sized for thousands).
+        self._room = self.max_checks
         self.bridges: np.ndarray | None = None  # (k, 2, dim) colliding bridge endpoints of the last samples
 
     # ---- the loop ------------------------------------------------------------------------------------------
@@ -89,6 +92,7 @@ class Sampler:
                     samples=np.concatenate(samples) if samples else np.empty((0, self.space.dim)),
                 )
             self.stats["rounds"] += 1
+            self._room = self.max_checks - spent
             poll(stop)  # a round may ask nothing (every proposal out of bounds)
             got, ends = self._round(rng, k - have, stop)
             if len(got):
@@ -111,7 +115,7 @@ class Sampler:
     # ---- helpers -------------------------------------------------------------------------------------------
     def _batch_size(self, need: int, rate: float, low: int = 16, high: int = 1024) -> int:
         """Candidates for one round: enough to give `need` samples at the observed yield `rate`, within limits."""
-        return int(np.clip(np.ceil(1.25 * need / max(rate, 1e-3)), low, high))
+        return max(1, min(int(np.clip(np.ceil(1.25 * need / max(rate, 1e-3)), low, high)), self._room))
 
     def _offsets(self, rng: np.random.Generator, n: int, length: float, exact: bool) -> np.ndarray:
         """n configuration-space offsets of weighted length `length` (exact) or Gaussian with that rms length."""

@@ -120,10 +120,10 @@ class Walker(Sampler):
 
     def _pool_size(self, need: int) -> int:
         if self.walkers:
-            return int(self.walkers)
+            return min(int(self.walkers), max(1, self._room))
         # Walk lengths are heavy-tailed, so a larger pool finishes its samples with shorter walks, which offsets
         # the unfinished walks it leaves, and its batches are fuller (benchmark pages, "Tuning notes").
-        return int(np.clip(4 * need, 32, 256))
+        return min(int(np.clip(4 * need, 32, 256)), max(1, self._room))
 
     def _refill(self, rng, size: int, stop) -> None:
         """Top the pool up to `size` walkers from colliding uniform configurations (checked in one call)."""
@@ -132,6 +132,7 @@ class Walker(Sampler):
             return
         if len(self._reserve) < missing:
             n = int(np.clip(np.ceil(1.2 * (missing - len(self._reserve)) / max(self._hit_rate, 0.02)), 8, 4096))
+            n = max(1, min(n, self._room))
             C = self.space.uniform(rng, n)
             hit = self._collides(C, stop)
             self._hit_rate = max(hit.mean(), 0.02)

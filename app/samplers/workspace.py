@@ -139,8 +139,9 @@ class WorkspaceSampler(Sampler):
         gaps = self.gaps
         if len(gaps.points) < POINTS and gaps.searched < SEARCH_MAX:
             gaps.search(rng, stop=stop)
-        n = self._batch_size(need, self._rate)
-        Q = gaps.place(rng, n)
+        # Placing costs no check: only the placements made are capped by the call's room.
+        n = int(np.clip(np.ceil(1.25 * need / max(self._rate, 1e-3)), 16, 1024))
+        Q = gaps.place(rng, n)[: max(1, self._room)]
         self.stats["attempts"] += n
         self._idle = 0 if len(Q) else self._idle + 1
         if self._idle >= IDLE_ROUNDS:
