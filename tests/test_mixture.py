@@ -28,7 +28,8 @@ def test_the_mixture_gives_its_checks_to_the_source_that_earns_rewards_and_keeps
 
 def test_the_mixture_saves_a_small_share_up_until_it_buys_a_call_and_counts_what_a_call_overspent():
     mixture = Mixture(("a", "b"))
-    mixture.reward("a", 1000)  # almost everything to a; b's share is little more than the floor
+    mixture.checks.update(a=1000, b=10_000)  # as if spent before: a earned 100 rewards, b none
+    mixture.reward("a", 100)  # almost everything to a; b's share is little more than the floor
     first = mixture.allot(2 * MIN_CALL, ["a", "b"])
     assert "a" in first and "b" not in first
     rounds = 1

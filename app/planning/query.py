@@ -60,7 +60,9 @@ class Query:
     of the robot in a narrow gap of the workspace (app.samplers.workspace). The walkers find a passage wherever
     obstacles leave one, but in a passage narrow in many dimensions they end on the obstacles' faces; placements go
     straight to the gap, and the walkers still cover passages with no workspace gap behind them (the maze's window).
-    What each source adds: the ablation (`bench ablation`, docs/paper.md).
+    What each source adds: the ablation (`bench ablation`, docs/paper.md). With the sampler "adaptive", the narrow
+    rounds' checks are shared among placements and the narrow-passage samplers in shares learned from what each
+    one's samples achieve per check (app.planning.sources.Mixture; the reward: `_reward`).
 
     `full_roadmap` is the paper's protocol instead: one round of all `narrow` + `uniform` samples, every edge
     checked, then the query."""

@@ -21,8 +21,9 @@ MIXED = (PLACEMENTS, "gaussian", "rbbs", "lfbs", "rwbs")
 # The mixture's floor: this share of a round's narrow checks is spread evenly over the sources, so a source that
 # did nothing yet can still show what it does in this query's passage (EXP3's exploration; Hybrid PRM's too).
 EXPLORE = 0.1
-# A source's prior, as if it had earned PRIOR_REWARD in PRIOR_CHECKS: a source is not written off, or trusted, on
-# its first few samples.
+# A source's prior: PRIOR_CHECKS checks at the rate all sources earned together (itself PRIOR_REWARD in PRIOR_CHECKS
+# before any reward), so a source is not written off, or trusted, on its first few samples, and one that earns
+# nothing in thousands of checks falls to the floor.
 PRIOR_REWARD, PRIOR_CHECKS = 1.0, 100.0
 # A narrow round's checks per narrow sample it is sized for (Query.round_sizes): about what the fixed default mix
 # spends per narrow sample in the UR3 cells, so the mixture's rounds cost what the default's did.
@@ -45,15 +46,16 @@ class Mixture:
     """How a round's narrow-passage checks are shared among the sources, learned from reward per check: a
     cost-sensitive bandit in the manner of Hybrid PRM (Hsu, Sánchez-Ante and Sun, ICRA 2005).
 
-    Each source i has earned R_i rewards for C_i checks (Query._reward says what earns one). Its rate is rho_i =
-    (R_i + PRIOR_REWARD) / (C_i + PRIOR_CHECKS), and it is allotted the share p_i = (1 - EXPLORE) rho_i / sum rho +
-    EXPLORE / K of the round's checks: probability matching on reward per check, with EXP3's uniform floor. Allotted
-    checks accumulate as credit (deficit round robin): a source draws, until its credit is spent, once it holds
-    MIN_CALL, and what it overspends is owed to later rounds. Everything is counted, nothing is drawn at random, so the
-    mixture adds no randomness of its own. Why this rule rather than EXP3's exponential weights: a query runs tens of
-    rounds, not thousands, and exponential weights on so few, so noisy rewards swing to one source and stay; the
-    ratio of counts settles as fast as the counts do, and the floor keeps every source in the running at a cost of
-    at most EXPLORE of the narrow checks."""
+    Each source i has earned R_i rewards for C_i checks (Query._reward says what earns one). Its rate is
+    rho_i = (R_i + rho PRIOR_CHECKS) / (C_i + PRIOR_CHECKS), shrunk towards rho, the rate of all sources together,
+    and it is allotted the share p_i = (1 - EXPLORE) rho_i / sum rho + EXPLORE / K of the round's checks:
+    probability matching on reward per check, with EXP3's uniform floor. Allotted checks accumulate as credit
+    (deficit round robin): a source draws, until its credit is spent, once it holds MIN_CALL, and what it overspends
+    is owed to later rounds. Everything is counted, nothing drawn at random, so the mixture adds no randomness of
+    its own. Why not EXP3's exponential weights: a query runs tens of rounds, not thousands, and exponential weights
+    on so few, so noisy rewards swing to one source and stay there; a ratio of counts settles as fast as the counts
+    do, and the floor keeps every source in the running for at most EXPLORE of the narrow checks. How it compares
+    with the fixed mixes: `bench ablation` (docs/paper.md)."""
 
     def __init__(self, names: tuple[str, ...]):
         self.names = names
@@ -64,7 +66,8 @@ class Mixture:
 
     def shares(self, on: list[str]) -> np.ndarray:
         """The share of a round's checks per source in `on` (those that can still draw)."""
-        rate = np.array([(self.rewards[s] + PRIOR_REWARD) / (self.checks[s] + PRIOR_CHECKS) for s in on])
+        pooled = (sum(self.rewards[s] for s in on) + PRIOR_REWARD) / (sum(self.checks[s] for s in on) + PRIOR_CHECKS)
+        rate = np.array([(self.rewards[s] + pooled * PRIOR_CHECKS) / (self.checks[s] + PRIOR_CHECKS) for s in on])
         return (1 - EXPLORE) * rate / rate.sum() + EXPLORE / len(on)
 
     def allot(self, checks: float, on: list[str]) -> dict[str, float]:
