@@ -89,3 +89,11 @@ def test_the_command_fills_its_store_and_rebuilds_the_table_from_it_alone(cli, t
     fresh = cli(*argv, "--fresh")
     assert json.loads(fresh.stdout)["reused"]["reused"] == 3
     assert "older" not in (tmp_path / "out" / "table.md").read_text()
+    # trials run now are named as well as those reused: one more seed on other code makes the table mixed
+    with sqlite3.connect(tmp_path / "a.sqlite") as db:
+        db.execute("UPDATE trials SET code_version = 'older'")
+    grown = cli(*[a if a != "2" else "3" for a in argv])
+    table = (tmp_path / "out" / "table.md").read_text()
+    assert json.loads(grown.stdout)["reused"]["reused"] == 4
+    versions = table.split("Code version(s) of the trials: ")[1].split(" -- ")[0]
+    assert "`older`" in versions and versions.count("`") == 4 and "mixed" in table

@@ -166,9 +166,10 @@ def measure(
     workers: int = 1,
     run: bool = True,
     fresh: bool = False,
-) -> tuple[list[dict], Reuse, int]:
+) -> tuple[list[dict], Reuse, int, tuple[str, ...]]:
     """Run what `store` has no row for (none with run=False; with `fresh`, also the trials of other code versions),
-    then the summary of the stored trials; what was reused, and how many of the trials the store holds."""
+    then the summary of the stored trials; what was reused, how many of the trials the store holds, and the code
+    versions that ran them (those run now included)."""
     from app.bench.store import ResultStore
 
     todo = specs(scenes, variants, seeds, checks)
@@ -180,7 +181,8 @@ def measure(
             reuse, rows = s.reuse(todo), s.rows_for(todo)
         finally:
             s.close()
-    return summarise(rows, scenes, variants), reuse, len(rows)
+    versions = tuple(sorted({str(r["code_version"]) for r in rows}))
+    return summarise(rows, scenes, variants), reuse, len(rows), versions
 
 
 def _fmt_checks(value) -> str:

@@ -90,7 +90,8 @@ class BuildSettings:
         nodes: The samples the roadmap holds when the build ends (the budget may end it first).
         narrow: The share of each round's samples from the narrow-passage sampler (with `workspace` of those placed
             in workspace gaps); the rest are uniform.
-        sampler: As in PlanSettings.
+        sampler: As in PlanSettings ("adaptive" learns from a query's searches; a build runs none, so its mixed
+            sources share the narrow checks evenly).
         step: As in PlanSettings.
         sampler_params: As in PlanSettings.
         workspace: As in PlanSettings.

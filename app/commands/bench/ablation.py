@@ -45,7 +45,7 @@ def run(args) -> int:
     out = Path(args.out)
     table_path, png_path = out / "table.md", out / "ablation.png"
     check_outputs(creating_folders=(args.store, str(table_path), str(png_path)))
-    table, reuse, held = measure(
+    table, reuse, held, versions = measure(
         args.scenes,
         args.variants,
         args.seeds,
@@ -57,7 +57,7 @@ def run(args) -> int:
     )
     results.say_reused(reuse)
     planned = len(args.scenes) * len(args.variants) * args.seeds
-    text = markdown(table, held, planned, args.checks, args.seeds, reuse.versions)
+    text = markdown(table, held, planned, args.checks, args.seeds, versions)
     with answering():  # the table, the figure and what is printed are the answer
         out.mkdir(parents=True, exist_ok=True)
         if table:
