@@ -1,6 +1,8 @@
 """The adaptive mixture of sample sources: shares learned from reward per check, a floor for every source, capped
 sampler calls, the same answer for a seed, and what each source did recorded in the answer."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -30,14 +32,28 @@ def test_the_mixture_saves_a_small_share_up_until_it_buys_a_call_and_counts_what
     mixture = Mixture(("a", "b"))
     mixture.checks.update(a=1000, b=10_000)  # as if spent before: a earned 100 rewards, b none
     mixture.reward("a", 100)  # almost everything to a; b's share is little more than the floor
-    first = mixture.allot(2 * MIN_CALL, ["a", "b"])
+    first = mixture.allot(10, 2 * MIN_CALL, ["a", "b"])
     assert "a" in first and "b" not in first
     rounds = 1
-    while "b" not in mixture.allot(2 * MIN_CALL, ["a", "b"]):
+    while "b" not in mixture.allot(10, 2 * MIN_CALL, ["a", "b"]):
         rounds += 1
     assert rounds > 1
     mixture.spent("b", samples=1, checks=int(mixture.credit["b"]) + 500)  # a call overran its credit
-    assert mixture.credit["b"] < 0 and "b" not in mixture.allot(2 * MIN_CALL, ["a", "b"])
+    assert mixture.credit["b"] < 0 and "b" not in mixture.allot(10, 2 * MIN_CALL, ["a", "b"])
+
+
+def test_a_cheap_source_draws_no_more_than_its_share_of_the_round_samples_and_banks_no_flood():
+    mixture = Mixture(("cheap", "dear"))
+    mixture.checks.update(cheap=1000, dear=1000)
+    mixture.samples.update(cheap=1000, dear=10)  # a check a sample, against a hundred
+    mixture.reward("cheap", 10)
+    mixture.reward("dear", 10)
+    for _ in range(20):  # rounds in which nothing is drawn: credit is saved up to two rounds' share only
+        allotted = mixture.allot(50, 1000, ["cheap", "dear"])
+    share = mixture.shares(["cheap", "dear"])[0]
+    credit, most = allotted["cheap"]
+    assert credit <= 2 * share * 1000 + 1e-9
+    assert most == math.ceil(share * 50) < credit / mixture.per_sample("cheap")
 
 
 @pytest.mark.parametrize("name", list(SAMPLERS))

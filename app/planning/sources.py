@@ -4,6 +4,8 @@ query runs (Mixture); a query and a cell roadmap's build draw through it alike."
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from app.checking.budget import Stop, poll
@@ -46,16 +48,18 @@ class Mixture:
     """How a round's narrow-passage checks are shared among the sources, learned from reward per check: a
     cost-sensitive bandit in the manner of Hybrid PRM (Hsu, Sánchez-Ante and Sun, ICRA 2005).
 
-    Each source i has earned R_i rewards for C_i checks (Query._reward says what earns one). Its rate is
-    rho_i = (R_i + rho PRIOR_CHECKS) / (C_i + PRIOR_CHECKS), shrunk towards rho, the rate of all sources together,
-    and it is allotted the share p_i = (1 - EXPLORE) rho_i / sum rho + EXPLORE / K of the round's checks:
-    probability matching on reward per check, with EXP3's uniform floor. Allotted checks accumulate as credit
-    (deficit round robin): a source draws, until its credit is spent, once it holds MIN_CALL, and what it overspends
-    is owed to later rounds. Everything is counted, nothing drawn at random, so the mixture adds no randomness of
-    its own. Why not EXP3's exponential weights: a query runs tens of rounds, not thousands, and exponential weights
-    on so few, so noisy rewards swing to one source and stay there; a ratio of counts settles as fast as the counts
-    do, and the floor keeps every source in the running for at most EXPLORE of the narrow checks. How it compares
-    with the fixed mixes: `bench ablation` (docs/paper.md)."""
+    Each source i has earned R_i rewards for C_i checks (Query._reward says what earns one). Its rate is rho_i =
+    (R_i + rho PRIOR_CHECKS) / (C_i + PRIOR_CHECKS), shrunk towards rho, the rate of all sources together, and it is
+    allotted the share p_i = (1 - EXPLORE) rho_i / sum rho + EXPLORE / K of the round's checks: probability matching
+    on reward per check, with EXP3's uniform floor. Allotted checks accumulate as credit (deficit round robin): a
+    source draws, until its credit is spent, once it holds MIN_CALL, and what it overspends is owed to later rounds.
+    A source draws no more than its share of the round's samples either: placements in the maze cost about a check
+    each, and drawn by checks alone they flooded the roadmap with tens of thousands of nodes that every search then
+    paid for. Everything is counted, nothing drawn at random, so the mixture adds no randomness of its own. Why not
+    EXP3's exponential weights: a query runs tens of rounds, not thousands, and exponential weights on so few, so
+    noisy rewards swing to one source and stay there; a ratio of counts settles as fast as the counts do, and the
+    floor keeps every source in the running for at most EXPLORE of the narrow checks. How it compares with the fixed
+    mixes: `bench ablation` (docs/paper.md)."""
 
     def __init__(self, names: tuple[str, ...]):
         self.names = names
@@ -70,11 +74,17 @@ class Mixture:
         rate = np.array([(self.rewards[s] + pooled * PRIOR_CHECKS) / (self.checks[s] + PRIOR_CHECKS) for s in on])
         return (1 - EXPLORE) * rate / rate.sum() + EXPLORE / len(on)
 
-    def allot(self, checks: float, on: list[str]) -> dict[str, float]:
-        """A round's `checks` shared among the sources in `on`: the credit of each that may draw now."""
+    def allot(self, samples: int, checks: float, on: list[str]) -> dict[str, tuple[float, int]]:
+        """A round's `checks` and `samples` shared among the sources in `on`: of each that may draw now, its credit
+        and the most samples it may draw. Credit saved is capped at two rounds' share (a source held back by its
+        samples does not bank a flood for later)."""
+        out = {}
         for name, share in zip(on, self.shares(on)):
-            self.credit[name] += share * checks
-        return {name: self.credit[name] for name in on if self.credit[name] >= MIN_CALL}
+            add = share * checks
+            self.credit[name] = min(self.credit[name] + add, 2 * max(add, MIN_CALL))
+            if self.credit[name] >= MIN_CALL:
+                out[name] = (self.credit[name], math.ceil(share * samples))
+        return out
 
     def per_sample(self, name: str) -> float:
         """The source's checks per sample so far (1 before its first)."""
@@ -140,12 +150,13 @@ class Samples:
         on = [s for s in mixture.names if s not in self._off]
         if narrow > 0 and not on:
             raise SamplerBudgetExceeded("every narrow-passage source gave up")
-        credit = mixture.allot(narrow * ROUND_CHECKS, on) if narrow > 0 else {}
+        allotted = mixture.allot(narrow, narrow * ROUND_CHECKS, on) if narrow > 0 else {}
         for name in mixture.names:
-            if name in credit:  # as many samples as the credit buys at the source's cost so far, the credit a cap
-                count = max(1, int(credit[name] / mixture.per_sample(name)))
+            if name in allotted:  # as many samples as the credit buys at the source's cost so far, within its share
+                credit, most = allotted[name]
+                count = min(most, max(1, int(credit / mixture.per_sample(name))))
                 kind = WORKSPACE if name == PLACEMENTS else NARROW
-                out.append((kind, name, self._draw(name, count, stop, credit[name])))
+                out.append((kind, name, self._draw(name, count, stop, credit)))
         return [*out, (UNIFORM, "uniform", self._draw("uniform", uniform, stop))]
 
     def record(self) -> dict[str, dict]:
