@@ -292,3 +292,33 @@ def join(trajectories: list[Trajectory], oracle) -> Trajectory:
         position_map=trajectories[0].position_map,
         **{key: np.concatenate(value) for key, value in parts.items()},
     )
+
+
+def cover(cell: CellRoadmap, seed: int = 0) -> list[dict]:
+    """Join the cell's named hard regions to its roadmap: its scene's own query and every job its poses allow, each
+    answered on the roadmap, which keeps the samples each joined (CellRoadmap.solve). A build's samples are spread
+    over the free space and few land in a hatch; a query that must cross it then draws its own thousands, and on a
+    stored roadmap paid more than with none. Returns what each cost, as the roadmap's provenance records it."""
+    oracle, done = cell.oracle, []
+    tasks = [("query", None)] + [(f"job {job}", job) for job in ROUTES if _has_route(oracle, job)]
+    for what, job in tasks:
+        try:
+            if job is None:
+                spent = cell.solve(settings=PlanSettings(seed=seed, timing=False)).collision_checks
+            else:
+                spent = run_job(oracle, job, replace(JOB_SETTINGS, seed=seed), cell).collision_checks
+            solved = True
+        except NoPath as failure:
+            details = getattr(failure, "details", {})
+            spent, solved = details.get("job_checks", details.get("collision_checks", 0)), False
+        done.append({"what": what, "solved": solved, "collision_checks": int(spent)})
+    cell.provenance.setdefault("covered", []).extend(done)
+    return done
+
+
+def _has_route(oracle, job: str) -> bool:
+    """Whether the scene names the poses of the job's route, and it has a leg."""
+    try:
+        return len(route(oracle, job)) > 1
+    except UserError:
+        return False

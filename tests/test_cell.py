@@ -256,12 +256,20 @@ def test_build_info_plan_and_update_from_the_command_line(cli, tmp_path):
     built = cli("roadmap", "build", "bar", "--out", path, "--nodes", 250, "--json")
     assert built.returncode == 0, built.stderr
     answer = json.loads(built.stdout)
-    assert answer["nodes"] == 250 and answer["edges"]["free"] > 0 and f"wrote {path}" in built.stderr
+    assert answer["nodes"] >= 250 and answer["edges"]["free"] > 0 and f"wrote {path}" in built.stderr
+    # The build answered the scene's own query on the roadmap (bar has no job), which kept what it joined.
+    assert answer["provenance"]["covered"] == [
+        {"what": "query", "solved": True, "collision_checks": answer["provenance"]["covered"][0]["collision_checks"]}
+    ]
+    assert answer["provenance"]["queries"] == 1
     planned = cli("plan", "bar", "--roadmap", path, "--update", "--json")
     assert planned.returncode == 0, planned.stderr
     assert json.loads(planned.stdout)["certified"]
     info = json.loads(cli("roadmap", "info", path, "--json").stdout)
-    assert info["provenance"]["queries"] == 1 and info["nodes"] >= 250  # the query was written back
+    assert info["provenance"]["queries"] == 2 and info["nodes"] >= answer["nodes"]  # the query was written back
+    assert "covered   query: joined" in cli("roadmap", "info", path).stdout
+    bare = cli("roadmap", "build", "bar", "--out", tmp_path / "bare.npz", "--nodes", 250, "--no-cover", "--json")
+    assert json.loads(bare.stdout)["nodes"] == 250 and "covered" not in json.loads(bare.stdout)["provenance"]
     assert info["fingerprint"] == answer["fingerprint"]
 
 
@@ -271,7 +279,8 @@ def test_a_failed_plan_update_writes_back_what_it_decided(cli, tmp_path):
     import json
 
     path = tmp_path / "bar.npz"
-    assert cli("roadmap", "build", "bar", "--out", path, "--nodes", 20).returncode == 0  # too few to cross the wall
+    # too few to cross the wall, and not covered (the build would answer the scene's own query)
+    assert cli("roadmap", "build", "bar", "--out", path, "--nodes", 20, "--no-cover").returncode == 0
     before = json.loads(cli("roadmap", "info", path, "--json").stdout)
     failed = cli("plan", "bar", "--roadmap", path, "--update", "--budget", "3000checks", "--json")
     assert failed.returncode == 1 and json.loads(failed.stdout)["error"]["code"] == "PLANNING_FAILED"
@@ -340,6 +349,23 @@ def test_a_job_runs_its_legs_on_one_roadmap_and_a_saved_one_makes_it_cheaper(ora
     cell.save(tmp_path / "window.npz")
     again = run_job(oracle, "window", JOB_SETTINGS, CellRoadmap.load(tmp_path / "window.npz", oracle))
     assert again.collision_checks < first.collision_checks
+
+
+def test_a_covered_roadmap_answers_its_scenes_query_from_what_it_holds(oracles):
+    from app.jobs import cover
+    from app.planning.query import plan
+
+    oracle = oracles("bar")
+    fresh = plan(oracle, PlanSettings(seed=5))
+    cell = CellRoadmap.build(oracle, BuildSettings(nodes=60, seed=0))  # too few to cross the wall on their own
+    bare = CellRoadmap.build(oracle, BuildSettings(nodes=60, seed=0))
+    covered = cover(cell)
+    assert covered == cell.provenance["covered"] and [c["what"] for c in covered] == ["query"] and covered[0]["solved"]
+    assert len(cell) > len(bare)  # the query's joined samples stayed
+    answer = cell.solve(settings=PlanSettings(seed=5))
+    assert answer.certified and answer.stats.checks.sampling == 0
+    assert answer.collision_checks < fresh.collision_checks / 4
+    assert bare.solve(settings=PlanSettings(seed=5)).stats.checks.sampling > 0
 
 
 def test_a_build_reports_progress_as_each_rounds_edges_are_decided(oracles, monkeypatch):

@@ -325,6 +325,12 @@ def test_arrays_that_disagree_are_refused(roadmap, tmp_path, arrays, match):
         ({"provenance": {"builds": {}, "queries": 0}}, "provenance builds must be a list of build records, got {}"),
         ({"provenance": {"builds": [1], "queries": 0}}, "build record 0 must hold"),
         ({"provenance": {"builds": [{"nodes": "x"}], "queries": 0}}, "build record 0 must hold"),
+        ({"provenance": {"builds": [], "queries": 0, "covered": "all"}}, "provenance covered must be a list"),
+        ({"provenance": {"builds": [], "queries": 0, "covered": [{"what": "query"}]}}, "covered record 0 must hold"),
+        (
+            {"provenance": {"builds": [], "queries": 0, "covered": [{"what": 1, "solved": 1, "collision_checks": 5}]}},
+            "covered record 0 must hold",
+        ),
         ({"fingerprint": {"robot": 5}}, "its fingerprint must name each part's hash as text"),
         ({"scene": ["bar"]}, "its scene must be a name"),
         ({"revision": 7}, "its revision must be a short text"),

@@ -1,6 +1,7 @@
 """`roadmap build SCENE --out FILE` and `roadmap info FILE`: a work cell's roadmap, built once and queried by `plan
 --roadmap FILE` and `run JOB --roadmap FILE` (app.planning.cell)."""
 
+import argparse
 import sys
 import time
 
@@ -15,6 +16,7 @@ from app.commands.common import (
     share,
     whole_number,
 )
+from app.jobs import cover
 from app.planning.cell import BuildSettings, CellRoadmap
 from app.planning.roadmap_file import read, summary
 
@@ -55,6 +57,13 @@ def register(subparsers) -> None:
         default=1,
         help="processes that check edges (the roadmap is the same for any number)",
     )
+    b.add_argument(
+        "--cover",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="after the samples, answer the scene's own query and every job its poses allow on the roadmap, which "
+        "keeps the samples they join: the cell's hard regions in the roadmap (default on)",
+    )
     b.add_argument("--json", action="store_true", help="one JSON object on stdout")
     custom.add_arguments(b)
     b.set_defaults(func=build)
@@ -80,6 +89,8 @@ def build(args) -> int:
     oracle = CollisionOracle(custom.scene_from_args(args, args.scene), threads=max(args.workers, default_threads()))
     with _progress(settings.nodes, quiet=args.json) as progress:
         cell = CellRoadmap.build(oracle, settings, workers=args.workers, progress=progress)
+    if args.cover:
+        cover(cell, seed=settings.seed)
     answer = {"file": args.out, **cell.info()}
     with answering():  # the roadmap file and what it holds are the answer
         cell.save(args.out)
@@ -116,6 +127,9 @@ def _describe(answer: dict) -> str:
             f"  built     {record['nodes']} nodes, {record['collision_checks']} collision checks, "
             f"{record['seconds']:.1f} s on {record['workers']} process(es), ended by {record['ended']}"
         )
+    for record in answer["provenance"].get("covered", []):
+        outcome = "joined" if record["solved"] else "not answered"
+        lines.append(f"  covered   {record['what']}: {outcome}, {record['collision_checks']} collision checks")
     lines.append(f"  queries   {answer['provenance']['queries']} made on it and written back (answered or not)")
     return "\n".join(lines)
 

@@ -379,6 +379,20 @@ def _header(path: Path, array: np.ndarray) -> dict:
                 "and seconds",
                 record,
             )
+    covered = provenance.get("covered", [])
+    if not isinstance(covered, list):
+        raise malformed("provenance covered must be a list of what the build answered on the roadmap", covered)
+    for i, record in enumerate(covered):
+        fine = (
+            isinstance(record, dict)
+            and isinstance(record.get("what"), str)
+            and len(record["what"]) <= 200
+            and isinstance(record.get("solved"), bool)
+            and _whole(record.get("collision_checks"))
+        )
+        if not fine:
+            what = f"covered record {i} must hold what (text), solved (true or false) and collision_checks"
+            raise malformed(what, record)
     return header
 
 
