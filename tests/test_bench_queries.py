@@ -46,7 +46,10 @@ def test_fresh_and_cell_answer_the_same_queries_and_the_cell_is_built_once(oracl
     _answers_follow_their_queries(scene)
     # one build, counted once: the queries are answered on it and only add to it
     assert fresh["build"] is None
-    assert cell["builds"] == 1 and cell["build"]["nodes"] == TINY.build_nodes and cell["build"]["checks"] > 0
+    assert cell["builds"] == 1 and cell["build"]["nodes"] >= TINY.build_nodes and cell["build"]["checks"] > 0
+    # built as `roadmap build` builds it: the scene's own query answered on it (bar-3link has no job), counted in
+    assert [c["what"] for c in cell["build"]["covered"]] == ["query"]
+    assert cell["build"]["checks"] > cell["build"]["covered"][0]["collision_checks"] > 0
     nodes = [a["nodes"] for a in cell["answers"]]
     assert nodes[0] >= cell["build"]["nodes"] and nodes == sorted(nodes)
     assert cell["total_checks"] == sum(a["checks"] for a in cell["answers"])
@@ -112,6 +115,28 @@ def test_a_work_cells_queries_chain_tool_poses_with_every_ik_solution(oracles):
             assert np.linalg.norm(pose.translation() - poses[0].translation()) < 3e-3
         for i in range(1, len(goals)):  # by other arm postures
             assert oracle.space.distance(goals[:i], goals[i][None]).min() > 0.05
+
+
+def test_the_held_out_mix_starts_each_query_anew_at_a_free_or_hard_posture_and_goes_to_a_moved_named_pose(oracles):
+    from app.bench.queries import HELD_OUT_SHIFT, answer_all
+    from app.planning.ik import tool_pose
+
+    oracle = oracles("window")
+    queries = make_queries(oracle, 2, 0, mix="held-out")
+    assert not queries.chained and len(queries.starts) == 2 and queries.hard.all()
+    assert queries.digest() != make_queries(oracle, 2, 0).digest() and "held-out" in queries.kind
+    starts = []
+    answer_all(queries, lambda i, start, goals: starts.append(start) or {"success": True, "reached": 0}, lambda: None)
+    assert np.allclose(starts, queries.starts)  # every query from its own start, whatever the one before reached
+    checker = oracle.context()
+    assert checker.are_free(queries.starts).all() and all(checker.are_free(g).all() for g in queries.goals)
+    named = np.array([X.translation() for X in oracle.scene.poses.values()])
+    reach = HELD_OUT_SHIFT * np.sqrt(3) + 3e-3  # moved up to the shift per axis, to IK's tolerance
+    for goals in queries.goals:
+        tip = tool_pose(oracle, goals[0]).translation()
+        assert np.linalg.norm(named - tip, axis=1).min() <= reach
+    # the second query starts at a hard posture: its tool near a named pose too
+    assert np.linalg.norm(named - tool_pose(oracle, queries.starts[1]).translation(), axis=1).min() <= reach
 
 
 # OMPL's random generator is seeded once per process, and what one test draws from it changes what the next test's

@@ -57,8 +57,11 @@ from app.samplers import make_sampler
 
 METHODS = ("fresh", "cell", "ompl-prm", "ompl-rrtconnect")
 EXPERIMENT, PROTOCOL = "queries", "query-set+answers"
-# The hard region of a UR3 cell: a named pose moved this far (m, per axis) and turned this much (rad) at most.
+# The hard region of a UR3 cell: a named pose moved this far (m, per axis) and turned this much (rad) at most; in the
+# held-out mix, further.
 HARD_SHIFT, HARD_TURN = 0.02, math.radians(10.0)
+HELD_OUT_SHIFT, HELD_OUT_TURN = 0.03, math.radians(15.0)
+MIXES = ("own", "held-out")
 # Free configurations (the random pairs, the outside poses) are the uniform sampler's, a fixed batch a round, so that
 # a query set does not depend on the yield seen so far; at most FREE_ROUNDS rounds.
 FREE_BATCH, FREE_ROUNDS = 256, 1000
@@ -128,14 +131,15 @@ def answer_all(queries: QuerySet, answer, progress) -> list[dict]:
     return answers
 
 
-def make_queries(oracle, n: int, seed: int, progress=None) -> QuerySet:
-    """`n` queries in the oracle's cell (see the module docstring), the same for the same seed. progress(), if
-    given, is called once per query made."""
+def make_queries(oracle, n: int, seed: int, progress=None, mix: str = "own") -> QuerySet:
+    """`n` queries in the oracle's cell (see the module docstring), the same for the same seed; `mix` "held-out" in
+    a UR3 cell: `_held_out_queries`. progress(), if given, is called once per query made."""
     rng = np.random.default_rng(seed)
     scene = oracle.scene
     progress = progress or (lambda: None)
     if scene.tool_frame is not None and scene.poses:
-        return _tool_queries(oracle, n, rng, progress)
+        make = _held_out_queries if mix == "held-out" else _tool_queries
+        return make(oracle, n, rng, progress)
     free = _free_configurations(oracle, 2 * n, rng)
     for _ in range(n):
         progress()
@@ -153,28 +157,40 @@ def _free_configurations(oracle, n: int, rng) -> np.ndarray:
         ) from None
 
 
-def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
+def _moved_pose(oracle, rng, shift: float, turn: float):
+    """A named pose of the scene, chosen at random, moved by up to `shift` per axis and turned by up to `turn` about
+    a random axis: (its name, the pose)."""
     from pydrake.math import RigidTransform, RotationMatrix
 
-    from app.planning.ik import distinct_solutions, solve_poses, tool_pose
-
     names = list(oracle.scene.poses)
+    name = names[rng.integers(len(names))]
+    X = oracle.scene.poses[name]
+    axis = rng.normal(size=3)
+    frame = RotationMatrix.MakeFromOneVector(axis / np.linalg.norm(axis), 2)  # any frame with z = axis
+    spin = RotationMatrix.MakeZRotation(rng.uniform(-turn, turn))
+    about = frame.multiply(spin).multiply(frame.inverse())  # a turn about `axis`
+    return name, RigidTransform(about.multiply(X.rotation()), X.translation() + rng.uniform(-1, 1, 3) * shift)
+
+
+def _job_postures(oracle) -> dict:
+    """The job's postures for the named poses (the same for every seed, as in the job)."""
+    from app.planning.ik import solve_poses
+
+    return solve_poses(oracle, np.random.default_rng(0), reference=np.asarray(oracle.scene.start, float))
+
+
+def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
+    from app.planning.ik import distinct_solutions, tool_pose
+
     home = np.asarray(oracle.scene.start, float)
-    # The job's postures for the named poses (the same for every seed, as in the job): a hard pose's own posture.
-    postures = solve_poses(oracle, np.random.default_rng(0), reference=home)
+    postures = _job_postures(oracle)  # a hard pose's own posture
     goals, hard = [], []
     reference = home  # IK solutions are sorted by distance from here: the previous query's nearest goal
     for i in range(n):
         in_hard = i % 2 == 0
         for _ in range(POSE_ATTEMPTS):
             if in_hard:
-                name = names[rng.integers(len(names))]
-                X = oracle.scene.poses[name]
-                axis = rng.normal(size=3)
-                turn = RotationMatrix.MakeFromOneVector(axis / np.linalg.norm(axis), 2)  # any frame with z = axis
-                spin = RotationMatrix.MakeZRotation(rng.uniform(-HARD_TURN, HARD_TURN))
-                turn = turn.multiply(spin).multiply(turn.inverse())  # a turn about `axis`
-                pose = RigidTransform(turn.multiply(X.rotation()), X.translation() + rng.uniform(-1, 1, 3) * HARD_SHIFT)
+                name, pose = _moved_pose(oracle, rng, HARD_SHIFT, HARD_TURN)
                 found = distinct_solutions(oracle, pose, rng, reference, posture=postures[name])
             else:
                 q = _free_configurations(oracle, 1, rng)[0]
@@ -196,6 +212,41 @@ def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
     return QuerySet(kind, home[None], goals, np.array(hard), chained=True)
 
 
+def _held_out_queries(oracle, n: int, rng, progress) -> QuerySet:
+    """Queries unlike those a cell's build and jobs answer: each from its own start, alternately a random free
+    configuration and a hard posture (a named pose moved <= HELD_OUT_SHIFT and turned <= HELD_OUT_TURN, solved
+    from the job's posture for it), to every IK solution found for another such hard pose, any posture."""
+    from app.planning.ik import distinct_solutions
+
+    postures = _job_postures(oracle)
+    starts, goals = [], []
+    for i in range(n):
+        for _ in range(POSE_ATTEMPTS):
+            if i % 2 == 0:
+                start = _free_configurations(oracle, 1, rng)[0]
+            else:
+                name, pose = _moved_pose(oracle, rng, HELD_OUT_SHIFT, HELD_OUT_TURN)
+                found = distinct_solutions(oracle, pose, rng, postures[name], posture=postures[name])
+                if not len(found):
+                    continue
+                start = found[0]
+            _, pose = _moved_pose(oracle, rng, HELD_OUT_SHIFT, HELD_OUT_TURN)
+            found = distinct_solutions(oracle, pose, rng, start)
+            if len(found):
+                break
+        else:
+            raise UserError(f"scene {oracle.scene.name}: no reachable tool pose in {POSE_ATTEMPTS} tries")
+        starts.append(start)
+        goals.append(found)
+        progress()
+    kind = (
+        "held-out tool poses: each query from its own start, alternately a random free configuration and a named "
+        f"pose moved <= {HELD_OUT_SHIFT * 100:g} cm and turned <= {math.degrees(HELD_OUT_TURN):g} deg (solved from "
+        "the job's posture), to every IK solution found for another such pose"
+    )
+    return QuerySet(kind, np.array(starts), goals, np.ones(n, bool))
+
+
 @dataclass(frozen=True)
 class Settings:
     """What a run measures: queries per scene, the seed of the query set and of every planner, our per-query budget,
@@ -208,6 +259,7 @@ class Settings:
     build_nodes: int = 1500
     build_budget: Budget = Budget(checks=3_000_000)
     workers: int = 1
+    mix: str = "own"
 
 
 # ---- the methods --------------------------------------------------------------------------------------------------
@@ -259,6 +311,7 @@ def _fresh(oracle, queries: QuerySet, settings: Settings, progress, build_second
 
 
 def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
+    from app.jobs import cover
     from app.planning.cell import BuildSettings, CellRoadmap
 
     build_settings = BuildSettings(nodes=settings.build_nodes, budget=settings.build_budget, seed=settings.seed)
@@ -273,6 +326,7 @@ def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds
     try:
         clock = time.perf_counter()
         cell = CellRoadmap.build(oracle, build_settings, workers=settings.workers, progress=grown)
+        covered = cover(cell, seed=settings.seed)  # as `roadmap build` does
         seconds = time.perf_counter() - clock
     finally:
         bar.close()
@@ -280,7 +334,8 @@ def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds
     info = cell.info()
     build = {
         "seconds": seconds,
-        "checks": int(record["collision_checks"]),
+        "checks": int(record["collision_checks"]) + sum(c["collision_checks"] for c in covered),
+        "covered": covered,
         "nodes": info["nodes"],
         "edges": int(sum(info["edges"].values())),
         "ended": record["ended"],
@@ -470,7 +525,7 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
             oracle = CollisionOracle(Scene(name), threads=max(settings.workers, default_threads()))
             step = default_step(oracle.scene)
             with tqdm(total=settings.queries, desc=f"{name} queries", unit="query", dynamic_ncols=True) as bar:
-                queries = make_queries(oracle, settings.queries, settings.seed, bar.update)
+                queries = make_queries(oracle, settings.queries, settings.seed, bar.update, settings.mix)
             specs = [
                 TrialSpec(EXPERIMENT, name, m, step, settings.seed, _params(m, settings, queries.digest()))
                 for m in methods
@@ -505,6 +560,7 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
         "build_nodes": settings.build_nodes,
         "build_budget": str(settings.build_budget),
         "workers": settings.workers,
+        "mix": settings.mix,
         "goals": GOALS,
     }
     return report, reuse

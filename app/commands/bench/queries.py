@@ -1,7 +1,7 @@
 """`bench queries`: many queries in one cell, answered by fresh single queries, one persistent cell roadmap, OMPL's
 multi-query PRM and OMPL's RRTConnect (app.bench.queries)."""
 
-from app.bench.queries import METHODS, Settings, check_methods, figure, measure
+from app.bench.queries import METHODS, MIXES, Settings, check_methods, figure, measure
 from app.commands.bench import results
 from app.commands.common import (
     BUDGET_HELP,
@@ -52,6 +52,14 @@ def register(kinds) -> None:
     p.add_argument("--build-nodes", type=whole_number(2, 10**7), default=1500, help="the cell roadmap's nodes")
     p.add_argument("--build-budget", type=parse_build_budget, default="3Mchecks", help="what the cell build may spend")
     p.add_argument("--workers", type=processes, default=1, help="processes building the cell roadmap")
+    p.add_argument(
+        "--mix",
+        choices=MIXES,
+        default="own",
+        help="the UR3 cells' queries: own (a work cell's sequence of tool poses, chained) or held-out (each from its "
+        "own start, a random free configuration or a hard posture, to a moved named pose: queries unlike those "
+        "the build's cover answers)",
+    )
     results.add_arguments(p, "out/bench-queries.sqlite")
     p.add_argument("--png", default=None, metavar="FILE", help="figure: per-query seconds per method (log scale)")
     p.add_argument("--json", action="store_true")
@@ -73,6 +81,7 @@ def run(args) -> int:
         build_nodes=args.build_nodes,
         build_budget=args.build_budget,
         workers=args.workers,
+        mix=args.mix,
     )
     report, reuse = measure(args.scenes, methods, settings, args.store, fresh=args.fresh)
     results.say_reused(reuse)
