@@ -93,6 +93,23 @@ def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
     assert again.stats.rounds == 0 and len(cell) == size and again.collision_checks < result.collision_checks
 
 
+def test_a_query_on_a_stored_roadmap_draws_what_a_fresh_one_draws_and_adds_no_node_twice(oracles):
+    """Its graph is the fresh query's and more in every round: the same samples, on top of the roadmap's."""
+    from app.planning.query import Query
+
+    oracle = oracles("bar")
+    cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=1))  # (seed 0's samples would be the query's)
+    stored, fresh = Query(oracle, QUERY, roadmap=cell.graph), Query(oracle, QUERY)
+    for _ in range(2):
+        stored.grow(5, 30, stored.stop)
+        fresh.grow(5, 30, fresh.stop)
+    assert len(fresh.roadmap) > 40 and np.array_equal(stored.roadmap.Q[22:], fresh.roadmap.Q[2:])
+    size = len(cell.graph)
+    again = Query(oracle, QUERY, roadmap=cell.graph)  # the same query again: its start, goal and samples are there
+    again.grow(5, 30, again.stop)
+    assert len(cell.graph) == size
+
+
 def test_a_failed_query_takes_its_samples_away_and_keeps_its_verdicts(oracles):
     """A query that spends its budget without a path leaves the roadmap its nodes and edges as they were, plus the
     verdicts it reached on edges between them; the next query is answered as on a roadmap it never touched."""
@@ -100,7 +117,7 @@ def test_a_failed_query_takes_its_samples_away_and_keeps_its_verdicts(oracles):
     cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))  # far too few to cross the wall
     size, checked = len(cell), len(cell.graph.edges(checked=True))
     with pytest.raises(NoPath):
-        cell.solve(settings=dataclasses.replace(QUERY, budget=Budget(checks=3000)))
+        cell.solve(settings=dataclasses.replace(QUERY, budget=Budget(checks=1000)))
     assert len(cell) == size and len(cell.graph.Q) == size and len(cell.graph.kinds) == size
     assert (cell.graph.edges() < size).all() and len(cell.graph.edges(checked=True)) >= checked
     untouched = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=0))
@@ -282,7 +299,7 @@ def test_a_failed_plan_update_writes_back_what_it_decided(cli, tmp_path):
     # too few to cross the wall, and not covered (the build would answer the scene's own query)
     assert cli("roadmap", "build", "bar", "--out", path, "--nodes", 20, "--no-cover").returncode == 0
     before = json.loads(cli("roadmap", "info", path, "--json").stdout)
-    failed = cli("plan", "bar", "--roadmap", path, "--update", "--budget", "3000checks", "--json")
+    failed = cli("plan", "bar", "--roadmap", path, "--update", "--budget", "1000checks", "--json")
     assert failed.returncode == 1 and json.loads(failed.stdout)["error"]["code"] == "PLANNING_FAILED"
     assert f"wrote {path}" in failed.stderr.splitlines()
     after = json.loads(cli("roadmap", "info", path, "--json").stdout)

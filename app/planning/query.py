@@ -108,10 +108,11 @@ class Query:
         self.via = via
         self.route = np.vstack([self.start, *via, self.goal])
 
-        # A roadmap that already holds samples gets a seed of its own per size, so that its next query does not draw
-        # the same samples again.
-        given = roadmap is not None and len(roadmap) > 0
-        seeds = np.random.SeedSequence(settings.seed, spawn_key=(len(roadmap),) if given else ()).spawn(4)
+        # On a stored roadmap the query draws the very samples a fresh query with its seed draws: its graph is then
+        # the fresh query's and more in every round, so it connects start and goal as soon as the fresh query would,
+        # or sooner (drawn from a stream of their own, its rounds once cost more than no roadmap: benchmark pages).
+        # A sample the roadmap holds already (the same query again) is not added twice (`grow`).
+        seeds = np.random.SeedSequence(settings.seed).spawn(4)
         workspace = 0.0 if settings.full_roadmap else settings.workspace  # a full roadmap places none
         self.samples = Samples(checker, settings.sampler, self.step, seeds, workspace, settings.sampler_params)
         self.rounds = 0
@@ -177,7 +178,8 @@ class Query:
             drawn = self.ledger.run("sampling", self.samples.draw, narrow, uniform, stop)
         except SamplerBudgetExceeded as exc:
             raise self._failure(f"no path on {self.checker.scene.name}: {exc}", sampler=str(exc)) from None
-        added = [(source, self.roadmap.add(Q, kind, connect=False)) for kind, source, Q in drawn]
+        roadmap = self.roadmap
+        added = [(source, roadmap.add(Q[roadmap.unseen(Q)], kind, connect=False)) for kind, source, Q in drawn]
         self._source_of = np.concatenate(
             [self._source_of, *(np.full(len(nodes), source, object) for source, nodes in added)]
         )

@@ -184,6 +184,11 @@ class Roadmap:
             self.connect(new)
         return new
 
+    def unseen(self, Q: np.ndarray) -> np.ndarray:
+        """Which of the configurations Q (rows) are not nodes yet (a mask)."""
+        wrapped = self.space.wrap(np.atleast_2d(np.asarray(Q, float)).reshape(-1, self.space.dim))
+        return np.array([q.tobytes() not in self._nodes for q in wrapped], bool)
+
     def node(self, q: np.ndarray, kind: str) -> int:
         """The node at configuration q (free), added unconnected if the roadmap has none there: a persistent roadmap
         asked for the same start or goal again reuses the node and every edge decided from it."""
