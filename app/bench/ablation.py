@@ -26,6 +26,9 @@ VARIANTS = {
     "placements+uniform": ("uniform", PlanSettings.workspace),
     "uniform-alone": ("uniform", 0.0),
     "rbbs+placements": ("rbbs", PlanSettings.workspace),
+    "placements+rwbs": ("rwbs", PlanSettings.workspace),
+    "placements+gaussian": ("gaussian", PlanSettings.workspace),
+    "rwbs-alone": ("rwbs", 0.0),
     "adaptive": ("adaptive", PlanSettings.workspace),
 }
 DEFAULT_CHECKS = 100_000
