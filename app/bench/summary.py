@@ -372,7 +372,8 @@ def queries_table(results: Path) -> list[str]:
         "",
         "A stream of queries in one UR3 cell (a work cell's sequence of tool poses, each query from where the robot "
         "is; half the poses near the scene's named poses, through the hatch or at the seam), answered by a fresh "
-        "single query each, by one cell roadmap built once and kept, and by OMPL's PRM keeping its graph (grown for "
+        "single query each, by one cell roadmap built once (as `roadmap build` builds it, the scene's own query "
+        "and jobs answered on it) and kept, and by OMPL's PRM keeping its graph (grown for "
         "as long as the cell's build took), in one run through one oracle. Ours: a check budget per query, answers "
         "certified and timed; OMPL: seconds per query, answers smoothed only. Medians and p95 over all queries (a "
         "failure counts what it spent). Store: "
