@@ -97,3 +97,22 @@ def test_the_command_fills_its_store_and_rebuilds_the_table_from_it_alone(cli, t
     assert json.loads(grown.stdout)["reused"]["reused"] == 4
     versions = table.split("Code version(s) of the trials: ")[1].split(" -- ")[0]
     assert "`older`" in versions and versions.count("`") == 4 and "mixed" in table
+
+
+def test_the_schema_names_every_variant():
+    import json
+    from pathlib import Path
+
+    schema = json.loads((Path(__file__).parents[1] / "docs/schemas/bench-ablation.json").read_text())
+
+    def enums(node):
+        if isinstance(node, dict):
+            if "enum" in node and "default" in node["enum"]:
+                yield node["enum"]
+            for value in node.values():
+                yield from enums(value)
+        elif isinstance(node, list):
+            for value in node:
+                yield from enums(value)
+
+    assert list(enums(schema)) == [list(VARIANTS)]
