@@ -42,6 +42,7 @@ import os
 import re
 import time
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from tqdm import tqdm
@@ -179,26 +180,56 @@ def _job_postures(oracle) -> dict:
     return solve_poses(oracle, np.random.default_rng(0), reference=np.asarray(oracle.scene.start, float))
 
 
-def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
+def _first_reached(oracle, attempt):
+    """What `attempt()` returns the first time it is not None (a tool pose the arm reaches), within POSE_ATTEMPTS
+    tries (a moved named pose may have no free IK solution)."""
+    for _ in range(POSE_ATTEMPTS):
+        found = attempt()
+        if found is not None:
+            return found
+    raise UserError(f"scene {oracle.scene.name}: no reachable tool pose in {POSE_ATTEMPTS} tries")
+
+
+def _tool_goals(oracle, rng, hard: bool, reference, postures):
+    """The IK solutions of a tool pose (None: none free): a moved named pose from the job's posture for it (`hard`),
+    else the pose of a random free configuration; sorted from `reference`."""
     from app.planning.ik import distinct_solutions, tool_pose
 
+    if hard:
+        name, pose = _moved_pose(oracle, rng, HARD_SHIFT, HARD_TURN)
+        found = distinct_solutions(oracle, pose, rng, reference, posture=postures[name])
+    else:
+        q = _free_configurations(oracle, 1, rng)[0]
+        found = distinct_solutions(oracle, tool_pose(oracle, q), rng, reference, known=[q])
+    return found if len(found) else None
+
+
+def _held_out_query(oracle, rng, from_free: bool, postures):
+    """(start, goals) of a held-out query, or None: the start a random free configuration (`from_free`) or a moved
+    named pose solved from the job's posture; the goals the IK solutions of another moved named pose."""
+    from app.planning.ik import distinct_solutions
+
+    if from_free:
+        start = _free_configurations(oracle, 1, rng)[0]
+    else:
+        name, pose = _moved_pose(oracle, rng, HELD_OUT_SHIFT, HELD_OUT_TURN)
+        found = distinct_solutions(oracle, pose, rng, postures[name], posture=postures[name])
+        if not len(found):
+            return None
+        start = found[0]
+    _, pose = _moved_pose(oracle, rng, HELD_OUT_SHIFT, HELD_OUT_TURN)
+    found = distinct_solutions(oracle, pose, rng, start)
+    return (start, found) if len(found) else None
+
+
+def _tool_queries(oracle, n: int, rng, progress) -> QuerySet:
     home = np.asarray(oracle.scene.start, float)
     postures = _job_postures(oracle)  # a hard pose's own posture
     goals, hard = [], []
     reference = home  # IK solutions are sorted by distance from here: the previous query's nearest goal
     for i in range(n):
         in_hard = i % 2 == 0
-        for _ in range(POSE_ATTEMPTS):
-            if in_hard:
-                name, pose = _moved_pose(oracle, rng, HARD_SHIFT, HARD_TURN)
-                found = distinct_solutions(oracle, pose, rng, reference, posture=postures[name])
-            else:
-                q = _free_configurations(oracle, 1, rng)[0]
-                found = distinct_solutions(oracle, tool_pose(oracle, q), rng, reference, known=[q])
-            if len(found):
-                break
-        else:
-            raise UserError(f"scene {oracle.scene.name}: no reachable tool pose in {POSE_ATTEMPTS} tries")
+        found = _first_reached(oracle, partial(_tool_goals, oracle, rng, in_hard, reference, postures))
         goals.append(found)
         hard.append(in_hard)
         reference = found[0]
@@ -216,26 +247,10 @@ def _held_out_queries(oracle, n: int, rng, progress) -> QuerySet:
     """Queries unlike those a cell's build and jobs answer: each from its own start, alternately a random free
     configuration and a hard posture (a named pose moved <= HELD_OUT_SHIFT and turned <= HELD_OUT_TURN, solved
     from the job's posture for it), to every IK solution found for another such hard pose, any posture."""
-    from app.planning.ik import distinct_solutions
-
     postures = _job_postures(oracle)
     starts, goals = [], []
     for i in range(n):
-        for _ in range(POSE_ATTEMPTS):
-            if i % 2 == 0:
-                start = _free_configurations(oracle, 1, rng)[0]
-            else:
-                name, pose = _moved_pose(oracle, rng, HELD_OUT_SHIFT, HELD_OUT_TURN)
-                found = distinct_solutions(oracle, pose, rng, postures[name], posture=postures[name])
-                if not len(found):
-                    continue
-                start = found[0]
-            _, pose = _moved_pose(oracle, rng, HELD_OUT_SHIFT, HELD_OUT_TURN)
-            found = distinct_solutions(oracle, pose, rng, start)
-            if len(found):
-                break
-        else:
-            raise UserError(f"scene {oracle.scene.name}: no reachable tool pose in {POSE_ATTEMPTS} tries")
+        start, found = _first_reached(oracle, partial(_held_out_query, oracle, rng, i % 2 == 0, postures))
         starts.append(start)
         goals.append(found)
         progress()
