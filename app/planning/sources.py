@@ -18,7 +18,8 @@ PLACEMENTS = "workspace"
 # The narrow-passage sources the adaptive mixture shares a round's narrow checks among: placements, Boor's Gaussian,
 # Hsu's bridge builder, and the Lévy and random-walk bridge samplers. Uniform samples are every round's own share,
 # not one of them: in a narrow passage's gap they are as rare as the passage is narrow, yet cheap enough that their
-# rewards per check outbid the sources that find the passage (what the ablation measured).
+# rewards per check outbid the sources that find the passage (with them among the sources, window needed about twice
+# the checks: docs/paper.md).
 MIXED = (PLACEMENTS, "gaussian", "rbbs", "lfbs", "rwbs")
 # The mixture's floor: this share of a round's narrow checks is spread evenly over the sources, so a source that
 # did nothing yet can still show what it does in this query's passage (EXP3's exploration; Hybrid PRM's too).
