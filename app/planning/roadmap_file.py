@@ -362,37 +362,37 @@ def _header(path: Path, array: np.ndarray) -> dict:
         raise malformed("its revision must be a short text", header["revision"])
     if not _whole(provenance.get("queries")):
         raise malformed("provenance queries must be a whole number of at least 0", provenance.get("queries"))
-    builds = provenance["builds"]
-    if not isinstance(builds, list):
-        raise malformed("provenance builds must be a list of build records", builds)
-    for i, record in enumerate(builds):
-        fine = (
-            isinstance(record, dict)
-            and isinstance(record.get("settings"), dict)
-            and isinstance(record.get("ended"), str)
-            and all(_whole(record.get(key)) for key in ("nodes", "collision_checks", "workers"))
-            and _number(record.get("seconds"))
-        )
-        if not fine:
-            raise malformed(
-                f"build record {i} must hold settings, ended, whole numbers nodes, collision_checks and workers, "
-                "and seconds",
-                record,
-            )
-    covered = provenance.get("covered", [])
-    if not isinstance(covered, list):
-        raise malformed("provenance covered must be a list of what the build answered on the roadmap", covered)
-    for i, record in enumerate(covered):
-        fine = (
-            isinstance(record, dict)
-            and isinstance(record.get("what"), str)
-            and len(record["what"]) <= 200
-            and isinstance(record.get("solved"), bool)
-            and _whole(record.get("collision_checks"))
-        )
-        if not fine:
-            what = f"covered record {i} must hold what (text), solved (true or false) and collision_checks"
-            raise malformed(what, record)
+    # The build records, and what each build's cover answered on the roadmap (app.jobs.cover; none in older files).
+    records = {
+        "builds": (
+            "build records",
+            lambda r: (
+                isinstance(r.get("settings"), dict)
+                and isinstance(r.get("ended"), str)
+                and all(_whole(r.get(key)) for key in ("nodes", "collision_checks", "workers"))
+                and _number(r.get("seconds"))
+            ),
+            "build record {i} must hold settings, ended, whole numbers nodes, collision_checks and workers, and "
+            "seconds",
+        ),
+        "covered": (
+            "what the build answered on the roadmap",
+            lambda r: (
+                isinstance(r.get("what"), str)
+                and len(r["what"]) <= 200
+                and isinstance(r.get("solved"), bool)
+                and _whole(r.get("collision_checks"))
+            ),
+            "covered record {i} must hold what (text), solved (true or false) and collision_checks",
+        ),
+    }
+    for key, (noun, sound, needs) in records.items():
+        listed = provenance.get(key, [])
+        if not isinstance(listed, list):
+            raise malformed(f"provenance {key} must be a list of {noun}", listed)
+        for i, record in enumerate(listed):
+            if not (isinstance(record, dict) and sound(record)):
+                raise malformed(needs.format(i=i), record)
     return header
 
 

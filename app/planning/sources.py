@@ -191,8 +191,9 @@ class Samples:
         try:
             drawn = sampler.sample(count, self._rngs[kind], stop=stop, resume=True)
         except SamplerBudgetExceeded as exc:
-            if cap is not None and self.checker.checks - before > cap:  # its share spent: the rest next time
-                drawn = exc.samples
+            # Its share spent (the sampler's own cap, not a give-up): the samples found, and the rest next time.
+            if cap is not None and sampler.stats.get("checks", 0) > sampler.max_checks:
+                drawn = drawn if exc.samples is None else exc.samples
             elif kind == PLACEMENTS:  # no piece of the robot reaches the gaps found: the other sources take over
                 self._workspace_on = False
                 self._off.add(kind)
