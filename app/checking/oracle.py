@@ -156,6 +156,10 @@ class CollisionOracle:
                 manager.Apply(CollisionFilterDeclaration().ExcludeBetween(*(GeometrySet(g) for g in geometries)))
         return root
 
+    def of_scene(self, scene) -> CollisionOracle:
+        """An oracle like this one (as many threads) for another scene: the same cell after a change."""
+        return CollisionOracle(scene, threads=self.threads)
+
     def context(self) -> QueryContext:
         """A new QueryContext on this oracle: one query's counters (its calls each take the stop that bounds them)."""
         return QueryContext(self)

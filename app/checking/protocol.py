@@ -75,6 +75,8 @@ class DistanceSource(Protocol):
 
     def query_object(self, q: np.ndarray) -> Any: ...
 
+    def of_scene(self, scene) -> Any: ...  # another source like this one, for another scene (a changed cell)
+
     def is_robot_geometry(self, geometry_id: Any) -> bool: ...
 
 

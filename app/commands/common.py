@@ -134,6 +134,38 @@ def add_scaling_arguments(p) -> None:
     )
 
 
+def add_change_arguments(p) -> None:
+    """--change: the cell as a change file leaves it (app.scene.changes), repeatable, applied in order."""
+    p.add_argument(
+        "--change",
+        metavar="CHANGE.yaml",
+        action="append",
+        default=[],
+        help="plan in the cell as this change leaves it: obstacles added, moved or removed, objects attached to or "
+        "detached from the robot (repeatable, applied in order); with --roadmap, the roadmap is repaired for it",
+    )
+
+
+def read_changes(files: list[str]) -> list:
+    """The changes in `files` (each read and checked before any slow work)."""
+    from app.scene.changes import read_change
+
+    return [read_change(path) for path in files]
+
+
+def open_cell(roadmap: str | None, scene, changes: list, threads: int | None = None):
+    """(oracle, cell roadmap or None) for `scene` after `changes`: with a roadmap file, the roadmap in the cell it
+    was last repaired for, repaired for `changes` too (CellRoadmap.open); without one, the changed cell's oracle."""
+    from app.checking.oracle import CollisionOracle
+    from app.planning.cell import CellRoadmap
+    from app.scene.changes import changed_scene
+
+    if roadmap:
+        cell = CellRoadmap.open(roadmap, CollisionOracle(scene, threads=threads), changes)
+        return cell.oracle, cell
+    return CollisionOracle(changed_scene(scene, changes), threads=threads), None
+
+
 def comma_list(text: str) -> list[str]:
     """'a, b,c' -> ['a', 'b', 'c'] (blank items dropped): the one parser of comma-separated values."""
     items = [item.strip() for item in text.split(",") if item.strip()]

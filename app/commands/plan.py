@@ -4,20 +4,22 @@
 import argparse
 import contextlib
 
-from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
 from app.commands.common import (
     BUDGET_HELP,
+    add_change_arguments,
     add_scaling_arguments,
     answering,
     failure_details,
     float_list,
     known_sources,
     neighbours,
+    open_cell,
     parse_budget,
     positive_float,
     print_json,
     progress,
+    read_changes,
     sample_count,
     sample_period,
     seed,
@@ -26,7 +28,6 @@ from app.commands.common import (
     source_name,
 )
 from app.errors import UserError
-from app.planning.cell import CellRoadmap
 from app.planning.ik import pose_goal, robot_frame
 from app.planning.query import plan
 from app.planning.settings import PlanSettings
@@ -77,6 +78,7 @@ def register(subparsers) -> None:
         help="write the trajectory (times, positions, path, narrow samples) as JSON for `view "
         "--trajectory`; only on success",
     )
+    add_change_arguments(p)
     view.add_arguments(p)  # --html / --meshcat / --frame / --collision: show the planned trajectory
     custom.add_arguments(p)  # --robot / --package-path / --env / --env-pose / --bounds ...
     p.set_defaults(func=run)
@@ -192,13 +194,15 @@ def run(args) -> int:
     if args.roadmap and args.full_roadmap:
         raise UserError("--full-roadmap builds a roadmap of its own: give it or --roadmap, not both")
     view.check_from_args(args, args.out, args.roadmap if args.update else None)
-    oracle = CollisionOracle(custom.scene_from_args(args, args.scene))
-    posed = args.start_pose is not None or args.goal_pose is not None
-    tool = tool_frame(oracle, args.tool) if posed else None  # the frame the poses place, named in the answer
+    changes = read_changes(args.change)
+    scene = custom.scene_from_args(args, args.scene)
     # --update: the roadmap's lock, held from before the file is read until it is written back (view.roadmap_lock),
     # so that a second process updating it waits, then adds to this one's update instead of writing over it.
     with view.roadmap_lock(args.roadmap) if args.update else contextlib.nullcontext():
-        cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
+        # The cell as it is now: the changes the roadmap was repaired for, then --change (the roadmap repaired).
+        oracle, cell = open_cell(args.roadmap, scene, changes)
+        posed = args.start_pose is not None or args.goal_pose is not None
+        tool = tool_frame(oracle, args.tool) if posed else None  # the frame the poses place, named in the answer
         start, goal = args.start, args.goal
         # A failure or Ctrl-C from here on answers with what the query spent and, for a custom scene, what loading it
         # took (app.cli prints them as the failure's details).

@@ -2,6 +2,7 @@
 --roadmap FILE` and `run JOB --roadmap FILE` (app.planning.cell)."""
 
 import argparse
+import contextlib
 import sys
 import time
 
@@ -10,15 +11,19 @@ from app.commands import common, custom, plan
 from app.commands.common import (
     answering,
     check_outputs,
+    open_cell,
     parse_build_budget,
     print_json,
     processes,
+    read_changes,
     share,
     whole_number,
 )
+from app.commands.view import roadmap_lock
 from app.jobs import cover
 from app.planning.cell import BuildSettings, CellRoadmap
-from app.planning.roadmap_file import read, summary
+from app.planning.roadmap_file import read, read_header, summary
+from app.scene.custom import load_scene
 
 DEFAULTS = BuildSettings()
 
@@ -68,6 +73,23 @@ def register(subparsers) -> None:
     custom.add_arguments(b)
     b.set_defaults(func=build)
 
+    u = actions.add_parser(
+        "update",
+        help="repair a roadmap for a changed cell: only the verdicts the change can affect are set back to unknown",
+    )
+    u.add_argument("file", metavar="FILE.npz", help="the roadmap (`roadmap build`, or one updated before)")
+    u.add_argument(
+        "--change",
+        metavar="CHANGE.yaml",
+        action="append",
+        required=True,
+        help="what changed: obstacles added, moved or removed, objects attached or detached (repeatable, in order)",
+    )
+    u.add_argument("--out", metavar="FILE.npz", help="write the repaired roadmap here (default: over FILE)")
+    u.add_argument("--scene", help="the roadmap's scene, if not the shipped scene its file names")
+    u.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    u.set_defaults(func=update)
+
     i = actions.add_parser("info", help="what a roadmap file holds: nodes, edges by verdict, its cell, provenance")
     i.add_argument("file", metavar="FILE.npz")
     i.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -102,6 +124,25 @@ def build(args) -> int:
     return 0
 
 
+def update(args) -> int:
+    changes = read_changes(args.change)
+    out = args.out or args.file
+    check_outputs(out)
+    # Written in place: the file's lock from before it is read until it is written, as `plan --update` holds it.
+    with roadmap_lock(args.file) if out == args.file else contextlib.nullcontext():
+        scene = load_scene(args.scene or read_header(args.file)["scene"])
+        _, cell = open_cell(args.file, scene, changes)
+        answer = {"file": out, "repair": cell.provenance["changes"][-1], **cell.info()}
+        with answering():
+            cell.save(out)
+            print(f"roadmap: wrote {out}", file=sys.stderr)
+            if args.json:
+                print_json(answer)
+            else:
+                print(_describe(answer))
+    return 0
+
+
 def info(args) -> int:
     header, arrays = read(args.file)
     answer = {"file": args.file, **summary(arrays, header)}
@@ -130,6 +171,13 @@ def _describe(answer: dict) -> str:
     for record in answer["provenance"].get("covered", []):
         outcome = "joined" if record["solved"] else "not answered"
         lines.append(f"  covered   {record['what']}: {outcome}, {record['collision_checks']} collision checks")
+    for record in answer["provenance"].get("changes", []):
+        lines.append(
+            f"  changed   {record['described']}: {record['edges_reset']} free and {record['colliding_reset']} "
+            f"colliding edge verdicts set back to unknown, {record['nodes_checked']} nodes checked again "
+            f"({record['nodes_dropped']} dropped), {record['collision_checks']} collision checks, "
+            f"{record['seconds']:.2f} s"
+        )
     lines.append(f"  queries   {answer['provenance']['queries']} made on it and written back (answered or not)")
     return "\n".join(lines)
 

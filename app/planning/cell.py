@@ -291,19 +291,67 @@ class CellRoadmap:
         """The roadmap saved at `path`, for the oracle's cell. UserError when the file is not a whole and sound
         roadmap file (app.planning.roadmap_file.read), was built for another cell (robot, environment, collision
         pairs, bounds or resolution, checker code), or holds what this cell cannot have (`check_cell`)."""
+        return cls._of(path, *read(path), oracle)
+
+    @classmethod
+    def open(cls, path, oracle, changes: list = ()) -> CellRoadmap:
+        """The roadmap saved at `path` for the oracle's cell as it is now: in the cell the file was last repaired
+        for (the oracle's scene after the changes its provenance records, on an oracle like it) and, if `changes`
+        are given, repaired for those too (`changed`). Refused as `load` refuses."""
+        from app.scene.changes import changed_scene
+
         header, arrays = read(path)
+        recorded = recorded_changes(header)
+        if recorded:
+            oracle = oracle.of_scene(changed_scene(oracle.scene, recorded))
+        cell = cls._of(path, header, arrays, oracle)
+        return cell.changed(list(changes)) if changes else cell
+
+    @classmethod
+    def _of(cls, path, header: dict, arrays: dict, oracle) -> CellRoadmap:
         theirs, ours = header["fingerprint"], fingerprint(oracle)
         changed = [part for part in FINGERPRINT_PARTS if theirs.get(part) != ours[part]]
         if changed:
             raise UserError(
                 f"roadmap {path} was built for another cell than {oracle.scene.name}: its {', '.join(changed)} "
                 f"{'differs' if len(changed) == 1 else 'differ'}; build it again for this cell (roadmap build)"
+                + (
+                    ""
+                    if "configuration space" in changed
+                    else ", or repair it for what changed (roadmap update --change)"
+                )
             )
         from app.planning.roadmap import Roadmap
 
         graph = Roadmap.from_arrays(oracle.context(), check_cell(path, arrays, oracle.space))
         cell = cls(oracle, graph, header["provenance"])
         cell._source = (Path(path), header.get("revision"))
+        return cell
+
+    # ---- a changed cell -------------------------------------------------------------------------------------------
+    def changed(self, changes: list) -> CellRoadmap:
+        """This roadmap repaired for the cell its own becomes after `changes` (app.scene.changes.CellChange, in
+        order): only the verdicts the changes can affect are set back to unknown, and the nodes they can reach are
+        checked again (app.planning.repair). Returns a roadmap of the new cell, whose file will hold the new cell's
+        fingerprint and, in its provenance, every change since the build; this one stays as it was.
+        UserError for a change that cannot be applied; InvalidEndpoint (START_STATE_IN_COLLISION) when the scene's
+        start collides in the new cell (an object put where the robot is, a payload through the arm)."""
+        from app.planning.endpoints import check_endpoint
+        from app.planning.repair import timed_repair
+        from app.planning.roadmap import Roadmap
+        from app.scene.changes import changed_scene
+
+        scene = changed_scene(self.oracle.scene, changes)
+        oracle = self.oracle.of_scene(scene)
+        context = oracle.context()
+        check_endpoint(context, scene.start, "start")
+        arrays, keep, record = timed_repair(self.graph.arrays(), self.oracle, oracle, context, changes)
+        graph = Roadmap.from_arrays(oracle.context(), arrays)
+        graph.keep_nodes(keep)
+        provenance = json.loads(json.dumps(self.provenance))
+        provenance.setdefault("changes", []).append(record.to_dict())
+        cell = CellRoadmap(oracle, graph, provenance)
+        cell._source = self._source
         return cell
 
     def info(self) -> dict:
@@ -314,6 +362,14 @@ class CellRoadmap:
             "provenance": self.provenance,
         }
         return summary(self.graph.arrays(), header)
+
+
+def recorded_changes(header: dict) -> list:
+    """The cell changes a roadmap file's header records since its build, in order (app.scene.changes.CellChange):
+    the cell it was last repaired for is its scene after these."""
+    from app.scene.changes import change_from_dict
+
+    return [change_from_dict(c) for record in header["provenance"].get("changes", []) for c in record["change"]]
 
 
 def _same_file(a, b) -> bool:

@@ -95,12 +95,16 @@ def read(path) -> tuple[dict, dict]:
     return header, arrays
 
 
+def read_header(path) -> dict:
+    """The header of the roadmap file at `path` alone, checked as `read` checks it (its scene, its provenance)."""
+    return _header(Path(path), _unpack(Path(path), only=("header",))["header"])
+
+
 def stored_revision(path) -> str | None | object:
     """The revision in the header of the roadmap file at `path` (None: saved before revisions were written); a
     new object, equal to nothing, when there is no whole roadmap file there."""
     try:
-        header = _unpack(Path(path), only=("header",))["header"]
-        return _header(Path(path), header).get("revision")
+        return read_header(path).get("revision")
     except UserError:
         return object()
 
@@ -385,6 +389,19 @@ def _header(path: Path, array: np.ndarray) -> dict:
             ),
             "covered record {i} must hold what (text), solved (true or false) and collision_checks",
         ),
+        "changes": (
+            "cell changes repaired for",
+            lambda r: (
+                isinstance(r.get("change"), list)
+                and all(_is_change(c) for c in r["change"])
+                and isinstance(r.get("described"), str)
+                and all(_whole(r.get(key)) for key in _REPAIR_COUNTS)
+                and _number(r.get("seconds"))
+            ),
+            "change record {i} must hold change (a list of cell changes), described, whole numbers "
+            + ", ".join(_REPAIR_COUNTS)
+            + ", and seconds",
+        ),
     }
     for key, (noun, sound, needs) in records.items():
         listed = provenance.get(key, [])
@@ -394,6 +411,28 @@ def _header(path: Path, array: np.ndarray) -> dict:
             if not (isinstance(record, dict) and sound(record)):
                 raise malformed(needs.format(i=i), record)
     return header
+
+
+_REPAIR_COUNTS = (
+    "edges_reset",
+    "colliding_reset",
+    "nodes_checked",
+    "nodes_dropped",
+    "collision_checks",
+)
+
+
+def _is_change(value) -> bool:
+    """Whether `value` reads as a cell change (app.scene.changes.CellChange as data)."""
+    from app.scene.changes import change_from_dict
+
+    if not isinstance(value, dict):
+        return False
+    try:
+        change_from_dict(value)
+    except UserError:
+        return False
+    return True
 
 
 def _whole(value) -> bool:
@@ -534,14 +573,14 @@ def fingerprint(oracle) -> dict[str, str]:
             if oracle.is_robot_geometry(g) != robot:
                 continue
             digest.update(repr((inspector.GetName(inspector.GetFrameId(g)), inspector.GetName(g))).encode())
-            digest.update(_shape_bytes(inspector.GetShape(g)))
+            digest.update(shape_bytes(inspector.GetShape(g)))
             for poses in placed:
-                digest.update(_rounded(poses[j]))
+                digest.update(rounded(poses[j]))
         parts[part] = digest.hexdigest()
     pairs = np.asarray(oracle.checker.GetFilteredCollisionMatrix())
     parts["collision pairs"] = _hash(pairs.astype(np.int64).tobytes(), repr(oracle.scene.self_collisions).encode())
     parts["configuration space"] = _hash(
-        *(_rounded(a) for a in (space.lower, space.upper, space.weights, np.array([space.resolution]))),
+        *(rounded(a) for a in (space.lower, space.upper, space.weights, np.array([space.resolution]))),
         space.angular.tobytes(),
         space.continuous.tobytes(),
     )
@@ -561,12 +600,12 @@ def _hash(*chunks: bytes) -> str:
     return digest.hexdigest()
 
 
-def _rounded(a) -> bytes:
+def rounded(a) -> bytes:
     """Numbers to 1e-9 (-0 as 0), so that the same cell hashes alike however its numbers were computed."""
     return (np.round(np.asarray(a, float), 9) + 0.0).tobytes()
 
 
-def _shape_bytes(shape) -> bytes:
+def shape_bytes(shape) -> bytes:
     """A shape's kind and size; a mesh by the vertices of the convex hull Drake checks it as."""
     from pydrake.geometry import Box, Capsule, Convex, Cylinder, Ellipsoid, HalfSpace, Mesh, Sphere
 
@@ -585,4 +624,4 @@ def _shape_bytes(shape) -> bytes:
         size = hull_vertices(shape)
     else:  # a shape this list does not know: its description, which names its kind and size
         return kind + repr(shape).encode()
-    return kind + _rounded(size)
+    return kind + rounded(size)
