@@ -5,6 +5,7 @@ from app.commands.bench import (
     ablation,
     audit,
     certify,
+    changes,
     jobs,
     ompl,
     oracle,
@@ -16,7 +17,7 @@ from app.commands.bench import (
     uav,
 )
 
-KINDS = [oracle, sampling, plan, uav, jobs, ompl, paper, audit, certify, queries, ablation, summary]
+KINDS = [oracle, sampling, plan, uav, jobs, ompl, paper, audit, certify, queries, changes, ablation, summary]
 
 
 def register(subparsers) -> None:
