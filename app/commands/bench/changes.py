@@ -88,8 +88,8 @@ def table(report: dict) -> str:
             f"### {s['scene']}",
             "",
             "| change | repair checks | repair s | rebuild checks | rebuild s | ratio checks | ratio s | reset "
-            "free/colliding | nodes checked/dropped | solved: repair, rebuild, fresh | median ms: repair, rebuild, fresh "
-            "| certified | colliding states |",
+            "free/colliding | nodes checked/dropped | solved: repair, rebuild, fresh "
+            "| median ms: repair, rebuild, fresh | certified | colliding states |",
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         ]
         for r in s["changes"]:
