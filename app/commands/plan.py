@@ -361,9 +361,8 @@ def _failure_response(args, problem):
                 answer = moveit.response(known, planning_time=seconds, code=exc.code)
             else:
                 answer = moveit.response({}, _group_named(args.moveit_request), code=exc.code)
-            with answering(final=False):
+            with answering(final=False):  # (not announced: a failure is its one line)
                 moveit.write_response(args.moveit_out, answer)
-            announce(args.moveit_out)
         raise
 
 
