@@ -27,11 +27,9 @@ IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 
 @pytest.fixture
 def srdf(tmp_path):
-    """The shipped SRDF with MoveIt's groups and virtual joint: `arm` (a chain), `wrist` (joints), `both` (groups)."""
+    """The shipped SRDF (its group `arm`: a chain) with groups `wrist` (joints) and `both` (a group and a link)."""
     text = (ROBOTS_DIR / "ur3_on_cart.srdf").read_text()
     groups = (
-        '  <virtual_joint name="fixed_base" type="fixed" parent_frame="world" child_link="cart"/>\n'
-        '  <group name="arm"><chain base_link="base_link" tip_link="tool0"/></group>\n'
         '  <group name="wrist"><joint name="wrist_1_joint"/><joint name="wrist_2_joint"/>'
         '<joint name="wrist_3_joint"/></group>\n'
         '  <group name="both"><group name="wrist"/><link name="upper_arm_link"/></group>\n'
@@ -327,8 +325,36 @@ def test_files_that_are_no_messages_are_refused_in_one_line(cli, one_line_error,
     assert "bad MoveIt planning scene wrong.yaml" in one_line_error(result, 2)
     result = cli("plan", "--moveit-request", request, "--robot", URDF, "--start", "0,0,0,0,0,0")
     assert "give it without --start" in one_line_error(result, 2)
-    result = cli("plan", "--moveit-request", request, "--robot", URDF, "--json")
-    assert result.returncode == 2 and json.loads(result.stdout)["error"]["code"] == "INVALID_GROUP_NAME"
+    result = cli("plan", "--moveit-request", request, "--robot", URDF, "--json")  # a group, but no SRDF
+    answer = json.loads(result.stdout)
+    assert result.returncode == 2 and answer["error"]["code"] == "INVALID_GROUP_NAME"
+    jsonschema = pytest.importorskip("jsonschema")
+    jsonschema.validate(answer, json.loads((ROBOTS_DIR.parent / "docs" / "schemas" / "failure.json").read_text()))
+
+
+def test_the_documented_example_plans_under_its_shelf(cli, tmp_path):
+    example = ROBOTS_DIR.parent / "examples" / "moveit"
+    out = tmp_path / "response.yaml"
+    args = ["--moveit-scene", example / "scene.yaml", "--moveit-request", example / "request.yaml", "--robot", URDF]
+    result = cli("plan", *args, "--srdf", ROBOTS_DIR / "ur3_on_cart.srdf", "--moveit-out", out, "--json")
+    assert result.returncode == 0, result.stderr
+    response = read_response(out)
+    assert response.error_code.val == 1 and response.group_name == "arm"
+    assert response.trajectory.joint_trajectory.joint_names == ARM
+    assert response.trajectory_start.joint_state.position == [0.0, -1.0, 1.2, -1.5, -1.57, 0.0]
+
+
+def test_plan_hold_keeps_a_joint_still_for_any_robot(cli, tmp_path):
+    out = tmp_path / "held.json"
+    result = cli("plan", "--robot", URDF, "--hold", "shoulder_pan_joint=0.3", "--start", "-1,1,0,0,0", "--goal",
+                 "-1.5,1.5,0.5,0.5,0", "--out", out)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    written = TrajectoryFile.read(out, 5, PositionMap.of(ARM, [], {"shoulder_pan_joint": 0.3}))
+    names, positions, velocities, _ = written.trajectory.joints()
+    assert names == ARM and np.all(positions[:, 0] == 0.3) and np.all(velocities[:, 0] == 0.0)
+    assert positions[-1, 1:].tolist() == pytest.approx([-1.5, 1.5, 0.5, 0.5, 0.0])
+    result = cli("plan", "--robot", URDF, "--hold", "shoulder_pan_joint=9", "--start", "0,0,0,0,0")
+    assert "held joint 'shoulder_pan_joint' at 9 is outside its limits" in result.stderr and result.returncode == 2
 
 
 def test_held_joints_and_the_mimic_joints_that_follow_them():

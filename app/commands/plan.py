@@ -421,6 +421,9 @@ def collisions(scene) -> str:
     if not scene.self_collisions:
         return "robot vs environment only (self-collision off)"
     text = f"robot vs environment and itself ({len(scene.disabled_pairs)} SRDF pairs left out"
+    allowed = getattr(scene, "allowed_collisions", [])  # (a user's own checker's scene has none)
+    if allowed:
+        text += f"; {len(allowed)} allowed-collision pairs"
     adjacent = getattr(scene, "adjacent_pairs", [])
     if adjacent:  # Drake leaves out a joint's parent and child; these meet at a joint across a link without geometry
         named = ", ".join(f"{a}-{b}" for a, b in adjacent[:3]) + (" ..." if len(adjacent) > 3 else "")

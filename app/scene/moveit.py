@@ -416,7 +416,7 @@ def read_problem(
     start_state = _start_state(planning, asked, movable, *names)
     group_joints = _group_joints(asked.group_name, srdf, joints, model)
     hold = {name: start_state[name] for name in movable if name not in group_joints and name not in mimic}
-    world_file, object_links = _world_file(planning, frames, model, cache_dir)
+    world_file, object_links = _world_file(planning, frames, model, cache_dir, Path(scene).stem if scene else "")
     spec = CustomSpec(
         description=f"MoveIt request {names[1]}" + (f" on {names[0]}" if names[0] else ""),
         robot=str(robot_path),
@@ -431,6 +431,9 @@ def read_problem(
     coordinates = built.coordinate_names
     start = np.array([start_state[name] for name in coordinates])
     joint_goals, pose_goals = _goals(asked, coordinates, start_state, hold, frames, names[1])
+    unknown = sorted({goal.link for goal in pose_goals} - (model.links or set()))
+    if unknown:
+        raise UserError(f"{names[1]}: goal link(s) {', '.join(unknown)} not in {model.path.name}", "INVALID_LINK_NAME")
     return MoveItProblem(
         scene=built,
         group=asked.group_name,
@@ -589,7 +592,9 @@ def _unit_quaternion(q: Quaternion) -> np.ndarray:
     return np.array([1.0, 0.0, 0.0, 0.0]) if norm == 0 else wxyz / norm
 
 
-def _world_file(planning: PlanningScene, frames: _Frames, model: ModelFile, cache_dir) -> tuple[Path | None, set]:
+def _world_file(
+    planning: PlanningScene, frames: _Frames, model: ModelFile, cache_dir, stem: str
+) -> tuple[Path | None, set]:
     """The scene's collision objects as one static SDF model in the cache, one link per object (None without any),
     and the objects' names."""
     links, seen = [], set()
@@ -623,7 +628,8 @@ def _world_file(planning: PlanningScene, frames: _Frames, model: ModelFile, cach
         + "  </model>\n</sdf>\n"
     )
     root = Path(cache_dir).absolute() if cache_dir else cache_root()
-    path = root / "moveit" / f"world-{hashlib.sha256(text.encode()).hexdigest()[:16]}.sdf"
+    # Named after the scene file (so is the scene: "ur3_on_cart-in-shelf"), in a folder named by its content.
+    path = root / "moveit" / hashlib.sha256(text.encode()).hexdigest()[:16] / f"{stem}.sdf"
     write_if_changed(path, text)
     return path, seen
 
