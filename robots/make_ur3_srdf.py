@@ -1,5 +1,5 @@
-"""Writes ur3_on_cart.srdf: the UR3's body pairs that need no collision check, found as MoveIt's Setup Assistant
-finds them. Adjacent pairs (joined by a joint) always touch; the rest are kept only if they never came within
+"""Writes ur3_on_cart.srdf: MoveIt's planning group `arm` (the chain from base_link to tool0) and the UR3's body
+pairs that need no collision check, found as MoveIt's Setup Assistant finds them. Adjacent pairs (joined by a joint) always touch; the rest are kept only if they never came within
 MARGIN of each other at SAMPLES configurations drawn uniformly within the scenes' bounds (+-pi on every joint).
 
 Sampling is evidence, not proof: MARGIN keeps pairs that only just miss out of the list.
@@ -56,6 +56,9 @@ def ur3_srdf() -> str:
         f"     of each other at {SAMPLES} uniform random configurations in +-pi (seed {SEED}), as MoveIt's Setup "
         "Assistant derives them. -->",
         '<robot name="ur3_on_cart">',
+        # MoveIt's planning group and planning frame, for MoveIt requests (plan --moveit-request ... --group arm).
+        '  <virtual_joint name="fixed_base" type="fixed" parent_frame="world" child_link="cart"/>',
+        '  <group name="arm"><chain base_link="base_link" tip_link="tool0"/></group>',
     ]
     for a, b in itertools.combinations(bodies, 2):
         a, b, pair = a.name(), b.name(), frozenset((a.name(), b.name()))

@@ -17,7 +17,7 @@ _KINDS = ("revolute", "prismatic", "weld")
 class TreeKinematics:
     """World poses of fixed frames on a plant's bodies (each given as (body, X_BF)), for configurations (n, dim):
     the plant's positions, or with a `position_map` (app.scene.cspace.PositionMap) the coordinates it maps to them,
-    each mimic joint's position being its multiplier times its coordinate plus its offset."""
+    each mimic joint's position being its multiplier times its coordinate plus its offset, a held joint's its own."""
 
     def __init__(self, plant, frames: list, position_map=None):
         inboard = {}
@@ -152,6 +152,9 @@ def _coordinate(joint, position_map) -> tuple:
     for position, column, multiplier, offset in position_map.mimics:
         if position == start:
             return (column, multiplier, offset)
+    held = position_map.held.get(position_map.names[start])
+    if held is not None:  # a held joint: any column, times nothing, plus its position
+        return (0, 0.0, held)
     return (int(np.flatnonzero(position_map.planned == start)[0]), None, None)
 
 

@@ -2,6 +2,7 @@
 an app.scene.spec.CustomSpec, from which app.scene.custom.build_scene makes the scene."""
 
 import argparse
+import math
 
 from app.commands.common import float_list, non_negative_float, positive_float_list
 from app.errors import UserError
@@ -102,6 +103,26 @@ def _space_and_collision_arguments(group) -> None:
         metavar="FILE",
         help="MoveIt SRDF: its <disable_collisions link1= link2=/> pairs are not checked",
     )
+    group.add_argument(
+        "--hold",
+        metavar="JOINT=POSITION",
+        type=held_joint,
+        action="append",
+        default=[],
+        help="keep this joint at this position (radians or metres): it is no coordinate, so --start, --goal, "
+        "--bounds and the limits name the other joints (repeatable)",
+    )
+
+
+def held_joint(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    try:
+        position = float(value)
+    except ValueError:
+        position = math.nan
+    if not sep or not name.strip() or not math.isfinite(position):
+        raise argparse.ArgumentTypeError(f"needs JOINT=POSITION with a finite position, got {text!r}")
+    return name.strip(), position
 
 
 # The flags that describe a robot or environment of one's own: dest -> the flag as a user types it.
@@ -116,6 +137,7 @@ ROBOT_ONLY = {
     "resolution": "--resolution",
     "self_collision": "--no-self-collision",
     "srdf": "--srdf",
+    "hold": "--hold",
     "velocity_limits": "--velocity-limits",
     "acceleration_limits": "--acceleration-limits",
 }
@@ -154,6 +176,7 @@ def spec_from_args(args) -> CustomSpec | None:
         mesh_tolerance=args.mesh_tolerance,
         velocity_limits=list(args.velocity_limits),
         acceleration_limits=list(args.acceleration_limits),
+        hold=dict(args.hold),
     )
 
 

@@ -3,12 +3,16 @@
 
 import argparse
 import contextlib
+import dataclasses
 
+from app.checking.budget import Budget
+from app.checking.oracle import CollisionOracle
 from app.commands import custom, view
 from app.commands.common import (
     BUDGET_HELP,
     add_change_arguments,
     add_scaling_arguments,
+    announce,
     answering,
     failure_details,
     float_list,
@@ -28,9 +32,12 @@ from app.commands.common import (
     source_name,
 )
 from app.errors import UserError
+from app.io import all_or_nothing
+from app.planning import moveit
 from app.planning.ik import pose_goal, robot_frame
 from app.planning.query import plan
 from app.planning.settings import PlanSettings
+from app.scene import moveit as moveit_files
 
 DEFAULTS = PlanSettings()
 
@@ -81,7 +88,48 @@ def register(subparsers) -> None:
     add_change_arguments(p)
     view.add_arguments(p)  # --html / --meshcat / --frame / --collision: show the planned trajectory
     custom.add_arguments(p)  # --robot / --package-path / --env / --env-pose / --bounds ...
+    add_moveit_arguments(p)
     p.set_defaults(func=run)
+
+
+def add_moveit_arguments(p) -> None:
+    group = p.add_argument_group("a MoveIt problem (with --robot URDF, --srdf SRDF for a group)")
+    group.add_argument(
+        "--moveit-request",
+        metavar="REQUEST.yaml",
+        help="a moveit_msgs/MotionPlanRequest as YAML: its start state, goal constraints (joints, or a link's "
+        "position and orientation, solved by IK), group (its joints planned, the others held at the start), "
+        "scaling factors and allowed planning time (a time limit on --budget)",
+    )
+    group.add_argument(
+        "--moveit-scene",
+        metavar="SCENE.yaml",
+        help="the moveit_msgs/PlanningScene it is posed on, as YAML: world collision objects (boxes, spheres, "
+        "cylinders), robot state (the start the request's completes), allowed collision matrix",
+    )
+    group.add_argument(
+        "--moveit-out",
+        metavar="RESPONSE.yaml",
+        help="write the answer as a moveit_msgs/MotionPlanResponse YAML; a failure's too, with MoveIt's error code",
+    )
+
+
+# What a MoveIt request sets, and so may not be given beside it: dest -> the flag as a user types it.
+MOVEIT_SETS = {
+    "start": "--start",
+    "goal": "--goal",
+    "start_pose": "--start-pose",
+    "goal_pose": "--goal-pose",
+    "tool": "--tool",
+    "roadmap": "--roadmap",
+    "ompl_app": "--ompl-app",
+    "floating": "--floating",
+    "env": "--env",
+    "env_pose": "--env-pose",
+    "bounds": "--bounds",
+    "hold": "--hold",
+    "change": "--change",
+}
 
 
 def add_sampling_arguments(p) -> None:
@@ -182,6 +230,8 @@ def settings_from_args(args) -> PlanSettings:
 
 
 def run(args) -> int:
+    if args.moveit_request or args.moveit_scene or args.moveit_out:
+        return run_moveit(args)
     # Everything that can be wrong with the input is found before the (slow) planning starts.
     settings = settings_from_args(args)
     for end in ("start", "goal"):
@@ -234,6 +284,100 @@ def run(args) -> int:
     return 0
 
 
+def run_moveit(args) -> int:
+    """`plan --moveit-request REQUEST.yaml [--moveit-scene SCENE.yaml] --robot URDF`: the request's problem planned
+    (app.scene.moveit, app.planning.moveit); with --moveit-out its MotionPlanResponse written, on failure too."""
+    given = [flag for dest, flag in MOVEIT_SETS.items() if getattr(args, dest)]
+    if args.scene or given:
+        raise UserError(f"a MoveIt request sets start, goal and world: give it without {', '.join(given) or 'SCENE'}")
+    if not args.moveit_request or not args.robot:
+        raise UserError(
+            "a MoveIt problem needs --moveit-request REQUEST.yaml and --robot URDF (and --srdf for a group)"
+        )
+    view.check_from_args(args, args.out, args.moveit_out)
+    settings = settings_from_args(args)
+    problem = None
+    with _failure_response(args, lambda: problem):
+        options = {dest: getattr(args, dest) for dest in custom.OMPL_APP_OPTIONS}
+        problem = moveit_files.read_problem(
+            request=args.moveit_request,
+            scene=args.moveit_scene,
+            robot=args.robot,
+            srdf=args.srdf,
+            package_path=args.package_path,
+            collisions="all" if args.self_collision else "environment",
+            **options,
+        )
+        settings = _request_settings(args, settings, problem)
+        oracle = CollisionOracle(problem.scene)
+        with progress(args, oracle, f"plan {oracle.scene.name}"), failure_details(scene_details(oracle.scene)):
+            goal = moveit.goal_configurations(oracle, problem, seed=args.seed)
+            result = plan(oracle, settings, start=problem.start, goal=goal)
+    answer = moveit.response(problem, trajectory=result.trajectory, planning_time=result.stats.seconds.total)
+    with answering():
+        with all_or_nothing():
+            if args.moveit_out:
+                moveit.write_response(args.moveit_out, answer)
+            viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out)
+        announce(args.moveit_out)
+        if args.json:
+            moveit_answer = {"group": problem.group, "error_code": answer.error_code.val, "response": args.moveit_out}
+            answer_json = {**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": None}
+            print_json({**answer_json, **scene_details(oracle.scene), "moveit": moveit_answer})
+        else:
+            lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
+            held = oracle.scene.position_map.held if oracle.scene.position_map else {}
+            lines.append(
+                f"moveit    group {problem.group or '(every joint)'}: {', '.join(oracle.scene.coordinate_names)}"
+                + (f"; held: {', '.join(held)}" if held else "")
+            )
+            print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
+    view.wait(args, viewer)
+    return 0
+
+
+def _request_settings(args, settings: PlanSettings, problem) -> PlanSettings:
+    """The request's scaling factors for the scaling flags (given both ways only when they agree), and its allowed
+    planning time as the budget's time limit (the budget's own when that is shorter)."""
+    scales = {}
+    for kind in ("velocity", "acceleration"):
+        flag, asked = getattr(args, f"{kind}_scale"), getattr(problem, f"{kind}_scale")
+        if flag != 1.0 and asked != 1.0 and flag != asked:
+            raise UserError(f"--{kind}-scale {flag:g} and the request's max_{kind}_scaling_factor {asked:g} differ")
+        scales[f"{kind}_scale"] = min(flag, asked)
+    budget = settings.budget
+    if problem.seconds is not None:
+        seconds = problem.seconds if budget.seconds is None else min(budget.seconds, problem.seconds)
+        budget = Budget(seconds=seconds, checks=budget.checks)
+    return dataclasses.replace(settings, budget=budget, **scales)
+
+
+@contextlib.contextmanager
+def _failure_response(args, problem):
+    """With --moveit-out, a failure inside the block is answered in the file too, with MoveIt's error code for it
+    (`problem()`: the problem once read; before, the start is unknown and the group the request's, if readable)."""
+    try:
+        yield
+    except UserError as exc:
+        if args.moveit_out:
+            known = problem()
+            details = getattr(exc, "details", None) or {}
+            seconds = (details.get("seconds") or {}).get("total", 0.0)
+            if known is not None:
+                answer = moveit.response(known, planning_time=seconds, code=exc.code)
+            else:
+                answer = moveit.response({}, _group_named(args.moveit_request), code=exc.code)
+            with answering(final=False):  # (not announced: a failure is its one line)
+                moveit.write_response(args.moveit_out, answer)
+        raise
+
+
+def _group_named(request: str) -> str:
+    with contextlib.suppress(UserError):
+        return moveit_files.read_message(request, moveit_files.MotionPlanRequest, "MoveIt request").group_name
+    return ""
+
+
 def pose(text: str) -> list[float]:
     values = float_list(text)
     if len(values) != 6:
@@ -283,6 +427,9 @@ def collisions(scene) -> str:
     if not scene.self_collisions:
         return "robot vs environment only (self-collision off)"
     text = f"robot vs environment and itself ({len(scene.disabled_pairs)} SRDF pairs left out"
+    allowed = getattr(scene, "allowed_collisions", [])  # (a user's own checker's scene has none)
+    if allowed:
+        text += f"; {len(allowed)} allowed-collision pairs"
     adjacent = getattr(scene, "adjacent_pairs", [])
     if adjacent:  # Drake leaves out a joint's parent and child; these meet at a joint across a link without geometry
         named = ", ".join(f"{a}-{b}" for a, b in adjacent[:3]) + (" ..." if len(adjacent) > 3 else "")

@@ -59,9 +59,12 @@ class BuiltDiagram:
     robot_links: dict[str, str]  # the robot's bodies by scoped name ("robot::forearm") -> link name
 
 
-def build_diagram(add_models, robot: list[str], srdf_pairs: list, srdf: str, bad: str) -> BuiltDiagram:
-    """The diagram of the models `add_models(parser)` adds, whose instances named `robot` move; adjacent links and
-    the SRDF's `srdf_pairs` (read from `srdf`, for messages) filtered. `bad` starts a message about the scene."""
+def build_diagram(
+    add_models, robot: list[str], srdf_pairs: list, srdf: str, bad: str, allowed: list[list[str]] = ()
+) -> BuiltDiagram:
+    """The diagram of the models `add_models(parser)` adds, whose instances named `robot` move; adjacent links,
+    the SRDF's `srdf_pairs` (read from `srdf`, for messages) and the `allowed` body pairs (robot or environment
+    bodies) filtered. `bad` starts a message about the scene."""
     builder = robot_diagram_builder()
     plant = builder.plant()
     add_models(builder.parser())
@@ -72,6 +75,7 @@ def build_diagram(add_models, robot: list[str], srdf_pairs: list, srdf: str, bad
     plant.Finalize()
     adjacent = exclude_adjacent_bodies(plant, builder.scene_graph(), instances)
     exclude_body_pairs(plant, builder.scene_graph(), instances, srdf_pairs, srdf)
+    exclude_allowed_pairs(plant, builder.scene_graph(), allowed, bad)
     diagram = builder.Build()
     plant = diagram.plant()
     links = {
@@ -127,6 +131,25 @@ def exclude_body_pairs(plant, scene_graph, instances, pairs: list[tuple[str, str
     if unknown:
         raise UserError(f"SRDF {Path(srdf).name}: unknown link(s) {', '.join(unknown)} (not bodies of the robot)")
     _exclude_between(plant, scene_graph, [(body(a), body(b)) for a, b in pairs])
+
+
+def exclude_allowed_pairs(plant, scene_graph, pairs: list[list[str]], bad: str) -> None:
+    """Exclude collisions between each pair of bodies named in `pairs`, each name that of one body of any model
+    (a robot link, a link of an environment SDF); a name no body or several carry -> one UserError."""
+    from pydrake.multibody.tree import BodyIndex
+
+    bodies: dict[str, list] = {}
+    for i in range(plant.num_bodies()):
+        body = plant.get_body(BodyIndex(i))
+        bodies.setdefault(body.name(), []).append(body)
+    for pair in pairs:
+        if len(pair) != 2:
+            raise UserError(f"{bad}: an allowed collision names two bodies, got {list(pair)}")
+        for name in pair:
+            if len(bodies.get(name, [])) != 1:
+                how = "no body has" if name not in bodies else "several bodies have"
+                raise UserError(f"{bad}: allowed collision {pair[0]} - {pair[1]}: {how} the name '{name}'")
+    _exclude_between(plant, scene_graph, [(bodies[a][0], bodies[b][0]) for a, b in pairs])
 
 
 def _exclude_between(plant, scene_graph, bodies: list) -> None:
@@ -202,11 +225,16 @@ class RobotMeasure:
 
 
 def measure_robot(
-    directives: Path, packages: dict[str, Path], instances: list[str], mimics: list[dict], robot_file: Path
+    directives: Path,
+    packages: dict[str, Path],
+    instances: list[str],
+    mimics: list[dict],
+    robot_file: Path,
+    held: dict[str, float],
 ) -> RobotMeasure:
     """Load the robot part of the directives: coordinate names, limits, and the robot's size (for weights). A
-    joint in `mimics` is no coordinate; the limits of the one it follows keep it within its own. Messages name
-    `robot_file` (the user's), not the generated directives."""
+    joint in `mimics` is no coordinate; the limits of the one it follows keep it within its own. A `held` joint is
+    none either. Messages name `robot_file` (the user's), not the generated directives."""
     from pydrake.multibody.parsing import LoadModelDirectives, ProcessModelDirectives
 
     builder = builder_with_packages(packages)
@@ -227,7 +255,7 @@ def measure_robot(
     reach, thin = _robot_size(builder, plant, instances)
     lower, upper, velocity = _checked_limits(plant, names, robot_file)
     try:
-        mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics])
+        mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics], held)
     except UserError as exc:
         raise UserError(f"{robot_file.name}: {exc}") from None
     if mimic is not None:

@@ -26,8 +26,8 @@ MIN_RESOLUTION = 1e-5  # the finest edge-check step, as a fraction of the weight
 class SceneSpace:
     """A scene's configuration space as its problem file and plant define it."""
 
-    position_map: PositionMap | None  # mimic joints, or None
-    joint_names: list[str]  # every position's, mimic joints' included: what a trajectory carries
+    position_map: PositionMap | None  # mimic and held joints, or None
+    joint_names: list[str]  # every position's, mimic and held joints' included: what a trajectory carries
     coordinate_names: list[str]
     angular: np.ndarray
     continuous: np.ndarray
@@ -51,7 +51,11 @@ def derive_space(table: dict, problem, bad: str) -> SceneSpace:
     file (app.scene.problem.ProblemFile). `bad` starts every refusal ("bad scene file NAME")."""
     names = table["names"]
     try:
-        position_map = PositionMap.of(names, [(m.joint, m.follows, m.multiplier, m.offset) for m in problem.mimic])
+        position_map = PositionMap.of(
+            names, [(m.joint, m.follows, m.multiplier, m.offset) for m in problem.mimic], problem.hold
+        )
+        if position_map is not None:
+            position_map.check_held(table["lower"], table["upper"])
     except UserError as exc:
         raise UserError(f"{bad}: {exc}") from None
     # Per plant position first; the planned coordinates are the positions of joints that mimic none.
@@ -201,6 +205,8 @@ def custom_problem(
         "view": "3d",
         "velocity_limits": model_velocity.tolist(),
         "mimic": robot.mimic,
+        "hold": dict(spec.hold),
+        "allowed_collisions": [list(pair) for pair in spec.allowed_collisions],
         **_given_limits(spec, names),  # the Scene's default accelerations: twice its velocity limits
     }
 

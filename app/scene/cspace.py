@@ -154,9 +154,11 @@ class ConfigurationSpace:
 @dataclass(frozen=True, eq=False)
 class PositionMap:
     """The plant's joint positions from the planned coordinates, positions = matrix @ q + offset: a mimic joint (URDF
-    <mimic joint= multiplier= offset=>) is no coordinate of its own but follows the joint it mimics. Every planned
+    <mimic joint= multiplier= offset=>) is no coordinate of its own but follows the joint it mimics, and a held joint
+    (a MoveIt request's joints outside its planning group) is none either: it stays at its position. Every planned
     joint is one coordinate (its row of `matrix` a unit vector); a mimic joint's row holds its multiplier in the
-    column of the coordinate it follows. A scene without mimic joints has no map (None): positions are q."""
+    column of the coordinate it follows; a held joint's row is zero and its offset its position. A scene without
+    mimic or held joints has no map (None): positions are q."""
 
     matrix: np.ndarray  # (positions, coordinates)
     offset: np.ndarray  # (positions,)
@@ -164,10 +166,15 @@ class PositionMap:
     planned: np.ndarray  # (coordinates,) the position index of each coordinate
 
     @classmethod
-    def of(cls, names: list[str], mimics: list[tuple[str, str, float, float]]) -> PositionMap | None:
-        """The map for positions `names` whose mimics are (joint, followed joint, multiplier, offset); None without
-        any. A mimic of a mimic joint, of itself or of an unknown joint is a UserError."""
-        if not mimics:
+    def of(
+        cls, names: list[str], mimics: list[tuple[str, str, float, float]], held: dict[str, float] | None = None
+    ) -> PositionMap | None:
+        """The map for positions `names` whose mimics are (joint, followed joint, multiplier, offset) and whose `held`
+        joints stay at their given positions; None without either. A mimic of a mimic joint, of itself or of an
+        unknown joint, an unknown held joint or a held mimic joint is a UserError; a mimic joint of a held joint is
+        held where it follows it."""
+        held = dict(held or {})
+        if not mimics and not held:
             return None
         index = {name: i for i, name in enumerate(names)}
         followed = {}
@@ -183,29 +190,50 @@ class PositionMap:
         for joint, (leader, _, _) in followed.items():
             if leader in followed:
                 raise UserError(f"mimic joint '{joint}' follows '{leader}', which is itself a mimic joint")
-        planned = np.array([i for i, name in enumerate(names) if name not in followed], int)
+        for joint, position in held.items():
+            if joint not in index:
+                raise UserError(f"held joint '{joint}': no joint of that name among {', '.join(names)}")
+            if joint in followed:
+                raise UserError(f"joint '{joint}' mimics '{followed[joint][0]}': hold that joint instead")
+            if not np.isfinite(position):
+                raise UserError(f"held joint '{joint}': its position must be a finite number")
+        for joint, (leader, multiplier, shift) in list(followed.items()):
+            if leader in held:  # it cannot follow a joint that does not move: it is held where it follows it
+                held[joint] = multiplier * held[leader] + shift
+                del followed[joint]
+        planned = np.array([i for i, name in enumerate(names) if name not in followed and name not in held], int)
+        if not len(planned):
+            raise UserError("every joint is held or mimics another: nothing is left to plan")
         column = {int(p): c for c, p in enumerate(planned)}
         matrix, offset = np.zeros((len(names), len(planned))), np.zeros(len(names))
         matrix[planned, np.arange(len(planned))] = 1.0
         for joint, (leader, multiplier, shift) in followed.items():
             matrix[index[joint], column[index[leader]]] = multiplier
             offset[index[joint]] = shift
+        for joint, position in held.items():
+            offset[index[joint]] = float(position)
         return cls(matrix, offset, list(names), planned)
 
     @property
     def mimics(self) -> list[tuple[int, int, float, float]]:
         """(position, coordinate it follows, multiplier, offset) of each mimic joint."""
-        mimic = np.setdiff1d(np.arange(len(self.names)), self.planned)
-        columns = np.argmax(self.matrix[mimic] != 0, axis=1)
-        return [(int(p), int(c), float(self.matrix[p, c]), float(self.offset[p])) for p, c in zip(mimic, columns)]
+        rows = [p for p in np.setdiff1d(np.arange(len(self.names)), self.planned) if self.matrix[p].any()]
+        columns = np.argmax(self.matrix[rows] != 0, axis=1)
+        return [(int(p), int(c), float(self.matrix[p, c]), float(self.offset[p])) for p, c in zip(rows, columns)]
+
+    @property
+    def held(self) -> dict[str, float]:
+        """The held joints' positions by name."""
+        rows = [p for p in np.setdiff1d(np.arange(len(self.names)), self.planned) if not self.matrix[p].any()]
+        return {self.names[p]: float(self.offset[p]) for p in rows}
 
     def equalities(self) -> tuple[np.ndarray, np.ndarray]:
-        """(A, b): the mimic joints' relations as linear equalities A @ positions = b (one row per mimic joint),
-        for solvers whose variables are the plant's positions."""
-        mimic = np.array([p for p, *_ in self.mimics], int)
-        A = -self.matrix[mimic] @ np.eye(len(self.names))[self.planned]
-        A[np.arange(len(mimic)), mimic] += 1.0
-        return A, self.offset[mimic]
+        """(A, b): the mimic and held joints' relations as linear equalities A @ positions = b (one row per joint
+        that is no coordinate), for solvers whose variables are the plant's positions."""
+        rows = np.setdiff1d(np.arange(len(self.names)), self.planned)
+        A = -self.matrix[rows] @ np.eye(len(self.names))[self.planned]
+        A[np.arange(len(rows)), rows] += 1.0
+        return A, self.offset[rows]
 
     def positions(self, Q: np.ndarray) -> np.ndarray:
         """Plant positions of configurations Q (..., coordinates)."""
@@ -218,6 +246,15 @@ class PositionMap:
     def coordinates(self, P: np.ndarray) -> np.ndarray:
         """The planned coordinates of plant positions P (..., positions)."""
         return np.asarray(P, float)[..., self.planned]
+
+    def check_held(self, lower: np.ndarray, upper: np.ndarray) -> None:
+        """A UserError naming the first held joint whose position is outside its limits (lower, upper per position)."""
+        for name, position in self.held.items():
+            i = self.names.index(name)
+            if not lower[i] - 1e-9 <= position <= upper[i] + 1e-9:  # (a position read back from a file may round)
+                raise UserError(
+                    f"held joint '{name}' at {position:g} is outside its limits [{lower[i]:g}, {upper[i]:g}]"
+                )
 
     def coordinate_limits(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The limits (lo, hi) per coordinate that keep every mimic joint within its own position limits (lower,

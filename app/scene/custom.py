@@ -115,7 +115,12 @@ def build_scene(
     emit_robot(files, inputs, robot_meshes, root)
     robot_dir = write_scene_dir(files, inputs.packages, root)
     robot = measure_robot(
-        robot_dir / "robot.dmd.yaml", inputs.packages, files.robot_instances, inputs.mimics(), inputs.robot_path
+        robot_dir / "robot.dmd.yaml",
+        inputs.packages,
+        files.robot_instances,
+        inputs.mimics(),
+        inputs.robot_path,
+        spec.hold,
     )
     resolution = spec.resolution or robot.default_resolution()
     check_vectors(spec, robot.names)  # (an SDF robot's coordinates are known only now)

@@ -67,7 +67,7 @@ def read_inputs(spec: CustomSpec, base: Path) -> SceneInputs:
         )
     bounds = parse_bounds(spec.bounds)
     floating = robot_kind == "mesh" or spec.floating
-    names = coordinate_names(robot_path, floating, models.get(robot_path))
+    names = coordinate_names(robot_path, floating, models.get(robot_path), spec.hold)
     if names is not None:
         check_vectors(spec, names)
         check_bounds_count(bounds, names, floating)

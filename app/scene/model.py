@@ -67,7 +67,10 @@ class Scene:
         self.recipe = functools.partial(Scene, str(self.path))
         self.problem = problem = read_problem(self.path)
         self.disabled_pairs = read_srdf(named_file(self.path, problem.srdf)) if problem.srdf else []
-        built = build_diagram(self.add_models, problem.robot, self.disabled_pairs, problem.srdf, self._bad)
+        self.allowed_collisions = [tuple(pair) for pair in problem.allowed_collisions]
+        built = build_diagram(
+            self.add_models, problem.robot, self.disabled_pairs, problem.srdf, self._bad, problem.allowed_collisions
+        )
         self.diagram, self.plant = built.diagram, built.plant
         self.robot_instances, self.adjacent_pairs = built.robot_instances, built.adjacent_pairs
         self.robot_links = built.robot_links

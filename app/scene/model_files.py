@@ -353,3 +353,75 @@ def read_srdf(path: Path) -> list[tuple[str, str]]:
             raise UserError(f"bad SRDF {path.name}: <disable_collisions> needs link1 and link2")
         pairs.append((a, b))
     return pairs
+
+
+@dataclass
+class SrdfGroup:
+    """An SRDF <group>: the joints, chains (base link, tip link), links and subgroups it names."""
+
+    joints: list[str] = field(default_factory=list)
+    chains: list[tuple[str, str]] = field(default_factory=list)
+    links: list[str] = field(default_factory=list)
+    subgroups: list[str] = field(default_factory=list)
+
+
+def read_srdf_groups(path: Path) -> dict[str, SrdfGroup]:
+    """An SRDF's <group> elements by name (MoveIt's planning groups), as they are written: app.scene.moveit resolves
+    them to joints."""
+    check_input(path, "SRDF file")
+    groups = {}
+    for element in xml_root(path, "bad SRDF").iter("group"):
+        name = element.get("name")
+        if not name:
+            raise UserError(f"bad SRDF {path.name}: a <group> needs a name")
+        group = groups.setdefault(name, SrdfGroup())
+        for child in element:
+            if child.tag == "chain":
+                if not child.get("base_link") or not child.get("tip_link"):
+                    raise UserError(f"bad SRDF {path.name}: group '{name}': <chain> needs base_link and tip_link")
+                group.chains.append((child.get("base_link"), child.get("tip_link")))
+            elif child.tag in ("joint", "link", "group"):
+                if not child.get("name"):
+                    raise UserError(f"bad SRDF {path.name}: group '{name}': <{child.tag}> needs a name")
+                {"joint": group.joints, "link": group.links, "group": group.subgroups}[child.tag].append(
+                    child.get("name")
+                )
+    return groups
+
+
+@dataclass
+class UrdfJoint:
+    """A URDF <joint> as data: its type, parent and child links, and its <origin> (xyz in m, rpy in radians)."""
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    xyz: list[float]
+    rpy: list[float]
+
+
+def urdf_joints(model: ModelFile) -> dict[str, UrdfJoint]:
+    """A URDF's joints by name (its numbers are checked when the file is read: read_model_file)."""
+    root = xml_root_of(model.text, model.path)
+    joints = {}
+    for joint in root.findall("joint"):
+        parent, child, origin = joint.find("parent"), joint.find("child"), joint.find("origin")
+        joints[joint.get("name")] = UrdfJoint(
+            joint.get("name"),
+            joint.get("type", ""),
+            "" if parent is None else parent.get("link", ""),
+            "" if child is None else child.get("link", ""),
+            [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()],
+            [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()],
+        )
+    return joints
+
+
+def read_srdf_fixed_frames(path: Path) -> list[str]:
+    """The parent frames of an SRDF's fixed <virtual_joint>s: names of the frame the robot's root is fixed in
+    (MoveIt's planning frame, "world" as a rule)."""
+    root = xml_root(check_input(path, "SRDF file"), "bad SRDF")
+    return [
+        v.get("parent_frame") for v in root.iter("virtual_joint") if v.get("type") == "fixed" and v.get("parent_frame")
+    ]

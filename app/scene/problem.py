@@ -83,6 +83,9 @@ class ProblemFile:
     tool_frame: str = ""  # the frame `poses` are poses of (arm scenes); required when poses are given
     poses: list[ToolPose] = field(default_factory=list)  # named tool poses, in file order (e.g. a weld seam)
     mimic: list[Mimic] = field(default_factory=list)  # joints that follow others: not planned coordinates
+    hold: dict[str, float] = field(default_factory=dict)  # joints that stay at these positions: no coordinates either
+    # Body pairs never checked against each other: robot links, or an environment model's bodies (by their names).
+    allowed_collisions: list[list[str]] = field(default_factory=list)
 
 
 def read_problem(path: Path) -> ProblemFile:

@@ -41,6 +41,10 @@ class CustomSpec:
             (environment), 0.2 % of its size (robot mesh).
         velocity_limits: Per coordinate; empty: the model's (else 1).
         acceleration_limits: Per coordinate; empty: twice the velocity limits.
+        hold: Joints that stay where they are, by name: position (no coordinates of the space; e.g. a MoveIt
+            request's joints outside its planning group). Start, goal, bounds and limits then name the others.
+        allowed_collisions: Pairs of bodies (robot links, or links of an environment SDF) never checked against each
+            other (a MoveIt allowed-collision matrix's entries; an SRDF's pairs name robot links only).
     """
 
     description: str = ""
@@ -59,6 +63,8 @@ class CustomSpec:
     mesh_tolerance: float = 0.0
     velocity_limits: list[float] = field(default_factory=list)
     acceleration_limits: list[float] = field(default_factory=list)
+    hold: dict[str, float] = field(default_factory=dict)
+    allowed_collisions: list[list[str]] = field(default_factory=list)
 
 
 @dataclass
@@ -167,12 +173,16 @@ def file_kind(path: Path, what: str) -> str:
 
 
 # ---- the coordinates ----------------------------------------------------------------------------------------------
-def coordinate_names(robot_path: Path, floating: bool, found: ModelFile | None) -> list[str] | None:
+def coordinate_names(
+    robot_path: Path, floating: bool, found: ModelFile | None, held: dict[str, float]
+) -> list[str] | None:
     """The scene's coordinates as far as they are known before any mesh work (a mesh robot's carrier; a URDF
-    robot's joints as Drake's parser makes them, mimic joints left out, after the carrier's when it floats); None
-    for an SDF robot. Joint types the planner does not take, mimic joints that cannot follow, and mimicked joints
-    whose mimic joints leave them no room, are refused."""
+    robot's joints as Drake's parser makes them, mimic and `held` joints left out, after the carrier's when it
+    floats); None for an SDF robot. Joint types the planner does not take, mimic joints that cannot follow,
+    mimicked joints whose mimic joints leave them no room, and held joints outside their limits, are refused."""
     if found is None:
+        if floating and held:
+            raise UserError("a mesh robot has no joints to hold")
         return list(CARRIER_JOINTS) if floating else None
     if found.joints is None:
         return None
@@ -183,7 +193,7 @@ def coordinate_names(robot_path: Path, floating: bool, found: ModelFile | None) 
     names = [name for name, _, count in joints for _ in range(count)]
     mimics = found.mimics()
     try:
-        mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics])
+        mimic = PositionMap.of(names, [(m["joint"], m["follows"], m["multiplier"], m["offset"]) for m in mimics], held)
     except UserError as exc:
         raise UserError(f"{robot_path.name}: {exc}") from None
     if mimic is None:
@@ -197,8 +207,12 @@ def mimic_limited(
     mimic: PositionMap, names: list[str], lower: np.ndarray, upper: np.ndarray, robot_file: Path
 ) -> tuple[list[str], np.ndarray, np.ndarray]:
     """The planned coordinates' names and position limits (positions' `names`, `lower`, `upper` in plant order):
-    a mimicked joint's limits narrowed so that the joints mimicking it stay within theirs; one with no room left is
-    a UserError naming it."""
+    a mimicked joint's limits narrowed so that the joints mimicking it stay within theirs; one with no room left,
+    or a held joint outside its limits, is a UserError naming it."""
+    try:
+        mimic.check_held(lower, upper)
+    except UserError as exc:
+        raise UserError(f"{robot_file.name}: {exc}") from None
     mimic_lower, mimic_upper = mimic.coordinate_limits(lower, upper)
     planned = mimic.planned
     names = [names[i] for i in planned]
