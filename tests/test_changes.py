@@ -198,3 +198,18 @@ def test_a_bad_change_file_is_one_line_and_writes_nothing(cli, one_line_error, t
         cli("roadmap", "update", path, "--change", change, "--out", out), 3
     )
     assert not out.exists()
+
+
+def test_the_example_changes_apply_and_a_job_carries_its_part(cli, oracles):
+    from app.scene.changes import read_change
+    from app.scene.files import ROOT
+
+    examples = sorted((ROOT / "examples" / "changes").glob("*.yaml"))
+    assert examples
+    window = oracles("window")
+    for path in examples:
+        changed = window.of_scene(changed_scene(window.scene, [read_change(path)]))
+        assert changed.free(changed.scene.start)
+    ran = cli("run", "window", "--change", ROOT / "examples" / "changes" / "window-part.yaml", "--json")
+    assert ran.returncode == 0, ran.stderr
+    assert len(json.loads(ran.stdout)["legs"]) == 5

@@ -218,6 +218,13 @@ def test_roadmap_build_and_info_answer_the_same_object_by_their_schema(cli, tmp_
     assert covered["what"] == "query" and built["provenance"]["queries"] == 1
     assert tuple(built["fingerprint"]) == FINGERPRINT_PARTS
     assert check(cli("roadmap", "info", file, "--json"), "roadmap") == built
+    # `roadmap update` answers the repaired file's object, with its repair, which `roadmap info` then lists
+    change = tmp_path / "change.yaml"
+    change.write_text("remove: [box0]\n")
+    updated = check(cli("roadmap", "update", file, "--change", change, "--json"), "roadmap")
+    (repair,) = updated["provenance"]["changes"]
+    assert updated.pop("repair") == repair and repair["described"] == "remove box0"
+    assert check(cli("roadmap", "info", file, "--json"), "roadmap") == updated
 
 
 # One failure per command (most refused before any work), and the planner's own failures.
@@ -233,6 +240,7 @@ FAILURES = [
     (["gui", "bar", "--sampler", "nope"], 2, "INVALID_INPUT"),
     (["roadmap", "build", "nowhere", "--out", "{tmp}/r.npz"], 2, "INVALID_INPUT"),
     (["roadmap", "info", "{tmp}/missing.npz"], 2, "INVALID_INPUT"),
+    (["roadmap", "update", "{tmp}/missing.npz", "--change", "{tmp}/missing.yaml"], 2, "INVALID_INPUT"),
     (["roadmap"], 2, "INVALID_INPUT"),
     (["bench", "oracle", "-n", "0"], 2, "INVALID_INPUT"),
     (["bench", "sampling", "--png", "{tmp}"], 2, "INVALID_INPUT"),

@@ -3,16 +3,18 @@
 import contextlib
 from dataclasses import replace
 
-from app.checking.oracle import CollisionOracle
 from app.commands.common import (
     BUDGET_HELP,
+    add_change_arguments,
     add_scaling_arguments,
     answering,
     known_sources,
+    open_cell,
     parse_budget,
     positive_float,
     print_json,
     progress,
+    read_changes,
     sample_count,
     seed,
     source_name,
@@ -20,7 +22,6 @@ from app.commands.common import (
 from app.commands.view import add_arguments, check_from_args, kept_on_failure, roadmap_lock, wait, write_outputs
 from app.errors import UserError
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
-from app.planning.cell import CellRoadmap
 from app.scene.model import Scene
 
 
@@ -58,6 +59,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", metavar="FILE.json", help="write the joined trajectory (not written on failure)")
     p.add_argument("--json", action="store_true")
     add_scaling_arguments(p)
+    add_change_arguments(p)
     add_arguments(p)
     p.set_defaults(func=run)
 
@@ -83,10 +85,11 @@ def run(args) -> int:
     if args.roadmap and args.full_roadmap:
         raise UserError("--full-roadmap builds a roadmap per leg: give it or --roadmap, not both")
     check_from_args(args, args.out, args.roadmap if args.update else None)
-    oracle = CollisionOracle(Scene(args.job))
+    changes = read_changes(args.change)
     # --update: the roadmap's lock from before the file is read until it is written back, as plan --update takes it.
     with roadmap_lock(args.roadmap) if args.update else contextlib.nullcontext():
-        cell = CellRoadmap.load(args.roadmap, oracle) if args.roadmap else None
+        # The cell as it is now: the changes the roadmap was repaired for, then --change (the roadmap repaired).
+        oracle, cell = open_cell(args.roadmap, Scene(args.job), changes)
         saved = (cell, args.roadmap) if args.update else None
         with progress(args, oracle, f"run {args.job}"), kept_on_failure(saved):
             result = run_job(oracle, args.job, settings, cell)
