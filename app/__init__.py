@@ -8,6 +8,7 @@
 
     cell = app.CellRoadmap.build(oracle, app.BuildSettings(nodes=1000))  # once per work cell
     cell.solve(start, [goal_a, goal_b])  # many queries, each reaching any of its goals; cell.save(path)
+    moved = cell.changed([app.read_change("moved.yaml")])  # the cell changed: the roadmap repaired, not rebuilt
 
 Everything a user needs is named in `__all__`; the rest of the package is implementation.
 """
@@ -32,6 +33,15 @@ from app.planning.settings import PlanSettings  # noqa: E402
 from app.samplers import SAMPLERS, Sampler, make_sampler  # noqa: E402
 from app.scene.cspace import ConfigurationSpace  # noqa: E402
 from app.scene.custom import build_scene, load_scene  # noqa: E402
+from app.scene.changes import (  # noqa: E402
+    Attachment,
+    CellChange,
+    Move,
+    Placement,
+    Solid,
+    changed_scene,
+    read_change,
+)
 from app.scene.model import Scene, scene_names  # noqa: E402
 from app.scene.spec import CustomSpec  # noqa: E402
 
@@ -57,6 +67,14 @@ __all__ = [
     # a work cell's roadmap, built once and queried many times
     "CellRoadmap",
     "BuildSettings",
+    # a cell that changes: obstacles added, moved or removed, payloads attached (CellRoadmap.changed repairs)
+    "CellChange",
+    "Solid",
+    "Move",
+    "Attachment",
+    "Placement",
+    "read_change",
+    "changed_scene",
     # samplers
     "SAMPLERS",
     "Sampler",
