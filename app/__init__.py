@@ -31,8 +31,6 @@ from app.planning.query import Query, plan  # noqa: E402
 from app.planning.result import PlanResult  # noqa: E402
 from app.planning.settings import PlanSettings  # noqa: E402
 from app.samplers import SAMPLERS, Sampler, make_sampler  # noqa: E402
-from app.scene.cspace import ConfigurationSpace  # noqa: E402
-from app.scene.custom import build_scene, load_scene  # noqa: E402
 from app.scene.changes import (  # noqa: E402
     Attachment,
     CellChange,
@@ -42,6 +40,8 @@ from app.scene.changes import (  # noqa: E402
     changed_scene,
     read_change,
 )
+from app.scene.cspace import ConfigurationSpace  # noqa: E402
+from app.scene.custom import build_scene, load_scene  # noqa: E402
 from app.scene.model import Scene, scene_names  # noqa: E402
 from app.scene.spec import CustomSpec  # noqa: E402
 

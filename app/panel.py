@@ -8,6 +8,13 @@ a second) reads the sliders and button clicks, redraws and plays the motion. Pla
 scene's one collision oracle (it serializes their Drake queries; each query counts and bounds its own checks): the
 worker plans and solves IK on it, the main thread colours the start and goal robots red in collision.
 
+The cell can change under the panel, as a work cell does: "Obstacle: NAME" picks one of the scene's obstacles, the
+"obstacle x/y/z" sliders say where it goes (an offset from where the scene has it), and "Move obstacle" moves it
+there. The move is a cell change (app.scene.changes): on the worker thread the panel's roadmap is repaired for it
+(CellRoadmap.changed: only the verdicts the move can reach are reset), and the panel then draws, checks and plans in
+the changed cell; the last plan's path, made in the old cell, is taken away. `state()["changes"]` lists what each
+repair did.
+
 A Plan press takes the sliders' start and goal and the sampler shown at that moment, and plans on the panel's one
 roadmap (app.planning.cell), which keeps the samples and edge verdicts of every earlier press: the second query in the
 same cell is cheaper than the first. A press while a query runs cancels it (`cancel=`: the query's stop condition
@@ -38,7 +45,8 @@ from app.planning.ik import pose_goal, robot_frame
 from app.planning.query import plan
 from app.planning.settings import PlanSettings
 from app.samplers import SAMPLERS
-from app.viewer import PATH_COLOUR, Viewer, start_meshcat
+from app.scene.changes import CellChange, Move, Placement, obstacle_names
+from app.viewer import ILLUSTRATION_PATH, PATH_COLOUR, Viewer, start_meshcat
 
 POLL_HZ = 25
 START_COLOUR = (0.2, 0.75, 0.3, 0.5)  # the start robot (translucent green)
@@ -48,7 +56,8 @@ SLIDER_STEPS = 10_000  # slider resolution: a coordinate's range over this
 POSE_LABELS = ("x", "y", "z", "roll", "pitch", "yaw")  # metres and degrees, as `plan --goal-pose`
 
 # Button labels that never change; the others carry their state (sampler, shown/hidden, an IK failure, the result).
-PLAN, PLAY, GOAL_FROM_POSE = "Plan", "Play", "Goal from pose (IK)"
+PLAN, PLAY, GOAL_FROM_POSE, MOVE_OBSTACLE = "Plan", "Play", "Goal from pose (IK)", "Move obstacle"
+OBSTACLE_AXES = ("x", "y", "z")  # the obstacle sliders: an offset in the world from where the scene has it
 # Made once, before the sliders, so that they head the controls (a 1280 x 800 window shows them without scrolling).
 FIXED_BUTTONS = (PLAN, PLAY)
 
@@ -100,6 +109,16 @@ class Panel:
             for name, lo, hi, value in zip(self._sliders[end], lower, upper, q):
                 self.meshcat.AddSlider(name, float(lo), float(hi), float(hi - lo) / SLIDER_STEPS, float(value))
         self._pose_sliders = self._add_pose_sliders() if is_arm(self.scene) else []
+        # The obstacles a move may pick, and how far each stands from where the scene has it.
+        self._obstacles = obstacle_names(self.scene)
+        self.obstacle = self._obstacles[0] if self._obstacles else None
+        self._moved = {name: np.zeros(3) for name in self._obstacles}
+        self.changes: list[dict] = []  # what each move's repair did, or its error
+        self._obstacle_sliders = [f"obstacle {axis}" for axis in OBSTACLE_AXES] if self._obstacles else []
+        reach = 0.5 * self.viewer.radius
+        for name in self._obstacle_sliders:
+            self.meshcat.AddSlider(name, -reach, reach, reach / SLIDER_STEPS, 0.0)
+        self._frame = frame
         self._labels: list[str] = []  # the buttons after the sliders
         self._set_buttons()
         self._q = {end: None for end in ("start", "goal")}
@@ -135,6 +154,12 @@ class Panel:
         if self._pose_sliders:
             failed = self.ik is not None and not self.ik["success"]
             labels.append(f"{GOAL_FROM_POSE}: {self.ik['error']['code']}" if failed else GOAL_FROM_POSE)
+        if self._obstacles:
+            failed = self.changes and not self.changes[-1]["success"]
+            labels += [
+                f"Obstacle: {self.obstacle}",
+                f"{MOVE_OBSTACLE}: {self.changes[-1]['error']['code']}" if failed else MOVE_OBSTACLE,
+            ]
         return [*labels, self._summary()]
 
     def _set_buttons(self) -> None:
@@ -214,6 +239,16 @@ class Panel:
             pose = [self.meshcat.GetSliderValue(name) for name in self._pose_sliders]
             start, seed = self._q["start"].copy(), self.settings.seed
             self._request("ik", lambda: pose_goal(self.oracle, pose, reference=start, seed=seed))
+        elif label.startswith("Obstacle:"):
+            self.obstacle = self._obstacles[(self._obstacles.index(self.obstacle) + 1) % len(self._obstacles)]
+            for name, value in zip(self._obstacle_sliders, self._moved[self.obstacle]):
+                self.meshcat.SetSliderValue(name, float(value))
+        elif label.startswith(MOVE_OBSTACLE):
+            name = self.obstacle
+            to = np.array([self.meshcat.GetSliderValue(s) for s in self._obstacle_sliders])
+            by = to - self._moved[name]
+            change = CellChange(move=[Move(name=name, pose=Placement(xyz=by.tolist()), by=True)])
+            self._request("change", lambda: (name, to, self.cell.changed([change])))
         elif label.startswith("Sampler:"):
             names = list(SAMPLERS)
             self.sampler = names[(names.index(self.sampler) + 1) % len(names)]
@@ -259,6 +294,8 @@ class Panel:
                 answer = exc
             if kind == "plan":
                 self._show_plan(answer)
+            elif kind == "change":
+                self._changed(answer)
             elif isinstance(answer, UserError):
                 self.ik = _error(answer)
             else:  # the goal sliders take the IK solution
@@ -300,6 +337,24 @@ class Panel:
         }
         self._play_from = time.monotonic()  # a new result plays once; Play replays it
 
+    def _changed(self, answer) -> None:
+        """A move's answer: the repaired roadmap and its cell, drawn and planned in from now on (or its error)."""
+        if isinstance(answer, UserError):
+            self.changes.append(_error(answer))
+            return
+        name, to, cell = answer
+        self._moved[name] = to
+        self.cell, self.oracle = cell, cell.oracle
+        self.scene, self.preview = cell.oracle.scene, cell.oracle.context()
+        self.meshcat.Delete(ILLUSTRATION_PATH)  # the old cell's geometry (the new viewer draws the new one)
+        self.viewer = Viewer(self.scene, meshcat=self.meshcat, frame=self._frame)
+        for path in ("/path", "/samples", "/roadmap"):  # the last plan's: made in the old cell
+            self.meshcat.Delete(path)
+        self.result, self._play_from = None, None
+        self._q = {end: None for end in ("start", "goal")}
+        self._refresh_ends()  # the start and goal drawn and checked again, in the new cell
+        self.changes.append({"success": True, **cell.provenance["changes"][-1]})
+
     def _refresh_ends(self) -> None:
         """Start and goal from the sliders; their robots drawn there, red while in collision."""
         for end, colour in (("start", START_COLOUR), ("goal", GOAL_COLOUR)):
@@ -322,7 +377,8 @@ class Panel:
 
     # ---- what the panel holds ----------------------------------------------------------------------------------------
     def state(self) -> dict:
-        sliders = [name for names in self._sliders.values() for name in names] + self._pose_sliders
+        sliders = [name for names in self._sliders.values() for name in names]
+        sliders += self._pose_sliders + self._obstacle_sliders
         return {
             "scene": self.scene.name,
             "meshcat": self.viewer.url(),
@@ -340,6 +396,8 @@ class Panel:
             "playing": self._play_from is not None,
             "last": self.last,
             "ik": self.ik,
+            "obstacle": self.obstacle,
+            "changes": self.changes,
         }
 
     def _write_state(self) -> None:

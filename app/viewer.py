@@ -185,6 +185,11 @@ class Viewer:
         finally:
             drake_log.setLevel(level)
 
+    @property
+    def radius(self) -> float:
+        """The radius of a sphere holding the scene (its illustration geometry and passage region) at the start."""
+        return self._radius
+
     def _find_frame(self, name: str | None):
         plant, robots = self.plant, self.scene.robot_instances
         name = name or self.scene.problem.passage.frame or getattr(self.scene.problem, "tool_frame", "")

@@ -314,3 +314,43 @@ def test_the_panel_plans_what_plan_plans(make_panel, oracles):
     direct = plan(oracles(SCENE), PlanSettings(seed=0), start=state["start"], goal=state["goal"])
     assert state["last"]["collision_checks"] == direct.collision_checks
     np.testing.assert_array_equal(panel.result.path, direct.path)
+
+
+def test_moving_an_obstacle_repairs_the_panels_roadmap_and_plans_in_the_changed_cell(make_panel):
+    """bar: box1 (the wall above the gap, y 54..100) moved up by 3 opens the gap to 46..57: a base at y 55.5 in the
+    wall collides before the move and is free after, in the panel's own checks and in its plans."""
+    panel = make_panel(SCENE)
+    panel.press("Plan")
+    first = settle(panel)
+    assert first["last"]["success"] and first["obstacle"] == "box0" and first["changes"] == []
+    panel.press("Obstacle: box0")
+    panel.step()
+    assert panel.state()["obstacle"] == "box1" and "Obstacle: box1" in panel.meshcat.GetButtonNames()
+    goal = panel.scene.start.copy()
+    goal[:3] = [50.0, 55.5, 0.0]  # in the wall, where the gap will be, the arm along x
+    set_goal(panel, goal)
+    panel.step()
+    assert panel.state()["goal_free"] is False
+    for name, value in zip(("obstacle x", "obstacle y", "obstacle z"), (0.0, 3.0, 0.0)):
+        panel.meshcat.SetSliderValue(name, value)
+    panel.press("Move obstacle")
+    state = settle(panel)
+    (change,) = state["changes"]
+    assert change["success"] and change["described"] == "move box1" and change["colliding_reset"] > 0
+    assert state["goal_free"] is True and panel.oracle.scene.changes and panel.result is None
+    panel.press("Plan")
+    state = settle(panel)
+    assert state["last"]["success"] and state["last"]["certified"]
+    # moving it onto the start is refused, and the panel stays in the cell it had
+    start = panel.scene.start
+    panel.press("Obstacle: box1")  # back to box0
+    panel.step()
+    for name, value in zip(("obstacle x", "obstacle y", "obstacle z"), (start[0] - 50.0, start[1] - 23.0, 0.0)):
+        panel.meshcat.SetSliderValue(name, value)
+    panel.press("Move obstacle")
+    state = settle(panel)
+    assert state["changes"][-1]["error"]["code"] == "START_STATE_IN_COLLISION"
+    assert len(panel.oracle.scene.changes) == 1
+    import jsonschema
+
+    jsonschema.validate(state, json.loads((ROOT / "docs" / "schemas" / "gui.json").read_text()))

@@ -34,6 +34,7 @@ from app.scene.model import Scene
 from app.scene.problem import directives_file, named_file
 
 CHANGES_MODEL = "cell_changes"
+CHANGED_COLOUR = "0.6 0.45 0.3 1"  # what a change added, moved or attached, as drawn: brown among grey obstacles
 # Where a payload's mass matters to nobody (planning is kinematic), but Drake's parser wants a valid inertia.
 _INERTIAL = (
     "<inertial><mass>0.1</mass><inertia><ixx>1e-4</ixx><iyy>1e-4</iyy><izz>1e-4</izz>"
@@ -175,11 +176,15 @@ class _Cell:
             del self.obstacles[name]
         self.removed: set[tuple[str, str]] = set()  # (model, collision name) of the original obstacles gone
 
+    def names(self) -> list[str]:
+        """Each obstacle's name, sorted: its own, or `model::name` where two models share it."""
+        return sorted(n for n in self.obstacles if "::" not in n or _bare(n) not in self.obstacles)
+
     def obstacle(self, name: str, verb: str) -> _Object:
         found = self.obstacles.get(name)
         if found is None:
-            known = sorted(n for n in self.obstacles if "::" not in n or n not in self._full)
-            raise UserError(f"cannot {verb} '{name}': no such object in the cell (objects: {', '.join(known)})")
+            known = ", ".join(self.names())
+            raise UserError(f"cannot {verb} '{name}': no such object in the cell (objects: {known})")
         return found
 
     def take(self, name: str, verb: str) -> _Object:
@@ -238,6 +243,11 @@ class _Cell:
         instances = {plant.GetModelInstanceName(ModelInstanceIndex(i)) for i in range(plant.num_model_instances())}
         if name in self.obstacles or name in self.payloads or name in instances or name == CHANGES_MODEL:
             raise UserError(f"cannot {verb} '{name}': the cell already has something of that name")
+
+
+def obstacle_names(scene) -> list[str]:
+    """The names a change may give the scene's obstacles, sorted (`model::name` only where two models share one)."""
+    return _Cell(scene).names()
 
 
 def _bare(name: str) -> str:
@@ -398,7 +408,7 @@ def _sdf_model(model: str, links: list, static: bool) -> str:
             f'  <link name="{name}">{placed}{"" if static else _INERTIAL}'
             f'<collision name="{name}"><geometry>{geometry}</geometry></collision>'
             f'<visual name="{name}"><geometry>{geometry}</geometry>'
-            "<material><diffuse>0.8 0.55 0.2 1</diffuse></material></visual></link>"
+            f"<material><diffuse>{CHANGED_COLOUR}</diffuse></material></visual></link>"
         )
     return (
         '<?xml version="1.0"?>\n<sdf version="1.9" xmlns:drake="http://drake.mit.edu">\n'
