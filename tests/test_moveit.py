@@ -14,7 +14,8 @@ from app.planning.ik import pose_error, robot_frame, tool_pose
 from app.planning.moveit import duration, goal_configurations
 from app.scene.cspace import PositionMap
 from app.scene.files import PACKAGES
-from app.scene.moveit import read_problem, read_response
+from app.scene.moveit import read_problem
+from app.scene.moveit_messages import read_response
 
 ROBOTS_DIR = PACKAGES["npp_robots"]
 URDF = ROBOTS_DIR / "ur3_on_cart.urdf"

@@ -38,6 +38,7 @@ from app.planning.ik import pose_goal, robot_frame
 from app.planning.query import plan
 from app.planning.settings import PlanSettings
 from app.scene import moveit as moveit_files
+from app.scene import moveit_messages
 
 DEFAULTS = PlanSettings()
 
@@ -374,7 +375,7 @@ def _failure_response(args, problem):
 
 def _group_named(request: str) -> str:
     with contextlib.suppress(UserError):
-        return moveit_files.read_message(request, moveit_files.MotionPlanRequest, "MoveIt request").group_name
+        return moveit_messages.read_message(request, moveit_messages.MotionPlanRequest, "MoveIt request").group_name
     return ""
 
 

@@ -13,7 +13,8 @@ from app.errors import InvalidEndpoint
 from app.io import write_atomically
 from app.motion.trajectory import Trajectory
 from app.planning.ik import robot_frame, solve_pose
-from app.scene.moveit import (
+from app.scene.moveit import MoveItProblem
+from app.scene.moveit_messages import (
     ERROR_CODES,
     Duration,
     JointState,
@@ -21,7 +22,6 @@ from app.scene.moveit import (
     JointTrajectoryPoint,
     MotionPlanResponse,
     MoveItErrorCodes,
-    MoveItProblem,
     RobotState,
     RobotTrajectory,
 )
