@@ -128,6 +128,19 @@ class TreeKinematics:
         R_B, p_B = R[:, self._frame_body], p[:, self._frame_body]
         return R_B @ self._frame_R, p_B + _apply(R_B, self._frame_p)
 
+    def frame_origins(self, Q: np.ndarray) -> np.ndarray:
+        """Each frame's world origin (n, frames, 3): the second half of `poses`, the same numbers, without the
+        frames' rotations and the copies of every body's pose, which cost half of it."""
+        Q = np.atleast_2d(np.asarray(Q, float))
+        R, p = self._chain(Q)
+        out = np.empty((len(Q), len(self._frame_body), 3))
+        for j in np.unique(self._frame_body).tolist():  # by body: its frames at once, its pose not copied out
+            frames = np.flatnonzero(self._frame_body == j)
+            R_j = np.broadcast_to(R[j], (len(Q), 3, 3)) if R[j].ndim == 2 else R[j]
+            p_j = np.broadcast_to(p[j], (len(Q), 3)) if p[j].ndim == 1 else p[j]
+            out[:, frames] = p_j[:, None, :] + _apply(R_j[:, None], self._frame_p[frames])
+        return out
+
     def origins(self, Q: np.ndarray, frames: np.ndarray) -> np.ndarray:
         """The world origin of frame frames[i] in configuration Q[i], (n, 3)."""
         R, p = self._chain(np.atleast_2d(np.asarray(Q, float)))

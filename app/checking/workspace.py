@@ -73,7 +73,7 @@ class Workspace:
         Q = np.atleast_2d(np.asarray(Q, float))
         if self.robot_kinematics is not None:
             if pieces is None:
-                return self.robot_kinematics.poses(Q)[1]
+                return self.robot_kinematics.frame_origins(Q)
             return self.robot_kinematics.origins(Q, np.asarray(pieces, int))
         shapes = self.robot_shapes
         every = np.arange(len(shapes))

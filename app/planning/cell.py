@@ -74,6 +74,8 @@ from app.planning.sources import Samples
 
 # The roadmap graph pulls in scipy: imported when a cell roadmap is made, not when the package is.
 
+# The fingerprint's parts a cell change alters (app.scene.changes): a file that differs only in these may be repaired.
+CELL_PARTS = {"robot", "environment", "collision pairs"}
 # Samples drawn and connected per build round: the budget is looked at between rounds.
 ROUND = 250
 # A round's new edges are decided in parts of about PART_SECONDS each, progress reported after each part: deciding
@@ -315,11 +317,7 @@ class CellRoadmap:
             raise UserError(
                 f"roadmap {path} was built for another cell than {oracle.scene.name}: its {', '.join(changed)} "
                 f"{'differs' if len(changed) == 1 else 'differ'}; build it again for this cell (roadmap build)"
-                + (
-                    ""
-                    if "configuration space" in changed
-                    else ", or repair it for what changed (roadmap update --change)"
-                )
+                + (", or repair it for what changed (roadmap update --change)" if set(changed) <= CELL_PARTS else "")
             )
         from app.planning.roadmap import Roadmap
 

@@ -167,7 +167,8 @@ class _Side:
         A -> B). An edge is asked with one ball per geometry first; where those reach, its halves are asked, and so
         on until the pieces that still reach are so short that no robot point moves more than PIECE_TRAVEL along
         them (a long edge's ball is mostly travel; its pieces hug what it sweeps, near the change only). A piece
-        whose balls reach at its middle with no travel at all settles its edge at once: finer pieces would too."""
+        whose balls come within PIECE_TRAVEL of the change at its middle, with no travel, settles its edge at once:
+        the pieces about that point would come as near."""
         if B is None:
             return self._reaches(A, None)[0]
         hit = np.zeros(len(A), bool)
@@ -187,17 +188,18 @@ class _Side:
 
     def _reaches(self, A: np.ndarray, B: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """`reaches` with one ball per robot geometry and configuration or edge (its middle): (with the travel
-        along the edge, at the middle alone)."""
+        along the edge, within PIECE_TRAVEL at the middle alone)."""
         if not len(A):
             return np.zeros(0, bool), np.zeros(0, bool)
         centres, grown = self.sweeps.balls(A, B)
         rest = np.broadcast_to(self.sweeps.radii, grown.shape)
+        near = rest + PIECE_TRAVEL
         moving = self.sweeps.moving
         own = [g for g in self.robot_only if moving[g]]
         answers = [
             _reach_boxes(centres[:, moving], radii[:, moving], *self.only)
             | _reach_boxes(centres[:, own], radii[:, own], *self.every)
-            for radii in (grown, rest)
+            for radii in (grown, near)
         ]
         if self.pairs:
             # A pair's distance changes along the piece by no more than its relative travel (the joints the two
@@ -206,7 +208,7 @@ class _Side:
             half = np.zeros_like(A) if B is None else np.abs(self.sweeps.space.difference(A, B)) / 2
             gap = np.linalg.norm(centres[:, p] - centres[:, h], axis=-1) - rest[:, p] - rest[:, h]
             answers[0] |= np.any(gap <= half @ self.pair_rates.T, axis=1)
-            answers[1] |= np.any(gap <= 0, axis=1)
+            answers[1] |= np.any(gap <= PIECE_TRAVEL, axis=1)
         return answers[0], answers[1]
 
     @property
