@@ -173,8 +173,9 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
                     if method == "rebuild":
                         metrics["base"] = {"seconds": base_seconds, "checks": base_checks}
                     store.add(specs[label, method], metrics)
-                found = {m: store.rows_for([specs[label, m]])[0]["metrics"] for m in methods}
-                rows.append(summarise(label, found))
+                stored = {m: store.rows_for([specs[label, m]])[0] for m in methods}
+                rows.append(summarise(label, {m: r["metrics"] for m, r in stored.items()}))
+                rows[-1]["code_versions"] = {m: r["code_version"] for m, r in stored.items()}
             out.append({"scene": name, "changes": rows})
         reuse = _merged(reused)
     finally:

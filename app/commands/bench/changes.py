@@ -82,6 +82,11 @@ def table(report: dict) -> str:
         f"and seconds; median query <= {GOALS['median query seconds'] * 1000:g} ms; 0 colliding states (independent "
         "re-check at 1/64 of the resolution)."
     ]
+    versions = sorted({v for s in report["scenes"] for r in s["changes"] for v in r["code_versions"].values()})
+    lines.append(
+        f"Code version(s) of the trials: {', '.join(f'`{v}`' for v in versions)}"
+        + (" (mixed: per change and method below)" if len(versions) > 1 else "")
+    )
     for s in report["scenes"]:
         lines += [
             "",
@@ -124,4 +129,9 @@ def table(report: dict) -> str:
                 )
                 + " |"
             )
+        if len(versions) > 1:
+            lines.append("")
+            for r in s["changes"]:
+                spelled = ", ".join(f"{m} `{v}`" for m, v in r["code_versions"].items())
+                lines.append(f"- {r['change']}: {spelled}")
     return "\n".join(lines)
