@@ -27,6 +27,11 @@ is refused (UserError) rather than planned with. So is a file that is not whole 
 anything is planned. The file's format, how it is read and checked, and the fingerprint are
 app.planning.roadmap_file's.
 
+A cell that changes (app.scene.changes: obstacles added, moved or removed, objects attached to the robot):
+`changed(changes)` is the roadmap repaired for the new cell instead of built again -- only the verdicts the changes
+can reach are set back to unknown (app.planning.repair) -- and its file records the changes; `open(path, oracle)`
+loads a file into the oracle's scene as the file's recorded changes leave it, and repairs it for more if asked.
+
 Two processes updating one file: `save` to the file a roadmap was loaded from writes it only if it is still the
 revision loaded (else UserError: the other process's update would be lost), holding the file's lock
 (`app.io.exclusive`, on FILE.lock beside it); `plan --roadmap FILE --update` holds that lock from before it reads the
