@@ -213,3 +213,28 @@ def test_the_example_changes_apply_and_a_job_carries_its_part(cli, oracles):
     ran = cli("run", "window", "--change", ROOT / "examples" / "changes" / "window-part.yaml", "--json")
     assert ran.returncode == 0, ran.stderr
     assert len(json.loads(ran.stdout)["legs"]) == 5
+
+
+def test_an_object_moved_is_gone_by_either_of_its_names_and_a_move_says_where_it_is(oracles):
+    from app.scene.changes import obstacle_names
+
+    base = oracles("window")
+    moved = changed_scene(
+        base.scene, [CellChange(move=[Move(name="fixture", pose=Placement(xyz=[0, 0.05, 0]), by=True)])]
+    )
+    assert "fixture" in obstacle_names(moved) and "obstacles::fixture" not in obstacle_names(moved)
+    with pytest.raises(UserError, match="cannot remove 'obstacles::fixture'"):
+        changed_scene(moved, [CellChange(remove=["obstacles::fixture"])])
+    with pytest.raises(UserError, match="give it in the world"):
+        changed_scene(
+            base.scene, [CellChange(move=[Move(name="fixture", by=True, pose=Placement(relative_to="side_table"))])]
+        )
+    with pytest.raises(UserError, match="in its link's frame"):
+        changed_scene(
+            base.scene,
+            [
+                CellChange(
+                    attach=[Attachment(name="p", link="tcp", sphere=[0.01], pose=Placement(relative_to="fixture"))]
+                )
+            ],
+        )

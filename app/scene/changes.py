@@ -169,8 +169,9 @@ class _Cell:
                 continue
             model, _, name = inspector.GetName(g).rpartition("::")
             shared |= {name} if name in self.obstacles else set()
-            self.obstacles.setdefault(name, _Object(inspector.GetShape(g), query.GetPoseInWorld(g), model))
-            self.obstacles[f"{model}::{name}"] = _Object(inspector.GetShape(g), query.GetPoseInWorld(g), model)
+            found = _Object(inspector.GetShape(g), query.GetPoseInWorld(g), model)  # one object, known by both names
+            self.obstacles.setdefault(name, found)
+            self.obstacles[f"{model}::{name}"] = found
             self._full[f"{model}::{name}"] = name
         for name in shared:  # a name two models share is only known with its model's
             del self.obstacles[name]
@@ -210,6 +211,8 @@ class _Cell:
         for name in change.remove:
             self.take(name, "remove")
         for move in change.move:
+            if move.by and move.pose.relative_to:
+                raise UserError(f"cannot move '{move.name}' by a pose relative to another object: give it in the world")
             moved = self.take(move.name, "move")
             if move.by:
                 offset = _transform(move.pose, move.name)
@@ -223,6 +226,8 @@ class _Cell:
             self.obstacles[solid.name] = _Object(_shape(solid), self.world_pose(solid.pose, solid.name))
         for attachment in change.attach:
             self._new_name(attachment.name, "attach")
+            if attachment.pose.relative_to:
+                raise UserError(f"cannot attach '{attachment.name}': its pose is in its link's frame (no relative_to)")
             link = _robot_frame(self.scene, attachment.link, attachment.name)
             touch = tuple(_robot_body(self.scene, name, attachment.name) for name in attachment.touch)
             shape = _shape(attachment)
@@ -261,9 +266,8 @@ def changed_scene(scene, changes: list[CellChange], cache_dir: Path | None = Non
     UserError (one line) for a change that cannot be applied: an unknown object or link, a name taken, a bad shape."""
     if not changes:
         return scene
-    if (
-        isinstance(scene, ChangedScene) and scene.base is not None
-    ):  # a changed cell changes again: all its changes, from the start
+    if isinstance(scene, ChangedScene) and scene.base is not None:
+        # A changed cell changes again: all its changes, from the scene they started from.
         return changed_scene(scene.base, [*scene.changes, *changes], cache_dir)
     from app.scene.meshes.cache import cache_root
 
