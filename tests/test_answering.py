@@ -153,7 +153,7 @@ def test_an_error_raised_in_drakes_cpp_is_one_failure_object(capsys, monkeypatch
     def drake_fails(*args, **kwargs):
         MultibodyPlant(0.0).GetBodyByName("no such body")  # raises in C++
 
-    monkeypatch.setattr("app.commands.plan.CollisionOracle", drake_fails)
+    monkeypatch.setattr("app.commands.common.CollisionOracle", drake_fails)
     with pytest.raises(RuntimeError, match="no such body"):
         main(["plan", "bar", "--json"])
     out = capsys.readouterr().out
@@ -203,7 +203,7 @@ def test_an_interrupt_that_a_c_extension_turned_into_an_import_error_is_an_inter
         except KeyboardInterrupt as exc:
             raise ImportError("initialization failed") from exc
 
-    monkeypatch.setattr("app.commands.plan.CollisionOracle", interrupted_import)
+    monkeypatch.setattr("app.commands.common.CollisionOracle", interrupted_import)
     assert main(["plan", "bar", "--json"]) == 130
     out, err = capsys.readouterr()
     answer = _one_json(out)

@@ -18,6 +18,7 @@ import time
 
 from app.checking.budget import MAX_CHECKS, MAX_SECONDS, SAFETY_NET_SECONDS, Budget
 from app.checking.certify import CLEARANCE
+from app.checking.oracle import CollisionOracle
 from app.errors import NoPath, UserError
 from app.io import check_output
 from app.planning.sources import ADAPTIVE, check_source_name
@@ -156,7 +157,6 @@ def read_changes(files: list[str]) -> list:
 def open_cell(roadmap: str | None, scene, changes: list, threads: int | None = None):
     """(oracle, cell roadmap or None) for `scene` after `changes`: with a roadmap file, the roadmap in the cell it
     was last repaired for, repaired for `changes` too (CellRoadmap.open); without one, the changed cell's oracle."""
-    from app.checking.oracle import CollisionOracle
     from app.planning.cell import CellRoadmap
     from app.scene.changes import changed_scene
 

@@ -44,8 +44,14 @@ _INERTIAL = (
 
 @dataclass
 class Placement:
-    """A pose: position (m) and roll-pitch-yaw (degrees, R = Rz(yaw) Ry(pitch) Rx(roll)), in the world, or in the
-    frame of the object named by `relative_to` (for an attached object: of its link, always)."""
+    """A pose: position and roll-pitch-yaw, in the world or in another object's frame.
+
+    Attributes:
+        xyz: The position, metres.
+        rpy_deg: Roll, pitch and yaw in degrees (R = Rz(yaw) Ry(pitch) Rx(roll)).
+        relative_to: The object whose frame the pose is in ("": the world; an attached object's pose is always in
+            its link's frame).
+    """
 
     xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
@@ -54,8 +60,18 @@ class Placement:
 
 @dataclass
 class Solid:
-    """An object's name, shape and pose. Exactly one shape: `box` [x, y, z] sizes, `sphere` [radius], `cylinder` or
-    `capsule` [radius, length] (along z), or `mesh` (a file, relative to the change file; `scale` times its units)."""
+    """An object's name, shape and pose. Exactly one shape is given.
+
+    Attributes:
+        name: The object's name in the cell (a letter, then letters, digits, '_' or '-').
+        box: [x, y, z] sizes, metres.
+        sphere: [radius].
+        cylinder: [radius, length], along the object's z axis.
+        capsule: [radius, length], along the object's z axis.
+        mesh: A mesh file (relative to the change file); checked as its convex hull, which holds it.
+        scale: The mesh's units in metres.
+        pose: Where the object is.
+    """
 
     name: str = ""
     box: list[float] = field(default_factory=list)
@@ -69,8 +85,14 @@ class Solid:
 
 @dataclass
 class Move:
-    """Move object `name`: to `pose`, or with `by: true`, by `pose` -- its translation added in the world and its
-    rotation turning the object about its own origin."""
+    """Move an obstacle.
+
+    Attributes:
+        name: The obstacle's name in the cell.
+        pose: Where it goes; with `by`, the offset: its translation added in the world, its rotation turning the
+            object about its own origin.
+        by: Whether `pose` is an offset from where the object is.
+    """
 
     name: str = ""
     pose: Placement = field(default_factory=Placement)
@@ -79,8 +101,20 @@ class Move:
 
 @dataclass
 class Attachment(Solid):
-    """An object the robot carries: welded to robot frame `link` at `pose` (in that frame); it may touch the robot
-    links named in `touch` (the body it is welded to always)."""
+    """An object the robot carries: a Solid welded to a robot link, its pose in that link's frame.
+
+    Attributes:
+        name: As a Solid's.
+        box: As a Solid's.
+        sphere: As a Solid's.
+        cylinder: As a Solid's.
+        capsule: As a Solid's.
+        mesh: As a Solid's.
+        scale: As a Solid's.
+        pose: Where it is held, in the frame of `link`.
+        link: The robot link or frame it is welded to.
+        touch: Robot links it may touch (the body it is welded to always may).
+    """
 
     link: str = ""
     touch: list[str] = field(default_factory=list)
@@ -88,7 +122,15 @@ class Attachment(Solid):
 
 @dataclass
 class CellChange:
-    """One change of a cell, applied in this order: detach, remove, move, add, attach (by name)."""
+    """One change of a cell, applied in this order: detach, remove, move, add, attach (by name).
+
+    Attributes:
+        detach: Carried objects put down (they leave the cell).
+        remove: Obstacles taken away.
+        move: Obstacles moved.
+        add: Obstacles added.
+        attach: Objects the robot takes and carries.
+    """
 
     detach: list[str] = field(default_factory=list)
     remove: list[str] = field(default_factory=list)

@@ -29,7 +29,8 @@ def register(kinds) -> None:
         "--scenes",
         type=names_from(sorted(CHANGES), "cell"),
         default=",".join(CHANGES),
-        help=f"comma-separated cells (default {','.join(CHANGES)})",
+        help=f"comma-separated shipped scenes that are work cells, each with its sequence of changes (default "
+        f"{','.join(CHANGES)})",
     )
     p.add_argument("--queries", type=repetitions, default=100, help="queries after each change")
     p.add_argument("--seed", type=seed, default=0, help="of the query sets, the builds and every planner")
