@@ -67,14 +67,7 @@ class Polytopes:
         none = np.empty(0, int), np.empty(0), np.empty((0, 3))
         if not self.count or not len(P):
             return none
-        if self.count * len(P) <= DENSE:  # few pieces: every pair, cheaper than asking the tree
-            points, pieces = np.divmod(np.arange(self.count * len(P)), self.count)
-        else:
-            lists = self._tree.query_ball_point(P, reach + self.radii.max(), return_sorted=False)
-            points = np.repeat(np.arange(len(P)), [len(found) for found in lists])
-            if not len(points):
-                return none
-            pieces = np.concatenate(lists).astype(int)
+        points, pieces = pairs_near(P, reach, self._tree, self.radii)
         # The distance to a piece's bounding box is a lower bound of the distance to the piece.
         outside = np.maximum(self.lower[pieces] - P[points], P[points] - self.upper[pieces])
         box = np.linalg.norm(np.maximum(outside, 0), axis=1)
@@ -131,6 +124,18 @@ class Polytopes:
         closest = np.concatenate([P[inside], closest[best][near]])
         order = np.argsort(pairs, kind="stable")
         return pairs[order], distance[order], closest[order]
+
+
+def pairs_near(P: np.ndarray, reach: np.ndarray, tree, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (point, piece) pairs, by point, that may lie within `reach` (n,) of each other, of the points (n, 3) and
+    the pieces of these bounding radii (k,) about the centres in `tree` (a KD-tree): those whose centres are within
+    reach of the point plus the largest radius, or every pair when there are few."""
+    count = len(radii)
+    if count * len(P) <= DENSE:  # few pieces: every pair, cheaper than asking the tree
+        return np.divmod(np.arange(count * len(P)), count)
+    lists = tree.query_ball_point(P, reach + radii.max(), return_sorted=False)
+    points = np.repeat(np.arange(len(P)), [len(found) for found in lists])
+    return points, np.concatenate(lists).astype(int) if len(points) else np.empty(0, int)
 
 
 def _runs(first: np.ndarray, runs: np.ndarray) -> np.ndarray:
