@@ -38,9 +38,6 @@ class RoundShapes:
         self.count = len(pieces)
         # The sphere about a piece's origin that holds it.
         self.bounds = np.where(self.cylinder, np.hypot(self.radii, self.half_lengths), self.radii + self.half_lengths)
-        from scipy.spatial import cKDTree  # (loaded with the first scene, not when the command line starts)
-
-        self._tree = cKDTree(self.origins) if self.count else None
 
     def near(self, P: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The points (n, 3) and pieces within `reach` (n,) of each other: (point index, signed distance, unit
@@ -48,7 +45,7 @@ class RoundShapes:
         P = np.atleast_2d(np.asarray(P, float))
         if not self.count or not len(P):
             return np.empty(0, int), np.empty(0), np.empty((0, 3))
-        points, pieces = pairs_near(P, reach, self._tree, self.bounds)
+        points, pieces = pairs_near(P, reach, self.origins, self.bounds)
         ball = np.linalg.norm(P[points] - self.origins[pieces], axis=1) - self.bounds[pieces]
         keep = ball <= reach[points] * (1 + 1e-9)  # a bound: the exact test below decides
         points, pieces = points[keep], pieces[keep]
