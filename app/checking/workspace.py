@@ -152,7 +152,9 @@ class Workspace:
         gradient = np.concatenate([f[2].reshape(-1, 3) for f in found])
         return points[order], distance[order], gradient[order]
 
-    def _asked(self, P, reach, others, centres, radii) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _asked(
+        self, P: np.ndarray, reach: np.ndarray, others: list, centres: np.ndarray, radii: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """SceneGraph's answers for the `others` pieces (geometry ids; bounding spheres: centres, radii) within
         `reach` of the points, asking only for the points those spheres reach; as `_point_distances` returns them."""
         ball = np.linalg.norm(P[:, None, :] - centres[None], axis=2) - radii
