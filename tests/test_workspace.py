@@ -194,3 +194,71 @@ def test_a_gap_search_ends_when_the_budget_is_spent(oracles):
     with pytest.raises(BudgetSpent):
         checker.environment_gaps(P, 1.0, stop=checker.stop(Budget(seconds=0.0)))
     assert checker.point_queries == 0  # polled before the first batch of points
+
+
+def round_pieces_sdf(rng) -> str:
+    """A static SDF model of spheres, capsules and cylinders (and a box) turned at random, a ring of them about the
+    origin with gaps between neighbours."""
+    collisions = []
+    for k in range(12):
+        angle = 2 * np.pi * k / 12
+        x, y, z = 2.0 * np.cos(angle), 2.0 * np.sin(angle), rng.uniform(-0.5, 0.5)
+        roll, pitch, yaw = rng.uniform(-np.pi, np.pi, 3)
+        kind = ["sphere", "capsule", "cylinder", "box"][k % 4]
+        size = rng.uniform(0.3, 0.6)
+        geometry = {
+            "sphere": f"<sphere><radius>{size}</radius></sphere>",
+            "capsule": f"<capsule><radius>{size / 2}</radius><length>{3 * size}</length></capsule>",
+            "cylinder": f"<cylinder><radius>{size}</radius><length>{2 * size}</length></cylinder>",
+            "box": f"<box><size>{size} {2 * size} {size}</size></box>",
+        }[kind]
+        collisions.append(
+            f'<collision name="{kind}{k}"><pose>{x} {y} {z} {roll} {pitch} {yaw}</pose>'
+            f"<geometry>{geometry}</geometry></collision>"
+        )
+    return (
+        '<?xml version="1.0"?><sdf version="1.9"><model name="ring"><static>true</static><link name="ring">'
+        + "".join(collisions)
+        + "</link></model></sdf>\n"
+    )
+
+
+def test_the_gap_search_among_round_shapes_finds_what_scenegraph_finds(tmp_path, monkeypatch):
+    """Spheres, capsules and cylinders answered in closed form (app.checking.round_shapes): each point's pieces
+    within reach, distances and gradients as SceneGraph's point queries give them, and so the same gaps."""
+    from pydrake.geometry import Role
+
+    from app.checking.oracle import CollisionOracle
+    from app.scene.custom import CustomSpec, build_scene
+
+    monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
+    rng = np.random.default_rng(5)
+    (tmp_path / "ring.sdf").write_text(round_pieces_sdf(rng))
+    spec = CustomSpec(robot="examples/trap/cube.obj", env=[str(tmp_path / "ring.sdf")], bounds=["-3..3"] * 3)
+    oracle = CollisionOracle(build_scene(spec, progress=False))
+    inspector = oracle.model.scene_graph().model_inspector()
+    pieces = [g for g in inspector.GetAllGeometryIds(Role.kProximity) if not oracle.is_robot_geometry(g)]
+    kinds = {type(inspector.GetShape(g)).__name__ for g in pieces}
+    assert kinds == {"Sphere", "Capsule", "Cylinder", "Box"}
+    P = np.vstack([rng.uniform(-3, 3, (400, 3)), rng.uniform(-2.5, 2.5, (400, 3)) * [1, 1, 0.3]])
+    reach = rng.uniform(0.1, 1.5, len(P))
+    points, distance, gradient = oracle.workspace._point_distances(P, reach)
+    query = oracle.query_object(oracle.scene.start)
+    expected = [
+        (i, r.distance, *r.grad_W)
+        for i, p in enumerate(P)
+        for r in query.ComputeSignedDistanceToPoint(p, reach[i])
+        if not oracle.is_robot_geometry(r.id_G)
+    ]
+    found = np.column_stack([points, distance, gradient])
+    assert len(found) == len(expected) > 100 and np.all(np.diff(points) >= 0)
+    # Each point's answers in the same order (by distance) on both sides.
+    order, drake = np.lexsort((found[:, 1], found[:, 0])), np.array(expected)
+    drake = drake[np.lexsort((drake[:, 1], drake[:, 0]))]
+    assert np.array_equal(found[order, 0], drake[:, 0])
+    assert np.allclose(found[order, 1], drake[:, 1], rtol=0, atol=1e-9)
+    outside = drake[:, 1] > 0  # (the polytopes give no gradient inside)
+    assert np.allclose(found[order][outside, 2:], drake[outside, 2:], rtol=0, atol=1e-6)
+    gaps = oracle.workspace.environment_gaps(P, 1.0)
+    assert np.array_equal(gaps, exhaustive_gaps(oracle, P, 1.0))
+    assert 0 < gaps.sum() < len(P)

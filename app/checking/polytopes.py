@@ -5,7 +5,7 @@ which direction. SceneGraph answers one point per call, each call dear among the
 mesh, and refuses points near some sliver hulls. Boxes and convex hulls (the pieces of every shipped scene and of
 every decomposed mesh) are polytopes: a point's distance to one is the least of its triangles', and the point is
 inside where every face plane has it behind: a handful of products per point and triangle, done for a whole batch
-at once. A KD-tree of the pieces' centres and their bounding boxes leave out the pieces a point cannot reach.
+at once. A KD-tree of the points and the pieces' bounding boxes leave out the pieces a point cannot reach.
 """
 
 from __future__ import annotations
@@ -55,9 +55,6 @@ class Polytopes:
         self.upper = np.array([v.max(axis=0) for v in vertices]).reshape(-1, 3)
         self.centres = (self.lower + self.upper) / 2
         self.radii = np.array([np.linalg.norm(v - c, axis=1).max() for v, c in zip(vertices, self.centres)])
-        from scipy.spatial import cKDTree  # (loaded with the first scene, not when the command line starts)
-
-        self._tree = cKDTree(self.centres) if self.count else None
 
     def near(self, P: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The points (n, 3) and pieces within `reach` (n,) of each other, with their signed distances:
@@ -67,14 +64,7 @@ class Polytopes:
         none = np.empty(0, int), np.empty(0), np.empty((0, 3))
         if not self.count or not len(P):
             return none
-        if self.count * len(P) <= DENSE:  # few pieces: every pair, cheaper than asking the tree
-            points, pieces = np.divmod(np.arange(self.count * len(P)), self.count)
-        else:
-            lists = self._tree.query_ball_point(P, reach + self.radii.max(), return_sorted=False)
-            points = np.repeat(np.arange(len(P)), [len(found) for found in lists])
-            if not len(points):
-                return none
-            pieces = np.concatenate(lists).astype(int)
+        points, pieces = pairs_near(P, reach, self.centres, self.radii)
         # The distance to a piece's bounding box is a lower bound of the distance to the piece.
         outside = np.maximum(self.lower[pieces] - P[points], P[points] - self.upper[pieces])
         box = np.linalg.norm(np.maximum(outside, 0), axis=1)
@@ -131,6 +121,25 @@ class Polytopes:
         closest = np.concatenate([P[inside], closest[best][near]])
         order = np.argsort(pairs, kind="stable")
         return pairs[order], distance[order], closest[order]
+
+
+def pairs_near(
+    P: np.ndarray, reach: np.ndarray, centres: np.ndarray, radii: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The (point, piece) pairs, by point, that may lie within `reach` (n,) of each other, of the points (n, 3) and
+    the pieces in the spheres about `centres` (k, 3) of `radii` (k,): every pair when there are few, else the
+    points within the greatest reach of each piece's sphere, from a KD-tree of the points (each piece asked with its
+    own radius, which a tree of the pieces could not: it had to take the largest)."""
+    count = len(radii)
+    if count * len(P) <= DENSE:  # few pairs: every one, cheaper than building the tree
+        return np.divmod(np.arange(count * len(P)), count)
+    from scipy.spatial import cKDTree  # (not loaded when the command line starts)
+
+    lists = cKDTree(P).query_ball_point(centres, radii + reach.max(), return_sorted=False)
+    pieces = np.repeat(np.arange(count), [len(found) for found in lists])
+    points = np.concatenate(lists).astype(int) if len(pieces) else np.empty(0, int)
+    order = np.argsort(points, kind="stable")
+    return points[order], pieces[order]
 
 
 def _runs(first: np.ndarray, runs: np.ndarray) -> np.ndarray:

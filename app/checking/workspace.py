@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from app.checking.polytopes import Polytopes, gaps
+from app.checking.round_shapes import RoundShapes
 from app.scene.shapes import BOX_FACES, half_extent, hull_vertices
 
 # pydrake is imported inside the methods that use it, so that importing the package does not load Drake.
@@ -93,19 +94,21 @@ class Workspace:
         )
 
     @functools.cached_property
-    def _environment(self) -> tuple[Polytopes, list, np.ndarray, np.ndarray]:
+    def _environment(self) -> tuple[Polytopes, RoundShapes, list, np.ndarray, np.ndarray]:
         """The environment, which does not move with the robot: its boxes and convex hulls as world-frame
-        polytopes, and its other pieces (spheres, cylinders, ...) as geometry ids with the bounding spheres about
-        their frames' origins, centres (k, 3) and radii (k,)."""
-        from pydrake.geometry import Box, Convex, Mesh, Role
+        polytopes, its spheres, capsules and cylinders as round shapes, and its other pieces (ellipsoids,
+        half-spaces) as geometry ids with the bounding spheres about their frames' origins, centres (k, 3) and
+        radii (k,)."""
+        from pydrake.geometry import Box, Capsule, Convex, Cylinder, Mesh, Role, Sphere
 
-        faces, others = [], []
+        faces, round_shapes, others = [], [], []
         with self._oracle.lock:
             query = self._oracle.query_object(self._oracle.scene.start)
             for g in self._inspector.GetAllGeometryIds(Role.kProximity):
                 if g in self._oracle.robot_geometries:
                     continue
                 shape, X = self._inspector.GetShape(g), query.GetPoseInWorld(g)
+                R, t = X.rotation().matrix(), X.translation()
                 if isinstance(shape, Box):
                     loops = [
                         np.array(face) * (np.array([shape.width(), shape.depth(), shape.height()]) / 2)
@@ -117,23 +120,43 @@ class Workspace:
                     while i < len(data):  # each face: its vertex count, then its vertices' indices
                         loops.append(vertices[np.asarray(data[i + 1 : i + 1 + data[i]], int)])
                         i += 1 + data[i]
-                else:
-                    others.append((g, X.translation(), np.linalg.norm(half_extent(shape, np.eye(3)))))
+                elif isinstance(shape, (Sphere, Capsule, Cylinder)):
+                    half = 0.0 if isinstance(shape, Sphere) else shape.length() / 2
+                    round_shapes.append((R, t, shape.radius(), half, isinstance(shape, Cylinder)))
                     continue
-                R, t = X.rotation().matrix(), X.translation()
+                else:
+                    others.append((g, t, np.linalg.norm(half_extent(shape, np.eye(3)))))
+                    continue
                 faces.append([loop @ R.T + t for loop in loops])
         centres = np.array([c for _, c, _ in others]).reshape(-1, 3)
-        return Polytopes(faces), [g for g, _, _ in others], centres, np.array([r for _, _, r in others])
+        return (
+            Polytopes(faces),
+            RoundShapes(round_shapes),
+            [g for g, _, _ in others],
+            centres,
+            np.array([r for _, _, r in others]),
+        )
 
     def _point_distances(self, P: np.ndarray, reach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The points (n, 3) and environment pieces within `reach` (n,) of each other: (point index, signed
-        distance, unit gradient at the point), by point. Boxes and hulls in numpy, the same answers as SceneGraph's
-        point queries at a fraction of their cost; other shapes by those queries, for the points their bounding
-        spheres reach."""
-        polytopes, others, centres, radii = self._environment
-        found = polytopes.near(P, reach)
-        if not others:
-            return found
+        distance, unit gradient at the point), by point. Boxes, hulls, spheres, capsules and cylinders in numpy,
+        the same answers as SceneGraph's point queries at a fraction of their cost; other shapes by those queries,
+        for the points their bounding spheres reach."""
+        polytopes, round_shapes, others, centres, radii = self._environment
+        found = [polytopes.near(P, reach), round_shapes.near(P, reach)]
+        if others:
+            found.append(self._asked(P, reach, others, centres, radii))
+        points = np.concatenate([f[0] for f in found]).astype(int)
+        order = np.argsort(points, kind="stable")
+        distance = np.concatenate([f[1] for f in found])
+        gradient = np.concatenate([f[2].reshape(-1, 3) for f in found])
+        return points[order], distance[order], gradient[order]
+
+    def _asked(
+        self, P: np.ndarray, reach: np.ndarray, others: list, centres: np.ndarray, radii: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """SceneGraph's answers for the `others` pieces (geometry ids; bounding spheres: centres, radii) within
+        `reach` of the points, asking only for the points those spheres reach; as `_point_distances` returns them."""
         ball = np.linalg.norm(P[:, None, :] - centres[None], axis=2) - radii
         asked = np.flatnonzero(np.any(ball <= reach[:, None] * (1 + 1e-9), axis=1))
         rows = []
@@ -147,13 +170,11 @@ class Workspace:
                     # the other shapes near such a point go unseen; the gap search is a sampling heuristic.
                     continue
                 rows += [(i, r.distance, r.grad_W) for r in answers if r.id_G in others]
-        if not rows:
-            return found
-        points = np.concatenate([found[0], [i for i, _, _ in rows]]).astype(int)
-        order = np.argsort(points, kind="stable")
-        distance = np.concatenate([found[1], [d for _, d, _ in rows]])
-        gradient = np.concatenate([found[2], np.array([g for _, _, g in rows]).reshape(-1, 3)])
-        return points[order], distance[order], gradient[order]
+        return (
+            np.array([i for i, _, _ in rows], int),
+            np.array([d for _, d, _ in rows], float),
+            np.array([g for _, _, g in rows], float).reshape(-1, 3),
+        )
 
     def environment_gaps(self, P: np.ndarray, width: float) -> np.ndarray:
         """Whether each workspace point (n, 3) lies free in a gap of the environment narrower than `width`: two
