@@ -248,7 +248,7 @@ def figure(report: dict, path: str) -> None:
 
     scenes = report["scenes"]
     fig, axes = plt.subplots(
-        2, len(scenes), figsize=(6.2 * len(scenes), 7.0), squeeze=False, layout="constrained", sharey="row"
+        2, len(scenes), figsize=(7.4 * len(scenes), 7.0), squeeze=False, layout="constrained", sharey="row"
     )
     for column, s in enumerate(scenes):
         labels = [r["change"] for r in s["changes"]]
@@ -274,7 +274,7 @@ def figure(report: dict, path: str) -> None:
         for ax in (top, bottom):
             ax.set_xticks(x, labels, rotation=20, ha="right", fontsize=8)
             ax.grid(alpha=0.3, axis="y", which="both")
-            ax.legend(fontsize=8, loc="lower left")
+            ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))  # beside the bars, hiding none
     save(fig, path)
 
 
