@@ -63,8 +63,9 @@ QUERY_DEFAULTS = {
     "ompl_seconds": queries.Settings.ompl_seconds,
 }
 MOVEIT = (
-    "Not measured yet: the MoveIt Panda problem set is not shipped here, so there is no figure for it. Once its "
-    "problems are, as problem files, `bench ompl --scenes FILES` will measure them, with its store under results/."
+    "Not measured yet. `plan --moveit-request REQUEST.yaml --moveit-scene SCENE.yaml --robot URDF` reads MoveIt's "
+    "problems ([your own robot](own-robot.md#moveit-problems)), but no public Panda problem set is shipped here and "
+    "there is no `bench moveit` yet, so there is no figure for them."
 )
 
 
