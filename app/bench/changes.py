@@ -25,7 +25,7 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from app.bench.queries import Settings, _ours, answer_all, make_queries
+from app.bench.queries import Settings, _ours, answer_all, build_cell, make_queries
 from app.bench.store import ResultStore, TrialSpec
 from app.planning.settings import default_step
 from app.scene.changes import Attachment, CellChange, Move, Placement, Solid
@@ -95,19 +95,6 @@ def _answers(recheck, oracle, queries, solve, settings: Settings, progress) -> l
     return answer_all(queries, answer, progress)
 
 
-def _build(oracle, settings: Settings):
-    """A covered cell roadmap of the oracle's cell, as `roadmap build` makes it: (roadmap, seconds, checks)."""
-    from app.jobs import cover
-    from app.planning.cell import BuildSettings, CellRoadmap
-
-    clock = time.perf_counter()
-    build = BuildSettings(nodes=settings.build_nodes, budget=settings.build_budget, seed=settings.seed)
-    cell = CellRoadmap.build(oracle, build, workers=settings.workers)
-    covered = cover(cell, seed=settings.seed)
-    checks = cell.provenance["builds"][-1]["collision_checks"] + sum(c["collision_checks"] for c in covered)
-    return cell, time.perf_counter() - clock, int(checks)
-
-
 def _trial(method, base, oracle, recheck, queries, settings, progress) -> dict:
     """One method's trial in the changed cell `oracle`: how it came by its roadmap (none for fresh) and its answers."""
     from app.planning.query import plan
@@ -125,7 +112,7 @@ def _trial(method, base, oracle, recheck, queries, settings, progress) -> dict:
         record = cell.provenance["changes"][-1]
         prepare = {"seconds": seconds, "checks": record["collision_checks"], "record": record}
     else:
-        cell, seconds, checks = _build(oracle, settings)
+        cell, seconds, checks, _ = build_cell(oracle, settings)
         prepare = {"seconds": seconds, "checks": checks}
     prepare["nodes"] = len(cell)
     answers = _answers(recheck, cell.oracle, queries, cell.solve, settings, progress)
@@ -157,7 +144,7 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
             base = None
             if pending:
                 print(f"{name}: building the cell's roadmap", flush=True)
-                base, base_seconds, base_checks = _build(oracle, settings)
+                base, base_seconds, base_checks, _ = build_cell(oracle, settings)
             rows = []
             for label, change in CHANGES[name]:
                 todo = [m for m in methods if specs[label, m].key in pending]

@@ -325,13 +325,23 @@ def _fresh(oracle, queries: QuerySet, settings: Settings, progress, build_second
     return {"build": None, "answers": answer_all(queries, answer, progress)}
 
 
-def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
+def build_cell(oracle, settings: Settings, progress=None):
+    """A cell roadmap of the oracle's cell as `roadmap build` builds it (its cover included): (roadmap, seconds,
+    collision checks, what the cover answered). progress as CellRoadmap.grow takes it."""
     from app.jobs import cover
     from app.planning.cell import BuildSettings, CellRoadmap
 
     build_settings = BuildSettings(nodes=settings.build_nodes, budget=settings.build_budget, seed=settings.seed)
+    clock = time.perf_counter()
+    cell = CellRoadmap.build(oracle, build_settings, workers=settings.workers, progress=progress)
+    covered = cover(cell, seed=settings.seed)
+    checks = cell.provenance["builds"][-1]["collision_checks"] + sum(c["collision_checks"] for c in covered)
+    return cell, time.perf_counter() - clock, int(checks), covered
+
+
+def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
     bar = tqdm(
-        total=build_settings.nodes, desc=f"  build {oracle.scene.name}", unit="node", leave=False, dynamic_ncols=True
+        total=settings.build_nodes, desc=f"  build {oracle.scene.name}", unit="node", leave=False, dynamic_ncols=True
     )
 
     def grown(nodes, target, checks):
@@ -339,17 +349,14 @@ def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds
         bar.set_postfix(checks=checks, refresh=False)
 
     try:
-        clock = time.perf_counter()
-        cell = CellRoadmap.build(oracle, build_settings, workers=settings.workers, progress=grown)
-        covered = cover(cell, seed=settings.seed)  # as `roadmap build` does
-        seconds = time.perf_counter() - clock
+        cell, seconds, checks, covered = build_cell(oracle, settings, grown)
     finally:
         bar.close()
     record = cell.provenance["builds"][-1]
     info = cell.info()
     build = {
         "seconds": seconds,
-        "checks": int(record["collision_checks"]) + sum(c["collision_checks"] for c in covered),
+        "checks": checks,
         "covered": covered,
         "nodes": info["nodes"],
         "edges": int(sum(info["edges"].values())),
