@@ -20,6 +20,7 @@ next trial; the base roadmap is built again when a cell has a trial to run (the 
 from __future__ import annotations
 
 import os
+import sys
 import time
 
 import numpy as np
@@ -143,7 +144,7 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
             pending = {s.key for s in store.pending(list(specs.values()), fresh=fresh)}
             base = None
             if pending:
-                print(f"{name}: building the cell's roadmap", flush=True)
+                print(f"{name}: building the cell's roadmap", file=sys.stderr, flush=True)  # (stdout: the answer)
                 base, base_seconds, base_checks, _ = build_cell(oracle, settings)
             rows = []
             for label, change in CHANGES[name]:
