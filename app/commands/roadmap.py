@@ -113,14 +113,7 @@ def build(args) -> int:
         cell = CellRoadmap.build(oracle, settings, workers=args.workers, progress=progress)
     if args.cover:
         cover(cell, seed=settings.seed)
-    answer = {"file": args.out, **cell.info()}
-    with answering():  # the roadmap file and what it holds are the answer
-        cell.save(args.out)
-        print(f"roadmap: wrote {args.out}", file=sys.stderr)
-        if args.json:
-            print_json(answer)
-        else:
-            print(_describe(answer))
+    _save_and_answer(cell, args.out, {"file": args.out, **cell.info()}, args.json)
     return 0
 
 
@@ -132,15 +125,19 @@ def update(args) -> int:
     with roadmap_lock(args.file) if out == args.file else contextlib.nullcontext():
         scene = load_scene(args.scene or read_header(args.file)["scene"])
         _, cell = open_cell(args.file, scene, changes)
-        answer = {"file": out, "repair": cell.provenance["changes"][-1], **cell.info()}
-        with answering():
-            cell.save(out)
-            print(f"roadmap: wrote {out}", file=sys.stderr)
-            if args.json:
-                print_json(answer)
-            else:
-                print(_describe(answer))
+        _save_and_answer(cell, out, {"file": out, "repair": cell.provenance["changes"][-1], **cell.info()}, args.json)
     return 0
+
+
+def _save_and_answer(cell, path: str, answer: dict, as_json: bool) -> None:
+    """The roadmap written to `path`, then what it holds: the file and the answer are written whole or not at all."""
+    with answering():
+        cell.save(path)
+        print(f"roadmap: wrote {path}", file=sys.stderr)
+        if as_json:
+            print_json(answer)
+        else:
+            print(_describe(answer))
 
 
 def info(args) -> int:
