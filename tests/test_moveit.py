@@ -374,3 +374,37 @@ def test_held_joints_and_the_mimic_joints_that_follow_them():
 def test_durations_carry_nanoseconds_into_seconds():
     assert duration(1.9999999999) == duration(2.0)
     assert (duration(0.25).sec, duration(0.25).nanosec) == (0, 250_000_000)
+
+
+MBM = ROBOTS_DIR.parent / "examples" / "moveit" / "mbm-panda"
+PANDA = ROBOTS_DIR / "panda"
+
+
+def test_a_motionbenchmaker_problem_plans_for_the_shipped_panda(cli, tmp_path):
+    """Robowflex's forms as MotionBenchMaker writes them: allowed-collision rows as bare lists, a virtual joint at
+    the origin, and finger joints the URDF fixes (one with a <mimic>) named in the joint states."""
+    box = MBM / "box"
+    found = read_problem(
+        request=box / "request0001.yaml", scene=box / "scene0001.yaml", robot=PANDA / "panda.urdf",
+        srdf=PANDA / "panda.srdf",
+    )  # fmt: skip
+    assert found.group == "panda_arm" and found.scene.position_map is None  # the fingers are fixed, not held
+    assert ("panda_hand", "panda_leftfinger") in unscoped(found.scene.allowed_collisions)
+    out = tmp_path / "response.yaml"
+    args = ["--moveit-scene", box / "scene0001.yaml", "--moveit-request", box / "request0001.yaml"]
+    result = cli("plan", *args, "--robot", PANDA / "panda.urdf", "--srdf", PANDA / "panda.srdf", "--moveit-out", out)
+    assert result.returncode == 0, result.stderr
+    assert "warning" not in result.stderr.lower()  # Drake's are summarised in one note
+    response = read_response(out)
+    assert response.error_code.val == 1 and response.trajectory.joint_trajectory.joint_names[0] == "panda_joint1"
+
+
+def test_a_multi_dof_joint_away_from_the_origin_is_refused(tmp_path, srdf):
+    state = {"joint_names": ["virtual_joint"], "transforms": [{"translation": [0, 0, 0.5], "rotation": [0, 0, 0, 1]}]}
+    scene = write(
+        tmp_path / "scene.yaml",
+        {"robot_state": {"joint_state": {"name": ARM, "position": STATE}, "multi_dof_joint_state": state}},
+    )
+    request = joint_request(tmp_path, {"shoulder_pan_joint": 0.5})
+    with pytest.raises(UserError, match="multi-DOF joint away from the origin"):
+        read_problem(request=request, scene=scene, robot=URDF, srdf=srdf)

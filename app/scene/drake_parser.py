@@ -26,6 +26,8 @@ HARMLESS_URDF_WARNINGS = (
     r"A <(transmission)> has a type that isn't 'SimpleTransmission'",
     r"A link has specified the '(group)' attribute on the <collision> tag",
     r"A joint has specified a value for the '(coulomb_window)' attribute",
+    r"While re-expressing as central (inertia): .*condition 'mass > 0' failed",  # a massless link's inertia
+    r"Drake only supports the (mimic) element for single-dof joints",  # a fixed joint's <mimic>
 )
 _HARMLESS = re.compile(r"^(.*?):(\d+): warning: (?:" + "|".join(HARMLESS_URDF_WARNINGS) + ")")
 _harmless_seen: set[tuple[str, str, str]] = set()  # (file name, line, element) already summarised

@@ -149,7 +149,8 @@ def _mimic_elements(root) -> list[tuple[str, str, str, str]]:
     found = []
     for joint in root.findall("joint"):  # (a <transmission>'s <joint> children are no joints)
         element = joint.find("mimic")
-        if element is not None:
+        # A fixed joint has no position to follow with (Panda URDFs that fix the fingers keep the finger's <mimic>).
+        if element is not None and joint.get("type") != "fixed":
             found.append(
                 (
                     joint.get("name", ""),

@@ -55,6 +55,7 @@ from app.scene.moveit_messages import (
     PlanningScene,
     Quaternion,
     SolidPrimitive,
+    Transform,
     Vector3,
     read_message,
 )
@@ -129,7 +130,8 @@ def read_problem(
     frames = _Frames(model, joints, srdf, planning)
     movable = [j.name for j in joints.values() if j.kind in ("revolute", "continuous", "prismatic")]
     mimic = {m["joint"] for m in model.mimics()}
-    start_state = _start_state(planning, asked, movable, *names)
+    fixed = set(joints) - set(movable)
+    start_state = _start_state(planning, asked, movable, fixed, *names)
     group_joints = _group_joints(asked.group_name, srdf, joints, model)
     hold = {name: start_state[name] for name in movable if name not in group_joints and name not in mimic}
     world_file, object_links = _world_file(planning, frames, model, cache_dir, Path(scene).stem if scene else "")
@@ -172,11 +174,21 @@ def _refuse_unsupported(planning: PlanningScene, asked: MotionPlanRequest, scene
     for where, state in ((scene, planning.robot_state), (request, asked.start_state)):
         if state.attached_collision_objects:
             raise UserError(f"{where}: attached collision objects are not supported")
-        if state.multi_dof_joint_state.joint_names:
-            raise UserError(f"{where}: multi-DOF joint states are not supported (a URDF robot welded to the world)")
+        if not all(_is_identity(t) for t in state.multi_dof_joint_state.transforms):
+            raise UserError(
+                f"{where}: a multi-DOF joint away from the origin is not supported (the URDF's robot stands at the "
+                "world origin)"
+            )
     path = asked.path_constraints
     if path.joint_constraints or path.position_constraints or path.orientation_constraints:
         raise UserError(f"{request}: path constraints are not supported")
+
+
+def _is_identity(t: Transform) -> bool:
+    """Whether a multi-DOF joint's transform leaves the robot where its URDF puts it (MotionBenchMaker's scenes
+    carry a virtual joint at the origin)."""
+    p, q = t.translation, t.rotation
+    return max(abs(p.x), abs(p.y), abs(p.z)) < 1e-9 and abs(abs(q.w) - 1) < 1e-9
 
 
 def _urdf(robot_path: Path, packages: dict[str, Path]) -> ModelFile:
@@ -186,9 +198,15 @@ def _urdf(robot_path: Path, packages: dict[str, Path]) -> ModelFile:
 
 
 def _start_state(
-    planning: PlanningScene, asked: MotionPlanRequest, movable: list[str], scene: str | None, request: str
+    planning: PlanningScene,
+    asked: MotionPlanRequest,
+    movable: list[str],
+    fixed: set[str],
+    scene: str | None,
+    request: str,
 ) -> dict[str, float]:
-    """Every movable joint's start: the scene's robot state, the request's start state over it, else 0."""
+    """Every movable joint's start: the scene's robot state, the request's start state over it, else 0. A fixed
+    joint's position is passed over (a URDF that fixes the fingers is posed in files that name them)."""
     state = dict.fromkeys(movable, 0.0)
     for where, joint_state in ((scene, planning.robot_state.joint_state), (request, asked.start_state.joint_state)):
         if len(joint_state.name) != len(joint_state.position):
@@ -197,6 +215,8 @@ def _start_state(
                 "INVALID_ROBOT_STATE",
             )
         for name, position in zip(joint_state.name, joint_state.position):
+            if name in fixed:
+                continue
             if name not in state:
                 raise UserError(
                     f"{where}: joint_state names '{name}', no movable joint of the robot", "INVALID_ROBOT_STATE"

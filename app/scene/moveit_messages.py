@@ -91,8 +91,15 @@ class JointState:
 
 
 @dataclass
+class Transform:
+    translation: Vector3 = field(default_factory=Vector3)
+    rotation: Quaternion = field(default_factory=Quaternion)
+
+
+@dataclass
 class MultiDOFJointState:
     joint_names: list[str] = field(default_factory=list)
+    transforms: list[Transform] = field(default_factory=list)
 
 
 @dataclass
@@ -276,7 +283,8 @@ def read_message(path: str | Path, schema, what: str):
 
 
 def _normalised(node, key: str = ""):
-    """Robowflex's forms as ROS 2's: [x, y, z] points, [x, y, z, w] quaternions and primitive types by name."""
+    """Robowflex's forms as ROS 2's: [x, y, z] points, [x, y, z, w] quaternions, primitive types by name and
+    allowed-collision rows as bare lists."""
     if isinstance(node, list):
         if key in ("position", "translation", "target_point_offset") and len(node) == 3:
             return dict(zip("xyz", node))
@@ -286,6 +294,10 @@ def _normalised(node, key: str = ""):
     if not isinstance(node, dict):
         return node
     out = {k: _normalised(v, k if _pose_like(node, k) else "") for k, v in node.items()}
+    rows = out.get("entry_values")
+    if isinstance(rows, list) and all(isinstance(row, list) for row in rows):
+        # Robowflex writes an allowed-collision row as its bare list of flags.
+        out["entry_values"] = [{"enabled": row} for row in rows]
     if isinstance(out.get("type"), str) and "dimensions" in out:
         name = out["type"].strip().upper()
         if name not in PRIMITIVES:
