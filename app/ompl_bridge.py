@@ -324,9 +324,16 @@ class OmplProblem:
         self.setup.setup()
         self.planner.growRoadmap(float(seconds))
 
-    def solve(self, seconds: float) -> bool:
-        """Run the planner for at most `seconds` (it returns at its first solution); whether it found an exact one."""
-        self.setup.solve(float(seconds))
+    def solve(self, seconds: float, checks: int | None = None) -> bool:
+        """Run the planner for at most `seconds`, and until this problem's checker has made `checks` collision checks
+        if given (it returns at its first solution); whether it found an exact one."""
+        if checks is None:
+            self.setup.solve(float(seconds))
+        else:
+            limit = self.checker.checks + int(checks)
+            spent = self.ob.PlannerTerminationCondition(lambda: self.checker.checks >= limit)
+            timed = self.ob.timedPlannerTerminationCondition(float(seconds))
+            self.setup.solve(self.ob.plannerOrTerminationCondition(spent, timed))
         return bool(self.setup.haveExactSolutionPath())
 
     def simplify(self) -> None:

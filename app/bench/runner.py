@@ -41,6 +41,12 @@ EXPERIMENTS = {
     "certify-job": "app.bench.certification:run_job_trial_spec",
 }
 
+# experiment -> "module:function" taking (spec, threads), for trials whose problem is files of its own rather than a
+# shipped scene: such a trial reads them and builds its oracle itself.
+OWN_PROBLEM_EXPERIMENTS = {
+    "moveit": "app.bench.moveit:run_trial_spec",
+}
+
 _oracles = {}
 
 
@@ -53,6 +59,9 @@ def _oracle(scene: str, threads: int):
 def execute(spec: TrialSpec, threads: int = 1) -> tuple[TrialSpec, dict]:
     """Run one trial in this process (top-level, so process pools and Dask can pickle it) on an oracle with
     `threads` collision-checking threads (one per worker when several share the cores)."""
+    if spec.experiment in OWN_PROBLEM_EXPERIMENTS:
+        module, function = OWN_PROBLEM_EXPERIMENTS[spec.experiment].split(":")
+        return spec, getattr(importlib.import_module(module), function)(spec, threads)
     module, function = EXPERIMENTS[spec.experiment].split(":")
     trial = getattr(importlib.import_module(module), function)
     return spec, trial(_oracle(spec.scene, threads), spec)

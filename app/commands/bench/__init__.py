@@ -7,6 +7,7 @@ from app.commands.bench import (
     certify,
     changes,
     jobs,
+    moveit,
     ompl,
     oracle,
     paper,
@@ -17,7 +18,7 @@ from app.commands.bench import (
     uav,
 )
 
-KINDS = [oracle, sampling, plan, uav, jobs, ompl, paper, audit, certify, queries, changes, ablation, summary]
+KINDS = [oracle, sampling, plan, uav, jobs, ompl, moveit, paper, audit, certify, queries, changes, ablation, summary]
 
 
 def register(subparsers) -> None:
