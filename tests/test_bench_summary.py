@@ -52,8 +52,25 @@ def _queries_rows(store: ResultStore) -> None:
     store.add(TrialSpec("queries", "window", "cell", 0.2, 0, cell_params), {"build": build, "answers": cell})
 
 
+def _moveit_rows(store: ResultStore) -> None:
+    """box/0001 solved by both (ours 1,000 checks in 0.5 s, RRTConnect 4,000 in 1.0 s, its path colliding),
+    cage/0001 by ours alone."""
+    params = {"checks": 100_000}
+    cells = {
+        ("box/0001", "ours"): (1.0, 1000, 0.5, 0.0),
+        ("box/0001", "ompl:RRTConnect"): (1.0, 4000, 1.0, 1.0),
+        ("cage/0001", "ours"): (1.0, 3000, 2.0, 0.0),
+        ("cage/0001", "ompl:RRTConnect"): (0.0, 100_000, 20.0, 0.0),
+    }
+    for (problem, method), (solved, checks, seconds, colliding) in cells.items():
+        metrics = {"solved": solved, "checks": checks, "seconds": seconds, "colliding": colliding}
+        store.add(TrialSpec("moveit", problem, method, 0.0, 0, params), metrics)
+
+
 def _results(folder: Path) -> Path:
-    for table, fill in (("scenes", _plan_rows), ("ompl", _ompl_rows), ("queries", _queries_rows)):
+    for table, fill in (
+        ("scenes", _plan_rows), ("ompl", _ompl_rows), ("queries", _queries_rows), ("moveit", _moveit_rows)
+    ):  # fmt: skip
         store = ResultStore(folder / summary.STORES[table])
         try:
             fill(store)
@@ -88,7 +105,9 @@ def test_the_tables_are_the_stores_figures_written_between_the_markers(cli, tmp_
     assert "| `window` | one cell roadmap (built once: 1,500 nodes, 17.0 s) | 3/3 | 200 / 290 |" in text
     assert "| `window` | fresh single queries | 0.0133x | 0.0333x | 3.81x |" in text
     assert "--queries 3 --methods fresh,cell --workers 1 --store results/queries/bench-queries.sqlite" in flat
-    assert summary.MOVEIT in text
+    # on MoveIt's problems: medians over the problems both solved, colliding paths counted
+    assert "| all | 2 | 2, 1 | 1,000 vs 4,000 | 0.25 | 0.50 vs 1.00 (-) | 0.50 | 0.50 | 0, 1 |" in text
+    assert "python -m app bench moveit --store results/moveit/moveit.sqlite" in flat
     # the same stores again: the page is left as it is
     again = cli("bench", "summary", "--results", results, "--page", page)
     assert again.returncode == 0 and "up to date" in again.stderr and page.read_text() == text

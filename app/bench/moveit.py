@@ -19,6 +19,7 @@ runs are not reproducible from their seed; ours are.
 from __future__ import annotations
 
 import hashlib
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -136,7 +137,8 @@ def run_trial_spec(spec: TrialSpec, threads: int = 1) -> dict:
         return {"solved": 0.0, "invalid": exc.code, "message": str(exc)[:300]}
     budget = Budget(checks=int(spec.params["checks"]), seconds=SAFETY_NET_SECONDS)
     run = _ours if spec.method == OURS else _rrt_connect
-    return {**run(oracle, problem, goals, spec.seed, budget), "ik_seconds": ik_seconds}
+    load = os.getloadavg()[0]  # what else the machine was doing: seconds depend on it, checks do not
+    return {**run(oracle, problem, goals, spec.seed, budget), "ik_seconds": ik_seconds, "load_average": load}
 
 
 def _ours(oracle, problem, goals: np.ndarray, seed: int, budget: Budget) -> dict:

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.bench import ompl, plan, queries
+from app.bench import moveit, ompl, plan, queries
 from app.bench.store import ResultStore, TrialSpec, is_results_store
 from app.checking.budget import SAFETY_NET_SECONDS, Budget
 from app.errors import UserError
@@ -41,6 +41,7 @@ STORES = {
     "scenes": "plan/bench-plan.sqlite",
     "ompl": "ompl/bench-ompl.sqlite",
     "queries": "queries/bench-queries.sqlite",
+    "moveit": "moveit/moveit.sqlite",
 }
 # The rows of `bench plan` that are a plain `plan`: the default sampler, roadmap size, k and smoothing, query mode.
 PLAN_PARAMS = {
@@ -62,11 +63,6 @@ QUERY_DEFAULTS = {
     "build_nodes": queries.Settings.build_nodes,
     "ompl_seconds": queries.Settings.ompl_seconds,
 }
-MOVEIT = (
-    "Not measured yet. `plan --moveit-request REQUEST.yaml --moveit-scene SCENE.yaml --robot URDF` reads MoveIt's "
-    "problems ([your own robot](own-robot.md#moveit-problems)), but no public Panda problem set is shipped here and "
-    "there is no `bench moveit` yet, so there is no figure for them."
-)
 
 
 @dataclass
@@ -424,8 +420,37 @@ def queries_table(results: Path) -> list[str]:
     return lines
 
 
-def moveit_table() -> list[str]:
-    return ["### On MoveIt's problems?", "", MOVEIT]
+def moveit_table(results: Path) -> list[str]:
+    """On MoveIt's problems: the shipped MotionBenchMaker Panda problems, ours against RRTConnect (app.bench.moveit)."""
+    command = f"python -m app bench moveit --store results/{STORES['moveit']} --png results/moveit/mbm-panda.png"
+    stored = _read(results, "moveit", command, lambda r: r["experiment"] == "moveit")
+    methods = [m for m in moveit.METHODS if any(r["method"] == m for r in stored.rows)]
+    report = {
+        **moveit.summarise(stored.rows, methods),
+        "folder": "examples/moveit/mbm-panda",
+        "problems": len({r["scene"] for r in stored.rows}),
+        "seeds": max(r["seed"] for r in stored.rows) + 1,
+        "checks": stored.rows[0]["params"]["checks"],
+        "methods": methods,
+    }
+    body = moveit.table(report).split("\n")
+    return [
+        "### On MoveIt's problems?",
+        "",
+        "MotionBenchMaker's Panda problems as MoveIt poses them (`examples/moveit/mbm-panda`: 10 of each of 7 scene "
+        "kinds; PlanningScene and MotionPlanRequest files read by `plan --moveit-request`), ours against OMPL's "
+        f"RRTConnect through one Drake checker. Store: `{stored.path}`, {_provenance(stored)}{_load(stored.rows)}.",
+        "",
+        "```sh",
+        _wrapped(command),
+        "```",
+        "",
+        *body[2:],
+        "",
+        body[0],
+        "",
+        "![MoveIt problems: median seconds per kind, and per problem](results/moveit/mbm-panda.png)",
+    ]
 
 
 def tables(results: Path = RESULTS) -> str:
@@ -442,7 +467,7 @@ def tables(results: Path = RESULTS) -> str:
         scenes_table(results),
         ompl_table(results),
         queries_table(results),
-        moveit_table(),
+        moveit_table(results),
     ]
     return "\n\n".join("\n".join(p) for p in parts)
 
