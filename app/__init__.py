@@ -8,7 +8,7 @@
 
     cell = app.CellRoadmap.build(oracle, app.BuildSettings(nodes=1000))  # once per work cell
     cell.solve(start, [goal_a, goal_b])  # many queries, each reaching any of its goals; cell.save(path)
-    moved = cell.changed([app.read_change("moved.yaml")])  # the cell changed: the roadmap repaired, not rebuilt
+    moved = cell.changed([app.read_change_file("moved.yaml")])  # the cell changed: the roadmap repaired, not rebuilt
 
 Everything a user needs is named in `__all__`; the rest of the package is implementation.
 """
@@ -38,11 +38,11 @@ from app.scene.changes import (  # noqa: E402
     Placement,
     Solid,
     changed_scene,
-    read_change,
 )
 from app.scene.cspace import ConfigurationSpace  # noqa: E402
 from app.scene.custom import build_scene, load_scene  # noqa: E402
 from app.scene.model import Scene, scene_names  # noqa: E402
+from app.scene.moveit_diff import read_change_file  # noqa: E402
 from app.scene.spec import CustomSpec  # noqa: E402
 
 __all__ = [
@@ -67,13 +67,14 @@ __all__ = [
     # a work cell's roadmap, built once and queried many times
     "CellRoadmap",
     "BuildSettings",
-    # a cell that changes: obstacles added, moved or removed, payloads attached (CellRoadmap.changed repairs)
+    # a cell that changes: obstacles added, moved or removed, payloads attached (CellRoadmap.changed repairs); a
+    # change file is a CellChange YAML or a MoveIt planning-scene diff
     "CellChange",
     "Solid",
     "Move",
     "Attachment",
     "Placement",
-    "read_change",
+    "read_change_file",
     "changed_scene",
     # samplers
     "SAMPLERS",

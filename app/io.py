@@ -36,6 +36,7 @@ _SYSTEM_FOLDERS = (Path("/proc"), Path("/sys"), Path("/dev"))
 INPUT_LIMITS = {
     "scene file": 1 << 20,  # problem files and custom scene files (YAML)
     "change file": 1 << 20,  # a work cell's change (YAML)
+    "payload file": 1 << 20,  # an object the robot carries (YAML)
     "OMPL.app problem file": 1 << 20,
     "model directives": 1 << 20,
     "SRDF file": 16 << 20,

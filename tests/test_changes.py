@@ -204,7 +204,7 @@ def test_the_example_changes_apply_and_a_job_carries_its_part(cli, oracles):
     from app.scene.changes import read_change
     from app.scene.files import ROOT
 
-    examples = sorted((ROOT / "examples" / "changes").glob("*.yaml"))
+    examples = sorted(p for p in (ROOT / "examples" / "changes").glob("*.yaml") if not p.stem.endswith("-payload"))
     assert examples
     window = oracles("window")
     for path in examples:
@@ -213,6 +213,24 @@ def test_the_example_changes_apply_and_a_job_carries_its_part(cli, oracles):
     ran = cli("run", "window", "--change", ROOT / "examples" / "changes" / "window-part.yaml", "--json")
     assert ran.returncode == 0, ran.stderr
     assert len(json.loads(ran.stdout)["legs"]) == 5
+
+
+def test_a_job_carries_its_payload_file_and_one_it_cannot_carry_is_one_line(cli, one_line_error, tmp_path):
+    from app.scene.changes import read_payload
+    from app.scene.files import ROOT
+
+    torch = ROOT / "examples" / "changes" / "welding-torch-payload.yaml"
+    cup = Attachment(name="gas_cup", link="torch", cylinder=[0.016, 0.035], pose=Placement(xyz=[0, 0, 0.14]))
+    assert read_payload(torch) == CellChange(attach=[cup])
+    ran = cli("run", "welding", "--payload", torch, "--json")
+    assert ran.returncode == 0, ran.stderr
+    assert len(json.loads(ran.stdout)["legs"]) == 5
+    # the payload is in the job's cell: with a 30 cm ball on the wire tip no pose of the job is free
+    ball = tmp_path / "ball.yaml"
+    ball.write_text("{name: ball, link: tcp, sphere: [0.3]}\n")
+    assert "cannot be reached collision-free" in one_line_error(cli("run", "welding", "--payload", ball), 3)
+    ball.write_text("attach:\n- {name: ball, link: tcp, sphere: [0.3]}\n")  # a change file is no payload file
+    assert "bad payload file" in one_line_error(cli("run", "welding", "--payload", ball), 2)
 
 
 def test_an_object_moved_is_gone_by_either_of_its_names_and_a_move_says_where_it_is(oracles):

@@ -143,15 +143,17 @@ def add_change_arguments(p) -> None:
         action="append",
         default=[],
         help="plan in the cell as this change leaves it: obstacles added, moved or removed, objects attached to or "
-        "detached from the robot (repeatable, applied in order); with --roadmap, the roadmap is repaired for it",
+        "detached from the robot (repeatable, applied in order); a change file of ours or a MoveIt PlanningScene "
+        "diff (is_diff: true); with --roadmap, the roadmap is repaired for it",
     )
 
 
 def read_changes(files: list[str]) -> list:
-    """The changes in `files` (each read and checked before any slow work)."""
-    from app.scene.changes import read_change
+    """The changes in `files`, CellChange YAML or MoveIt planning-scene diffs (each read and checked before any slow
+    work)."""
+    from app.scene.moveit_diff import read_change_file
 
-    return [read_change(path) for path in files]
+    return [read_change_file(path) for path in files]
 
 
 def open_cell(roadmap: str | None, scene, changes: list, threads: int | None = None):

@@ -83,7 +83,8 @@ def register(subparsers) -> None:
         metavar="CHANGE.yaml",
         action="append",
         required=True,
-        help="what changed: obstacles added, moved or removed, objects attached or detached (repeatable, in order)",
+        help="what changed: obstacles added, moved or removed, objects attached or detached (repeatable, in order): "
+        "a change file of ours or a MoveIt PlanningScene diff (is_diff: true)",
     )
     u.add_argument("--out", metavar="FILE.npz", help="write the repaired roadmap here (default: over FILE)")
     u.add_argument("--scene", help="the roadmap's scene, if not the shipped scene its file names")

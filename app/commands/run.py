@@ -22,6 +22,7 @@ from app.commands.common import (
 from app.commands.view import add_arguments, check_from_args, kept_on_failure, roadmap_lock, wait, write_outputs
 from app.errors import UserError
 from app.jobs import JOB_SETTINGS, ROUTES, run_job
+from app.scene.changes import read_payload
 from app.scene.model import Scene
 
 
@@ -60,6 +61,14 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true")
     add_scaling_arguments(p)
     add_change_arguments(p)
+    p.add_argument(
+        "--payload",
+        metavar="PART.yaml",
+        action="append",
+        default=[],
+        help="the job carries this object (repeatable): a file of one attached object, its shape and pose on a robot "
+        "link and the links it may touch (docs/changes.md); applied after --change, the roadmap repaired for it",
+    )
     add_arguments(p)
     p.set_defaults(func=run)
 
@@ -85,7 +94,7 @@ def run(args) -> int:
     if args.roadmap and args.full_roadmap:
         raise UserError("--full-roadmap builds a roadmap per leg: give it or --roadmap, not both")
     check_from_args(args, args.out, args.roadmap if args.update else None)
-    changes = read_changes(args.change)
+    changes = read_changes(args.change) + [read_payload(path) for path in args.payload]
     # --update: the roadmap's lock from before the file is read until it is written back, as plan --update takes it.
     with roadmap_lock(args.roadmap) if args.update else contextlib.nullcontext():
         # The cell as it is now: the changes the roadmap was repaired for, then --change (the roadmap repaired).

@@ -71,6 +71,10 @@ class Solid:
         mesh: A mesh file (relative to the change file); checked as its convex hull, which holds it.
         scale: The mesh's units in metres.
         pose: Where the object is.
+        part_of: The object this solid is a part of ("": none), as a MoveIt collision object's primitives are: a
+            change that removes, moves or detaches names the object, and a move moves its parts as one.
+        object_pose: That object's own pose (as `pose` is given: in the world or relative to another object, or
+            in the link's frame): a move places it, and its parts keep their poses relative to it.
     """
 
     name: str = ""
@@ -81,6 +85,8 @@ class Solid:
     mesh: str = ""
     scale: float = 1.0
     pose: Placement = field(default_factory=Placement)
+    part_of: str = ""
+    object_pose: Placement = field(default_factory=Placement)
 
 
 @dataclass
@@ -112,6 +118,8 @@ class Attachment(Solid):
         mesh: As a Solid's.
         scale: As a Solid's.
         pose: Where it is held, in the frame of `link`.
+        part_of: As a Solid's.
+        object_pose: As a Solid's (in the frame of `link`).
         link: The robot link or frame it is welded to.
         touch: Robot links it may touch (the body it is welded to always may).
     """
@@ -152,24 +160,35 @@ class CellChange:
             "detach": list(self.detach),
             "remove": list(self.remove),
             "move": [m.name for m in self.move],
-            "add": [s.name for s in self.add],
-            "attach": [a.name for a in self.attach],
+            "add": list(dict.fromkeys(s.part_of or s.name for s in self.add)),
+            "attach": list(dict.fromkeys(a.part_of or a.name for a in self.attach)),
         }
 
 
 def read_change(path) -> CellChange:
     """The change in YAML file `path` (the keys of CellChange); a mesh's file relative to it, made absolute."""
+    return _read_typed(path, CellChange, "change file")
+
+
+def read_payload(path) -> CellChange:
+    """The change a payload file makes: the robot takes the one object it holds (the keys of Attachment: a Solid, the
+    `link` it is held by and the links it may `touch`) and carries it."""
+    return CellChange(attach=[_read_typed(path, Attachment, "payload file")])
+
+
+def _read_typed(path, schema, what: str):
+    """A `schema` from YAML file `path` (one UserError if it is not one), its mesh files made absolute."""
     from pydrake.common.yaml import yaml_load_typed
 
-    path = check_input(Path(path), "change file")
+    path = check_input(Path(path), what)
     try:
-        change = yaml_load_typed(schema=CellChange, filename=str(path))
+        read = yaml_load_typed(schema=schema, filename=str(path))
     except Exception as exc:  # the loader raises RuntimeError, ValueError or yaml errors; all mean a bad file
-        raise UserError(f"bad change file {path.name}: {' '.join(str(exc).split())[:300]}") from None
-    for solid in [*change.add, *change.attach]:
+        raise UserError(f"bad {what} {path.name}: {' '.join(str(exc).split())[:300]}") from None
+    for solid in [*read.add, *read.attach] if isinstance(read, CellChange) else [read]:
         if solid.mesh:
             solid.mesh = str((path.parent / solid.mesh).resolve())
-    return change
+    return read
 
 
 def change_from_dict(data: dict) -> CellChange:
@@ -190,6 +209,8 @@ class _Object:
     model: str = ""  # the environment model it came from ("" once added or moved)
     link: str = ""  # a payload's robot frame (scoped name)
     touch: tuple[str, ...] = ()
+    part_of: str = ""  # the object it is a part of (Solid.part_of)
+    origin: object = None  # that object's pose (RigidTransform), as `pose` is
 
 
 class _Cell:
@@ -243,53 +264,99 @@ class _Cell:
         """`placement` as a pose in the world."""
         pose = _transform(placement, what)
         if placement.relative_to:
-            pose = self.obstacle(placement.relative_to, f"place '{what}' relative to").pose.multiply(pose)
+            pose = self.pose_of(placement.relative_to, f"place '{what}' relative to").multiply(pose)
         return pose
+
+    def pose_of(self, name: str, verb: str):
+        """The world pose of obstacle `name`: an object of parts' own pose (Solid.object_pose), else its geometry's."""
+        parts = self.parts(self.obstacles, name)
+        return self.obstacles[parts[0]].origin if parts else self.obstacle(name, verb).pose
+
+    @staticmethod
+    def parts(objects: dict, name: str) -> list[str]:
+        """The keys of the parts of object `name` (Solid.part_of) in `objects`: none where it has no parts."""
+        return [key for key, o in objects.items() if o.part_of == name]
 
     def apply(self, change: CellChange) -> None:
         for name in change.detach:
-            if self.payloads.pop(name, None) is None:
+            keys = self.parts(self.payloads, name) or ([name] if name in self.payloads else [])
+            if not keys:
                 raise UserError(f"cannot detach '{name}': the robot carries no such object")
+            for key in keys:
+                del self.payloads[key]
         for name in change.remove:
-            self.take(name, "remove")
+            for key in self.parts(self.obstacles, name) or [name]:
+                self.take(key, "remove")
         for move in change.move:
             if move.by and move.pose.relative_to:
                 raise UserError(f"cannot move '{move.name}' by a pose relative to another object: give it in the world")
-            moved = self.take(move.name, "move")
+            old = self.pose_of(move.name, "move")
             if move.by:
                 offset = _transform(move.pose, move.name)
-                pose = _rigid(offset.rotation().multiply(moved.pose.rotation()), moved.pose.translation())
-                pose = _rigid(pose.rotation(), pose.translation() + offset.translation())
+                new = _rigid(offset.rotation().multiply(old.rotation()), old.translation() + offset.translation())
             else:
-                pose = self.world_pose(move.pose, move.name)
-            self.obstacles[_bare(move.name)] = _Object(moved.shape, pose)
+                new = self.world_pose(move.pose, move.name)
+            parts = self.parts(self.obstacles, move.name)
+            carry = new.multiply(old.inverse())  # each part keeps its pose relative to the object's
+            for key in parts or [move.name]:
+                moved = self.take(key, "move")
+                pose = carry.multiply(moved.pose) if parts else new
+                origin = new if parts else moved.origin  # (one part moved alone leaves its object where it was)
+                self.obstacles[_bare(key)] = _Object(moved.shape, pose, part_of=moved.part_of, origin=origin)
+        objects = self.objects()
+        object_poses: dict[str, Placement] = {}
+        for solid in [*change.add, *change.attach]:
+            if object_poses.setdefault(solid.part_of, solid.object_pose) != solid.object_pose and solid.part_of:
+                raise UserError(f"the parts of '{solid.part_of}' give it different poses (object_pose): give one")
         for solid in change.add:
-            self._new_name(solid.name, "add")
-            self.obstacles[solid.name] = _Object(_shape(solid), self.world_pose(solid.pose, solid.name))
+            self._new_name(solid, objects, "add")
+            self.obstacles[solid.name] = _Object(
+                _shape(solid),
+                self.world_pose(solid.pose, solid.name),
+                part_of=solid.part_of,
+                origin=self.world_pose(solid.object_pose, solid.part_of) if solid.part_of else None,
+            )
         for attachment in change.attach:
-            self._new_name(attachment.name, "attach")
-            if attachment.pose.relative_to:
+            self._new_name(attachment, objects, "attach")
+            if attachment.pose.relative_to or attachment.object_pose.relative_to:
                 raise UserError(f"cannot attach '{attachment.name}': its pose is in its link's frame (no relative_to)")
             link = _robot_frame(self.scene, attachment.link, attachment.name)
             touch = tuple(_robot_body(self.scene, name, attachment.name) for name in attachment.touch)
             shape = _shape(attachment)
             self.payloads[attachment.name] = _Object(
-                shape, _transform(attachment.pose, attachment.name), "", link, touch
+                shape,
+                _transform(attachment.pose, attachment.name),
+                "",
+                link,
+                touch,
+                attachment.part_of,
+                _transform(attachment.object_pose, attachment.part_of) if attachment.part_of else None,
             )
 
     def added_obstacles(self) -> list[tuple[str, object, object]]:
         """(name, shape, world pose) of each obstacle added or moved: the changes model's links."""
         return [(name, o.shape, o.pose) for name, o in self.obstacles.items() if not o.model]
 
-    def _new_name(self, name: str, verb: str) -> None:
-        if not name or not name.replace("_", "").replace("-", "").isalnum() or not name[0].isalpha():
-            raise UserError(f"cannot {verb} '{name}': a name is a letter, then letters, digits, '_' or '-'")
+    def _new_name(self, solid: Solid, before: set[str], verb: str) -> None:
+        """Refuses a solid whose name, or whose object's (Solid.part_of), is no name or is taken: by anything in the
+        cell, or, for its object, by an object of parts the cell had before this change."""
         from pydrake.multibody.tree import ModelInstanceIndex
 
         plant = self.scene.plant
         instances = {plant.GetModelInstanceName(ModelInstanceIndex(i)) for i in range(plant.num_model_instances())}
-        if name in self.obstacles or name in self.payloads or name in instances or name == CHANGES_MODEL:
-            raise UserError(f"cannot {verb} '{name}': the cell already has something of that name")
+        taken = {*self.obstacles, *self.payloads, *instances, CHANGES_MODEL}
+        objects = self.objects()
+        for name in (solid.name, *([solid.part_of] if solid.part_of else [])):
+            if not name or not name.replace("_", "").replace("-", "").isalnum() or not name[0].isalpha():
+                raise UserError(f"cannot {verb} '{name}': a name is a letter, then letters, digits, '_' or '-'")
+        if solid.part_of and solid.part_of in before | taken:
+            raise UserError(f"cannot {verb} '{solid.part_of}': the cell already has something of that name")
+        if solid.name in taken or solid.name in objects - {solid.part_of}:
+            raise UserError(f"cannot {verb} '{solid.name}': the cell already has something of that name")
+
+    def objects(self) -> set[str]:
+        """The names of the objects of parts in the cell (Solid.part_of)."""
+        return {o.part_of for o in [*self.obstacles.values(), *self.payloads.values()]} - {""}
 
 
 def obstacle_names(scene) -> list[str]:

@@ -48,6 +48,8 @@ from app.scene.model_files import (
     urdf_joints,
 )
 from app.scene.moveit_messages import (
+    ADD,
+    APPEND,
     PRIMITIVES,
     AllowedCollisionMatrix,
     Constraints,
@@ -295,7 +297,7 @@ class _Frames:
         for stamped in planning.fixed_frame_transforms:
             parent = self.pose(stamped.header.frame_id, "a fixed frame transform")
             t = stamped.transform
-            self.known[stamped.child_frame_id] = parent.multiply(_transform(t.translation, t.rotation))
+            self.known[stamped.child_frame_id] = parent.multiply(rigid_transform(t.translation, t.rotation))
 
     def pose(self, frame: str, what: str):
         if frame not in self.known:
@@ -308,7 +310,8 @@ class _Frames:
         return self.known[frame]
 
 
-def _transform(p: Vector3, q: Quaternion):
+def rigid_transform(p: Vector3, q: Quaternion):
+    """A message's position and orientation as a RigidTransform (one UserError if they are not numbers)."""
     from pydrake.common.eigen_geometry import Quaternion as DrakeQuaternion
     from pydrake.math import RigidTransform, RotationMatrix
 
@@ -343,16 +346,16 @@ def _world_file(
             other = "another object" if name in seen else "a robot link"
             raise UserError(f"{what}: {other} has the same name", "INVALID_OBJECT_NAME")
         seen.add(name)
-        if obj.operation not in (0, 2):  # ADD, APPEND: a full scene's objects are added
+        if obj.operation not in (ADD, APPEND):  # a full scene's objects are added
             raise UserError(f"{what}: operation {obj.operation} (REMOVE or MOVE) has no place in a full scene")
         if obj.meshes or obj.planes:
             kind = "meshes" if obj.meshes else "planes"
             raise UserError(f"{what}: {kind} are not supported (give it as primitives: box, sphere, cylinder)")
         if len(obj.primitive_poses) != len(obj.primitives):
             raise UserError(f"{what}: {len(obj.primitives)} primitives but {len(obj.primitive_poses)} primitive poses")
-        X_WO = frames.pose(obj.header.frame_id, what).multiply(_transform(obj.pose.position, obj.pose.orientation))
+        X_WO = frames.pose(obj.header.frame_id, what).multiply(rigid_transform(obj.pose.position, obj.pose.orientation))
         shapes = [
-            _collision(f"{name}_{i}", shape, X_WO.multiply(_transform(pose.position, pose.orientation)), what)
+            _collision(f"{name}_{i}", shape, X_WO.multiply(rigid_transform(pose.position, pose.orientation)), what)
             for i, (shape, pose) in enumerate(zip(obj.primitives, obj.primitive_poses))
         ]
         links.append(f"    <link name={quoteattr(name)}>\n{''.join(shapes)}    </link>\n")
@@ -494,11 +497,11 @@ def _pose_goal(c: Constraints, frames: _Frames, what: str) -> PoseGoal:
         raise UserError(f"{what}: the position region must be a sphere or a box", "INVALID_GOAL_CONSTRAINTS")
     region_pose = region.primitive_poses[0]
     X_WF = frames.pose(position.header.frame_id, f"{what}'s position constraint")
-    p_W = X_WF.multiply(_transform(region_pose.position, Quaternion())).translation()
+    p_W = X_WF.multiply(rigid_transform(region_pose.position, Quaternion())).translation()
     R_W = (
         frames.pose(orientation.header.frame_id, f"{what}'s orientation constraint")
         .rotation()
-        .multiply(_transform(Vector3(), orientation.orientation).rotation())
+        .multiply(rigid_transform(Vector3(), orientation.orientation).rotation())
     )
     offset = np.array([position.target_point_offset.x, position.target_point_offset.y, position.target_point_offset.z])
     angles = [orientation.absolute_x_axis_tolerance, orientation.absolute_y_axis_tolerance]

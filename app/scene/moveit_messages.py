@@ -30,6 +30,8 @@ ERROR_CODES = {
     "GOAL_STATE_INVALID": -27,
     "NO_IK_SOLUTION": -31,
 }
+# moveit_msgs/CollisionObject's operations.
+ADD, REMOVE, APPEND, MOVE = 0, 1, 2, 3
 # shape_msgs/SolidPrimitive types and the dimensions each takes.
 PRIMITIVES = {"BOX": (1, 3), "SPHERE": (2, 1), "CYLINDER": (3, 2), "CONE": (4, 2)}
 
@@ -103,10 +105,17 @@ class MultiDOFJointState:
 
 
 @dataclass
+class AttachedCollisionObject:
+    link_name: str = ""
+    object: CollisionObject = field(default_factory=CollisionObject)
+    touch_links: list[str] = field(default_factory=list)
+
+
+@dataclass
 class RobotState:
     joint_state: JointState = field(default_factory=JointState)
     multi_dof_joint_state: MultiDOFJointState = field(default_factory=MultiDOFJointState)
-    attached_collision_objects: list[Listed] = field(default_factory=list)
+    attached_collision_objects: list[AttachedCollisionObject] = field(default_factory=list)
     is_diff: bool = False
 
 
