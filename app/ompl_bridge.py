@@ -318,11 +318,40 @@ class OmplProblem:
             for _ in range(len(np.atleast_2d(goals)) - 1):
                 self.setup.solve(0.0)
 
-    def grow(self, seconds: float) -> None:
-        """PRM only: grow the roadmap for `seconds` with no query (`PRM.growRoadmap`: sample valid states, connect
-        each to its nearest neighbours; no expand phase), after the planner is set up."""
+    def use_milestones(self, replay=()) -> None:
+        """Make OMPL's PRM draw its valid states from `MilestoneSampler`: first the configurations `replay`, in
+        order, those free in this problem's cell; then as OMPL's uniform valid-state sampler. Every state it gives
+        is kept in `self.milestones`, in order: a PRM grown with it can be grown again, the same way, in another cell
+        (`regrow`)."""
+        self._replay = [np.asarray(q, float) for q in reversed(list(replay))]
+        self.milestones: list[np.ndarray] = []
+
+        def allocate(si):
+            sampler = MilestoneSampler(si, self)
+            self._samplers.append(sampler)  # OMPL holds a raw pointer: keep the Python object alive
+            return sampler
+
+        self.si.setValidStateSamplerAllocator(allocate)
+
+    def regrow(self, milestones) -> None:
+        """PRM only: the roadmap a PRM grew from `milestones` (`use_milestones`' record of it, from a problem in
+        another cell) grown again in this problem's cell: each milestone checked, and the free ones added in their
+        order, each connected as PRM connects a new milestone (to its nearest, every motion checked). In the cell it
+        was grown in, the same graph; in a changed one, that graph re-validated: every vertex and every edge PRM
+        tried checked again, through this problem's checker. After it, the sampler draws as OMPL's uniform one."""
+        self.use_milestones(milestones)
         self.setup.setup()
-        self.planner.growRoadmap(float(seconds))
+        self.planner.growRoadmapPtc(self.ob.PlannerTerminationCondition(lambda: not self._replay))
+
+    def grow(self, seconds: float, checks: int | None = None) -> None:
+        """PRM only: grow the roadmap for `seconds` with no query (`PRM.growRoadmap`: sample valid states, connect
+        each to its nearest neighbours; no expand phase), after the planner is set up; and until this problem's
+        checker has made `checks` more collision checks if given."""
+        self.setup.setup()
+        if checks is None:
+            self.planner.growRoadmap(float(seconds))
+        else:
+            self.planner.growRoadmapPtc(self._termination(seconds, checks))
 
     def solve(self, seconds: float, checks: int | None = None) -> bool:
         """Run the planner for at most `seconds`, and until this problem's checker has made `checks` collision checks
@@ -330,11 +359,15 @@ class OmplProblem:
         if checks is None:
             self.setup.solve(float(seconds))
         else:
-            limit = self.checker.checks + int(checks)
-            spent = self.ob.PlannerTerminationCondition(lambda: self.checker.checks >= limit)
-            timed = self.ob.timedPlannerTerminationCondition(float(seconds))
-            self.setup.solve(self.ob.plannerOrTerminationCondition(spent, timed))
+            self.setup.solve(self._termination(seconds, checks))
         return bool(self.setup.haveExactSolutionPath())
+
+    def _termination(self, seconds: float, checks: int):
+        """OMPL's condition: `seconds` gone, or `checks` more collision checks made by this problem's checker."""
+        limit = self.checker.checks + int(checks)
+        spent = self.ob.PlannerTerminationCondition(lambda: self.checker.checks >= limit)
+        timed = self.ob.timedPlannerTerminationCondition(float(seconds))
+        return self.ob.plannerOrTerminationCondition(spent, timed)
 
     def simplify(self) -> None:
         """OMPL's own smoothing of the solution (`SimpleSetup.simplifySolution`: vertex reduction, shortcuts and
@@ -438,4 +471,27 @@ class ProjectSampler(_Sampler):
             if not self.buffer:
                 return False
         self.problem.map.write(state, self.buffer.pop())
+        return True
+
+
+class MilestoneSampler(_Sampler):
+    """A valid-state sampler that replays configurations (OmplProblem.use_milestones) before it draws as OMPL's
+    uniform valid-state sampler, and records every state it gives."""
+
+    def __init__(self, si, problem: OmplProblem):
+        super().__init__(si)
+        self.problem = problem
+        self.uniform = problem.ob.UniformValidStateSampler(si)
+
+    def sample(self, state):
+        problem = self.problem
+        while problem._replay:
+            q = problem._replay.pop()
+            if problem.checker.is_free(q):
+                problem.map.write(state, q)
+                problem.milestones.append(q)
+                return True
+        if not self.uniform.sample(state):
+            return False
+        problem.milestones.append(problem.to_q(state))
         return True

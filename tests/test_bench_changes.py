@@ -1,9 +1,11 @@
 """`bench changes` (app.bench.changes): each change of a cell repaired against rebuilt, the queries after it answered
-three ways and re-checked; the report says so by its schema."""
+three ways (four with OMPL's PRM, its graph re-checked in the new cell) and re-checked; the report says so by its
+schema."""
 
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from app.bench.changes import CHANGES, summarise
@@ -45,6 +47,7 @@ def test_a_changes_row_sets_repair_against_rebuild():
 def test_bench_changes_answers_by_its_schema(tmp_path, run_app):
     result = run_app(
         "bench", "changes", "--scenes", "window", "--queries", "2", "--build-nodes", "100",
+        "--methods", "repair,rebuild,fresh,ompl-prm", "--ompl-seconds", "2",
         "--store", tmp_path / "c.sqlite", "--json", timeout=1800,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr[-2000:]
@@ -56,3 +59,46 @@ def test_bench_changes_answers_by_its_schema(tmp_path, run_app):
     for row in scene["changes"]:
         assert row["repair_over_rebuild"]["checks"] < 0.1
         assert all(m["colliding_states"] == 0 for m in row["methods"].values())
+        prm = row["methods"]["ompl-prm"]["prepare"]  # its whole graph checked again, where a repair checks few
+        assert (
+            prm["nodes"] <= prm["grown"]["nodes"] and prm["checks"] > 10 * row["methods"]["repair"]["prepare"]["checks"]
+        )
+
+
+def _prm_graph(problem):
+    """OMPL's PRM graph as (vertices (n, dim), edges (m, 2))."""
+    data = problem.ob.PlannerData(problem.si)
+    problem.planner.getPlannerData(data)
+    Q = np.array([problem.to_q(data.getVertex(i).getState()) for i in range(data.numVertices())])
+    edges = np.array([(i, j) for i in range(data.numVertices()) for j in data.getEdges(i) if i < j]).reshape(-1, 2)
+    return Q, edges
+
+
+def test_ompl_prms_graph_is_grown_again_in_a_changed_cell_every_vertex_and_edge_checked(oracles):
+    pytest.importorskip("ompl")
+    from app.ompl_bridge import OmplProblem
+    from app.scene.changes import CellChange, Placement, Solid
+
+    base = oracles("bar")
+    grown = OmplProblem(base, planner="PRM")
+    grown.use_milestones()
+    grown.grow(600, checks=20_000)  # (the checks end it)
+    milestones = grown.milestones
+    assert grown.planner.milestoneCount() == len(milestones) > 5
+    same = OmplProblem(base, planner="PRM")
+    same.regrow(milestones)  # in the cell it grew in: the same graph
+    assert (same.planner.milestoneCount(), same.planner.edgeCount()) == (len(milestones), grown.planner.edgeCount())
+    # a post on the first milestone's base: it and what else the post holds leave the graph, every edge left is free
+    x, y = milestones[0][:2]
+    post = CellChange(add=[Solid(name="post", box=[4.0, 4.0, 2.0], pose=Placement(xyz=[float(x), float(y), 0.0]))])
+    changed = base.of_scene(changed_scene(base.scene, [post]))
+    checker = changed.context()
+    free = checker.are_free(np.array(milestones))
+    assert not free[0]
+    problem = OmplProblem(changed, planner="PRM")
+    problem.regrow(milestones)
+    Q, edges = _prm_graph(problem)
+    assert len(Q) == problem.planner.milestoneCount() == free.sum()
+    assert checker.are_free(Q).all() and len(edges)
+    assert checker.edges_free(Q[edges[:, 0]], Q[edges[:, 1]], changed.space.resolution).all()
+    assert problem.checker.checks >= len(milestones) + len(edges)  # each milestone and edge, re-checked

@@ -7,7 +7,14 @@ removed, a 10 cm part attached at the tool), and in the cell it leaves:
 - repair: the roadmap repaired, its checks and seconds; then the change's query set answered on it, in order, the
   roadmap keeping what each query learned (as `plan --roadmap --update` would);
 - rebuild: a roadmap built again for the new cell (covered), its checks and seconds; then the same queries on it;
-- fresh: each query planned on its own (`app.plan`).
+- fresh: each query planned on its own (`app.plan`);
+- ompl-prm (not among the default methods: it re-checks the whole graph and OMPL stops on time only): one OMPL PRM,
+  grown in the cell for as many seconds as the cell's roadmap build took, keeping its milestones in order
+  (`OmplProblem.use_milestones`); after the change, that graph re-validated in the new cell, as MoveIt re-checks a
+  persistent roadmap after a scene change: every milestone checked again through our checker and the free ones
+  added again in order, each connected as PRM connects them, every motion checked (`OmplProblem.regrow`; its checks
+  and seconds are the method's preparation); then the queries, the graph kept across them (`clearQuery()`, as
+  `bench queries`' ompl-prm), `ompl_seconds` each, smoothed, never certified.
 Queries are the `bench queries` set of the new cell ("own" mix: a work cell's chained tool poses, half of them in its
 hard region), made with the same seed for every change. Every answer is re-checked by the audit's independent checker
 (app.bench.audit.Recheck, a diagram of its own built from the changed cell's files) at 1/64 of the resolution: the
@@ -26,13 +33,14 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from app.bench.queries import Settings, _ours, answer_all, build_cell, make_queries
+from app.bench.queries import Settings, _ompl_answer, _ours, answer_all, build_cell, make_queries
 from app.bench.store import ResultStore, TrialSpec
 from app.planning.settings import default_step
 from app.scene.changes import Attachment, CellChange, Move, Placement, Solid
 
 EXPERIMENT = "changes"
-METHODS = ("repair", "rebuild", "fresh")
+METHODS = ("repair", "rebuild", "fresh", "ompl-prm")
+DEFAULT_METHODS = ("repair", "rebuild", "fresh")
 GOALS = {"repair over rebuild": 0.1, "median query seconds": 0.06}
 # A 10 cm part held beside the torch, along it (ahead of the tip, it would keep the tool off the named poses).
 PART = Attachment(name="part", link="tcp", cylinder=[0.02, 0.1], pose=Placement(xyz=[0.0, 0.05, -0.08]))
@@ -89,6 +97,15 @@ def _answer_checked(recheck, oracle, solve, start, goals, seed, budget) -> dict:
     return out
 
 
+def _colliding(recheck, oracle, path) -> dict:
+    """The independent re-check of a path's straight lines at 1/64 of the resolution."""
+    from app.bench.audit import DIVISOR, lines
+
+    Q = lines(path, oracle.space.weights, oracle.space.resolution / DIVISOR)
+    colliding, _ = recheck.check(Q)
+    return {"states_rechecked": len(Q), "colliding_states": int(colliding.sum())}
+
+
 def _answers(recheck, oracle, queries, solve, settings: Settings, progress) -> list[dict]:
     def answer(i, start, goals):
         return _answer_checked(recheck, oracle, solve, start, goals, settings.seed + i, settings.budget)
@@ -96,10 +113,54 @@ def _answers(recheck, oracle, queries, solve, settings: Settings, progress) -> l
     return answer_all(queries, answer, progress)
 
 
+def grow_prm(oracle, settings: Settings, seconds: float) -> dict:
+    """OMPL's PRM grown in the cell for `seconds`: its milestones in the order it added them, and what it took."""
+    from app.ompl_bridge import OmplProblem
+
+    problem = OmplProblem(oracle, seed=settings.seed, planner="PRM")
+    problem.use_milestones()
+    clock = time.perf_counter()
+    problem.grow(seconds)
+    return {
+        "milestones": problem.milestones,
+        "seconds": time.perf_counter() - clock,
+        "checks": int(problem.checker.checks),
+        "nodes": int(problem.planner.milestoneCount()),
+        "edges": int(problem.planner.edgeCount()),
+    }
+
+
+def _ompl_prm(prm: dict, oracle, recheck, queries, settings: Settings, progress) -> dict:
+    """The PRM grown in the cell (`grow_prm`), its graph re-validated in the changed cell `oracle`, then the queries."""
+    from app.ompl_bridge import OmplProblem
+
+    problem = OmplProblem(oracle, seed=settings.seed, planner="PRM")
+    clock = time.perf_counter()
+    problem.regrow(prm["milestones"])
+    prepare = {
+        "seconds": time.perf_counter() - clock,
+        "checks": int(problem.checker.checks),
+        "nodes": int(problem.planner.milestoneCount()),
+        "edges": int(problem.planner.edgeCount()),
+        "grown": {key: prm[key] for key in ("seconds", "checks", "nodes", "edges")},
+    }
+
+    def answer(i, start, goals):
+        out = _ompl_answer(oracle, problem, start, goals, settings.ompl_seconds)
+        if out["success"]:
+            out.update(_colliding(recheck, oracle, problem.solution_for_oracle()))
+        return out
+
+    return {"prepare": prepare, "answers": answer_all(queries, answer, progress)}
+
+
 def _trial(method, base, oracle, recheck, queries, settings, progress) -> dict:
-    """One method's trial in the changed cell `oracle`: how it came by its roadmap (none for fresh) and its answers."""
+    """One method's trial in the changed cell `oracle`: how it came by its roadmap (none for fresh) and its answers.
+    `base`: the cell's roadmap, or for ompl-prm the PRM grown in the cell (`grow_prm`)."""
     from app.planning.query import plan
 
+    if method == "ompl-prm":
+        return _ompl_prm(base, oracle, recheck, queries, settings, progress)
     if method == "fresh":
 
         def solve(start, goals, plan_settings):
@@ -129,6 +190,10 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
     from app.scene.changes import changed_scene
     from app.scene.model import Scene
 
+    if "ompl-prm" in methods:
+        from app.ompl_bridge import ompl_modules
+
+        ompl_modules()  # not installed: one line, before any build
     store = ResultStore(store_path)
     out, reused = [], []
     try:
@@ -136,16 +201,21 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
             oracle = CollisionOracle(Scene(name), threads=max(settings.workers, default_threads()))
             step = default_step(oracle.scene)
             specs = {
-                (label, method): TrialSpec(EXPERIMENT, name, method, step, settings.seed, _params(label, settings))
+                (label, method): TrialSpec(
+                    EXPERIMENT, name, method, step, settings.seed, _params(label, method, settings)
+                )
                 for label, _ in CHANGES[name]
                 for method in methods
             }
             reused.append(store.reuse(list(specs.values()), fresh=fresh))
             pending = {s.key for s in store.pending(list(specs.values()), fresh=fresh)}
-            base = None
+            base, prm = None, None
             if pending:
                 print(f"{name}: building the cell's roadmap", file=sys.stderr, flush=True)  # (stdout: the answer)
                 base, base_seconds, base_checks, _ = build_cell(oracle, settings)
+            if "ompl-prm" in methods and any(specs[label, "ompl-prm"].key in pending for label, _ in CHANGES[name]):
+                print(f"{name}: growing OMPL's PRM for {base_seconds:.1f} s", file=sys.stderr, flush=True)
+                prm = grow_prm(oracle, settings, base_seconds)
             rows = []
             for label, change in CHANGES[name]:
                 todo = [m for m in methods if specs[label, m].key in pending]
@@ -156,7 +226,8 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
                         queries = make_queries(changed, settings.queries, settings.seed, bar.update)
                 for method in todo:
                     with tqdm(total=settings.queries, desc=f"{name} {label}: {method}", leave=False) as bar:
-                        metrics = _trial(method, base, changed, recheck, queries, settings, bar.update)
+                        roadmap = prm if method == "ompl-prm" else base
+                        metrics = _trial(method, roadmap, changed, recheck, queries, settings, bar.update)
                     metrics.update(query_set=queries.digest(), load_average=os.getloadavg()[1], change=change.to_dict())
                     if method == "rebuild":
                         metrics["base"] = {"seconds": base_seconds, "checks": base_checks}
@@ -175,13 +246,17 @@ def measure(scenes: list[str], methods: list[str], settings: Settings, store_pat
         "budget": str(settings.budget),
         "build_nodes": settings.build_nodes,
         "workers": settings.workers,
+        "methods": list(methods),
+        "ompl_seconds": settings.ompl_seconds if "ompl-prm" in methods else None,
         "goals": GOALS,
     }
     return report, reuse
 
 
-def _params(label: str, settings: Settings) -> dict:
+def _params(label: str, method: str, settings: Settings) -> dict:
+    ompl = {"ompl_seconds": settings.ompl_seconds} if method == "ompl-prm" else {}
     return {
+        **ompl,
         "change": label,
         "queries": settings.queries,
         "budget": str(settings.budget),
@@ -242,17 +317,20 @@ def figure(report: dict, path: str) -> None:
         labels = [r["change"] for r in s["changes"]]
         x = np.arange(len(labels))
         top, bottom = axes[0, column], axes[1, column]
-        for i, method in enumerate(("repair", "rebuild")):
+        prepared = [m for m in report["methods"] if m != "fresh"]
+        width = 0.8 / max(1, len(prepared))
+        for i, method in enumerate(prepared):
             seconds = [r["methods"].get(method, {}).get("prepare", {}) or {} for r in s["changes"]]
-            top.bar(
-                x + (i - 0.5) * 0.38, [p.get("seconds", np.nan) for p in seconds], 0.36, label=method, color=f"C{i}"
-            )
+            offset = (i - (len(prepared) - 1) / 2) * width
+            top.bar(x + offset, [p.get("seconds", np.nan) for p in seconds], width * 0.95, label=method, color=f"C{i}")
         top.set_yscale("log")
         top.set_title(f"{s['scene']}: preparing the roadmap for the change", fontsize=10)
         top.set_ylabel("seconds", fontsize=9)
-        for i, method in enumerate(METHODS):
+        width = 0.8 / len(report["methods"])
+        for i, method in enumerate(report["methods"]):
             medians = [r["methods"].get(method, {}).get("median_seconds") for r in s["changes"]]
-            bottom.bar(x + (i - 1) * 0.27, [np.nan if m is None else m for m in medians], 0.25, label=method)
+            offset = (i - (len(report["methods"]) - 1) / 2) * width
+            bottom.bar(x + offset, [np.nan if m is None else m for m in medians], width * 0.95, label=method)
         bottom.axhline(GOALS["median query seconds"], color="black", lw=1, ls=":", label="60 ms")
         bottom.set_yscale("log")
         bottom.set_title(

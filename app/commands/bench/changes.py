@@ -1,7 +1,7 @@
 """`bench changes`: a work cell changes; its stored roadmap repaired against one built again, and the queries after
 each change (app.bench.changes)."""
 
-from app.bench.changes import CHANGES, GOALS, METHODS, check_methods, figure, measure
+from app.bench.changes import CHANGES, DEFAULT_METHODS, GOALS, METHODS, check_methods, figure, measure
 from app.bench.queries import Settings
 from app.commands.bench import results
 from app.commands.common import (
@@ -11,6 +11,7 @@ from app.commands.common import (
     names_from,
     parse_budget,
     parse_build_budget,
+    positive_float,
     print_json,
     processes,
     repetitions,
@@ -23,7 +24,8 @@ def register(kinds) -> None:
     p = kinds.add_parser(
         "changes",
         help="a work cell changes (a fixture moved 1, 5, 20 cm, a box added, one removed, a part attached): the "
-        "stored roadmap repaired vs built again, and queries after each change (repair, rebuild, fresh)",
+        "stored roadmap repaired vs built again, and queries after each change (repair, rebuild, fresh; ompl-prm on "
+        "request)",
     )
     p.add_argument(
         "--scenes",
@@ -34,7 +36,20 @@ def register(kinds) -> None:
     )
     p.add_argument("--queries", type=repetitions, default=100, help="queries after each change")
     p.add_argument("--seed", type=seed, default=0, help="of the query sets, the builds and every planner")
-    p.add_argument("--methods", type=names_from(METHODS, "methods"), default=",".join(METHODS), help=", ".join(METHODS))
+    p.add_argument(
+        "--methods",
+        type=names_from(METHODS, "methods"),
+        default=",".join(DEFAULT_METHODS),
+        help=f"comma-separated, of {', '.join(METHODS)} (default {','.join(DEFAULT_METHODS)}; ompl-prm re-checks "
+        "OMPL's whole PRM graph after each change and stops on time only: slow)",
+    )
+    p.add_argument(
+        "--ompl-seconds",
+        type=positive_float,
+        default=10.0,
+        metavar="S",
+        help="ompl-prm: OMPL's seconds per query (OMPL stops on time, not on checks; default 10)",
+    )
     p.add_argument("--budget", type=parse_budget, default="200kchecks", help=f"each query: {BUDGET_HELP}")
     p.add_argument("--build-nodes", type=whole_number(2, 10**7), default=1500, help="the roadmaps' nodes")
     p.add_argument("--build-budget", type=parse_build_budget, default="3Mchecks", help="what a build may spend")
@@ -55,6 +70,7 @@ def run(args) -> int:
         build_nodes=args.build_nodes,
         build_budget=args.build_budget,
         workers=args.workers,
+        ompl_seconds=args.ompl_seconds,
     )
     report, reuse = measure(args.scenes, methods, settings, args.store, fresh=args.fresh)
     results.say_reused(reuse)
@@ -88,25 +104,33 @@ def table(report: dict) -> str:
         f"Code version(s) of the trials: {', '.join(f'`{v}`' for v in versions)}"
         + (" (mixed: per change and method below)" if len(versions) > 1 else "")
     )
+    methods = ", ".join(report["methods"])
+    prm = "ompl-prm" in report["methods"]
+    if "ompl-prm" in report["methods"]:
+        lines.append(
+            f"ompl-prm: OMPL's PRM grown for the cell build's seconds, its graph re-checked after each change (its "
+            f"preparation), then {report['ompl_seconds']:g} s per query, smoothed, never certified."
+        )
     for s in report["scenes"]:
         lines += [
             "",
             f"### {s['scene']}",
             "",
             "| change | repair checks | repair s | rebuild checks | rebuild s | ratio checks | ratio s | reset "
-            "free/colliding | nodes checked/dropped | solved: repair, rebuild, fresh "
-            "| median ms: repair, rebuild, fresh | certified | colliding states |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+            f"free/colliding | nodes checked/dropped | solved: {methods} | median ms: {methods} | certified "
+            "| colliding states |" + (" PRM re-checked: checks | s |" if prm else ""),
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|" + ("---:|---:|" if prm else ""),
         ]
         for r in s["changes"]:
             m = r["methods"]
             repair, rebuild = (m.get(k, {}).get("prepare") or {} for k in ("repair", "rebuild"))
             record = repair.get("record", {})
+            prepared = m.get("ompl-prm", {}).get("prepare") or {}
             ratio = r.get("repair_over_rebuild", {})
-            solved = ", ".join(f"{m[k]['successes']}/{m[k]['queries']}" if k in m else "-" for k in METHODS)
+            solved = ", ".join(f"{m[k]['successes']}/{m[k]['queries']}" if k in m else "-" for k in report["methods"])
             ms = ", ".join(
                 _num(None if k not in m or m[k]["median_seconds"] is None else 1000 * m[k]["median_seconds"], ".0f")
-                for k in METHODS
+                for k in report["methods"]
             )
             won = sum(v["successes"] for v in m.values())
             lines.append(
@@ -126,6 +150,7 @@ def table(report: dict) -> str:
                         ms,
                         f"{sum(v['certified'] for v in m.values())}/{won}",
                         str(sum(v["colliding_states"] for v in m.values())),
+                        *([_num(prepared.get("checks"), ",d"), _num(prepared.get("seconds"), ".1f")] if prm else []),
                     ]
                 )
                 + " |"
