@@ -27,6 +27,12 @@ from app.planning.result import Ledger, PlanResult, PlanStats, Smoothing
 from app.planning.settings import NARROW_RAMP, PlanSettings, default_step
 from app.planning.sources import Samples
 
+# Pockets (`Query._expand_pockets`): a side of the query is shut in when its component holds under this share of the
+# roadmap's nodes; it then grows by this many motions a round, recorded as the source EXPANSION.
+POCKET_SHARE = 0.1
+EXTENSIONS = 16
+EXPANSION = "expansion"
+
 
 def plan(oracle, settings: PlanSettings | None = None, *, start=None, goal=None, via=None, cancel=None) -> PlanResult:
     """Plan from start to goal (default: the scene's) with `settings` (default: PlanSettings()); `via`: waypoints
@@ -112,7 +118,7 @@ class Query:
         # the fresh query's and more in every round, so it connects start and goal as soon as the fresh query would,
         # or sooner (drawn from a stream of their own, its rounds once cost more than no roadmap: benchmark pages).
         # A sample the roadmap holds already (the same query again) is not added twice (`grow`).
-        seeds = np.random.SeedSequence(settings.seed).spawn(4)
+        seeds = np.random.SeedSequence(settings.seed).spawn(5)
         workspace = 0.0 if settings.full_roadmap else settings.workspace  # a full roadmap places none
         self.samples = Samples(checker, settings.sampler, self.step, seeds, workspace, settings.sampler_params)
         self.rounds = 0
@@ -139,6 +145,8 @@ class Query:
         # Per node, the source that drew it ("" for nodes the query did not draw).
         self._source_of = np.full(len(roadmap), "", object)
         self._sides: tuple[np.ndarray, np.ndarray] | None = None  # see `_apart`
+        self._expansion_rng = np.random.default_rng(seeds[4])
+        self._expansion = {"samples": 0, "tried": 0, "checks": 0}  # what `_expand_pockets` drew and spent
 
     # ---- the easy route -----------------------------------------------------------------------------------------
     def straight(self, stop: Stop) -> bool:
@@ -306,10 +314,51 @@ class Query:
             if found is not None:
                 break
             self._apart()
+            self._expand_pockets(stop)
             if self.narrow_from_round is None:  # uniform samples alone did not do it: a passage in the way
                 self.narrow_from_round = self.rounds + 1
             sizes = self.round_sizes()
         return None if found is None else ("roadmap", found)
+
+    def _expand_pockets(self, stop: Stop) -> None:
+        """After a search that left start and goal apart: grow the start's side, or the goals', where it is shut in
+        a pocket -- its component of edges not known to collide holds under POCKET_SHARE of the roadmap -- as RRT
+        grows a tree (OMPL's PRM has the same expand phase): EXTENSIONS times, from the side's node nearest a uniform
+        sample, a motion of at most the sampler's step toward it, checked; a free one adds its end as a node, joined
+        by that edge and offered lazy edges to its neighbours. A grasp pose deep in a shelf has every candidate edge
+        blocked by the shelf, and samples rarely fall close enough to it to help: the tree walks out of the pocket
+        (MotionBenchMaker's bookshelves), and the checks it spends each decide an edge."""
+        from app.planning.roadmap import UNIFORM
+
+        roadmap, space = self.roadmap, self.checker.space
+        labels = roadmap.labels()
+        sizes = np.bincount(labels)
+        before = self.checker.checks
+        grown = []
+        for side in ([self.start_node], self.goal_nodes):
+            mine = np.unique(labels[side])
+            if sizes[mine].sum() >= POCKET_SHARE * len(roadmap):
+                continue
+            members = np.flatnonzero(np.isin(labels, mine))
+            targets = space.uniform(self._expansion_rng, EXTENSIONS)
+            for target in targets:
+                d = space.distance(roadmap.Q[members], target)
+                near = int(members[np.argmin(d)])
+                reach = min(1.0, self.step / max(float(d.min()), 1e-12))
+                q = space.wrap(roadmap.Q[near] + reach * space.difference(roadmap.Q[near], target))
+                self._expansion["tried"] += 1
+                free = self.ledger.run(
+                    "sampling", self.checker.edges_free, roadmap.Q[[near]], q[None], roadmap.resolution, stop=stop
+                )
+                if free[0]:
+                    node = roadmap.extend(near, q, UNIFORM)
+                    members = np.append(members, node)
+                    grown.append(node)
+        self._expansion["checks"] += self.checker.checks - before
+        if grown:
+            self._expansion["samples"] += len(grown)
+            self._source_of = np.concatenate([self._source_of, np.full(len(grown), EXPANSION, object)])
+            self.ledger.run("roadmap", roadmap.connect, np.array(grown), stop)
 
     def _apart(self) -> None:
         """After a search that left start and goal apart: remember which nodes the start's and the goals' components
@@ -367,7 +416,10 @@ class Query:
             rounds=self.rounds,
             narrow_from_round=self.narrow_from_round,
             roadmap=self.roadmap.stats(),
-            sampler_stats=self.samples.record(),
+            sampler_stats={
+                **self.samples.record(),
+                **({EXPANSION: dict(self._expansion)} if self._expansion["tried"] else {}),
+            },
             budget=str(self.settings.budget),
             stopped=stopped or self.stopped,
         )

@@ -226,6 +226,15 @@ class Roadmap:
         self._tried.update(itertools.compress(keys, new))
         return P[new].reshape(-1, 2)
 
+    def extend(self, near: int, q: np.ndarray, kind: str) -> int:
+        """Node q joined to node `near` by an edge the caller has checked free (a motion grown from `near`, as RRT
+        grows one): the edge is in the graph checked, and the pair is never proposed again. Returns the new node."""
+        new = int(self.add(q, kind, connect=False)[0])
+        self._tried.add(pair_key(near, new))
+        self.edges_tried += 1
+        self._add_edges(np.array([[min(near, new), max(near, new)]]), checked=True)
+        return new
+
     def record(self, P: np.ndarray, free: np.ndarray) -> None:
         """Verdicts decided elsewhere (another process, for the same roadmap) for candidate edges P: the free ones
         join the graph checked, the colliding ones are kept as known to collide, so neither is checked again."""
