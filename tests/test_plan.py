@@ -13,7 +13,7 @@ from app.errors import InvalidEndpoint, NoPath, UserError
 from app.planning.query import plan
 from app.planning.result import PHASES
 from app.planning.roadmap import Roadmap
-from app.planning.settings import PlanSettings
+from app.planning.settings import POCKET_ROUNDS, PlanSettings
 from independent import fine_points, raw_free
 
 # The bar crossing needs the narrow samples: with 500 uniform samples alone it succeeds in under 10 % of seeds
@@ -193,6 +193,40 @@ def test_trajectory_respects_limits_and_joins_start_to_goal(oracles, planned, na
     assert traj.certified and result.stats.distance_queries > 0
 
 
+def plan_mbm(kind: str, number: int):
+    """One of the shipped MotionBenchMaker Panda problems, planned with the default settings."""
+    from app.checking.oracle import CollisionOracle
+    from app.planning.moveit import goal_configurations
+    from app.scene.files import PACKAGES
+    from app.scene.moveit import read_problem
+
+    robots = PACKAGES["npp_robots"]
+    folder, robot = robots.parent / "examples" / "moveit" / "mbm-panda" / kind, robots / "panda"
+    problem = read_problem(
+        request=folder / f"request{number:04d}.yaml", scene=folder / f"scene{number:04d}.yaml",
+        robot=robot / "panda.urdf", srdf=robot / "panda.srdf",
+    )  # fmt: skip
+    oracle = CollisionOracle(problem.scene)
+    return plan(oracle, PlanSettings(), start=problem.start, goal=goal_configurations(oracle, problem))
+
+
+def test_a_goal_in_a_pocket_that_uniform_rounds_open_never_pays_for_narrow_passage_samples():
+    """The grasp pose in the shelf has no edge after the first round (all its candidate edges collide), and a later
+    uniform round opens it: no workspace gaps searched, no walker started."""
+    result = plan_mbm("bookshelf_tall", 4)
+    stats = result.stats
+    assert result.route == "roadmap" and stats.rounds > 1 and stats.narrow_from_round is None
+    assert stats.roadmap.narrow_nodes == stats.roadmap.workspace_nodes == 0
+    assert not stats.sampler_stats["workspace"] and not stats.sampler_stats["narrow"]  # not a check spent
+
+
+def test_a_pocket_that_uniform_rounds_leave_shut_brings_in_the_narrow_passage_sources():
+    result = plan_mbm("bookshelf_tall", 3)
+    stats = result.stats
+    assert stats.narrow_from_round == POCKET_ROUNDS + 1 and stats.rounds > POCKET_ROUNDS
+    assert stats.roadmap.workspace_nodes > 0 and stats.sampler_stats["narrow"]["checks"] > 0
+
+
 def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
     result = planned("bar")
     assert result.narrow_on_path + result.workspace_on_path >= 1
@@ -203,7 +237,8 @@ def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
 def test_a_query_stops_at_the_first_round_that_connects_and_checks_edges_lazily(oracles, planned):
     result = planned("bar")  # 75 uniform samples a round; narrow ones from round 2, 13, 26, 50, 50, ...
     assert result.stats.roadmap.uniform_nodes == 75 * result.stats.rounds
-    # bar's gap is not found by 75 uniform samples
+    # bar's gap is not found by 75 uniform samples, which leave both start and goal with edges on their sides of
+    # the wall: the uniform rounds have stalled, and the narrow-passage sources join at once
     assert result.stats.narrow_from_round == 2 and result.stats.rounds >= 2
     ramp = [min(50, 13 * 2**k) for k in range(result.stats.rounds - 1)]
     # that share of each round's narrow-passage samples are placements in workspace gaps, the rest the sampler's

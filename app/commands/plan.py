@@ -175,8 +175,8 @@ def add_settings_arguments(p) -> None:
         "--narrow",
         type=sample_count,
         default=DEFAULTS.narrow,
-        help=f"narrow-passage samples: per round narrow/16 at first, doubling up to narrow/4; with "
-        f"--full-roadmap all of them (default {DEFAULTS.narrow})",
+        help=f"narrow-passage samples, once uniform rounds stall: per round narrow/16 at first, doubling up to "
+        f"narrow/4; with --full-roadmap all of them (default {DEFAULTS.narrow})",
     )
     p.add_argument(
         "--uniform",

@@ -1,9 +1,9 @@
 """The planner: one query on a lazy PRM whose key samples come from a narrow-passage sampler.
 
-    endpoints checked -> the straight motion -> uniform, then narrow-passage samples (the sampler's walks and
-    placements in workspace gaps), in rounds until start and goal connect -> roadmap (k-nearest; lazy edge checks
-    for a single query) -> shortest path -> smoothed, proved and repaired (app.planning.refine) -> timed along a
-    blended curve (app.motion.timing)
+    endpoints checked -> the straight motion -> uniform samples, then, once they stall, narrow-passage samples too
+    (the sampler's walks and placements in workspace gaps), in rounds until start and goal connect -> roadmap
+    (k-nearest; lazy edge checks for a single query) -> shortest path -> smoothed, proved and repaired
+    (app.planning.refine) -> timed along a blended curve (app.motion.timing)
 
 `plan(oracle, PlanSettings(...))` runs one `Query` through those stages and returns a PlanResult
 (app.planning.result). What its budget covers: app.planning.settings.
@@ -24,7 +24,7 @@ from app.motion.trajectory import Trajectory
 from app.planning.endpoints import check_endpoint, check_goals
 from app.planning.refine import Refined, Refinement
 from app.planning.result import Ledger, PlanResult, PlanStats, Smoothing
-from app.planning.settings import NARROW_RAMP, PlanSettings, default_step
+from app.planning.settings import NARROW_RAMP, POCKET_ROUNDS, PlanSettings, default_step
 from app.planning.sources import Samples
 
 # Pockets (`Query._expand_pockets`): a side of the query is shut in when its component holds under this share of the
@@ -56,11 +56,22 @@ class Query:
     (`refinement`, app.planning.refine) and timed (`time`); `solve()`: the loop that runs them and answers.
 
     How much narrow-passage effort a query spends is decided from what the roadmap shows. The straight motion is
-    tried first. Then one round of cheap uniform samples with lazy edges (nothing is checked until a candidate path
-    uses it): that alone solves the open queries (the UR3's, most of the tunnel's) for a few hundred checks. If
-    start and goal are still apart after it, a passage uniform samples rarely hit is in the way, and the
-    narrow-passage sampler joins every later round: narrow/NARROW_RAMP samples at first, doubling each round up to
-    narrow/4, so a query that needs few pays for few and one that needs many spends at most twice what it needed.
+    tried first. Then rounds of cheap uniform samples with lazy edges (nothing is checked until a candidate path
+    uses it): they alone solve the open queries (the UR3's, most of the tunnel's, the Panda's everyday ones) for a
+    few hundred checks. The narrow-passage sources -- their workspace-gap search and their walks cost several times
+    a uniform round -- join only once the uniform rounds stall, which is measured after every round that leaves
+    start and goal apart, on the graph of edges not known to collide (`_uniform_stalled`):
+
+    - both start and a goal have such an edge: each has surroundings the round explored, and every candidate path
+      between them collided. A passage uniform samples rarely hit is in the way (bar, maze, tunnel), and more of
+      them only grow both sides: the narrow-passage sources join from the next round.
+    - start or every goal has none (all its candidate edges collided): it is shut in a pocket, as the Panda's grasp
+      poses in a shelf or box are, which the next uniform sample landing closer to it may open. Uniform rounds go
+      on, up to POCKET_ROUNDS of them, then the narrow-passage sources join (the cage, window, welding pockets).
+
+    Once on, they join every round: narrow/NARROW_RAMP samples at first, doubling each round up to narrow/4, so a
+    query that needs few pays for few and one that needs many spends at most twice what it needed. Both tests count
+    edges and rounds, nothing timed, so a seed escalates at the same round on any machine.
 
     Three quarters of every narrow round (`workspace`) are placed rather than walked to: configurations with a piece
     of the robot in a narrow gap of the workspace (app.samplers.workspace). The walkers find a passage wherever
@@ -314,9 +325,9 @@ class Query:
             if found is not None:
                 break
             self._apart()
-            self._expand_pockets(stop)
-            if self.narrow_from_round is None:  # uniform samples alone did not do it: a passage in the way
+            if self.narrow_from_round is None and self._uniform_stalled():
                 self.narrow_from_round = self.rounds + 1
+            self._expand_pockets(stop)
             sizes = self.round_sizes()
         return None if found is None else ("roadmap", found)
 
@@ -331,15 +342,9 @@ class Query:
         from app.planning.roadmap import UNIFORM
 
         roadmap, space = self.roadmap, self.checker.space
-        labels = roadmap.labels()
-        sizes = np.bincount(labels)
         before = self.checker.checks
         grown = []
-        for side in ([self.start_node], self.goal_nodes):
-            mine = np.unique(labels[side])
-            if sizes[mine].sum() >= POCKET_SHARE * len(roadmap):
-                continue
-            members = np.flatnonzero(np.isin(labels, mine))
+        for members in self._pockets():
             targets = space.uniform(self._expansion_rng, EXTENSIONS)
             for target in targets:
                 d = space.distance(roadmap.Q[members], target)
@@ -359,6 +364,24 @@ class Query:
             self._expansion["samples"] += len(grown)
             self._source_of = np.concatenate([self._source_of, np.full(len(grown), EXPANSION, object)])
             self.ledger.run("roadmap", roadmap.connect, np.array(grown), stop)
+
+    def _uniform_stalled(self) -> bool:
+        """After a round that left start and goal apart: whether uniform samples alone have stalled (the class
+        docstring says why): neither start nor the goals are shut in a pocket (`_pockets`), or POCKET_ROUNDS rounds
+        have passed with one of them shut in."""
+        return self.rounds >= POCKET_ROUNDS or not self._pockets()
+
+    def _pockets(self) -> list[np.ndarray]:
+        """The nodes of each side of the query (the start's; the goals') shut in a pocket: its component of edges not
+        known to collide holds under POCKET_SHARE of the roadmap's nodes, so its candidate edges out have collided."""
+        labels = self.roadmap.labels()
+        sizes = np.bincount(labels)
+        out = []
+        for side in ([self.start_node], self.goal_nodes):
+            mine = np.unique(labels[side])
+            if sizes[mine].sum() < POCKET_SHARE * len(self.roadmap):
+                out.append(np.flatnonzero(np.isin(labels, mine)))
+        return out
 
     def _apart(self) -> None:
         """After a search that left start and goal apart: remember which nodes the start's and the goals' components
