@@ -37,6 +37,8 @@ _VISUAL = re.compile(r"<visual\b[^>]*?(?<!/)>.*?</visual\s*>", re.S)
 # A reference to a file: a URDF's filename="..." or an SDF's <uri>...</uri>.
 MESH_REFERENCE = re.compile(r'(filename\s*=\s*")([^"]+)(")|(<uri>\s*)([^<]+?)(\s*</uri>)')
 COLLISION_BLOCK = re.compile(r"<collision\b.*?</collision>", re.S)
+# A mesh's scale: a URDF's scale="x y z" or an SDF's <scale>x y z</scale>.
+MESH_SCALE = re.compile(r'\bscale\s*=\s*"([^"]*)"|<scale>([^<]*)</scale>')
 
 
 @dataclass
@@ -83,14 +85,23 @@ class ModelFile:
         """The URI of every file reference of `fixed`, in order."""
         return [reference_parts(m)[1] for m in MESH_REFERENCE.finditer(self.fixed)]
 
-    def collision_meshes(self) -> list[Path | None]:
-        """Per <collision> element of `fixed`, in order: the file of its one mesh reference; None where it holds none,
-        several, or one by another scheme (such a <collision> is left as it is)."""
+    def collision_meshes(self) -> list[tuple[Path, float] | None]:
+        """Per <collision> element of `fixed`, in order: the file of its one mesh reference and the largest factor
+        of the mesh's scale (1 when it has none); None where it holds none, several, or one by another scheme (such
+        a <collision> is left as it is)."""
         found = []
         for block in COLLISION_BLOCK.finditer(self.fixed):
             meshes = [m for m in MESH_REFERENCE.finditer(block.group(0)) if is_mesh(reference_parts(m)[1])]
-            found.append(self.targets[reference_parts(meshes[0])[1]] if len(meshes) == 1 else None)
+            target = self.targets[reference_parts(meshes[0])[1]] if len(meshes) == 1 else None
+            found.append(None if target is None else (target, self._largest_scale(block.group(0))))
         return found
+
+    def _largest_scale(self, block: str) -> float:
+        found = MESH_SCALE.search(block)
+        try:
+            return max(abs(float(v)) for v in (found.group(1) or found.group(2)).split()) if found else 1.0
+        except ValueError:
+            raise UserError(f"{self.path.name}: a <collision> mesh's scale must be numbers") from None
 
     def has_collision_mesh(self) -> bool:
         """Whether any <collision> element references a mesh (so that decomposing has something to do)."""

@@ -32,7 +32,7 @@ class MeshOptions:
     cache_dir: Path | None
     progress: bool
 
-    def decompose(self, path: Path, conservative: bool = False) -> Decomposition:
+    def decompose(self, path: Path, conservative: bool = False, scale: float = 1.0) -> Decomposition:
         return cache.decompose(
             path,
             method=self.method,
@@ -40,6 +40,7 @@ class MeshOptions:
             cache_dir=self.cache_dir,
             progress=self.progress,
             conservative=conservative,
+            scale=scale,
         )
 
 
@@ -105,10 +106,11 @@ def prepare_model(
     if described is not None:
         decompositions = []
         if model.has_collision_mesh():
-            for target in model.collision_meshes():
-                if target is None:
+            for found in model.collision_meshes():
+                if found is None:
                     continue
-                decomposition = options.decompose(target, conservative)
+                target, scale = found
+                decomposition = options.decompose(target, conservative, scale)
                 described.append(describe(target, decomposition))
                 decompositions.append(decomposition)
     converted = {}

@@ -1,7 +1,8 @@
 """Mesh obstacles and mesh robots for Drake (stage (b) of a custom scene's route): format conversion (`reading`),
-convex pieces (`pieces`, CoACD in `coacd_process`), the method per part (`decomposition`), validation (`validation`)
-and an on-disk cache (`cache`, whose `decompose` is the entry point: one mesh file in, its pieces out). No Drake here:
-what a scene does with the pieces is app.scene.prepare_meshes' and app.scene.emit's.
+convex pieces (`pieces`, CoACD in `coacd_process`), the method per part (`decomposition`), validation (`validation`),
+robot links' pieces merged to a bound (`merging`) and an on-disk cache (`cache`, whose `decompose` is the entry
+point: one mesh file in, its pieces out). No Drake here: what a scene does with the pieces is
+app.scene.prepare_meshes' and app.scene.emit's.
 
 Drake reads .obj/.vtk/.gltf for collision (not .stl/.dae) and its proximity engine treats a mesh as its convex hull,
 so a non-convex mesh must become a set of convex pieces. The mesh is split into connected parts (faces sharing an
@@ -28,7 +29,11 @@ edge) and a method is chosen per part (`decomposition.choose_method`):
 Robot links (`conservative`, see `choose_method`) take no exact method that may cost minutes: open parts (CAD
 exports: unstitched faces, 2-face slivers) and closed parts whose shell pieces fail become convex hulls, merged by
 `hull_groups`; these contain their parts (never too small) and are exempt from the free-space test. `--mesh-method
-convex` forces hulls for every part. `volume_report` states what the pieces add.
+convex` forces hulls for every part. `volume_report` states what the pieces add. Once validated, a link's pieces are
+merged (`merging`) into at most MOST_LINK_PIECES convex hulls, least added volume first, only while every point of a
+merged hull's surface stays within MERGE_REACH (5 mm; the caller gives the link's scale) of the mesh: so the link is
+never smaller than its mesh (a hull holds its pieces) and never collides falsely where its mesh has 5 mm of
+clearance. Environment meshes are not merged.
 
 Every decomposition is validated against the original surface (`validate`); parts whose pieces hold free points
 move on to their next method. The result, or the failure, is cached on disk (`cache_root()`), keyed by the mesh

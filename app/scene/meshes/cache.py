@@ -24,12 +24,13 @@ from app.scene.files import MESH_METHODS
 from app.scene.meshes import decomposition
 from app.scene.meshes.coacd_process import coacd_version
 from app.scene.meshes.decomposition import classify, default_tolerance, method_name
+from app.scene.meshes.merging import MERGE_REACH
 from app.scene.meshes.pieces import Piece, hull_piece
 from app.scene.meshes.reading import file_sha256, load_mesh
 from app.scene.meshes.validation import volume_report
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
-DECOMPOSER_VERSION = "5"
+DECOMPOSER_VERSION = "6"
 CACHE_ENV = "NPP_CACHE_DIR"
 KEY_ENV = "NPP_KEY_FILE"
 KEY_BYTES = 32
@@ -187,10 +188,13 @@ def decompose(
     cache_dir: Path | None = None,
     progress: bool = True,
     conservative: bool = False,
+    scale: float = 1.0,
 ) -> Decomposition:
     """Convex pieces for the mesh at `path`, from the cache when a valid entry exists, else built and cached. A mesh
     with no valid decomposition is cached too: asking again raises the same UserError at once. `conservative`: see
-    `choose_method` (a robot's links)."""
+    `choose_method` (a robot's links), and its pieces merged to reach at most MERGE_REACH beyond the mesh; `scale`:
+    metres per unit of the mesh file (its largest factor where a model scales it), which sets that reach in the
+    file's units."""
     path = Path(path)
     if method not in MESH_METHODS:
         raise UserError(f"unknown decomposition method '{method}' (known: {', '.join(MESH_METHODS)})")
@@ -202,6 +206,7 @@ def decompose(
         "version": DECOMPOSER_VERSION,
         "coacd": coacd_version() if method == "coacd" or (method == "auto" and not conservative) else None,
         "conservative": conservative,
+        "merge_reach": MERGE_REACH / scale if conservative and scale > 0 else None,
     }
     key = hashlib.sha256((digest + json.dumps(params, sort_keys=True)).encode()).hexdigest()[:32]
     root = (cache_dir or cache_root()) / "meshes"
@@ -218,7 +223,9 @@ def decompose(
         shutil.rmtree(entry, ignore_errors=True)
 
     manifest = {"key": key, "source": str(path.resolve()), "source_sha256": digest, "params": params}
-    request = _Request(path, method, tolerance, coacd_threshold, coacd_timeout, progress, conservative)
+    request = _Request(
+        path, method, tolerance, coacd_threshold, coacd_timeout, progress, conservative, params["merge_reach"]
+    )
 
     def store_failure(failed: dict) -> None:
         if secret is not None:  # (unsealed, it would never be read back)
@@ -252,6 +259,7 @@ class _Request:
     coacd_timeout: float
     progress: bool
     conservative: bool
+    merge_reach: float | None  # in the mesh's units (None: no merging)
 
 
 def _build(request: _Request, manifest: dict, store_failure) -> tuple:
@@ -265,7 +273,7 @@ def _build(request: _Request, manifest: dict, store_failure) -> tuple:
         raise UserError("mesh tolerance must be positive")
     facts = classify(mesh)
     try:
-        pieces, owner, tried, methods, parts = decomposition.decompose_parts(
+        pieces, components, tried, methods, parts = decomposition.decompose_parts(
             mesh,
             request.method,
             tolerance,
@@ -274,13 +282,14 @@ def _build(request: _Request, manifest: dict, store_failure) -> tuple:
             request.progress,
             path.name,
             request.conservative,
+            request.merge_reach,
         )
         if not pieces:
             raise UserError(f"no valid convex decomposition for {path.name}: no piece has any volume")
     except UserError as exc:
         store_failure({**manifest, "error": str(exc), "files": {}})
         raise
-    facts["components"] = len(set(owner)) if owner else 0
+    facts["components"] = components
     manifest.update(
         tolerance=tolerance,
         method=method_name(methods),

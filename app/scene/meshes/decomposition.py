@@ -10,6 +10,7 @@ import numpy as np
 from app.errors import UserError
 from app.scene.files import MESH_METHODS
 from app.scene.meshes import coacd_process
+from app.scene.meshes.merging import merged_pieces
 from app.scene.meshes.pieces import Piece, face_pieces, faces_instead, hull_groups, hull_piece, shell_pieces
 from app.scene.meshes.validation import Validation, components, validate
 
@@ -63,11 +64,15 @@ def decompose_parts(
     progress: bool,
     label: str,
     conservative: bool = False,
+    merge_reach: float | None = None,
 ):
     """Choose a method per connected part, build, validate the whole; a part whose pieces fail moves on to its next
     method. With `conservative` (or method "convex") hulls stand for their parts as bounds, merged by `hull_groups`
-    and exempt from the free-space test (they are larger than their parts by design). Returns (pieces, owner part
-    per piece, the validation rounds, pieces per method, parts per method)."""
+    and exempt from the free-space test (they are larger than their parts by design). With `merge_reach` (in the
+    mesh's units), the validated pieces are then merged (`merged_pieces`) while every merged hull's surface stays
+    within `merge_reach` of the mesh: within `merge_reach - tolerance` of the validated pieces, which hold no free
+    point farther than the tolerance from it. Returns (pieces, the number of parts with pieces, the validation
+    rounds, pieces per method before merging, parts per method)."""
     parts = _Parts(mesh, method, tolerance, conservative, label, progress, coacd_threshold, coacd_timeout)
     while True:
         if not parts.build():
@@ -75,9 +80,12 @@ def decompose_parts(
         pieces, owner = parts.assembled()
         check, methods = parts.validated(pieces, owner)
         if check.ok:
-            final = parts.final_methods()
-            return pieces, owner, parts.tried, methods, {m: final.count(m) for m in MESH_METHODS[1:] if m in final}
+            break
         parts.mend_or_move_on(check, owner)
+    if merge_reach is not None and merge_reach > tolerance:
+        pieces = merged_pieces(pieces, mesh, merge_reach - tolerance)[0]
+    final = parts.final_methods()
+    return pieces, len(set(owner)), parts.tried, methods, {m: final.count(m) for m in MESH_METHODS[1:] if m in final}
 
 
 class _Parts:

@@ -42,13 +42,15 @@ def inside_any(points: np.ndarray, pieces: list[Piece], margin: float) -> tuple[
     return depth, which
 
 
-def _within(points: np.ndarray, mesh, radius: float) -> np.ndarray:
-    """Whether each point is within `radius` of the mesh surface (exact point-triangle distances, but only to the
-    triangles whose box the point's radius-box touches: much cheaper than a nearest-point query)."""
+def within(points: np.ndarray, mesh, radius) -> np.ndarray:
+    """Whether each point is within `radius` (one, or one per point) of the mesh surface (exact point-triangle
+    distances, but only to the triangles whose box the point's radius-box touches: much cheaper than a
+    nearest-point query)."""
     from trimesh.triangles import closest_point
 
+    radius = np.broadcast_to(np.asarray(radius, float), (len(points),))
     tree = mesh.triangles_tree
-    ids, counts = tree.intersection_v(points - radius, points + radius)
+    ids, counts = tree.intersection_v(points - radius[:, None], points + radius[:, None])
     near = np.zeros(len(points), bool)
     if len(ids) == 0:
         return near
@@ -58,7 +60,7 @@ def _within(points: np.ndarray, mesh, radius: float) -> np.ndarray:
     for chunk in range(0, len(ids), 200_000):
         tri, who = ids[chunk : chunk + 200_000], owner[chunk : chunk + 200_000]
         distance = np.linalg.norm(closest_point(triangles[tri], points[who]) - points[who], axis=1)
-        near[who[distance < radius]] = True
+        near[who[distance < radius[who]]] = True
     return near
 
 
@@ -130,7 +132,7 @@ def validate(
     free = rng.uniform(lo, hi, size=(samples, 3))
     candidates = np.vstack([near, free])
     bar = progress_bar(total=4, desc=f"validating {len(pieces)} pieces", disable=not progress)
-    keep = ~_within(candidates, mesh, 0.9 * tolerance)
+    keep = ~within(candidates, mesh, 0.9 * tolerance)
     bar.update(1)
     keep[keep] &= ~inside_solids(candidates[keep], solids)
     if bounds:
