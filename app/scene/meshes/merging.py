@@ -73,7 +73,7 @@ def merged_pieces(pieces: list[Piece], mesh, reach: float, most: int = MOST_LINK
 def stays_near(triangles: np.ndarray, pieces: list[Piece], mesh, reach: float) -> bool:
     """Whether every point of the triangles (n, 3, 3) lies within `reach` of a piece or of the mesh's surface.
     Distance is 1-Lipschitz, so a triangle passes when its centre lies deep enough inside a piece, or near enough
-    to the surface, for the circle through its corners to pass; the others are halved. It fails at once
+    to the mesh's surface, for the circle through its corners to pass; the others are halved. It fails at once
     where a centre lies outside some plane of every piece by more than `reach` (farther than that from them all),
     and where one a quarter of `reach` across or smaller does not pass (so it is cautious by up to that much)."""
     if not len(triangles):
@@ -97,7 +97,9 @@ def stays_near(triangles: np.ndarray, pieces: list[Piece], mesh, reach: float) -
         )
         if np.any(outside > reach):
             return False
-        passed = reach - outside >= radii
+        # Inside a piece, the depth bounds the distance to it; outside, an offset is only a lower bound on the
+        # distance, so such a centre asks the mesh.
+        passed = (outside <= 0) & (reach - outside >= radii)
         ask = ~passed & (radii < reach)
         if ask.any():
             passed[ask] = within(centres[ask], mesh, reach - radii[ask])
