@@ -227,6 +227,16 @@ def test_a_pocket_that_uniform_rounds_leave_shut_brings_in_the_narrow_passage_so
     assert stats.roadmap.workspace_nodes > 0 and stats.sampler_stats["narrow"]["checks"] > 0
 
 
+def test_a_goal_shut_in_a_pocket_grows_out_of_it_by_checked_motions():
+    """The grasp pose deep in the thin shelf: its every candidate edge collides and no sample lands near it (without
+    the expansion, 100k checks found no path); motions grown from it, each checked, lead it out."""
+    result = plan_mbm("bookshelf_thin", 8)
+    expansion = result.stats.sampler_stats["expansion"]
+    assert 0 < expansion["samples"] <= expansion["tried"] and expansion["checks"] > 0
+    assert result.sources_on_path.get("expansion", 0) >= 1 and result.certified
+    assert result.collision_checks < 20_000
+
+
 def test_bar_path_uses_narrow_samples_and_smoothing_shortens_it(planned):
     result = planned("bar")
     assert result.narrow_on_path + result.workspace_on_path >= 1

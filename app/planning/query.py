@@ -60,18 +60,21 @@ class Query:
     uses it): they alone solve the open queries (the UR3's, most of the tunnel's, the Panda's everyday ones) for a
     few hundred checks. The narrow-passage sources -- their workspace-gap search and their walks cost several times
     a uniform round -- join only once the uniform rounds stall, which is measured after every round that leaves
-    start and goal apart, on the graph of edges not known to collide (`_uniform_stalled`):
+    start and goal apart, on the graph of edges not known to collide (`_uniform_stalled`, `_pockets`):
 
-    - both start and a goal have such an edge: each has surroundings the round explored, and every candidate path
-      between them collided. A passage uniform samples rarely hit is in the way (bar, maze, tunnel), and more of
-      them only grow both sides: the narrow-passage sources join from the next round.
-    - start or every goal has none (all its candidate edges collided): it is shut in a pocket, as the Panda's grasp
-      poses in a shelf or box are, which the next uniform sample landing closer to it may open. Uniform rounds go
-      on, up to POCKET_ROUNDS of them, then the narrow-passage sources join (the cage, window, welding pockets).
+    - both the start's and the goals' components hold POCKET_SHARE of the roadmap's nodes or more: each side has
+      surroundings the rounds explored, and every candidate path between them collided. A passage uniform samples
+      rarely hit is in the way (bar, maze, tunnel), and more of them only grow both sides: the narrow-passage
+      sources join from the next round.
+    - a side's component holds fewer (its candidate edges out collided): it is shut in a pocket, as the Panda's
+      grasp poses in a shelf or box are, which uniform samples landing closer to it may open. Uniform rounds go on,
+      up to POCKET_ROUNDS of them, then the narrow-passage sources join (the cage, window, welding pockets). Every
+      round meanwhile, the pocket grows out as RRT grows a tree (`_expand_pockets`): motions from its nodes toward
+      uniform samples, each checked, so the checks spent there decide edges.
 
     Once on, they join every round: narrow/NARROW_RAMP samples at first, doubling each round up to narrow/4, so a
-    query that needs few pays for few and one that needs many spends at most twice what it needed. Both tests count
-    edges and rounds, nothing timed, so a seed escalates at the same round on any machine.
+    query that needs few pays for few and one that needs many spends at most twice what it needed. The tests count
+    nodes and rounds, nothing timed, so a seed escalates at the same round on any machine.
 
     Three quarters of every narrow round (`workspace`) are placed rather than walked to: configurations with a piece
     of the robot in a narrow gap of the workspace (app.samplers.workspace). The walkers find a passage wherever
