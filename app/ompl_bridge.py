@@ -160,15 +160,18 @@ class OmplSpace:
         return state
 
     def q(self, state) -> np.ndarray:
+        """The configuration of an OMPL state. Scaled back from the weighted space and held to the bounds: a state on
+        OMPL's bound (a goal at a joint limit) comes back up to a rounding outside ours, where our checker calls
+        every configuration invalid."""
         q = np.empty(self.cspace.dim)
         if not self.compound:
             for i in range(self.cspace.dim):
                 q[i] = state[i]
-            return q / self.weights
+            return np.clip(q / self.weights, self.cspace.lower, self.cspace.upper)
         if len(self.linear):
             real = state[0]
             for j, i in enumerate(self.linear):
-                q[i] = real[j] / self.weights[i]
+                q[i] = np.clip(real[j] / self.weights[i], self.cspace.lower[i], self.cspace.upper[i])
         for k, i in enumerate(self.angles):
             q[i] = state[self._real + k].value
         return q

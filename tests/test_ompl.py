@@ -247,6 +247,23 @@ def test_states_convert_both_ways_with_angles_wrapped():
         assert np.allclose(back, cspace.wrap(q)) and cspace.distance(back, q) < 1e-9
 
 
+def test_a_state_on_the_bounds_comes_back_inside_them():
+    """The weighted scaling's rounding must not put a configuration at a joint limit outside it (our checker would
+    call it invalid: RRTConnect once skipped such a goal and spun until its time ran out)."""
+    weights = np.random.default_rng(0).uniform(0.05, 1.0, 6)  # (with these, the old conversion stepped out)
+    dim = len(weights)
+    cspace = ConfigurationSpace(
+        lower=np.full(dim, -np.pi), upper=np.full(dim, np.pi), weights=weights, angular=np.ones(dim, bool),
+        continuous=np.zeros(dim, bool), resolution=0.01,
+    )  # fmt: skip
+    for wrap in (True, False):
+        space = OmplSpace(cspace, wrap_angles=wrap)
+        for bound in (cspace.lower, cspace.upper):
+            back = space.q(space.state(bound))
+            assert np.all(back >= cspace.lower) and np.all(back <= cspace.upper)
+            assert cspace.distance(back, bound) < 1e-9
+
+
 def test_method_names():
     assert parse_method("ours:default") == {"ours": True, "sampler": "lfbs", "full": False, "alone": False}
     assert parse_method("ours:full") == {"ours": True, "sampler": "lfbs", "full": True, "alone": False}
