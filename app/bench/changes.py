@@ -34,6 +34,7 @@ import numpy as np
 from tqdm import tqdm
 
 from app.bench.queries import Settings, _ompl_answer, _ours, answer_all, build_cell, make_queries
+from app.bench.statistics import median_or_none
 from app.bench.store import ResultStore, TrialSpec
 from app.planning.settings import default_step
 from app.scene.changes import Attachment, CellChange, Move, Placement, Solid
@@ -266,11 +267,6 @@ def _params(label: str, method: str, settings: Settings) -> dict:
     }
 
 
-def _median(values):
-    values = [v for v in values if v is not None]
-    return float(np.median(values)) if values else None
-
-
 def summarise(label: str, found: dict) -> dict:
     """One change's row: per method its preparation (repair or rebuild), success, certified share, median query
     checks and seconds, colliding states re-checked; and repair over rebuild in checks and seconds."""
@@ -283,8 +279,8 @@ def summarise(label: str, found: dict) -> dict:
             "queries": len(answers),
             "successes": len(won),
             "certified": sum(a["certified"] for a in won),
-            "median_checks": _median([a["checks"] for a in answers]),
-            "median_seconds": _median([a["seconds"] for a in answers]),
+            "median_checks": median_or_none([a["checks"] for a in answers]),
+            "median_seconds": median_or_none([a["seconds"] for a in answers]),
             "states_rechecked": sum(a.get("states_rechecked", 0) for a in won),
             "colliding_states": sum(a.get("colliding_states", 0) for a in won),
             "seconds": [a["seconds"] for a in answers],

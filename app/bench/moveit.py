@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from app.bench.runner import sweep
+from app.bench.statistics import median_or_none, shown
 from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import SAFETY_NET_SECONDS, Budget
 from app.errors import NoPath, UserError
@@ -224,9 +225,6 @@ def _fine_check(oracle, path: np.ndarray) -> dict:
 
 
 # ---- the report ---------------------------------------------------------------------------------------------------
-def _median(values) -> float | None:
-    values = [v for v in values if v is not None]
-    return float(np.median(values)) if values else None
 
 
 def _ratio(a: float | None, b: float | None) -> float | None:
@@ -257,10 +255,12 @@ def summarise(rows: list[dict], methods: list[str]) -> dict:
                 "solved": sum(1 for c in cells if c.get("solved")),
                 "colliding": sum(1 for c in cells if c.get("solved") and c.get("colliding")),
                 "certified": sum(1 for c in cells if c.get("certified")),
-                "median_checks": _median([c["checks"] for c in paired]),
-                "median_seconds": _median([c["seconds"] for c in paired]),
-                "median_solve_seconds": _median([c.get("phase_seconds", {}).get("solve") for c in paired]),
-                "median_checks_per_second": _median([c["checks"] / c["seconds"] for c in paired if c["seconds"] > 0]),
+                "median_checks": median_or_none([c["checks"] for c in paired]),
+                "median_seconds": median_or_none([c["seconds"] for c in paired]),
+                "median_solve_seconds": median_or_none([c.get("phase_seconds", {}).get("solve") for c in paired]),
+                "median_checks_per_second": median_or_none(
+                    [c["checks"] / c["seconds"] for c in paired if c["seconds"] > 0]
+                ),
             }
         if len(methods) == 2:
             a, b = (row[m] for m in methods)
@@ -341,17 +341,13 @@ def table(report: dict) -> str:
         lines.append(
             f"| {row['kind']} | {row['problems']}"
             + (f" ({row['invalid']} invalid)" if row["invalid"] else "")
-            + f" | {a['solved']}, {b['solved']} | {_num(a['median_checks'], ',.0f')} vs "
-            f"{_num(b['median_checks'], ',.0f')} | {_num(ratio.get('checks'), '.2f')} | "
-            f"{_num(a['median_seconds'], '.2f')} vs {_num(b['median_seconds'], '.2f')} ({_num(solve, '.2f')}) | "
-            f"{_num(ratio.get('seconds'), '.2f')} | {_num(ratio.get('checks_per_second'), '.2f')} | "
+            + f" | {a['solved']}, {b['solved']} | {shown(a['median_checks'], ',.0f')} vs "
+            f"{shown(b['median_checks'], ',.0f')} | {shown(ratio.get('checks'), '.2f')} | "
+            f"{shown(a['median_seconds'], '.2f')} vs {shown(b['median_seconds'], '.2f')} ({shown(solve, '.2f')}) | "
+            f"{shown(ratio.get('seconds'), '.2f')} | {shown(ratio.get('checks_per_second'), '.2f')} | "
             f"{a['colliding']}, {b['colliding']} |"
         )
     return "\n".join(lines)
-
-
-def _num(value, spec: str) -> str:
-    return "-" if value is None else format(value, spec)
 
 
 def figure(report: dict, path: str) -> None:
@@ -400,7 +396,7 @@ def figure(report: dict, path: str) -> None:
     ratio = total.get("ratio", {})
     fig.suptitle(
         f"{report['problems']} MoveIt problems, {report['checks']:,} checks per run; over all problems both solved: "
-        f"median checks {_num(ratio.get('checks'), '.2f')}x, median seconds {_num(ratio.get('seconds'), '.2f')}x "
+        f"median checks {shown(ratio.get('checks'), '.2f')}x, median seconds {shown(ratio.get('seconds'), '.2f')}x "
         f"{other}'s",
         fontsize=10,
     )

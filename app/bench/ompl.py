@@ -27,6 +27,7 @@ import numpy as np
 
 from app.bench.plan import scene_step
 from app.bench.runner import sweep
+from app.bench.statistics import median_or_none
 from app.bench.store import Reuse, TrialSpec
 from app.checking.budget import Budget
 from app.errors import NoPath, UserError
@@ -176,11 +177,6 @@ def specs(scenes, methods, seeds, budget, step) -> list[TrialSpec]:
     return out
 
 
-def _median(values):
-    values = [v for v in values if v is not None]
-    return float(np.median(values)) if values else None
-
-
 def summarise(rows) -> list[dict]:
     """One row per scene x method (in the order first seen): success rate with its 95 % binomial interval, and
     medians over the successful runs of checks and seconds to the first solution, smoothing checks and path
@@ -204,13 +200,15 @@ def summarise(rows) -> list[dict]:
                 "successes": k,
                 "success_rate": k / n,
                 "success_ci": [float(ci.low), float(ci.high)],
-                "median_checks": _median([m["checks"] for m in won]),
-                "median_seconds": _median([m["seconds"] for m in won]),
+                "median_checks": median_or_none([m["checks"] for m in won]),
+                "median_seconds": median_or_none([m["seconds"] for m in won]),
                 # throughput: checks per second of planning, everything included (the planners' own work too)
-                "median_checks_per_second": _median([m["checks"] / m["seconds"] for m in won if m["seconds"] > 0]),
-                "median_smoothing_checks": _median([m.get("smoothing_checks") for m in won]),
-                "median_path_length": _median([m.get("path_length") for m in won]),
-                "checks_spent": _median([m["checks"] for m in metrics]),
+                "median_checks_per_second": median_or_none(
+                    [m["checks"] / m["seconds"] for m in won if m["seconds"] > 0]
+                ),
+                "median_smoothing_checks": median_or_none([m.get("smoothing_checks") for m in won]),
+                "median_path_length": median_or_none([m.get("path_length") for m in won]),
+                "checks_spent": median_or_none([m["checks"] for m in metrics]),
                 # a path found, but later than the budget, or failing our fine check after smoothing
                 "late": sum(1 for m in metrics if m.get("late")),
                 "failed_fine_check": sum(1 for m in metrics if m["solved"] and not m.get("fine_check_passed", 0.0)),

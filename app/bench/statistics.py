@@ -16,6 +16,17 @@ N_RESAMPLES = 2000  # bootstrap resamples per interval
 BOOTSTRAP_SEED = 0  # the same store always gives the same intervals
 
 
+def median_or_none(values) -> float | None:
+    """The median of the values that are not None; None when none are (a method that never succeeded)."""
+    values = [v for v in values if v is not None]
+    return float(np.median(values)) if values else None
+
+
+def shown(value, spec: str) -> str:
+    """A table cell: `value` formatted by `spec`, or "-" for None."""
+    return "-" if value is None else format(value, spec)
+
+
 def p_text(p: float) -> str:
     """'p=0.0032' as the report writes a p value (two significant digits); below what a double holds, a bound."""
     return "p < 1e-300" if p < 1e-300 else f"p={p:.2g}"

@@ -13,6 +13,17 @@ from app.scene.model import Scene
 from app.scene.spec import CustomSpec
 
 
+def add_package_path_argument(parser) -> None:
+    """--package-path NAME=DIR (repeatable), for every command that reads a robot's files."""
+    parser.add_argument(
+        "--package-path",
+        metavar="NAME=DIR",
+        action="append",
+        default=[],
+        help="resolve package://NAME/... in the robot's files to DIR (repeatable)",
+    )
+
+
 def add_arguments(parser) -> None:
     """The --robot/--env flags, as one group of `parser`."""
     group = parser.add_argument_group("bring your own robot and environment (instead of SCENE)")
@@ -23,13 +34,7 @@ def add_arguments(parser) -> None:
         help="an OMPL.app problem file (robot and environment meshes, start, goal, bounds), read with OMPL.app's "
         "frame conventions; the mesh, resolution and limit flags still apply",
     )
-    group.add_argument(
-        "--package-path",
-        metavar="NAME=DIR",
-        action="append",
-        default=[],
-        help="resolve package://NAME/... in the robot's files to DIR (repeatable)",
-    )
+    add_package_path_argument(group)
     group.add_argument(
         "--floating",
         action="store_true",

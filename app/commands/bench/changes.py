@@ -3,6 +3,7 @@ each change (app.bench.changes)."""
 
 from app.bench.changes import CHANGES, DEFAULT_METHODS, GOALS, METHODS, check_methods, figure, measure
 from app.bench.queries import Settings
+from app.bench.statistics import shown
 from app.commands.bench import results
 from app.commands.common import (
     BUDGET_HELP,
@@ -86,10 +87,6 @@ def run(args) -> int:
         return 0
 
 
-def _num(value, spec: str) -> str:
-    return "-" if value is None else format(value, spec)
-
-
 def table(report: dict) -> str:
     """Per cell, a markdown row per change: repair and rebuild (checks, seconds, their ratio), what the repair
     reset, and per method the queries' success, certified answers, median seconds and colliding states."""
@@ -129,7 +126,7 @@ def table(report: dict) -> str:
             ratio = r.get("repair_over_rebuild", {})
             solved = ", ".join(f"{m[k]['successes']}/{m[k]['queries']}" if k in m else "-" for k in report["methods"])
             ms = ", ".join(
-                _num(None if k not in m or m[k]["median_seconds"] is None else 1000 * m[k]["median_seconds"], ".0f")
+                shown(None if k not in m or m[k]["median_seconds"] is None else 1000 * m[k]["median_seconds"], ".0f")
                 for k in report["methods"]
             )
             won = sum(v["successes"] for v in m.values())
@@ -138,19 +135,19 @@ def table(report: dict) -> str:
                 + " | ".join(
                     [
                         r["change"],
-                        _num(repair.get("checks"), ",d"),
-                        _num(repair.get("seconds"), ".2f"),
-                        _num(rebuild.get("checks"), ",d"),
-                        _num(rebuild.get("seconds"), ".1f"),
-                        _num(ratio.get("checks"), ".4f"),
-                        _num(ratio.get("seconds"), ".3f"),
+                        shown(repair.get("checks"), ",d"),
+                        shown(repair.get("seconds"), ".2f"),
+                        shown(rebuild.get("checks"), ",d"),
+                        shown(rebuild.get("seconds"), ".1f"),
+                        shown(ratio.get("checks"), ".4f"),
+                        shown(ratio.get("seconds"), ".3f"),
                         f"{record.get('edges_reset', '-')}/{record.get('colliding_reset', '-')}",
                         f"{record.get('nodes_checked', '-')}/{record.get('nodes_dropped', '-')}",
                         solved,
                         ms,
                         f"{sum(v['certified'] for v in m.values())}/{won}",
                         str(sum(v["colliding_states"] for v in m.values())),
-                        *([_num(prepared.get("checks"), ",d"), _num(prepared.get("seconds"), ".1f")] if prm else []),
+                        *([shown(prepared.get("checks"), ",d"), shown(prepared.get("seconds"), ".1f")] if prm else []),
                     ]
                 )
                 + " |"

@@ -4,6 +4,7 @@ by OMPL's RRTConnect through one checker (app.bench.moveit)."""
 from pathlib import Path
 
 from app.bench.moveit import EXAMPLES, METHODS, PANDA, Robot, figure, measure, table
+from app.commands import custom
 from app.commands.bench import results
 from app.commands.common import (
     announce,
@@ -37,13 +38,7 @@ def register(kinds) -> None:
         help="the problems' robot (default: the shipped Panda, robots/panda/panda.urdf, with its SRDF)",
     )
     p.add_argument("--srdf", default=None, metavar="SRDF", help="its SRDF (needed for a request's group_name)")
-    p.add_argument(
-        "--package-path",
-        metavar="NAME=DIR",
-        action="append",
-        default=[],
-        help="resolve package://NAME/... in the robot's files to DIR (repeatable)",
-    )
+    custom.add_package_path_argument(p)
     p.add_argument("--per-kind", type=repetitions, default=10, help="the first N problems of each kind")
     p.add_argument("--seeds", type=repetitions, default=1, help="runs 0..N-1 per problem and method")
     p.add_argument("--checks", type=check_count, default=100_000, help="collision checks per run, either method")

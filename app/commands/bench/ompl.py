@@ -4,6 +4,7 @@
 import argparse
 
 from app.bench.ompl import DEFAULT_METHODS, MORE_METHODS, OURS, figure, measure, parse_method
+from app.bench.statistics import shown
 from app.commands.bench import results
 from app.commands.common import (
     announce,
@@ -70,10 +71,6 @@ def register(kinds) -> None:
     p.set_defaults(func=run)
 
 
-def _num(value, spec: str) -> str:
-    return "-" if value is None else format(value, spec)
-
-
 def run(args) -> int:
     check_outputs(args.png, creating_folders=(args.store,))
     report, reuse = measure(
@@ -132,10 +129,10 @@ def run(args) -> int:
                     notes.append(f"{r['late']} solved after the budget")
                 print(
                     f"  {r['method']:<22} {str(r['successes']) + '/' + str(r['runs']):>7} "
-                    f"{f'{lo:.0%}-{hi:.0%}':>11} {_num(r['median_checks'], '.0f'):>9} "
-                    f"{_num(r['median_seconds'], '.2f'):>8} {_num(r['median_checks_per_second'], '.0f'):>9} "
-                    f"{_num(r['median_smoothing_checks'], '.0f'):>10} "
-                    f"{_num(r['median_path_length'], '.4g'):>9}  {'; '.join(notes)}"
+                    f"{f'{lo:.0%}-{hi:.0%}':>11} {shown(r['median_checks'], '.0f'):>9} "
+                    f"{shown(r['median_seconds'], '.2f'):>8} {shown(r['median_checks_per_second'], '.0f'):>9} "
+                    f"{shown(r['median_smoothing_checks'], '.0f'):>10} "
+                    f"{shown(r['median_path_length'], '.4g'):>9}  {'; '.join(notes)}"
                 )
             c = s["comparison"]
             if c["best_ompl"] is None or not any(r["method"] == OURS for r in s["methods"]):

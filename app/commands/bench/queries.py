@@ -2,6 +2,7 @@
 multi-query PRM and OMPL's RRTConnect (app.bench.queries)."""
 
 from app.bench.queries import METHODS, MIXES, Settings, check_methods, figure, measure
+from app.bench.statistics import shown
 from app.commands.bench import results
 from app.commands.common import (
     BUDGET_HELP,
@@ -66,10 +67,6 @@ def register(kinds) -> None:
     p.set_defaults(func=run)
 
 
-def _num(value, spec: str) -> str:
-    return "-" if value is None else format(value, spec)
-
-
 def run(args) -> int:
     methods = check_methods(args.methods)
     check_outputs(args.png, creating_folders=(args.store,))
@@ -126,13 +123,13 @@ def table(report: dict) -> str:
                 + " | ".join(
                     [r["method"], *build]
                     + [
-                        _num(r["median_checks"], ".0f"),
-                        _num(r["p95_checks"], ".0f"),
-                        _num(r["median_seconds"], ".3f"),
-                        _num(r["median_certify_timing_seconds"], ".3f"),
-                        _num(r["p95_seconds"], ".3f"),
+                        shown(r["median_checks"], ".0f"),
+                        shown(r["p95_checks"], ".0f"),
+                        shown(r["median_seconds"], ".3f"),
+                        shown(r["median_certify_timing_seconds"], ".3f"),
+                        shown(r["p95_seconds"], ".3f"),
                         f"{r['successes']}/{r['queries']}",
-                        _num(r["certified_share"], ".0%"),
+                        shown(r["certified_share"], ".0%"),
                         f"{r['total_checks']}",
                         f"{r['total_seconds']:.1f}",
                     ]
@@ -147,10 +144,10 @@ def table(report: dict) -> str:
         lines += [f"\n{note}" for note in notes]
         for q in s["ratios"]:
             lines.append(
-                f"\n{q['of']} / {q['over']} total: checks {_num(q['checks'], '.3g')}x, seconds "
-                f"{_num(q['seconds'], '.3g')}x (goal <= {q['goal_seconds']:g}x); with the builds: checks "
-                f"{_num(q['checks_with_builds'], '.3g')}x, seconds {_num(q['seconds_with_builds'], '.3g')}x; over "
-                f"the {q['both_answered']} queries both answered: checks {_num(q['checks_both_answered'], '.3g')}x, "
-                f"seconds {_num(q['seconds_both_answered'], '.3g')}x"
+                f"\n{q['of']} / {q['over']} total: checks {shown(q['checks'], '.3g')}x, seconds "
+                f"{shown(q['seconds'], '.3g')}x (goal <= {q['goal_seconds']:g}x); with the builds: checks "
+                f"{shown(q['checks_with_builds'], '.3g')}x, seconds {shown(q['seconds_with_builds'], '.3g')}x; over "
+                f"the {q['both_answered']} queries both answered: checks {shown(q['checks_both_answered'], '.3g')}x, "
+                f"seconds {shown(q['seconds_both_answered'], '.3g')}x"
             )
     return "\n".join(lines)
