@@ -133,29 +133,49 @@ def test_merging_joins_pieces_in_line_and_keeps_an_l_apart():
     line = [bar, trimesh.creation.box([0.1, 0.02, 0.02], T([0.1, 0, 0]))]
     ell = [bar, trimesh.creation.box([0.02, 0.02, 0.1], T([0.04, 0, 0.06]))]
     for boxes, expected in ((line, 1), (ell, 2)):
+        surface = merging.Surface(trimesh.util.concatenate(boxes), merging.MERGE_REACH / 8)
         found, members = merging.merged_pieces(
-            [pieces.hull_piece(b.vertices) for b in boxes], trimesh.util.concatenate(boxes), merging.MERGE_REACH, 1
+            [pieces.hull_piece(b.vertices) for b in boxes], surface, merging.MERGE_REACH, 1
         )
         assert len(found) == expected and sorted(m for group in members for m in group) == [0, 1]
 
 
-def test_merged_pieces_of_a_ring_hold_it_and_stay_within_the_reach():
-    """A closed ring (radii 4 and 5 cm) as shell pieces, merged as far as the reach allows: fewer pieces, which hold
-    every corner of the ring and whose surfaces (3,000 points each, drawn apart from the merging's own test) lie
-    inside the ring or within MERGE_REACH of it. Its hull, which fills the hole, is never reached."""
+@pytest.mark.parametrize("closed", [True, False])
+def test_a_ring_link_is_bounded_by_hulls_that_hold_it_and_stay_within_the_reach(closed):
+    """A ring (radii 4 and 5 cm) as a robot link, closed or with its top cap gone (as CAD exports leave parts): a
+    few hulls, which hold every corner and surface point of the ring and whose surfaces (3,000 points each, drawn
+    apart from the bounding's own test) lie inside the ring or within MERGE_REACH of it. The ring's hull, which
+    fills the hole, is never taken: the centre stays free."""
     ring = trimesh.creation.annulus(r_min=0.04, r_max=0.05, height=0.03, sections=48)
-    tol = decomposition.default_tolerance(ring)
-    args = (ring, "auto", tol, 0.03, 60.0, False, "ring", True)
-    unmerged = decomposition.decompose_parts(*args)[0]
-    merged = decomposition.decompose_parts(*args, merge_reach=merging.MERGE_REACH)[0]
-    assert 1 < len(merged) < len(unmerged)
-    depth, _ = validation.inside_any(ring.vertices, merged, margin=0.0)
-    assert (depth >= -1e-9).all()
-    for piece in merged:
+    solid = ring.copy()
+    if not closed:
+        ring = ring.submesh([np.flatnonzero(ring.face_normals[:, 2] < 0.99)], append=True)
+        assert not ring.is_watertight
+    args = (ring, "auto", decomposition.default_tolerance(ring), 0.03, 60.0, False, "ring", True)
+    bounds, _, tried, methods, _ = decomposition.decompose_parts(*args, merge_reach=merging.MERGE_REACH)
+    assert 1 < len(bounds) <= 24 and set(methods) == {"split"} and tried[0]["ok"]
+    held = np.vstack([ring.vertices, ring.sample(3000, seed=2)])
+    depth, _ = validation.inside_any(np.vstack([held, [[0, 0, 0]]]), bounds, margin=0.0)
+    assert (depth[:-1] >= -1e-9).all() and depth[-1] < 0
+    for piece in bounds:
         surface = trimesh.Trimesh(piece.vertices, piece.faces).sample(3000, seed=1)
-        outside = surface[~ring.contains(surface)]
-        gap = np.linalg.norm(trimesh.proximity.closest_point(ring, outside)[0] - outside, axis=1)
+        outside = surface[~solid.contains(surface)]
+        gap = np.linalg.norm(trimesh.proximity.closest_point(solid, outside)[0] - outside, axis=1)
         assert gap.max(initial=0.0) <= merging.MERGE_REACH
+
+
+def test_a_fine_link_mesh_is_split_not_grown_face_by_face(monkeypatch):
+    """A link of 20,000 triangles (a finely tessellated ring) is bounded without the shell method, whose patches
+    grow a face at a time (minutes on a CAD gripper), and without asking trimesh for exact distances."""
+    ring = trimesh.creation.annulus(r_min=0.04, r_max=0.05, height=0.03, sections=48).subdivide().subdivide()
+    ring = ring.subdivide().subdivide() if len(ring.faces) < 20_000 else ring
+    assert len(ring.faces) >= 20_000
+    monkeypatch.setattr(decomposition, "shell_pieces", None)
+    monkeypatch.setattr(validation, "within", None)
+    args = (ring, "auto", decomposition.default_tolerance(ring), 0.03, 60.0, False, "ring", True)
+    bounds = decomposition.decompose_parts(*args, merge_reach=merging.MERGE_REACH)[0]
+    assert 1 < len(bounds) <= merging.MOST_LINK_PIECES * 2
+    assert (validation.inside_any(ring.vertices, bounds, margin=0.0)[0] >= -1e-9).all()
 
 
 def said(given) -> list[str]:
@@ -299,7 +319,7 @@ def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message)
 
 def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch):
     """As measured on thin-walled scenes: CoACD's pieces put free space in collision -> validation rejects them."""
-    monkeypatch.setattr(decomposition, "choose_method", lambda facts, conservative: ["coacd", "faces"])
+    monkeypatch.setattr(decomposition, "choose_method", lambda facts: ["coacd", "faces"])
 
     def hull_instead(parts, *args, **kwargs):
         return [[pieces.hull_piece(p.vertices)] for p in parts]
@@ -318,7 +338,7 @@ def test_a_crashing_coacd_falls_back_to_exact_faces(tmp_path, monkeypatch):
         raise coacd_process.MethodFailed("CoACD failed (exit code -11)")
 
     monkeypatch.setattr(coacd_process, "coacd_pieces", crash)
-    monkeypatch.setattr(decomposition, "choose_method", lambda facts, conservative: ["coacd", "faces"])
+    monkeypatch.setattr(decomposition, "choose_method", lambda facts: ["coacd", "faces"])
     path = tmp_path / "u.stl"
     u_channel().export(path)
     d = cache.decompose(path, cache_dir=tmp_path, progress=False)
@@ -388,3 +408,25 @@ def test_a_2700_face_scene_builds_few_pieces_once(tmp_path, monkeypatch):
     monkeypatch.setattr(decomposition, "decompose_parts", None)  # calling it now fails: this must read the cache
     again = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert again.from_cache
+
+
+def test_two_uncached_link_meshes_are_built_one_here_one_in_a_child(tmp_path, monkeypatch):
+    """A robot's uncached link meshes are built two at a time: this process builds one (the larger), a child
+    interpreter the other; both come back as built (not from the cache), and asking again reads both from it."""
+    from app.scene.prepare_meshes import MeshOptions
+
+    paths = [tmp_path / "big.stl", tmp_path / "small.stl"]
+    trimesh.creation.annulus(r_min=0.04, r_max=0.05, height=0.03, sections=64).export(paths[0])
+    trimesh.creation.annulus(r_min=0.02, r_max=0.03, height=0.02, sections=32).export(paths[1])
+    here = []
+    build = decomposition.decompose_parts
+    monkeypatch.setattr(
+        decomposition, "decompose_parts", lambda *a, **k: here.append(a[-1] if a else 0) or build(*a, **k)
+    )
+    options = MeshOptions(method="auto", tolerance=None, cache_dir=tmp_path / "cache", progress=False)
+    requests = [(path, True, 1.0) for path in paths]
+    built = options.built(requests)
+    assert len(here) == 1 and set(built) == set(requests)
+    assert not any(d.from_cache for d in built.values()) and all(d.build_seconds > 0 for d in built.values())
+    assert options.built(requests) == {} and all(options.decompose(*r).from_cache for r in requests)
+    assert len(here) == 1

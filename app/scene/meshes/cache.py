@@ -30,7 +30,7 @@ from app.scene.meshes.reading import file_sha256, load_mesh
 from app.scene.meshes.validation import volume_report
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
-DECOMPOSER_VERSION = "6"
+DECOMPOSER_VERSION = "7"
 CACHE_ENV = "NPP_CACHE_DIR"
 KEY_ENV = "NPP_KEY_FILE"
 KEY_BYTES = 32
@@ -160,6 +160,7 @@ class Decomposition:
     seconds: float = 0.0
     from_cache: bool = False
     bounds: list = field(default_factory=list)  # the mesh's box [lo, hi], from the verified manifest
+    build_seconds: float = 0.0  # what building the entry took
 
     def extent(self) -> tuple[np.ndarray, np.ndarray]:
         return np.array(self.bounds[0]), np.array(self.bounds[1])
@@ -191,27 +192,14 @@ def decompose(
     scale: float = 1.0,
 ) -> Decomposition:
     """Convex pieces for the mesh at `path`, from the cache when a valid entry exists, else built and cached. A mesh
-    with no valid decomposition is cached too: asking again raises the same UserError at once. `conservative`: see
-    `choose_method` (a robot's links), and its pieces merged to reach at most MERGE_REACH beyond the mesh; `scale`:
+    with no valid decomposition is cached too: asking again raises the same UserError at once. `conservative`: a robot's
+    link, bounded by hulls that reach at most MERGE_REACH beyond the mesh (see `decompose_parts`); `scale`:
     metres per unit of the mesh file (its largest factor where a model scales it), which sets that reach in the
     file's units."""
     path = Path(path)
-    if method not in MESH_METHODS:
-        raise UserError(f"unknown decomposition method '{method}' (known: {', '.join(MESH_METHODS)})")
-    digest = file_sha256(check_input(path, "mesh file"))
-    params = {
-        "method": method,
-        "tolerance": tolerance,
-        "coacd_threshold": coacd_threshold,
-        "version": DECOMPOSER_VERSION,
-        "coacd": coacd_version() if method == "coacd" or (method == "auto" and not conservative) else None,
-        "conservative": conservative,
-        "merge_reach": MERGE_REACH / scale if conservative and scale > 0 else None,
-    }
-    key = hashlib.sha256((digest + json.dumps(params, sort_keys=True)).encode()).hexdigest()[:32]
-    root = (cache_dir or cache_root()) / "meshes"
-    entry = root / key
     started = time.perf_counter()
+    root, key, digest, params = _entry_key(path, method, tolerance, coacd_threshold, cache_dir, conservative, scale)
+    entry = root / key
     secret = cache_key()
     found = _read_entry(entry, key, secret)
     if found is not None:
@@ -246,6 +234,52 @@ def decompose(
     result.seconds = time.perf_counter() - started
     result.from_cache = False
     return result
+
+
+def _entry_key(path: Path, method, tolerance, coacd_threshold, cache_dir, conservative, scale) -> tuple:
+    """Where `decompose`'s entry for these arguments lives: the cache's meshes folder, the key, the file's hash and
+    the parameters the key covers."""
+    if method not in MESH_METHODS:
+        raise UserError(f"unknown decomposition method '{method}' (known: {', '.join(MESH_METHODS)})")
+    digest = file_sha256(check_input(path, "mesh file"))
+    params = {
+        "method": method,
+        "tolerance": tolerance,
+        "coacd_threshold": coacd_threshold,
+        "version": DECOMPOSER_VERSION,
+        "coacd": coacd_version() if method == "coacd" or (method == "auto" and not conservative) else None,
+        "conservative": conservative,
+        "merge_reach": MERGE_REACH / scale if conservative and scale > 0 else None,
+    }
+    key = hashlib.sha256((digest + json.dumps(params, sort_keys=True)).encode()).hexdigest()[:32]
+    return (cache_dir or cache_root()) / "meshes", key, digest, params
+
+
+def is_cached(
+    path: str | Path,
+    method: str = "auto",
+    tolerance: float | None = None,
+    coacd_threshold: float = 0.03,
+    cache_dir: Path | None = None,
+    conservative: bool = False,
+    scale: float = 1.0,
+) -> bool:
+    """Whether `decompose` with these arguments would read a valid entry (or a stored failure) from the cache."""
+    root, key, _, _ = _entry_key(Path(path), method, tolerance, coacd_threshold, cache_dir, conservative, scale)
+    try:
+        return _read_entry(root / key, key, cache_key()) is not None
+    except UserError:
+        return True  # a stored failure
+
+
+def decompose_each(requests: str) -> None:
+    """`decompose` for each of a JSON list of keyword dicts, each stored in the cache (failures too, as `decompose`
+    stores them): a child interpreter's work, see app.scene.prepare_meshes.MeshOptions.warm."""
+    for request in json.loads(requests):
+        try:
+            decompose(**{**request, "cache_dir": request["cache_dir"] and Path(request["cache_dir"])})
+        except UserError:
+            pass  # (stored: the parent, asking again, reads and raises it)
 
 
 @dataclass
@@ -363,6 +397,7 @@ def _read_entry(entry: Path, key: str, secret: bytes | None, written: dict | Non
             volume=manifest["volume"],
             from_cache=True,
             bounds=manifest["bounds"],
+            build_seconds=float(manifest.get("build_seconds", 0.0)),
         )
     except (OSError, ValueError, KeyError, TypeError, IndexError, AttributeError):
         return None

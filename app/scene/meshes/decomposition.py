@@ -10,10 +10,14 @@ import numpy as np
 from app.errors import UserError
 from app.scene.files import MESH_METHODS
 from app.scene.meshes import coacd_process
-from app.scene.meshes.merging import merged_pieces
+from app.scene.meshes.merging import Enclosure, Surface, merged_pieces, split_hulls
 from app.scene.meshes.pieces import Piece, face_pieces, faces_instead, hull_groups, hull_piece, shell_pieces
 from app.scene.meshes.validation import Validation, components, validate
 
+# Distances to a mesh's surface are bounded to within reach / _SPACING (see merging.Surface), with at most about
+# _MOST_SURFACE_POINTS points (a UR5's upper arm takes 1.8 million at 5 mm / 8).
+_SPACING = 8
+_MOST_SURFACE_POINTS = 4_000_000
 # A part with fewer faces is no closed mesh (a closed part has at least 4): no per-part mesh and facts for it.
 _OPEN_FACTS = {"faces": 0, "closed": False, "volume": 0.0, "hull_volume": 0.0, "convex": False}
 
@@ -37,16 +41,14 @@ def classify(mesh) -> dict:
     }
 
 
-def choose_method(facts: dict, conservative: bool = False) -> list[str]:
+def choose_method(facts: dict) -> list[str]:
     """Methods to try in order: closed and convex -> one piece; closed -> shell pieces (seconds), then CoACD
-    (minutes), then exact faces; else exact faces. `conservative` (a robot's links): a closed part that is not
-    convex -> shell pieces, else its hull; any other part -> its hull (merged, see `hull_groups`): never smaller
-    than the mesh, never minutes."""
+    (minutes), then exact faces; else exact faces. (A robot's links take `_link_bounds` instead.)"""
     if facts["convex"]:
-        return ["convex"] if conservative else ["convex", "faces"]
+        return ["convex", "faces"]
     if facts["closed"]:
-        return ["shell", "convex"] if conservative else ["shell", "coacd", "faces"]
-    return ["convex"] if conservative else ["faces"]
+        return ["shell", "coacd", "faces"]
+    return ["faces"]
 
 
 def method_name(methods: dict) -> str:
@@ -67,12 +69,15 @@ def decompose_parts(
     merge_reach: float | None = None,
 ):
     """Choose a method per connected part, build, validate the whole; a part whose pieces fail moves on to its next
-    method. With `conservative` (or method "convex") hulls stand for their parts as bounds, merged by `hull_groups`
-    and exempt from the free-space test (they are larger than their parts by design). With `merge_reach` (in the
-    mesh's units), the validated pieces are then merged (`merged_pieces`) while every merged hull's surface stays
-    within `merge_reach` of the mesh: within `merge_reach - tolerance` of the validated pieces, which hold no free
-    point farther than the tolerance from it. Returns (pieces, the number of parts with pieces, the validation
+    method. A robot's link (`conservative`, method "auto") is bounded by `_link_bounds` instead. With
+    `conservative` and method "convex", hulls stand for their parts as bounds, merged by `hull_groups` and exempt
+    from the free-space test (they are larger than their parts by design). With `merge_reach` (in the mesh's
+    units), the validated pieces are then merged (`merged_pieces`) while every merged hull's surface stays within
+    `merge_reach` of the mesh: within `merge_reach - tolerance` of the validated pieces, which hold no free point
+    farther than the tolerance from it. Returns (pieces, the number of parts with pieces, the validation
     rounds, pieces per method before merging, parts per method)."""
+    if conservative and method == "auto":
+        return _link_bounds(mesh, tolerance, merge_reach)
     parts = _Parts(mesh, method, tolerance, conservative, label, progress, coacd_threshold, coacd_timeout)
     while True:
         if not parts.build():
@@ -83,9 +88,27 @@ def decompose_parts(
             break
         parts.mend_or_move_on(check, owner)
     if merge_reach is not None and merge_reach > tolerance:
-        pieces = merged_pieces(pieces, mesh, merge_reach - tolerance)[0]
+        reach = merge_reach - tolerance
+        pieces = merged_pieces(pieces, Surface(mesh, reach / _SPACING), reach)[0]
     final = parts.final_methods()
     return pieces, len(set(owner)), parts.tried, methods, {m: final.count(m) for m in MESH_METHODS[1:] if m in final}
+
+
+def _link_bounds(mesh, tolerance: float, reach: float):
+    """A robot link's pieces (`conservative`, method "auto"): hulls split top down, then merged, each within `reach`
+    of the mesh or inside its parts (`split_hulls`, `merged_pieces`), in seconds even on a CAD mesh of tens of
+    thousands of triangles. The same return as `decompose_parts`; the one round of "validation" records the rule."""
+    # (A link far larger than the reach, e.g. a mesh in millimetres read as metres, gets fewer, coarser points:
+    # then fewer hulls pass and more are kept, in bounded memory.)
+    surface = Surface(mesh, max(reach / _SPACING, np.sqrt(float(mesh.area) / _MOST_SURFACE_POINTS)))
+    enclosure = Enclosure(mesh)
+    hulls = split_hulls(mesh, surface, reach, tolerance / 5, enclosure)
+    pieces = merged_pieces(hulls, surface, reach, inside_is_near=False, enclosure=enclosure)[0]
+    rule = f"hulls of the faces, split and merged while every hull's surface stays within {reach:.3g} of the mesh"
+    record = asdict(Validation(ok=True, tolerance=reach, message=rule))
+    record.pop("bad_pieces"), record.pop("uncovered_faces")
+    tried = [{"methods": {"split": len(hulls)}, "pieces": len(pieces), "notes": [], **record}]
+    return pieces, enclosure.parts, tried, {"split": len(hulls)}, {"split": enclosure.parts}
 
 
 class _Parts:
@@ -103,7 +126,7 @@ class _Parts:
         self.facts = [classify(p) if p is not None else _OPEN_FACTS for p in self.parts]
         self.solids = [p for p, f in zip(self.parts, self.facts) if f["closed"]]
         self.bounding = conservative or method == "convex"
-        self.orders = [[method] if method != "auto" else choose_method(f, conservative) for f in self.facts]
+        self.orders = [[method] if method != "auto" else choose_method(f) for f in self.facts]
         self.level = [0] * len(self.parts)
         self.built: dict[int, list[Piece]] = {}
         self.shell_groups: dict[int, list] = {}  # a shell part's face groups, piece by piece

@@ -1,5 +1,8 @@
-"""A robot link's pieces merged into fewer convex hulls (`merged_pieces`), each staying near the link: a check's cost
-grows with the pieces of the links near each other, and a CAD link's decomposition can hold hundreds."""
+"""A robot link's convex bounds: a few hulls that hold its mesh and stay near it. A check's cost grows with the pieces
+of the links near each other, and a CAD link's decomposition can hold hundreds. `split_hulls` makes them top down
+(the link's hull, split until every hull's surface stays near the mesh: a fine CAD mesh of tens of thousands of
+triangles in seconds), `merged_pieces` merges pieces pairwise bottom up (a split's halves, or a validated
+decomposition's pieces)."""
 
 from __future__ import annotations
 
@@ -7,8 +10,8 @@ import heapq
 
 import numpy as np
 
-from app.scene.meshes.pieces import Piece, hull_piece
-from app.scene.meshes.validation import within
+from app.scene.meshes.pieces import Piece, hull_piece, thickened
+from app.scene.meshes.validation import components
 
 # How far (metres) a merged piece may reach beyond its link's mesh: a robot link never collides falsely where the
 # real mesh has this much clearance. (A merged hull holds its pieces, so it never makes a false "free".)
@@ -22,10 +25,154 @@ _MOST_TRIANGLES = 20_000
 _NEIGHBOURS = 8
 
 
-def merged_pieces(pieces: list[Piece], mesh, reach: float, most: int = MOST_LINK_PIECES):
+class Surface:
+    """A mesh's surface as points no farther than `spacing` from any point of it (each triangle halved until its
+    corners lie within `spacing` of its centre; the centres kept) in a k-d tree: bounds on the distance to the
+    surface, within `spacing` of the truth, for many points at once. (An exact distance asks every triangle near
+    the point: on a fine CAD mesh, hundreds.)"""
+
+    def __init__(self, mesh, spacing: float):
+        from scipy.spatial import cKDTree
+
+        triangles, centres = np.asarray(mesh.triangles, float), []
+        while len(triangles):
+            middle = triangles.mean(axis=1)
+            small = np.linalg.norm(triangles - middle[:, None], axis=2).max(axis=1) <= spacing
+            centres.append(middle[small])
+            triangles = _halved(triangles[~small])
+        self.tree, self.spacing = cKDTree(np.vstack(centres)), spacing
+
+    def near(self, points: np.ndarray, radius) -> np.ndarray:
+        """Whether each point is surely within `radius` of the surface."""
+        radius = np.broadcast_to(radius, (len(points),))
+        return self.tree.query(points, distance_upper_bound=float(np.max(radius, initial=0.0)))[0] < radius
+
+    def farther(self, points: np.ndarray, radius) -> np.ndarray:
+        """Whether each point is surely farther than `radius` from the surface."""
+        radius = np.broadcast_to(radius, (len(points),))
+        bound = float(np.max(radius, initial=0.0)) + self.spacing
+        return self.tree.query(points, distance_upper_bound=bound)[0] - self.spacing > radius
+
+
+# Fixed ray directions for `Enclosure` (trimesh's own retries go in a random one: not repeatable).
+_RAYS = np.array([[0.4395064455, 0.617598629942, 0.652231566745], [0.8, -0.6, 0.0], [-0.36, -0.48, 0.8]])
+
+
+class Enclosure:
+    """Where a link's mesh encloses a point, for `stays_near`: a line through it in one of a few fixed directions
+    crosses one of its connected parts, or the whole mesh, an odd number of times on each side; the next direction
+    is tried only where the two sides disagree for some part. (A point outside a closed surface sees even counts
+    both ways; a hole in a part spoils only the lines through it; a CAD export's open patches may close a solid
+    only together.) Only how tight a link's hulls are rests on this: they hold its faces whatever it says. One ray
+    cast per direction and side for all the parts at once."""
+
+    def __init__(self, mesh):
+        self.mesh = mesh
+        self.part_of = np.empty(len(mesh.faces), int)
+        parts = components(mesh)
+        for k, part in enumerate(parts):
+            self.part_of[part] = k
+        self.parts = len(parts)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        inside = np.zeros(len(points), bool)
+        lo, hi = self.mesh.bounds
+        todo = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
+        n = self.parts + 1  # a cell per (point, part), and one for the whole mesh
+        for ray in _RAYS:
+            if not len(todo):
+                break
+            odd = []
+            for side in (ray, -ray):
+                triangles, rays = self.mesh.ray.intersects_id(
+                    points[todo], np.tile(side, (len(todo), 1)), multiple_hits=True
+                )[:2]
+                cells, counts = np.unique(
+                    np.r_[rays * n + self.part_of[triangles], rays * n + n - 1], return_counts=True
+                )
+                odd.append(cells[counts % 2 == 1])
+            found = np.zeros(len(todo), bool)
+            found[np.intersect1d(odd[0], odd[1]) // n] = True
+            unsure = np.zeros(len(todo), bool)
+            unsure[np.setxor1d(odd[0], odd[1]) // n] = True
+            inside[todo[found]] = True
+            todo = todo[~found & unsure]  # even both ways for every part: outside
+        return inside
+
+
+def split_hulls(
+    mesh, surface: Surface, reach: float, thickness: float, enclosure: Enclosure | None = None
+) -> list[Piece]:
+    """Convex hulls that hold the mesh, each with its whole surface within `reach` of the mesh's surface or where
+    it is enclosed (`enclosure`; as `stays_near` tests it). The hull of all the faces if it passes; else each
+    connected part's, longest first (a CAD export's cap or sliver inside a hull taken already adds none), and a
+    hull that strays farther split into the hulls of its faces' two halves (`_halves`). Each face lies in a hull,
+    so the hulls hold the mesh (never a false free), open or closed. Flat groups are thickened by `thickness` (see
+    `thickened`); one face's hull is the face, so the splitting ends. What no surface test sees: a cavity reached
+    through an opening under 2 `reach` wide is filled, as by any hull."""
+    vertices = np.asarray(mesh.vertices, float)
+    faces = np.asarray(mesh.faces)
+    centres = np.asarray(mesh.triangles_center, float)
+    size = float(np.linalg.norm(mesh.extents))
+
+    def hull_of(group: np.ndarray) -> Piece:
+        return hull_piece(thickened(vertices[np.unique(faces[group])], thickness))
+
+    def passes(hull: Piece) -> bool:
+        return stays_near(hull.vertices[hull.faces], [], surface, reach, enclosure)
+
+    whole = hull_of(np.arange(len(faces)))
+    if passes(whole):
+        return [whole]
+    parts = components(mesh)
+    spans = [np.linalg.norm(np.ptp(vertices[faces[part]].reshape(-1, 3), axis=0)) for part in parts]
+    hulls = []
+    for part in (parts[k] for k in np.argsort(spans, kind="stable")[::-1]):
+        corners = vertices[np.unique(faces[part])]
+        if any(np.all(corners @ h.equations[:, :3].T + h.equations[:, 3] <= 1e-9 * size) for h in hulls):
+            continue
+        todo = [part]
+        while todo:
+            group = todo.pop()
+            hull = hull_of(group)
+            if len(group) == 1 or passes(hull):
+                hulls.append(hull)
+            else:
+                todo += _halves(group, centres, vertices, faces)
+    return hulls
+
+
+def _halves(group: np.ndarray, centres: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray]:
+    """The group's faces in two halves at the median of their centres along one of their principal axes: the axis
+    whose halves' hulls hold the least volume (the cut that removes most of what the group's hull added)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    spread = centres[group] - centres[group].mean(axis=0)
+    best = None
+    for axis in np.linalg.svd(spread, full_matrices=False)[2]:
+        order = np.argsort(spread @ axis, kind="stable")
+        halves = [group[order[len(group) // 2 :]], group[order[: len(group) // 2]]]
+        try:
+            volume = sum(ConvexHull(vertices[np.unique(faces[half])]).volume for half in halves)
+        except QhullError:
+            volume = 0.0  # a flat half: nothing added
+        if best is None or volume < best[0]:
+            best = (volume, halves)
+    return best[1]
+
+
+def merged_pieces(
+    pieces: list[Piece],
+    surface: Surface,
+    reach: float,
+    most: int = MOST_LINK_PIECES,
+    inside_is_near: bool = True,
+    enclosure: Enclosure | None = None,
+):
     """`pieces` merged pairwise into convex hulls while more than `most` are left, least added volume first (the
-    merged hull's volume over the two hulls'), a pair only if its hull's surface stays within `reach` of the
-    original pieces or the mesh's surface (`stays_near`). A piece is tried only with its few nearest (by their
+    merged hull's volume over the two hulls'), a pair only if its hull's surface stays within `reach` of the mesh's
+    surface, or where it is enclosed (`enclosure`), or (`inside_is_near`: pieces that stray no farther than the
+    caller allows for) of the original pieces (`stays_near`). A piece is tried only with its few nearest (by their
     corners), within `reach`: farther ones would bridge a gap. Returns the pieces and each one's members (indices
     into `pieces`)."""
     from scipy.spatial import ConvexHull
@@ -62,7 +209,7 @@ def merged_pieces(pieces: list[Piece], mesh, reach: float, most: int = MOST_LINK
         # A hull face whose corners all come from one side lies on that side's surface, already near the mesh.
         from_a = hull.simplices < len(live[a][0])
         bridging = hull.points[hull.simplices[from_a.any(axis=1) & ~from_a.all(axis=1)]]
-        if not stays_near(bridging, pieces, mesh, reach):
+        if not stays_near(bridging, pieces if inside_is_near else [], surface, reach, enclosure):
             continue
         add(next_key, hull.points[hull.vertices], hull.volume, live.pop(a)[2] + live.pop(b)[2])
         pair_with_neighbours(next_key)
@@ -70,21 +217,27 @@ def merged_pieces(pieces: list[Piece], mesh, reach: float, most: int = MOST_LINK
     return [hull_piece(entry[0]) for entry in live.values()], [entry[2] for entry in live.values()]
 
 
-def stays_near(triangles: np.ndarray, pieces: list[Piece], mesh, reach: float) -> bool:
-    """Whether every point of the triangles (n, 3, 3) lies within `reach` of a piece or of the mesh's surface.
+def stays_near(
+    triangles: np.ndarray, pieces: list[Piece], surface: Surface, reach: float, enclosure: Enclosure | None = None
+) -> bool:
+    """Whether every point of the triangles (n, 3, 3) lies within `reach` of a piece (none: the mesh alone) or of the
+    mesh's surface, or where the mesh encloses it (`enclosure`: where no obstacle can be).
     Distance is 1-Lipschitz, so a triangle passes when its centre lies deep enough inside a piece, or near enough
-    to the mesh's surface, for the circle through its corners to pass; the others are halved. It fails at once
-    where a centre lies outside some plane of every piece by more than `reach` (farther than that from them all),
-    and where one a quarter of `reach` across or smaller does not pass (so it is cautious by up to that much)."""
+    to the mesh's surface, for the circle through its corners to pass; the others are halved. A centre enclosed
+    at depth d passes a triangle of radius up to `reach` + d: a point of it outside the solid is no farther
+    from the surface than from the centre, less d. It fails at once where a centre lies outside some plane of every
+    piece by more than `reach` (farther than that from them all), and where one a quarter of `reach` across or
+    smaller does not pass (so it is cautious by up to that much)."""
     if not len(triangles):
         return True  # (one piece held the other)
     corners = triangles.reshape(-1, 3)
     boxes = np.array([(p.vertices.min(axis=0) - reach, p.vertices.max(axis=0) + reach) for p in pieces])
+    boxes = boxes.reshape(-1, 2, 3)
     nearby = np.flatnonzero(
         np.all(boxes[:, 0] <= corners.max(axis=0), axis=1) & np.all(boxes[:, 1] >= corners.min(axis=0), axis=1)
     )
-    if not len(nearby):
-        return False
+    if pieces and not len(nearby):
+        return False  # (pieces hold the mesh's surface: far from them all is far from it)
     axis = np.ptp(corners, axis=0).argmax()
     while len(triangles):
         if len(triangles) > _MOST_TRIANGLES:
@@ -95,14 +248,21 @@ def stays_near(triangles: np.ndarray, pieces: list[Piece], mesh, reach: float) -
         outside = np.concatenate(
             [_least_offset(chunk, pieces, nearby, boxes) for chunk in np.array_split(centres, -(-len(centres) // 256))]
         )
-        if np.any(outside > reach):
+        if pieces and np.any(outside > reach):
             return False
         # Inside a piece, the depth bounds the distance to it; outside, an offset is only a lower bound on the
         # distance, so such a centre asks the mesh.
         passed = (outside <= 0) & (reach - outside >= radii)
         ask = ~passed & (radii < reach)
         if ask.any():
-            passed[ask] = within(centres[ask], mesh, reach - radii[ask])
+            passed[ask] = surface.near(centres[ask], reach - radii[ask])
+        if enclosure is not None and not passed.all():
+            inside = np.zeros(len(centres), bool)
+            inside[~passed] = enclosure.contains(centres[~passed])
+            passed |= inside & (radii <= reach)
+            deep = inside & ~passed
+            if deep.any():
+                passed[deep] = surface.farther(centres[deep], radii[deep] - reach)
         if np.any(~passed & (radii <= reach / 4)):
             return False
         triangles = _halved(triangles[~passed])

@@ -53,7 +53,7 @@ def thickened(points: np.ndarray, thickness: float) -> np.ndarray:
     or straight point set (a planar cap, a 2-face sliver) then has a solid convex hull that still holds it."""
     points = np.asarray(points, float)
     centred = points - points.mean(axis=0)
-    axes = np.linalg.svd(centred)[2]  # (a part has a triangle at least: 3 points, 3 axes)
+    axes = np.linalg.svd(centred, full_matrices=False)[2]  # (a part has a triangle at least: 3 points, 3 axes)
     for axis in axes[np.ptp(centred @ axes.T, axis=0) < thickness]:
         points = np.vstack([points + 0.5 * thickness * axis, points - 0.5 * thickness * axis])
     return points
