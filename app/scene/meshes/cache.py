@@ -30,7 +30,7 @@ from app.scene.meshes.reading import file_sha256, load_mesh
 from app.scene.meshes.validation import volume_report
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
-DECOMPOSER_VERSION = "7"
+DECOMPOSER_VERSION = "8"
 CACHE_ENV = "NPP_CACHE_DIR"
 KEY_ENV = "NPP_KEY_FILE"
 KEY_BYTES = 32

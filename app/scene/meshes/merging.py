@@ -143,21 +143,26 @@ def split_hulls(
 
 
 def _halves(group: np.ndarray, centres: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray]:
-    """The group's faces in two halves at the median of their centres along one of their principal axes: the axis
-    whose halves' hulls hold the least volume (the cut that removes most of what the group's hull added)."""
+    """The group's faces in two halves by a plane across one of their principal axes, at the median of their
+    centres or at the middle of their span: of those six cuts, the one whose halves' hulls hold the least volume
+    (the cut that removes most of what the group's hull added)."""
     from scipy.spatial import ConvexHull, QhullError
 
     spread = centres[group] - centres[group].mean(axis=0)
-    best = None
+    best = (np.inf, [group[: len(group) // 2], group[len(group) // 2 :]])  # (centres all in one point)
     for axis in np.linalg.svd(spread, full_matrices=False)[2]:
-        order = np.argsort(spread @ axis, kind="stable")
-        halves = [group[order[len(group) // 2 :]], group[order[: len(group) // 2]]]
-        try:
-            volume = sum(ConvexHull(vertices[np.unique(faces[half])]).volume for half in halves)
-        except QhullError:
-            volume = 0.0  # a flat half: nothing added
-        if best is None or volume < best[0]:
-            best = (volume, halves)
+        along = spread @ axis
+        for cut in (np.median(along), (along.min() + along.max()) / 2):
+            below = along < cut
+            if below.all() or not below.any():
+                continue
+            halves = [group[~below], group[below]]
+            try:
+                volume = sum(ConvexHull(vertices[np.unique(faces[half])]).volume for half in halves)
+            except QhullError:
+                volume = 0.0  # a flat half: nothing added
+            if volume < best[0]:
+                best = (volume, halves)
     return best[1]
 
 
@@ -257,12 +262,11 @@ def stays_near(
         if ask.any():
             passed[ask] = surface.near(centres[ask], reach - radii[ask])
         if enclosure is not None and not passed.all():
-            inside = np.zeros(len(centres), bool)
-            inside[~passed] = enclosure.contains(centres[~passed])
-            passed |= inside & (radii <= reach)
-            deep = inside & ~passed
-            if deep.any():
-                passed[deep] = surface.farther(centres[deep], radii[deep] - reach)
+            # Enclosed, a triangle passes if its radius is under reach + the centre's depth: ask only those whose
+            # centre lies that deep if it is enclosed at all (the ray casts are the test's cost).
+            could = np.flatnonzero(~passed)
+            could = could[(radii[could] <= reach) | surface.farther(centres[could], radii[could] - reach)]
+            passed[could] = enclosure.contains(centres[could])
         if np.any(~passed & (radii <= reach / 4)):
             return False
         triangles = _halved(triangles[~passed])
