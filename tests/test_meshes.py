@@ -420,13 +420,11 @@ def test_two_uncached_link_meshes_are_built_one_here_one_in_a_child(tmp_path, mo
     trimesh.creation.annulus(r_min=0.02, r_max=0.03, height=0.02, sections=32).export(paths[1])
     here = []
     build = decomposition.decompose_parts
-    monkeypatch.setattr(
-        decomposition, "decompose_parts", lambda *a, **k: here.append(a[-1] if a else 0) or build(*a, **k)
-    )
+    monkeypatch.setattr(decomposition, "decompose_parts", lambda *a, **k: here.append(a[6]) or build(*a, **k))
     options = MeshOptions(method="auto", tolerance=None, cache_dir=tmp_path / "cache", progress=False)
     requests = [(path, True, 1.0) for path in paths]
     built = options.built(requests)
-    assert len(here) == 1 and set(built) == set(requests)
-    assert not any(d.from_cache for d in built.values()) and all(d.build_seconds > 0 for d in built.values())
+    assert here == ["big.stl"] and set(built) == set(requests)  # (the label: the file's name)
+    assert not any(d.from_cache for d in built.values())
     assert options.built(requests) == {} and all(options.decompose(*r).from_cache for r in requests)
     assert len(here) == 1
