@@ -333,3 +333,23 @@ def test_the_time_at_a_path_parameter_is_where_toppras_s_of_t_reaches_it():
     t = times_at(s_of_t, s)
     assert t[0] == 0.0 and np.all(np.diff(t) > 0) and t[-1] <= s_of_t.end_time()
     assert np.allclose(s_of_t.vector_values(t).ravel(), s, rtol=0, atol=1e-12 * arc[-1])
+
+
+def test_a_grid_point_rounded_past_the_legs_end_is_not_toppras_last():
+    """A leg whose last break, recomputed as s0 + (s1 - s0), rounds one bit past the path's end (numbers from a
+    MotionBenchMaker Panda problem, where Drake's Toppra then refused the grid and planning failed): the grid ends
+    exactly where the path does, and Toppra times the leg."""
+    from pydrake.trajectories import PiecewisePolynomial
+
+    from app.motion.blends import Leg
+    from app.motion.leg_timing import _grid, _sliders, _toppra
+
+    middle, end = 3.58661499371691, 7.807026541280375
+    assert middle + (end - middle) != end  # the rounding this test is about
+    path = PiecewisePolynomial.FirstOrderHold([0.0, middle, end], np.array([[0.0, middle, end], [0.0, 0.0, 0.0]]))
+    leg = Leg(0, 2, 0.0, path, [(0.0, middle, None), (middle, end, None)])
+    for on_breaks in (True, False):
+        grid = _grid(leg, 16, on_breaks)
+        assert grid[0] == 0.0 and grid[-1] == end and np.all(np.diff(grid) > 0)
+    s_of_t = _toppra(_sliders(2), leg, np.ones(2), np.ones(2))
+    assert np.isclose(s_of_t.vector_values([s_of_t.end_time()])[0, 0], end)

@@ -24,12 +24,16 @@ SPEED_POINTS = 16
 def _grid(leg: Leg, per_blend: int, on_breaks: bool) -> np.ndarray:
     """Toppra's grid: per_blend intervals per blend, GRID_STRAIGHT over the leg's straight pieces; on the pieces'
     breaks (where the curvature jumps), or else at the intervals' middles, none on a break."""
-    length = leg.pieces[-1][1] - leg.offset
-    grid = [np.zeros(1)]
+    end = leg.path.end_time()
+    grid = []
     for s0, s1, corner in leg.pieces:
-        n = per_blend if corner is not None else max(1, math.ceil(GRID_STRAIGHT * (s1 - s0) / length))
+        n = per_blend if corner is not None else max(1, math.ceil(GRID_STRAIGHT * (s1 - s0) / end))
         grid.append(s0 + (np.arange(n) + (1.0 if on_breaks else 0.5)) / n * (s1 - s0) - leg.offset)
-    return np.unique(np.concatenate(grid + [[length]]))
+    # Toppra demands the grid's ends be the path's exactly, and a point on the last break, computed as
+    # s0 + (s1 - s0), can round past it.
+    inner = np.unique(np.concatenate(grid))
+    tiny = 1e-12 * max(end, 1.0)
+    return np.concatenate([[leg.path.start_time()], inner[(inner > tiny) & (inner < end - tiny)], [end]])
 
 
 def _toppra(plant, leg: Leg, v: np.ndarray, a: np.ndarray):
