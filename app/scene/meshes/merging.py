@@ -68,11 +68,11 @@ class Enclosure:
 
     def __init__(self, mesh):
         self.mesh = mesh
+        self.groups = components(mesh)  # each connected part's faces
         self.part_of = np.empty(len(mesh.faces), int)
-        parts = components(mesh)
-        for k, part in enumerate(parts):
+        for k, part in enumerate(self.groups):
             self.part_of[part] = k
-        self.parts = len(parts)
+        self.parts = len(self.groups)
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         inside = np.zeros(len(points), bool)
@@ -124,7 +124,7 @@ def split_hulls(
     whole = hull_of(np.arange(len(faces)))
     if passes(whole):
         return [whole]
-    parts = components(mesh)
+    parts = enclosure.groups if enclosure is not None else components(mesh)
     spans = [np.linalg.norm(np.ptp(vertices[faces[part]].reshape(-1, 3), axis=0)) for part in parts]
     hulls = []
     for part in (parts[k] for k in np.argsort(spans, kind="stable")[::-1]):
