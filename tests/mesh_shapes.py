@@ -120,3 +120,18 @@ def holed_shell(
     mesh.fix_normals()
     assert mesh.is_watertight and mesh.volume > 0
     return mesh
+
+
+def loose_walls(jitter: float = 1e-6, seed: int = 0) -> trimesh.Trimesh:
+    """Two parallel walls 2 apart (|y| from 1 to 1.2, 4 long, 2 high) and a floor slab beside them, as a scene
+    export leaves them: every triangle with corners of its own, moved by up to `jitter`, so that no two share an
+    edge (OMPL.app's environments: Maze_planar's 1,892 triangles are 1,884 connected parts)."""
+    T = trimesh.transformations.translation_matrix
+    boxes = [
+        trimesh.creation.box([4, 0.2, 2], T([0, 1.1, 1])),
+        trimesh.creation.box([4, 0.2, 2], T([0, -1.1, 1])),
+        trimesh.creation.box([3, 3, 0.2], T([5, 0, 0.1])),
+    ]
+    triangles = np.vstack([b.triangles for b in boxes])
+    triangles = triangles + np.random.default_rng(seed).uniform(-jitter, jitter, triangles.shape)
+    return trimesh.Trimesh(triangles.reshape(-1, 3), np.arange(3 * len(triangles)).reshape(-1, 3), process=False)

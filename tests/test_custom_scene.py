@@ -104,12 +104,12 @@ def test_default_mesh_tolerance_follows_the_edge_check_step_on_a_torus(files, tm
     assert torus["validation"]["ok"] and torus["validation"]["tolerance"] == pytest.approx(
         ENV_TOLERANCE_PER_STEP * scene.resolution
     )
-    assert torus["method"] == "shell" and torus["pieces"] <= 80
+    assert torus["method"] == "split" and torus["pieces"] <= 80
 
 
 def test_default_step_follows_the_robot_not_its_face_plates(files, cache):
-    """An open U as the robot becomes thin face plates; the step is a quarter of the U's smallest width (2, its
-    height), not of a plate's thickness."""
+    """An open U as the robot is bounded by thin hulls of its walls; the step is a quarter of the U's smallest width
+    (2, its height), not of a wall's thickness."""
     spec = CustomSpec(
         robot=str(files / "open_channel.dae"),
         env=[],
@@ -118,7 +118,7 @@ def test_default_step_follows_the_robot_not_its_face_plates(files, cache):
         bounds=["-5..5", "-5..5", "-5..5"],
     )
     scene = build_scene(spec, cache_dir=cache, progress=False)
-    assert scene.info["decompositions"][0]["method"] == "faces"
+    assert scene.info["decompositions"][0]["method"] == "split"
     assert scene.resolution == pytest.approx(0.25 * 2.0, rel=0.02)
 
 
@@ -140,7 +140,7 @@ def test_open_collada_channel_and_second_build_is_cached(files, tmp_path, monkey
     from app.scene.meshes import decomposition
 
     first = build_scene(_spec(files, env="open_channel.dae"), cache_dir=tmp_path, progress=False)
-    assert first.info["decompositions"][1]["method"] == "faces"
+    assert first.info["decompositions"][1]["method"] == "split"
     oracle = CollisionOracle(first).context()
     assert oracle.is_free(np.array(IN_SLOT)) and not oracle.is_free(np.array([0.0, 1.0, 1.5, 0, 0, 0]))
     assert oracle.edge_free(np.array([-3.0, 0, 1.5, 0, 0, 0]), np.array([3.0, 0, 1.5, 0, 0, 0]))
@@ -722,9 +722,9 @@ def test_a_cache_folder_with_uri_characters_in_its_name_works(files, tmp_path):
     assert scene.dim == 6
 
 
-def test_the_trap_example_becomes_shell_pieces_and_its_cube_escapes(tmp_path, monkeypatch, capsys):
-    """examples/trap: a 3,072-triangle closed, non-convex shell. Built from an empty cache it becomes shell pieces
-    (a third of the face plates it made before), and the cube leaves through the opening on a certified path."""
+def test_the_trap_example_is_bounded_and_its_cube_escapes(tmp_path, monkeypatch, capsys):
+    """examples/trap: a 3,072-triangle closed, non-convex shell. Built from an empty cache it becomes hulls within
+    the edge-check step's tolerance of it, and the cube leaves through the opening on a certified path."""
     from app.cli import main
 
     monkeypatch.setenv("NPP_CACHE_DIR", str(tmp_path / "cache"))
@@ -737,7 +737,7 @@ def test_the_trap_example_becomes_shell_pieces_and_its_cube_escapes(tmp_path, mo
     assert np.linalg.norm(path[:, :3], axis=1).max() > 1.3  # out of the shell: round it, not through the wall
     built = load_scene(scene, cache_dir=tmp_path / "cache").info["decompositions"]
     trap = next(d for d in built if d["mesh"] == "trap.obj")
-    assert trap["method"] == "shell" and trap["pieces"] < 400 and trap["from_cache"]
+    assert trap["method"] == "split" and trap["pieces"] < 400 and trap["from_cache"]
 
 
 def test_ones_own_robot_and_environment_are_drawn_in_different_colours(channel_oracle, monkeypatch):

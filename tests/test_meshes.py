@@ -1,4 +1,4 @@
-"""app.scene.meshes: conversion, the per-mesh method choice, validation (it must be able to fail) and the cache."""
+"""app.scene.meshes: conversion, bounds and named methods, validation (it must be able to fail) and the cache."""
 
 import numpy as np
 import pytest
@@ -53,10 +53,10 @@ def test_thick_face_pieces_fail_validation():
     assert not check.ok and check.violations > 0
 
 
-def test_open_channel_takes_exact_faces_and_coplanar_triangles_merge(tmp_path):
+def test_open_channel_by_exact_faces_has_coplanar_triangles_merged(tmp_path):
     path = tmp_path / "u.stl"
     open_u().export(path)
-    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, method="faces", cache_dir=tmp_path, progress=False)
     assert d.method == "faces" and d.facts["closed"] is False
     assert len(d.pieces) == 8  # 16 triangles: each wall rectangle's two triangles become one piece
     assert d.validation["ok"] and d.validation["violations"] == 0
@@ -66,14 +66,14 @@ def test_overlapping_closed_boxes_are_one_piece_each(tmp_path):
     path = tmp_path / "u.stl"
     u_boxes().export(path)  # three boxes in one mesh, touching: not watertight as a whole, each part closed
     d = cache.decompose(path, cache_dir=tmp_path, progress=False)
-    assert d.method == "convex" and len(d.pieces) == 3 and d.facts["components"] == 3
+    assert d.method == "split" and len(d.pieces) == 3 and d.facts["components"] == 3
     assert d.validation["ok"]
 
 
 def test_bent_sheet_takes_exact_faces_and_validates(tmp_path):
     path = tmp_path / "sheet.obj"
     bent_sheet().export(path)
-    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, method="faces", cache_dir=tmp_path, progress=False)
     assert d.method == "faces"
     assert d.validation["ok"] and d.validation["near_surface_points"] > 1000 and d.validation["free_points"] > 1000
     # every piece is thin: within tolerance of the sheet
@@ -82,12 +82,14 @@ def test_bent_sheet_takes_exact_faces_and_validates(tmp_path):
         assert np.all(np.abs(radial - 2.0) < d.validation["tolerance"])
 
 
-def test_closed_u_channel_is_decomposed_validated_and_cached(tmp_path, monkeypatch):
+def test_closed_u_channel_is_bounded_and_cached(tmp_path, monkeypatch):
     path = tmp_path / "u.stl"
     u_channel().export(path)
     first = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert first.facts["closed"] and not first.facts["convex"]
-    assert first.method == "shell" and first.validation["ok"] and not first.from_cache
+    assert first.method == "split" and first.validation["ok"] and not first.from_cache
+    slot = np.array([[0.0, 0.0, 1.0], [0.0, 0.9, 1.5], [1.5, -0.9, 0.7]])  # between the walls, below their tops
+    assert (validation.inside_any(slot, cache.load_pieces(first), margin=0.0)[0] < 0).all()
     monkeypatch.setattr(decomposition, "decompose_parts", None)  # calling it now fails: this must read the cache
     again = cache.decompose(path, cache_dir=tmp_path, progress=False)
     assert again.from_cache
@@ -317,9 +319,8 @@ def test_bad_meshes_are_one_line_user_errors(tmp_path, content, suffix, message)
     assert "\n" not in str(info.value)
 
 
-def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch):
+def test_coacd_pieces_that_fill_free_space_are_refused_and_the_refusal_cached(tmp_path, monkeypatch):
     """As measured on thin-walled scenes: CoACD's pieces put free space in collision -> validation rejects them."""
-    monkeypatch.setattr(decomposition, "choose_method", lambda facts: ["coacd", "faces"])
 
     def hull_instead(parts, *args, **kwargs):
         return [[pieces.hull_piece(p.vertices)] for p in parts]
@@ -327,23 +328,23 @@ def test_a_failing_coacd_result_falls_back_to_exact_faces(tmp_path, monkeypatch)
     monkeypatch.setattr(coacd_process, "coacd_pieces", hull_instead)
     path = tmp_path / "u.stl"
     u_channel().export(path)
-    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
-    manifest = __import__("json").loads((d.directory / "manifest.json").read_text())
-    assert [t["ok"] for t in manifest["tried"]] == [False, True]
-    assert manifest["tried"][0]["methods"]["coacd"] == 1 and d.method == "faces" and d.validation["ok"]
+    with pytest.raises(UserError, match="no valid convex decomposition for u.stl") as info:
+        cache.decompose(path, method="coacd", cache_dir=tmp_path, progress=False)
+    assert "\n" not in str(info.value)
+    monkeypatch.setattr(coacd_process, "coacd_pieces", None)  # asking again reads the refusal
+    with pytest.raises(UserError, match="cached"):
+        cache.decompose(path, method="coacd", cache_dir=tmp_path, progress=False)
 
 
-def test_a_crashing_coacd_falls_back_to_exact_faces(tmp_path, monkeypatch):
+def test_a_crashing_coacd_is_one_line(tmp_path, monkeypatch):
     def crash(*args, **kwargs):
         raise coacd_process.MethodFailed("CoACD failed (exit code -11)")
 
     monkeypatch.setattr(coacd_process, "coacd_pieces", crash)
-    monkeypatch.setattr(decomposition, "choose_method", lambda facts: ["coacd", "faces"])
     path = tmp_path / "u.stl"
     u_channel().export(path)
-    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
-    assert d.method == "faces" and d.validation["ok"]
-    assert "exit code -11" in " ".join(d.validation["notes"])
+    with pytest.raises(UserError, match="exit code -11"):
+        cache.decompose(path, method="coacd", cache_dir=tmp_path, progress=False)
 
 
 def test_a_thick_shell_becomes_shell_pieces_far_fewer_than_face_plates(tmp_path):
@@ -352,7 +353,7 @@ def test_a_thick_shell_becomes_shell_pieces_far_fewer_than_face_plates(tmp_path)
     path = tmp_path / "trap.obj"
     holed_shell().export(path)
     tol = 0.025
-    shell = cache.decompose(path, tolerance=tol, cache_dir=tmp_path, progress=False)
+    shell = cache.decompose(path, method="shell", tolerance=tol, cache_dir=tmp_path, progress=False)
     plates = cache.decompose(path, method="faces", tolerance=tol, cache_dir=tmp_path, progress=False)
     assert shell.method == "shell" and shell.validation["ok"]
     assert len(shell.pieces) < 0.5 * len(plates.pieces)
@@ -372,7 +373,7 @@ def test_shell_pieces_that_fill_free_space_become_face_pieces(tmp_path):
     only they are replaced."""
     path = tmp_path / "u.obj"
     u_channel().export(path)
-    d = cache.decompose(path, cache_dir=tmp_path, progress=False)
+    d = cache.decompose(path, method="shell", cache_dir=tmp_path, progress=False)
     manifest = __import__("json").loads((d.directory / "manifest.json").read_text())
     assert [t["ok"] for t in manifest["tried"]] == [False, True]
     assert manifest["tried"][0]["violations"] > 0 and "became face pieces" in " ".join(d.validation["notes"])
@@ -428,3 +429,27 @@ def test_two_uncached_link_meshes_are_built_one_here_one_in_a_child(tmp_path, mo
     assert not any(d.from_cache for d in built.values())
     assert options.built(requests) == {} and all(options.decompose(*r).from_cache for r in requests)
     assert len(here) == 1
+
+
+def test_loose_triangles_of_an_obstacle_are_bounded_by_a_hull_a_wall(tmp_path):
+    """An obstacle exported as loose triangles (36 connected parts) becomes one hull a wall and one for the slab:
+    each hull holds its triangles, stays within the tolerance of them (points on its surface, drawn apart from the
+    bounding's own test), and the corridor between the walls stays free."""
+    from mesh_shapes import loose_walls
+
+    mesh = loose_walls()
+    path = tmp_path / "walls.obj"
+    mesh.export(path)
+    d = cache.decompose(path, tolerance=0.02, cache_dir=tmp_path, progress=False)
+    assert d.method == "split" and d.facts["components"] == 36 and len(d.pieces) == 3
+    bounds = cache.load_pieces(d)
+    assert (validation.inside_any(mesh.vertices, bounds, margin=1e-9)[0] >= 0).all()
+    solid = trimesh.util.concatenate(
+        [trimesh.convex.convex_hull(mesh.vertices[k * 36 : (k + 1) * 36]) for k in range(3)]
+    )
+    for piece in bounds:
+        surface = trimesh.Trimesh(piece.vertices, piece.faces).sample(2000, seed=1)
+        gap = np.abs(trimesh.proximity.signed_distance(solid, surface))
+        assert gap.max() <= 0.02
+    corridor = np.array([[0, 0, 1.0], [1.9, 0.95, 1.9], [-1.9, -0.95, 0.05], [5, 0, 0.25]])
+    assert (validation.inside_any(corridor, bounds, margin=0.0)[0] < 0).all()

@@ -94,17 +94,23 @@ def test_gaps_out_of_the_robots_reach_hand_the_rounds_back_to_the_sampler(oracle
     assert result.trajectory.certified
 
 
-def exhaustive_gaps(oracle, P, width):
-    """The gap test by its definition: every pair of environment pieces within `width` of the point, one by one."""
+def exhaustive_gaps(oracle, P, width, distances=None):
+    """The gap test by its definition: every pair of environment pieces within `width` of the point, one by one.
+    `distances(p)`: each environment piece's (signed distance, unit gradient) at p; Drake's by default."""
     query = oracle.query_object(oracle.scene.start)
+
+    def drakes(p):
+        found = query.ComputeSignedDistanceToPoint(p, width)
+        return [(r.distance, r.grad_W) for r in found if not oracle.is_robot_geometry(r.id_G)]
+
     out = []
     for p in P:
-        near = [r for r in query.ComputeSignedDistanceToPoint(p, width) if not oracle.is_robot_geometry(r.id_G)]
-        free = bool(near) and min(r.distance for r in near) > 0
+        near = [(d, g) for d, g in (distances or drakes)(p) if d <= width]
+        free = bool(near) and min(d for d, _ in near) > 0
         out.append(
             free
             and any(
-                a.distance + b.distance < width and float(np.dot(a.grad_W, b.grad_W)) < -0.5
+                a[0] + b[0] < width and float(np.dot(a[1], b[1])) < -0.5
                 for i, a in enumerate(near)
                 for b in near[i + 1 :]
             )
@@ -128,8 +134,11 @@ def test_the_gap_search_finds_what_the_definition_finds(oracles, scene):
 
 
 def test_the_gap_search_on_a_decomposed_mesh_finds_what_the_definition_finds(tmp_path, monkeypatch):
-    """An environment of convex hulls (a U channel cut into pieces): the numpy distances to the hulls' triangles
-    decide as Drake's point queries do, about the channel's inside and around its outside."""
+    """An environment of convex hulls (a U channel bounded by hulls): the numpy distances to the hulls' triangles
+    decide as exact distances to the hulls do (trimesh's), about the channel's inside and around its outside.
+    (Drake 1.51's ComputeSignedDistanceToPoint is no reference here: it gives one of these hulls distance -1.04 at
+    a point 1.04 outside it.)"""
+    import trimesh
     from pydrake.geometry import Role
 
     from app.checking.oracle import CollisionOracle
@@ -143,10 +152,26 @@ def test_the_gap_search_on_a_decomposed_mesh_finds_what_the_definition_finds(tmp
     inspector = oracle.model.scene_graph().model_inspector()
     pieces = [g for g in inspector.GetAllGeometryIds(Role.kProximity) if not oracle.is_robot_geometry(g)]
     assert len(pieces) > 1 and {type(inspector.GetShape(g)).__name__ for g in pieces} == {"Convex"}
+    query = oracle.query_object(oracle.scene.start)
+    hulls = []
+    for g in pieces:
+        polygons = inspector.GetShape(g).GetConvexHull()
+        corners = np.array([polygons.vertex(i) for i in range(polygons.num_vertices())])
+        hulls.append(trimesh.convex.convex_hull(corners).apply_transform(query.GetPoseInWorld(g).GetAsMatrix4()))
+
+    def exact(p):
+        found = []
+        for hull in hulls:
+            closest, distance, _ = trimesh.proximity.closest_point(hull, p[None])
+            inside = hull.contains(p[None])[0]
+            direction = (p - closest[0]) / max(distance[0], 1e-12)
+            found.append((-distance[0], -direction) if inside else (distance[0], direction))
+        return found
+
     rng = np.random.default_rng(2)
     P = rng.uniform(-3, 3, (600, 3))
     found = oracle.workspace.environment_gaps(P, 2.5)
-    assert np.array_equal(found, exhaustive_gaps(oracle, P, 2.5))
+    assert np.array_equal(found, exhaustive_gaps(oracle, P, 2.5, exact))
     assert 0 < found.sum() < len(P)
 
 

@@ -30,7 +30,7 @@ from app.scene.meshes.reading import file_sha256, load_mesh
 from app.scene.meshes.validation import volume_report
 
 # Bump when anything that changes the pieces (or the files of an entry) changes: old cache entries then go unused.
-DECOMPOSER_VERSION = "8"
+DECOMPOSER_VERSION = "9"
 CACHE_ENV = "NPP_CACHE_DIR"
 KEY_ENV = "NPP_KEY_FILE"
 KEY_BYTES = 32
@@ -247,7 +247,7 @@ def _entry_key(path: Path, method, tolerance, coacd_threshold, cache_dir, conser
         "tolerance": tolerance,
         "coacd_threshold": coacd_threshold,
         "version": DECOMPOSER_VERSION,
-        "coacd": coacd_version() if method == "coacd" or (method == "auto" and not conservative) else None,
+        "coacd": coacd_version() if method == "coacd" else None,
         "conservative": conservative,
         "merge_reach": MERGE_REACH / scale if conservative and scale > 0 else None,
     }

@@ -1,5 +1,5 @@
-"""A mesh's convex decomposition, part by part: a method chosen per connected part (`choose_method`), the parts built,
-the whole validated, and a part whose pieces fail moved on to its next method (`decompose_parts`)."""
+"""A mesh's convex pieces (`decompose_parts`): by default hulls that hold it and stay near it (`_bounds`); a method
+asked for by name built per connected part and the whole validated."""
 
 from __future__ import annotations
 
@@ -10,14 +10,15 @@ import numpy as np
 from app.errors import UserError
 from app.scene.files import MESH_METHODS
 from app.scene.meshes import coacd_process
-from app.scene.meshes.merging import Enclosure, Surface, merged_pieces, split_hulls
+from app.scene.meshes.merging import MOST_LINK_PIECES, Enclosure, Surface, merged_pieces, split_hulls
 from app.scene.meshes.pieces import Piece, face_pieces, faces_instead, hull_groups, hull_piece, shell_pieces
 from app.scene.meshes.validation import Validation, components, validate
 
 # Distances to a mesh's surface are bounded to within reach / _SPACING (see merging.Surface), with at most about
-# _MOST_SURFACE_POINTS points (a UR5's upper arm takes 1.8 million at 5 mm / 8).
+# _MOST_SURFACE_POINTS points (a UR5's upper arm would take 1.8 million at 5 mm / 8; laying out and asking 4 million
+# took most of a minute on a scene export, for the same hulls).
 _SPACING = 8
-_MOST_SURFACE_POINTS = 4_000_000
+_MOST_SURFACE_POINTS = 1_000_000
 # A part with fewer faces is no closed mesh (a closed part has at least 4): no per-part mesh and facts for it.
 _OPEN_FACTS = {"faces": 0, "closed": False, "volume": 0.0, "hull_volume": 0.0, "convex": False}
 
@@ -41,20 +42,9 @@ def classify(mesh) -> dict:
     }
 
 
-def choose_method(facts: dict) -> list[str]:
-    """Methods to try in order: closed and convex -> one piece; closed -> shell pieces (seconds), then CoACD
-    (minutes), then exact faces; else exact faces. (A robot's links take `_link_bounds` instead.)"""
-    if facts["convex"]:
-        return ["convex", "faces"]
-    if facts["closed"]:
-        return ["shell", "coacd", "faces"]
-    return ["faces"]
-
-
 def method_name(methods: dict) -> str:
-    """The one method that made pieces, or "mixed"."""
-    used = [m for m, n in methods.items() if n]
-    return used[0] if len(used) == 1 else "mixed"
+    """The method that made the pieces (`decompose_parts` uses one)."""
+    return next(m for m, n in methods.items() if n)
 
 
 def decompose_parts(
@@ -68,55 +58,63 @@ def decompose_parts(
     conservative: bool = False,
     merge_reach: float | None = None,
 ):
-    """Choose a method per connected part, build, validate the whole; a part whose pieces fail moves on to its next
-    method. A robot's link (`conservative`, method "auto") is bounded by `_link_bounds` instead. With
-    `conservative` and method "convex", hulls stand for their parts as bounds, merged by `hull_groups` and exempt
-    from the free-space test (they are larger than their parts by design). With `merge_reach` (in the mesh's
-    units), the validated pieces are then merged (`merged_pieces`) while every merged hull's surface stays within
-    `merge_reach` of the mesh: within `merge_reach - tolerance` of the validated pieces, which hold no free point
-    farther than the tolerance from it. Returns (pieces, the number of parts with pieces, the validation
-    rounds, pieces per method before merging, parts per method)."""
-    if conservative and method == "auto":
-        return _link_bounds(mesh, tolerance, merge_reach)
-    parts = _Parts(mesh, method, tolerance, conservative, label, progress, coacd_threshold, coacd_timeout)
+    """A mesh's convex pieces. Method "auto" bounds it (`_bounds`): a robot's link (`conservative`) within
+    `merge_reach` of its mesh, towards MOST_LINK_PIECES hulls; any other mesh (an obstacle, a mesh robot) within
+    `tolerance`, its hulls merged as far as that allows. A method asked for by name is built per connected part and
+    validated: shell pieces that hold free points become face pieces once, and pieces that still fail are a
+    UserError. Method "convex" takes the parts' hulls as bounds, merged by `hull_groups` and exempt from the
+    free-space test (they are larger than their parts by design). With
+    `merge_reach` (in the mesh's units), the validated pieces are then merged (`merged_pieces`) while every merged
+    hull's surface stays within `merge_reach` of the mesh: within `merge_reach - tolerance` of the validated pieces,
+    which hold no free point farther than the tolerance from it. Returns (pieces, the number of parts with pieces,
+    the validation rounds, pieces per method before merging, parts per method)."""
+    if method == "auto":
+        if conservative and merge_reach:
+            return _bounds(mesh, tolerance / 5, merge_reach, MOST_LINK_PIECES)
+        return _bounds(mesh, tolerance / 5, tolerance, 1)
+    parts = _Parts(mesh, method, tolerance, label, progress, coacd_threshold, coacd_timeout)
     while True:
-        if not parts.build():
-            continue  # CoACD failed: its parts moved on to their next method
+        parts.build()
         pieces, owner = parts.assembled()
         check, methods = parts.validated(pieces, owner)
         if check.ok:
             break
-        parts.mend_or_move_on(check, owner)
+        parts.mend(check, owner)
     if merge_reach is not None and merge_reach > tolerance:
         reach = merge_reach - tolerance
         pieces = merged_pieces(pieces, Surface(mesh, reach / _SPACING), reach)[0]
-    final = parts.final_methods()
-    return pieces, len(set(owner)), parts.tried, methods, {m: final.count(m) for m in MESH_METHODS[1:] if m in final}
+    return pieces, len(set(owner)), parts.tried, methods, {method: len(parts.parts)}
 
 
-def _link_bounds(mesh, tolerance: float, reach: float):
-    """A robot link's pieces (`conservative`, method "auto"): hulls split top down, then merged, each within `reach`
-    of the mesh or inside its parts (`split_hulls`, `merged_pieces`), in seconds even on a CAD mesh of tens of
-    thousands of triangles. The same return as `decompose_parts`; the one round of "validation" records the rule."""
-    # (A link far larger than the reach, e.g. a mesh in millimetres read as metres, gets fewer, coarser points:
-    # then fewer hulls pass and more are kept, in bounded memory.)
-    surface = Surface(mesh, max(reach / _SPACING, np.sqrt(float(mesh.area) / _MOST_SURFACE_POINTS)))
-    enclosure = Enclosure(mesh)
-    hulls = split_hulls(mesh, surface, reach, tolerance / 5, enclosure)
-    pieces = merged_pieces(hulls, surface, reach, inside_is_near=False, enclosure=enclosure)[0]
-    rule = f"hulls of the faces, split and merged while every hull's surface stays within {reach:.3g} of the mesh"
+def _bounds(mesh, thickness: float, reach: float, most: int):
+    """Method "auto": hulls split top down, then merged towards `most`, each within `reach` of the mesh or inside
+    its parts (`split_hulls`, `merged_pieces`; flat groups thickened by `thickness`), in seconds even on a CAD mesh
+    of tens of thousands of triangles. The same return as `decompose_parts`; the one round of "validation" records
+    the rule."""
+    if mesh.is_watertight and mesh.is_convex:  # (its own hull: exact, with no surface points to lay out)
+        pieces, hulls, parts = [hull_piece(mesh.vertices)], 1, 1
+        rule = "a closed convex mesh: its own hull"
+    else:
+        # (A mesh far larger than the reach, e.g. one in millimetres read as metres, gets fewer, coarser points:
+        # then fewer hulls pass and more are kept, in bounded memory.)
+        surface = Surface(mesh, max(reach / _SPACING, np.sqrt(float(mesh.area) / _MOST_SURFACE_POINTS)))
+        enclosure = Enclosure(mesh)
+        split = split_hulls(mesh, surface, reach, thickness, enclosure)
+        pieces = merged_pieces(split, surface, reach, most, inside_is_near=False, enclosure=enclosure)[0]
+        hulls, parts = len(split), enclosure.parts
+        rule = f"hulls of the faces, split and merged while every hull's surface stays within {reach:.3g} of the mesh"
     record = asdict(Validation(ok=True, tolerance=reach, message=rule))
     record.pop("bad_pieces"), record.pop("uncovered_faces")
-    tried = [{"methods": {"split": len(hulls)}, "pieces": len(pieces), "notes": [], **record}]
-    return pieces, enclosure.parts, tried, {"split": len(hulls)}, {"split": enclosure.parts}
+    tried = [{"methods": {"split": hulls}, "pieces": len(pieces), "notes": [], **record}]
+    return pieces, parts, tried, {"split": hulls}, {"split": parts}
 
 
 class _Parts:
-    """A mesh's connected parts, each with the methods to try in order (`level`: the one now), the pieces built for
-    each so far, and what every round of validation found (`tried`)."""
+    """A mesh's connected parts for a method asked for by name, the pieces built for each so far, and what every
+    round of validation found (`tried`)."""
 
-    def __init__(self, mesh, method, tolerance, conservative, label, progress, coacd_threshold, coacd_timeout):
-        self.mesh, self.tolerance, self.label, self.progress = mesh, tolerance, label, progress
+    def __init__(self, mesh, method, tolerance, label, progress, coacd_threshold, coacd_timeout):
+        self.mesh, self.method, self.tolerance, self.label, self.progress = mesh, method, tolerance, label, progress
         self.coacd_threshold, self.coacd_timeout = coacd_threshold, coacd_timeout
         self.groups = components(mesh)
         self.part_of_face = np.empty(len(mesh.faces), int)
@@ -125,75 +123,44 @@ class _Parts:
         self.parts = [mesh.submesh([g], append=True) if len(g) >= 4 else None for g in self.groups]
         self.facts = [classify(p) if p is not None else _OPEN_FACTS for p in self.parts]
         self.solids = [p for p, f in zip(self.parts, self.facts) if f["closed"]]
-        self.bounding = conservative or method == "convex"
-        self.orders = [[method] if method != "auto" else choose_method(f) for f in self.facts]
-        self.level = [0] * len(self.parts)
         self.built: dict[int, list[Piece]] = {}
         self.shell_groups: dict[int, list] = {}  # a shell part's face groups, piece by piece
         self.mended: set[int] = set()
         self.notes: list[str] = []
         self.tried: list[dict] = []
+        if method in ("shell", "coacd") and not all(f["closed"] for f in self.facts):
+            raise UserError(f"no valid convex decomposition for {label}: {method} needs a closed mesh")
 
-    def method(self, i: int) -> str:
-        return self.orders[i][self.level[i]]
-
-    def final_methods(self) -> list[str]:
-        return [self.method(i) for i in range(len(self.parts))]
-
-    def _last_method(self, i: int) -> bool:
-        return self.level[i] + 1 >= len(self.orders[i])
-
-    def build(self) -> bool:
-        """(Re)build the parts without pieces at their current method: convex hulls, shell pieces, CoACD in one
-        child, faces merged. False when CoACD failed (its parts then moved on, nothing built by faces yet)."""
+    def build(self) -> None:
+        """Build the parts without pieces: convex hulls, shell pieces, CoACD in one child, or faces merged."""
         todo = [i for i in range(len(self.parts)) if i not in self.built]
-        for i in todo:
-            self._skip_methods_needing_a_closed_part(i)
-        self._build_hulls([i for i in todo if self.method(i) == "convex"])
-        for i in todo:
-            if self.method(i) == "shell":
+        if self.method == "convex":
+            self._build_hulls(todo)
+        elif self.method == "shell":
+            for i in todo:
                 self.built[i], self.shell_groups[i] = shell_pieces(
                     self.parts[i], self.tolerance, progress=self.progress
                 )
-        if not self._build_coacd([i for i in todo if self.method(i) == "coacd"]):
-            return False
-        self._build_faces([i for i in todo if self.method(i) == "faces"])
-        return True
-
-    def _skip_methods_needing_a_closed_part(self, i: int) -> None:
-        while self.method(i) in ("shell", "coacd") and not self.facts[i]["closed"]:
-            self.notes.append(f"part {i}: {self.method(i)} needs a closed mesh")
-            if self._last_method(i):
-                raise UserError(f"no valid convex decomposition for {self.label}: {self.method(i)} needs a closed mesh")
-            self.level[i] += 1
+        elif self.method == "coacd":
+            self._build_coacd(todo)
+        else:
+            self._build_faces(todo)
 
     def _build_hulls(self, hull_parts: list[int]) -> None:
-        if self.bounding and hull_parts:
-            points = [self.mesh.vertices[np.unique(self.mesh.faces[self.groups[i]])] for i in hull_parts]
-            hulls, members = hull_groups(points, self.tolerance)
-            self.built.update({i: [] for i in hull_parts})
-            for piece, group in zip(hulls, members):
-                self.built[hull_parts[group[0]]].append(piece)
-        else:
-            self.built.update({i: [hull_piece(self.parts[i].vertices)] for i in hull_parts})
+        points = [self.mesh.vertices[np.unique(self.mesh.faces[self.groups[i]])] for i in hull_parts]
+        hulls, members = hull_groups(points, self.tolerance)
+        self.built.update({i: [] for i in hull_parts})
+        for piece, group in zip(hulls, members):
+            self.built[hull_parts[group[0]]].append(piece)
 
-    def _build_coacd(self, coacd_parts: list[int]) -> bool:
-        if not coacd_parts:
-            return True
+    def _build_coacd(self, coacd_parts: list[int]) -> None:
         try:
             found = coacd_process.coacd_pieces(
                 [self.parts[i] for i in coacd_parts], self.coacd_threshold, self.coacd_timeout, self.progress
             )
-            for i, pieces in zip(coacd_parts, found):
-                self.built[i] = pieces
         except coacd_process.MethodFailed as exc:
-            self.notes.append(str(exc))
-            for i in coacd_parts:
-                if self._last_method(i):
-                    raise UserError(f"no valid convex decomposition for {self.label}: {exc}") from None
-                self.level[i] += 1
-            return False
-        return True
+            raise UserError(f"no valid convex decomposition for {self.label}: {exc}") from None
+        self.built.update(zip(coacd_parts, found))
 
     def _build_faces(self, face_parts: list[int]) -> None:
         if not face_parts:
@@ -220,37 +187,24 @@ class _Parts:
     def validated(self, pieces: list[Piece], owner: list[int]) -> tuple[Validation, dict]:
         """The pieces validated against the mesh (hulls standing for their parts as bounds, not tested), recorded
         in `tried`; and the pieces per method."""
-        final = self.final_methods()
-        methods = {
-            m: sum(len(self.built[i]) for i in range(len(self.parts)) if final[i] == m) for m in MESH_METHODS[1:]
-        }
-        exempt = [self.bounding and final[i] == "convex" for i in owner]
-        checked = [k for k in range(len(pieces)) if not exempt[k]]
-        bounds = [pieces[k] for k in range(len(pieces)) if exempt[k]]
-        if checked:
-            check = validate(
-                self.mesh,
-                [pieces[k] for k in checked],
-                self.tolerance,
-                solids=self.solids,
-                progress=self.progress,
-                bounds=bounds,
-            )
-            check.bad_pieces = [checked[k] for k in check.bad_pieces]
-        else:
+        methods = {m: len(pieces) if m == self.method else 0 for m in MESH_METHODS[1:]}
+        if self.method == "convex":
             check = Validation(ok=True, tolerance=self.tolerance, message="convex hulls only: they contain their parts")
+        else:
+            check = validate(self.mesh, pieces, self.tolerance, solids=self.solids, progress=self.progress)
         record = asdict(check)
         record.pop("bad_pieces"), record.pop("uncovered_faces")
         self.tried.append({"methods": methods, "pieces": len(pieces), "notes": list(self.notes), **record})
         return check, methods
 
-    def mend_or_move_on(self, check: Validation, owner: list[int]) -> None:
-        """After a failed validation: a shell part's few bad pieces become face pieces (once) before the part moves
-        on to its next method; every other part blamed moves on; UserError when one has no method left."""
+    def mend(self, check: Validation, owner: list[int]) -> None:
+        """After a failed validation: a shell part's few bad pieces become face pieces (once); UserError when a part
+        has none to mend."""
         uncovered = {int(self.part_of_face[f]) for f in check.uncovered_faces}
         blamed = {owner[k] for k in check.bad_pieces} | uncovered
-        mend = {i for i in blamed if self.method(i) == "shell" and i not in self.mended}
-        mend -= uncovered
+        mend = {i for i in blamed if self.method == "shell" and i not in self.mended} - uncovered
+        if not mend or blamed - mend:
+            raise UserError(f"no valid convex decomposition for {self.label}: {check.message}")
         for i in mend:
             first = owner.index(i)
             bad = [k - first for k in check.bad_pieces if owner[k] == i]
@@ -259,15 +213,3 @@ class _Parts:
             )
             self.notes.append(f"part {i}: {len(bad)} shell piece(s) held free points and became face pieces")
             self.mended.add(i)
-        blamed -= mend
-        if mend and not blamed:
-            return
-        stuck = [i for i in blamed if self._last_method(i)]
-        if stuck or not blamed:
-            raise UserError(
-                f"no valid convex decomposition for {self.label}: {check.message}"
-                + (f" ({len(stuck)} part(s) have no other method)" if stuck else "")
-            )
-        for i in blamed:
-            self.level[i] += 1
-            del self.built[i]

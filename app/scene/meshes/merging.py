@@ -29,18 +29,14 @@ class Surface:
     """A mesh's surface as points no farther than `spacing` from any point of it (each triangle halved until its
     corners lie within `spacing` of its centre; the centres kept) in a k-d tree: bounds on the distance to the
     surface, within `spacing` of the truth, for many points at once. (An exact distance asks every triangle near
-    the point: on a fine CAD mesh, hundreds.)"""
+    the point: on a fine CAD mesh, hundreds.) A second tree of points `_COARSE` times as far apart answers first
+    for points far from the surface, where the fine tree's search would visit a great many of its points."""
 
     def __init__(self, mesh, spacing: float):
-        from scipy.spatial import cKDTree
-
-        triangles, centres = np.asarray(mesh.triangles, float), []
-        while len(triangles):
-            middle = triangles.mean(axis=1)
-            small = np.linalg.norm(triangles - middle[:, None], axis=2).max(axis=1) <= spacing
-            centres.append(middle[small])
-            triangles = _halved(triangles[~small])
-        self.tree, self.spacing = cKDTree(np.vstack(centres)), spacing
+        self.triangles = np.asarray(mesh.triangles, float)
+        self.tree, self._face = _surface_tree(self.triangles, spacing)
+        self.spacing = spacing
+        self._coarse = _surface_tree(self.triangles, spacing * _COARSE)[0]
 
     def near(self, points: np.ndarray, radius) -> np.ndarray:
         """Whether each point is surely within `radius` of the surface."""
@@ -50,8 +46,50 @@ class Surface:
     def farther(self, points: np.ndarray, radius) -> np.ndarray:
         """Whether each point is surely farther than `radius` from the surface."""
         radius = np.broadcast_to(radius, (len(points),))
-        bound = float(np.max(radius, initial=0.0)) + self.spacing
-        return self.tree.query(points, distance_upper_bound=bound)[0] - self.spacing > radius
+        far = self._coarse.query(points)[0] - self.spacing * _COARSE > radius
+        unsure = np.flatnonzero(~far)
+        bound = float(np.max(radius[unsure], initial=0.0)) + self.spacing
+        far[unsure] = self.tree.query(points[unsure], distance_upper_bound=bound)[0] - self.spacing > radius[unsure]
+        return far
+
+    def holds(self, triangles: np.ndarray, reach: float) -> np.ndarray:
+        """Whether each triangle (n, 3, 3) lies within `reach` of one face of the mesh, the face nearest its centre:
+        distance to a triangle is convex, so it is largest at a corner. (A large triangle lying on the mesh's
+        surface passes whole, where `near` would halve it to the spacing.)"""
+        from trimesh.triangles import closest_point
+
+        held = np.zeros(len(triangles), bool)
+        # (A centre farther than `reach` from the surface cannot pass; asking the coarse tree first spares the fine
+        # tree's search far from the surface.)
+        centres = triangles.mean(axis=1)
+        could = np.flatnonzero(self._coarse.query(centres)[0] - self.spacing * _COARSE <= reach)
+        distance, nearest = self.tree.query(centres[could], distance_upper_bound=reach + self.spacing)
+        could, nearest = could[np.isfinite(distance)], nearest[np.isfinite(distance)]
+        corners = triangles[could].reshape(-1, 3)
+        faces = np.repeat(self.triangles[self._face[nearest]], 3, axis=0)
+        held[could] = (
+            np.linalg.norm(closest_point(faces, corners) - corners, axis=1).reshape(-1, 3).max(axis=1) <= reach
+        )
+        return held
+
+
+# How much farther apart the points of `Surface`'s coarse tree are than its fine tree's.
+_COARSE = 8
+
+
+def _surface_tree(triangles: np.ndarray, spacing: float):
+    """A k-d tree of points no farther than `spacing` from any point of the triangles (see `Surface`), and the
+    triangle each point lies on."""
+    from scipy.spatial import cKDTree
+
+    face, centres, owners = np.arange(len(triangles)), [], []
+    while len(triangles):
+        middle = triangles.mean(axis=1)
+        small = np.linalg.norm(triangles - middle[:, None], axis=2).max(axis=1) <= spacing
+        centres.append(middle[small])
+        owners.append(face[small])
+        triangles, face = _halved(triangles[~small]), np.tile(face[~small], 2)
+    return cKDTree(np.vstack(centres)), np.concatenate(owners)
 
 
 # Fixed ray directions for `Enclosure` (trimesh's own retries go in a random one: not repeatable).
@@ -183,20 +221,22 @@ def merged_pieces(
     from scipy.spatial import ConvexHull
     from scipy.spatial.distance import cdist
 
-    live = {}  # key: corners, volume, members, box (lo, hi)
+    live = {}  # key: corners, volume, members
+    boxes = np.full((2 * len(pieces), 2, 3), np.nan)  # per key its corners' box (lo, hi); NaN once merged away
     candidates = []  # (added volume, tie-break, a, b, merged hull)
     tried = set()
 
     def add(key: int, corners: np.ndarray, volume: float, members: list[int]) -> None:
-        live[key] = (corners, volume, members, corners.min(axis=0), corners.max(axis=0))
+        live[key] = (corners, volume, members)
+        boxes[key] = corners.min(axis=0), corners.max(axis=0)
 
     def pair_with_neighbours(a: int) -> None:
-        pa, va, _, lo_a, hi_a = live[a]
-        gaps = []
-        for b, (pb, _, _, lo_b, hi_b) in live.items():
-            if b != a and not (np.any(lo_a - hi_b > reach) or np.any(lo_b - hi_a > reach)):
-                gaps.append((cdist(pa, pb).min(), b))
-        for gap, b in sorted(gaps)[:_NEIGHBOURS]:
+        pa, va, _ = live[a]
+        lo, hi = boxes[:, 0], boxes[:, 1]
+        close = np.all((lo - hi[a] <= reach) & (lo[a] - hi <= reach), axis=1)  # (False for a NaN box)
+        close[a] = False
+        gaps = sorted((cdist(pa, live[b][0]).min(), b) for b in np.flatnonzero(close).tolist())
+        for gap, b in gaps[:_NEIGHBOURS]:
             if gap <= reach and (min(a, b), max(a, b)) not in tried:
                 tried.add((min(a, b), max(a, b)))
                 hull = ConvexHull(np.vstack([pa, live[b][0]]))
@@ -217,6 +257,7 @@ def merged_pieces(
         if not stays_near(bridging, pieces if inside_is_near else [], surface, reach, enclosure):
             continue
         add(next_key, hull.points[hull.vertices], hull.volume, live.pop(a)[2] + live.pop(b)[2])
+        boxes[[a, b]] = np.nan
         pair_with_neighbours(next_key)
         next_key += 1
     return [hull_piece(entry[0]) for entry in live.values()], [entry[2] for entry in live.values()]
@@ -231,8 +272,9 @@ def stays_near(
     to the mesh's surface, for the circle through its corners to pass; the others are halved. A centre enclosed
     at depth d passes a triangle of radius up to `reach` + d: a point of it outside the solid is no farther
     from the surface than from the centre, less d. It fails at once where a centre lies outside some plane of every
-    piece by more than `reach` (farther than that from them all), and where one a quarter of `reach` across or
-    smaller does not pass (so it is cautious by up to that much)."""
+    piece by more than `reach` (farther than that from them all), where (no pieces) a centre lies surely farther
+    than `reach` from the mesh and is not enclosed, and where one a quarter of `reach` across or smaller does not
+    pass (so it is cautious by up to that much)."""
     if not len(triangles):
         return True  # (one piece held the other)
     corners = triangles.reshape(-1, 3)
@@ -261,11 +303,22 @@ def stays_near(
         ask = ~passed & (radii < reach)
         if ask.any():
             passed[ask] = surface.near(centres[ask], reach - radii[ask])
+        if not passed.all():
+            passed[~passed] = surface.holds(triangles[~passed], reach)
+        if not pieces and not passed.all():
+            # A centre surely farther than `reach` from the mesh, and not enclosed, breaks the rule itself: no
+            # need to halve its triangle down to a quarter of `reach` to say so.
+            rest = np.flatnonzero(~passed)
+            far = rest[surface.farther(centres[rest], reach)]
+            if len(far) and (enclosure is None or not enclosure.contains(centres[far]).all()):
+                return False
         if enclosure is not None and not passed.all():
             # Enclosed, a triangle passes if its radius is under reach + the centre's depth: ask only those whose
             # centre lies that deep if it is enclosed at all (the ray casts are the test's cost).
             could = np.flatnonzero(~passed)
-            could = could[(radii[could] <= reach) | surface.farther(centres[could], radii[could] - reach)]
+            deep = radii[could] > reach
+            deep[deep] = surface.farther(centres[could[deep]], radii[could[deep]] - reach)
+            could = could[(radii[could] <= reach) | deep]
             passed[could] = enclosure.contains(centres[could])
         if np.any(~passed & (radii <= reach / 4)):
             return False
