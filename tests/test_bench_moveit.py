@@ -99,3 +99,27 @@ def test_bench_moveit_answers_by_its_schema_and_reuses_its_trials(tmp_path, run_
     reused = json.loads(again.stdout)
     assert reused["reused"]["reused"] == 4
     assert reused["trials"] == answer["trials"]
+
+
+def test_a_method_that_crashes_is_a_named_failure_the_table_counts(tmp_path, monkeypatch):
+    """An unexpected error inside one method's run (as Drake's Toppra once raised on one problem) is that trial's
+    failure, with the error named, and the run goes on; the table says how many crashed."""
+    from app.bench import moveit
+
+    def crash(*args):
+        raise RuntimeError("Failure at toppra.cc:85 in\nthe grid's last point")
+
+    monkeypatch.setattr(moveit, "_ours", crash)
+    copy_problem("box", "0001", tmp_path)
+    spec = specs(find_problems(tmp_path), ROBOT, ["ours"], 1, 1000)[0]
+    metrics = moveit.run_trial_spec(spec)
+    assert (
+        metrics["solved"] == 0.0
+        and metrics["crashed"] == "RuntimeError: Failure at toppra.cc:85 in the grid's last point"
+    )
+    rows = [{"scene": "box/0001", "method": m, "metrics": metrics if m == "ours" else {"solved": 1.0, "checks": 9,
+             "seconds": 1.0}, "code_version": "v"} for m in ("ours", RRT)]  # fmt: skip
+    report = summarise(rows, ["ours", RRT])
+    assert report["kinds"][0]["ours"]["crashed"] == 1 and report["kinds"][0][RRT]["crashed"] == 0
+    text = moveit.table({**report, "methods": ["ours", RRT], "problems": 1, "folder": "f", "seeds": 1, "checks": 1000})
+    assert "| 0 (1 crashed), 1 |" in text

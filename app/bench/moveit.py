@@ -126,7 +126,9 @@ def _problem(params: dict, threads: int):
 
 def run_trial_spec(spec: TrialSpec, threads: int = 1) -> dict:
     """One method on one problem (the module docstring says what is measured). A problem that cannot be read, or
-    whose start or goal is invalid, is a row that says so (`invalid`), for both methods alike."""
+    whose start or goal is invalid, is a row that says so (`invalid`), for both methods alike. A method that fails
+    with an unexpected error is a row that names it (`crashed`, unsolved): one problem's bug does not end the run,
+    and the table counts it."""
     from app.planning.moveit import goal_configurations
 
     try:
@@ -139,7 +141,11 @@ def run_trial_spec(spec: TrialSpec, threads: int = 1) -> dict:
     budget = Budget(checks=int(spec.params["checks"]), seconds=SAFETY_NET_SECONDS)
     run = _ours if spec.method == OURS else _rrt_connect
     load = os.getloadavg()[0]  # what else the machine was doing: seconds depend on it, checks do not
-    return {**run(oracle, problem, goals, spec.seed, budget), "ik_seconds": ik_seconds, "load_average": load}
+    try:
+        found = run(oracle, problem, goals, spec.seed, budget)
+    except Exception as exc:  # (not BaseException: Ctrl-C still ends the run)
+        found = {"solved": 0.0, "crashed": f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:300]}
+    return {**found, "ik_seconds": ik_seconds, "load_average": load}
 
 
 def _ours(oracle, problem, goals: np.ndarray, seed: int, budget: Budget) -> dict:
@@ -254,6 +260,7 @@ def summarise(rows: list[dict], methods: list[str]) -> dict:
             row[m] = {
                 "solved": sum(1 for c in cells if c.get("solved")),
                 "colliding": sum(1 for c in cells if c.get("solved") and c.get("colliding")),
+                "crashed": sum(1 for c in cells if c.get("crashed")),
                 "certified": sum(1 for c in cells if c.get("certified")),
                 "median_checks": median_or_none([c["checks"] for c in paired]),
                 "median_seconds": median_or_none([c["seconds"] for c in paired]),
@@ -320,6 +327,11 @@ def measure(
     }, reuse
 
 
+def _solved(method: dict) -> str:
+    """A method's successes, and its crashes if any."""
+    return f"{method['solved']}" + (f" ({method['crashed']} crashed)" if method.get("crashed") else "")
+
+
 def table(report: dict) -> str:
     """The report as a markdown table: a row per kind and one over all problems."""
     ours, other = report["methods"][0], report["methods"][-1]
@@ -341,7 +353,7 @@ def table(report: dict) -> str:
         lines.append(
             f"| {row['kind']} | {row['problems']}"
             + (f" ({row['invalid']} invalid)" if row["invalid"] else "")
-            + f" | {a['solved']}, {b['solved']} | {shown(a['median_checks'], ',.0f')} vs "
+            + f" | {_solved(a)}, {_solved(b)} | {shown(a['median_checks'], ',.0f')} vs "
             f"{shown(b['median_checks'], ',.0f')} | {shown(ratio.get('checks'), '.2f')} | "
             f"{shown(a['median_seconds'], '.2f')} vs {shown(b['median_seconds'], '.2f')} ({shown(solve, '.2f')}) | "
             f"{shown(ratio.get('seconds'), '.2f')} | {shown(ratio.get('checks_per_second'), '.2f')} | "
