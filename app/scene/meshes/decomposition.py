@@ -82,7 +82,7 @@ def decompose_parts(
         parts.mend(check, owner)
     if merge_reach is not None and merge_reach > tolerance:
         reach = merge_reach - tolerance
-        pieces = merged_pieces(pieces, Surface(mesh, reach / _SPACING), reach)[0]
+        pieces = merged_pieces(pieces, _surface(mesh, reach), reach)[0]
     return pieces, len(set(owner)), parts.tried, methods, {method: len(parts.parts)}
 
 
@@ -95,9 +95,7 @@ def _bounds(mesh, thickness: float, reach: float, most: int):
         pieces, hulls, parts = [hull_piece(mesh.vertices)], 1, 1
         rule = "a closed convex mesh: its own hull"
     else:
-        # (A mesh far larger than the reach, e.g. one in millimetres read as metres, gets fewer, coarser points:
-        # then fewer hulls pass and more are kept, in bounded memory.)
-        surface = Surface(mesh, max(reach / _SPACING, np.sqrt(float(mesh.area) / _MOST_SURFACE_POINTS)))
+        surface = _surface(mesh, reach)
         enclosure = Enclosure(mesh)
         split = split_hulls(mesh, surface, reach, thickness, enclosure)
         pieces = merged_pieces(split, surface, reach, most, inside_is_near=False, enclosure=enclosure)[0]
@@ -107,6 +105,13 @@ def _bounds(mesh, thickness: float, reach: float, most: int):
     record.pop("bad_pieces"), record.pop("uncovered_faces")
     tried = [{"methods": {"split": hulls}, "pieces": len(pieces), "notes": [], **record}]
     return pieces, parts, tried, {"split": hulls}, {"split": parts}
+
+
+def _surface(mesh, reach: float) -> Surface:
+    """The mesh's surface points for tests within `reach`: reach / _SPACING apart, or farther where that would make
+    more than about _MOST_SURFACE_POINTS (a mesh far larger than the reach, e.g. one in millimetres read as metres:
+    then fewer hulls pass and more are kept, in bounded memory)."""
+    return Surface(mesh, max(reach / _SPACING, np.sqrt(float(mesh.area) / _MOST_SURFACE_POINTS)))
 
 
 class _Parts:
