@@ -70,8 +70,8 @@ def _space_and_collision_arguments(group) -> None:
         "--mesh-method",
         choices=MESH_METHODS,
         default="auto",
-        help="convex decomposition of meshes (default auto: per part, validated; convex: every part's hull, "
-        "never smaller than the mesh)",
+        help="convex pieces of meshes (default auto: hulls that hold the mesh, within the tolerance of it, 5 mm for "
+        "a robot's link; convex: every part's hull; shell, coacd, faces: validated pieces)",
     )
     group.add_argument(
         "--mesh-tolerance",

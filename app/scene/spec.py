@@ -36,7 +36,8 @@ class CustomSpec:
         collisions: "all": the robot against itself too; "environment": only against the obstacles.
         srdf: A MoveIt SRDF whose <disable_collisions> body pairs are not checked.
         resolution: The edge-check step in the weighted metric; 0: default_resolution (the robot's size).
-        mesh_method: auto, convex, shell, coacd or faces.
+        mesh_method: auto (hulls that hold each mesh and stay within its tolerance of it, a robot link's within
+            5 mm), convex, shell, coacd or faces.
         mesh_tolerance: How far a decomposition may reach beyond the mesh surface; 0: half the edge-check step
             (environment), 0.2 % of its size (robot mesh).
         velocity_limits: Per coordinate; empty: the model's (else 1).

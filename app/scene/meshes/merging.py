@@ -1,6 +1,6 @@
-"""A robot link's convex bounds: a few hulls that hold its mesh and stay near it. A check's cost grows with the pieces
-of the links near each other, and a CAD link's decomposition can hold hundreds. `split_hulls` makes them top down
-(the link's hull, split until every hull's surface stays near the mesh: a fine CAD mesh of tens of thousands of
+"""A mesh's convex bounds: a few hulls that hold it and stay near it. A check's cost grows with the pieces near each
+other, and a CAD link's or a scene export's faces can make hundreds or thousands. `split_hulls` makes them top down
+(the mesh's hull, split until every hull's surface stays near the mesh: a fine CAD mesh of tens of thousands of
 triangles in seconds), `merged_pieces` merges pieces pairwise bottom up (a split's halves, or a validated
 decomposition's pieces)."""
 
