@@ -63,10 +63,10 @@ def decompose_parts(
     `tolerance`, its hulls merged as far as that allows. A method asked for by name is built per connected part and
     validated: shell pieces that hold free points become face pieces once, and pieces that still fail are a
     UserError. Method "convex" takes the parts' hulls as bounds, merged by `hull_groups` and exempt from the
-    free-space test (they are larger than their parts by design). With
-    `merge_reach` (in the mesh's units), the validated pieces are then merged (`merged_pieces`) while every merged
-    hull's surface stays within `merge_reach` of the mesh: within `merge_reach - tolerance` of the validated pieces,
-    which hold no free point farther than the tolerance from it. Returns (pieces, the number of parts with pieces,
+    free-space test (they are larger than their parts by design). With `merge_reach` (in the mesh's units), the
+    validated pieces are then merged (`merged_pieces`) while every merged hull's surface stays within `merge_reach`
+    of the mesh: within `merge_reach - tolerance` of the validated pieces, which hold no free point farther than the
+    tolerance from it. Returns (pieces, the number of parts with pieces,
     the validation rounds, pieces per method before merging, parts per method)."""
     if method == "auto":
         if conservative and merge_reach:
