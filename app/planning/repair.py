@@ -36,6 +36,8 @@ from app.scene.shapes import half_extent
 # How far a robot point may move along the shortest piece of an edge asked (m): its balls exceed what the robot
 # sweeps along it by at most this.
 PIECE_TRAVEL = 0.01
+# The most parts a piece of an edge is cut into at once.
+SPLIT_MAX = 8
 
 
 @dataclass
@@ -124,13 +126,12 @@ class _Sweeps:
         return (np.abs(D) @ self.rates.T).max(axis=1, initial=0.0)
 
 
-def _reach_boxes(centres, radii, lo, hi) -> np.ndarray:
-    """Whether any ball (n, G) reaches any box (k): (n,)."""
-    hit = np.zeros(len(centres), bool)
+def _box_distances(centres, lo, hi) -> np.ndarray:
+    """The distance from each point (n, G) to the nearest box (k): (n, G), infinite with no box."""
+    nearest = np.full(centres.shape[:2], np.inf)
     for a, b in zip(lo, hi):
-        gap = np.linalg.norm(np.maximum(0.0, np.maximum(a - centres, centres - b)), axis=-1)
-        hit |= np.any(gap <= radii, axis=1)
-    return hit
+        nearest = np.minimum(nearest, np.linalg.norm(np.maximum(0.0, np.maximum(a - centres, centres - b)), axis=-1))
+    return nearest
 
 
 def _checked_pairs(oracle, ids: list) -> np.ndarray:
@@ -164,11 +165,13 @@ class _Side:
 
     def reaches(self, A: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
         """Whether what this side has and the other lacks can touch the robot at configurations A (or along edges
-        A -> B). An edge is asked with one ball per geometry first; where those reach, its halves are asked, and so
-        on until the pieces that still reach are so short that no robot point moves more than PIECE_TRAVEL along
-        them (a long edge's ball is mostly travel; its pieces hug what it sweeps, near the change only). A piece
-        whose balls come within PIECE_TRAVEL of the change at its middle, with no travel, settles its edge at once:
-        the pieces about that point would come as near."""
+        A -> B). An edge is asked with one ball per geometry first; where those reach, it is cut into pieces and
+        they are asked, and so on until the pieces that still reach are so short that no robot point moves more than
+        PIECE_TRAVEL along them (a long edge's ball is mostly travel; its pieces hug what it sweeps, near the change
+        only). A piece is cut into as many parts as its balls' travel exceeds their room at its middle (2 to
+        SPLIT_MAX), so that its parts mostly pass at once where halving would take several rounds. A piece whose
+        balls come within PIECE_TRAVEL of the change at its middle, with no travel, settles its edge at once: the
+        pieces about that point would come as near."""
         if B is None:
             return self._reaches(A, None)[0]
         hit = np.zeros(len(A), bool)
@@ -176,40 +179,44 @@ class _Side:
         edge, t0, t1 = np.arange(len(A)), np.zeros(len(A)), np.ones(len(A))
         while len(edge):
             P0, P1 = A[edge] + t0[:, None] * D[edge], A[edge] + t1[:, None] * D[edge]
-            near, there = self._reaches(P0, P1)
+            near, there, shortfall = self._reaches(P0, P1)
             short = self.sweeps.travel(P1 - P0) <= PIECE_TRAVEL
             hit[edge[there | (near & short)]] = True
             split = near & ~short & ~hit[edge]
-            middle = (t0[split] + t1[split]) / 2
-            edge = np.repeat(edge[split], 2)
-            t0 = np.ravel(np.column_stack([t0[split], middle]))
-            t1 = np.ravel(np.column_stack([middle, t1[split]]))
+            parts = np.clip(np.ceil(shortfall[split]), 2, SPLIT_MAX).astype(int)
+            edge, t0, t1 = np.repeat(edge[split], parts), np.repeat(t0[split], parts), np.repeat(t1[split], parts)
+            k = np.arange(len(edge)) - np.repeat(np.cumsum(parts) - parts, parts)
+            parts = np.repeat(parts, parts)
+            t0, t1 = t0 + (t1 - t0) * k / parts, np.where(k + 1 == parts, t1, t0 + (t1 - t0) * (k + 1) / parts)
         return hit
 
-    def _reaches(self, A: np.ndarray, B: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    def _reaches(self, A: np.ndarray, B: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`reaches` with one ball per robot geometry and configuration or edge (its middle): (with the travel
-        along the edge, within PIECE_TRAVEL at the middle alone)."""
+        along the edge, within PIECE_TRAVEL at the middle alone, by what factor the travel exceeds the room)."""
         if not len(A):
-            return np.zeros(0, bool), np.zeros(0, bool)
+            return np.zeros(0, bool), np.zeros(0, bool), np.zeros(0)
         centres, grown = self.sweeps.balls(A, B)
         rest = np.broadcast_to(self.sweeps.radii, grown.shape)
-        near = rest + PIECE_TRAVEL
         moving = self.sweeps.moving
         own = [g for g in self.robot_only if moving[g]]
-        answers = [
-            _reach_boxes(centres[:, moving], radii[:, moving], *self.only)
-            | _reach_boxes(centres[:, own], radii[:, own], *self.every)
-            for radii in (grown, near)
-        ]
+        # How far each ball's centre is from what it must not reach; a pair's distance is between the balls' surfaces.
+        distance = np.full(grown.shape, np.inf)
+        distance[:, moving] = _box_distances(centres[:, moving], *self.only)
+        distance[:, own] = np.minimum(distance[:, own], _box_distances(centres[:, own], *self.every))
         if self.pairs:
             # A pair's distance changes along the piece by no more than its relative travel (the joints the two
             # chains share move both alike), far less than the two geometries' travels in the world.
             p, h = np.array(self.pairs).T
             half = np.zeros_like(A) if B is None else np.abs(self.sweeps.space.difference(A, B)) / 2
             gap = np.linalg.norm(centres[:, p] - centres[:, h], axis=-1) - rest[:, p] - rest[:, h]
-            answers[0] |= np.any(gap <= half @ self.pair_rates.T, axis=1)
-            answers[1] |= np.any(gap <= PIECE_TRAVEL, axis=1)
-        return answers[0], answers[1]
+            distance = np.hstack([distance, gap])
+            rest, grown = np.hstack([rest, np.zeros_like(gap)]), np.hstack([grown, half @ self.pair_rates.T])
+        near = np.any(distance <= grown, axis=1)
+        there = np.any(distance <= rest + PIECE_TRAVEL, axis=1)
+        room = distance - rest
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shortfall = np.max(np.where(room > 0, (grown - rest) / room, np.inf), axis=1, initial=0.0)
+        return near, there, shortfall
 
     @property
     def changed(self) -> bool:
