@@ -353,3 +353,49 @@ def test_a_grid_point_rounded_past_the_legs_end_is_not_toppras_last():
         assert grid[0] == 0.0 and grid[-1] == end and np.all(np.diff(grid) > 0)
     s_of_t = _toppra(_sliders(2), leg, np.ones(2), np.ones(2))
     assert np.isclose(s_of_t.vector_values([s_of_t.end_time()])[0, 0], end)
+
+
+def test_lines_the_curves_margins_cover_are_proved_without_asking_and_keep_half_the_clearance(checkers):
+    """The curve's proof keeps what each of its pieces keeps from everything (its margin); a line between two
+    samples whose distance from the curve moves no pair more than that margin less half the clearance is proved
+    with no distance asked. Round the pillar with the planner's clearance: the lines are asked for nothing with the
+    margins, for distances without them, and keep half the clearance either way (Drake's distances, 16 points a
+    line)."""
+    import dataclasses
+
+    from app.checking.certify import Certifier
+    from app.motion.timing import prove_blends
+
+    oracle = checkers("maze")
+    W, scene = _round_the_pillar(0.02), oracle.scene
+    proof = prove_blends(Certifier(oracle), W)
+    assert not proof.failed and proof.margins is not None
+    asked = {}
+    for margins in (proof.margins, None):
+        stats = {}
+        timed = parameterize_smooth(
+            oracle,
+            W,
+            scene.velocity_limits,
+            scene.acceleration_limits,
+            stats=stats,
+            proof=dataclasses.replace(proof, margins=margins),
+        )
+        assert timed.certified
+        asked[margins is None] = stats["distance_queries"]
+        X = timed.positions
+        lines = X[:-1, None, :] + np.linspace(0, 1, 16)[None, :, None] * (X[1:] - X[:-1])[:, None, :]
+        half = proof.clearance / 2
+        assert min(oracle.diagnostics.clearance(q, 1.0) for q in lines.reshape(-1, X.shape[1])) >= half * (1 - 1e-6)
+    assert asked[False] == 0 < asked[True]
+    assert proof.reversed().margins is None  # placed by arc length, which the reversed path adds up anew
+
+
+def test_a_curves_margins_cover_a_span_only_where_its_pieces_meet():
+    from app.motion.blends import Margins
+
+    margins = Margins()
+    rows = np.array([[0.0, 1.0, 3.0], [1.0, 2.0, 2.0], [2.5, 3.0, 5.0]])  # a gap from 2 to 2.5
+    a, b = np.array([0.2, 0.5, 1.5, 2.6, 0.0]), np.array([0.8, 1.5, 2.6, 2.9, 3.0])
+    assert margins.least(rows, a, b).tolist() == [3.0, 2.0, -np.inf, 5.0, -np.inf]
+    assert margins.least(rows[:0], a, b).tolist() == [-np.inf] * 5

@@ -89,6 +89,10 @@ class Certifier(EndDistances):
     # first failure, so it keeps to WIDTH pieces nearest to contact.
     ROUND_MIN = 64
     CLOSING = 4
+    # A call that keeps its pieces' margins asks their ends as if each bound were this much larger, so that a pair
+    # left unreported at both ends of a piece is a quarter of the piece's largest bound from contact all along it,
+    # not barely apart (an end is asked only as far as half the largest bound needs).
+    MARGIN_ASK = 1.5
 
     def __init__(self, checker: Checker, floor: float | None = None):
         clock = time.perf_counter()
@@ -96,14 +100,18 @@ class Certifier(EndDistances):
         self.floor = floor if floor is not None else checker.oracle.space.resolution / FLOOR_DIVISOR
         self.seconds = time.perf_counter() - clock  # all this certifier's work: set-up, then every certify()
 
-    def certify(self, curve, intervals, clearance=0.0, floor=None, stop: Stop | None = None) -> tuple[bool, dict]:
+    def certify(
+        self, curve, intervals, clearance=0.0, floor=None, stop: Stop | None = None, margins: bool = False
+    ) -> tuple[bool, dict]:
         """Whether the curve keeps at least `clearance` (0: is free; one for all intervals or one per interval)
         from everything over each interval (s0, s1) of `intervals`: every pair's bound on a piece is taken
         2 x clearance larger, so that d(a) + d(b) > B + 2c leaves d >= c all along (see the module doc). floor: how
         short a failing piece may be cut before its interval fails (one for all or one per interval; default the
         certifier's), for a caller with a cheaper way round a failure than proving it finer. stop: what bounds the
         proof (its time limit and cancel flag: the certificate asks for distances, not checks), polled between its
-        batches of distance queries.
+        batches of distance queries. margins: keep, for every piece that passed, a lower bound on every pair's
+        distance all along it (ends asked farther, see MARGIN_ASK), for a caller that proves curves near this one
+        from it (app.motion.trajectory_samples).
 
         The curve (a Motion, or any object with the same methods) gives position(s), and variation(s0, s1), a bound
         on each coordinate's travel between s0 and s1, for s0 < s1 within one interval; and, if it has them,
@@ -111,21 +119,24 @@ class Certifier(EndDistances):
         coordinate's (then pieces are also bounded from the motion itself: MotionBound.pair_travel_along). All
         take arrays of s, (n,), and give rows, (n, dim): a round asks for all its pieces in one call.
         The curve must stay within the space's bounds between in-bound ends (a straight edge or a blend does).
-        stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds.
+        stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds; with
+        margins, margins: (interval, s0, s1, margin) rows of the pieces that passed, (pieces, 4).
         """
         motion = Motion(curve.position, curve.variation, getattr(curve, "derivatives", None))
         clock, queries = time.perf_counter(), self.checker.distance_queries
         intervals = np.array(list(intervals), float).reshape(-1, 2)
-        margins = 2 * np.broadcast_to(np.asarray(clearance, float), (len(intervals),))
+        clearances = np.broadcast_to(np.asarray(clearance, float), (len(intervals),))
         floors = np.broadcast_to(np.asarray(self.floor if floor is None else floor, float), (len(intervals),))
         heaps = self._first_pieces(motion.variation, intervals)
-        failed, pieces = [], 0
+        failed, pieces, kept = [], 0, []
         closing: set[int] = set()  # intervals with a piece that fell CLOSING short or more in the last round
         while heaps:
             todo = self._take(heaps, closing)
-            judged = self._judge(motion, todo, margins, stop)
+            judged = self._judge(motion, todo, clearances, stop, margins)
             closing = {i for (i, _), far in zip(todo, judged.closing) if far}
             pieces += self._cut(heaps, todo, judged, floors, failed)
+            if margins:
+                kept += [(i, a, b, m) for (i, (a, b)), ok, m in zip(todo, judged.passed, judged.margins) if ok]
             heaps = {i: heap for i, heap in heaps.items() if heap}
         stats = {
             "failed": sorted(failed),
@@ -133,6 +144,8 @@ class Certifier(EndDistances):
             "distance_queries": self.checker.distance_queries - queries,
             "seconds": time.perf_counter() - clock,
         }
+        if margins:  # of intervals that failed too: each piece that passed is proved
+            stats["margins"] = np.array(kept, float).reshape(-1, 4)
         self.seconds += stats["seconds"]
         return not failed, stats
 
@@ -159,9 +172,12 @@ class Certifier(EndDistances):
             for _ in range(min(self.WIDTH if i in closing else wide, len(heap)))
         ]
 
-    def _judge(self, motion: Motion, todo: list, margins: np.ndarray, stop: Stop | None) -> _Judged:
-        """The certificate on a round's pieces (see _take), their ends bounded together; margins: 2 x the
-        clearance, per interval; stop: polled between batches of distance queries."""
+    def _judge(
+        self, motion: Motion, todo: list, clearances: np.ndarray, stop: Stop | None, margins: bool = False
+    ) -> _Judged:
+        """The certificate on a round's pieces (see _take), their ends bounded together; clearances: per interval;
+        stop: polled between batches of distance queries; margins: whether to find each piece's margin (see
+        certify)."""
         spans = np.array([ab for _, ab in todo])
         variations = motion.variation(spans[:, 0], spans[:, 1]).reshape(len(todo), -1)
         ends = list(dict.fromkeys(s for _, ab in todo for s in ab))
@@ -169,13 +185,14 @@ class Certifier(EndDistances):
         by_end = np.array([slot[s] for _, ab in todo for s in ab])  # piece p's ends are rows 2p and 2p + 1
         Q = motion.position(np.array(ends))
         travel = self._travel(Q, by_end, spans, variations, motion.derivatives)
-        travel = travel + margins[[i for i, _ in todo]][:, None, None]
+        clearance = clearances[[i for i, _ in todo]]
+        travel = travel + 2 * clearance[:, None, None]
         # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
         # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
         certain = self.certain_shortfall(Q, by_end, travel)
-        found = self.at_ends(Q, ends, by_end, travel, certain, stop)
+        found = self.at_ends(Q, ends, by_end, travel * self.MARGIN_ASK if margins else travel, certain, stop)
         lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
-        clear, short = _clear([found.get(a) for _, (a, b) in todo], [found.get(b) for _, (a, b) in todo], travel)
+        clear, short, slack = _clear([found.get(a) for _, (a, b) in todo], [found.get(b) for _, (a, b) in todo], travel)
         worst = np.maximum(short, certain)
         return _Judged(
             passed=clear.tolist(),
@@ -184,6 +201,8 @@ class Certifier(EndDistances):
             unasked=(certain > 1.0).tolist(),
             closing=(worst >= self.CLOSING).tolist(),
             ends=found,
+            # d(a) + d(b) - B - 2c >= slack for every pair: d >= slack / 2 + c all along the piece.
+            margins=(slack / 2 + clearance).tolist(),
         )
 
     def _travel(self, Q: np.ndarray, by_end: np.ndarray, spans: np.ndarray, variations: np.ndarray, derivatives):
@@ -235,7 +254,8 @@ def _cuts(a: float, b: float, n: int) -> list[float]:
 class _Judged(NamedTuple):
     """A round's pieces as the certificate found them, an entry a piece: whether it passed, its length (weighted
     metric), into how many parts it is cut if it failed, whether it was cut unasked (it certainly fails), whether it
-    fell CLOSING short or more; and the distances at the ends asked, {s: PairDistances or None}."""
+    fell CLOSING short or more, a lower bound on every pair's distance all along it (meaningful where it passed);
+    and the distances at the ends asked, {s: PairDistances or None}."""
 
     passed: list
     lengths: list
@@ -243,17 +263,20 @@ class _Judged(NamedTuple):
     unasked: list
     closing: list
     ends: dict
+    margins: list
 
 
-def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The certificate for pieces (ends a[p], b[p], pair bounds pair_travel[p]), all at once: whether every pair
     reported at either end of a piece is farther apart, summed over the two ends, than its distance can change (a pair
-    an end does not report is at least that end's limit apart; False where an end is None: it collides), and by what
-    factor the worst pair's bound exceeds its two distances (1 where none does, or an end collides)."""
+    an end does not report is at least that end's limit apart; False where an end is None: it collides), by what
+    factor the worst pair's bound exceeds its two distances (1 where none does, or an end collides), and the least
+    of every pair's two distances less its bound (-inf where an end collides; a pair neither end reports counts both
+    limits less the largest bound)."""
     ok = np.array([a is not None and b is not None for a, b in zip(ends_a, ends_b)], bool)
-    short = np.ones(len(ok))
+    short, slack = np.ones(len(ok)), np.full(len(ok), -np.inf)
     if not ok.any():
-        return ok, short
+        return ok, short, slack
     # The distinct ends, and per piece which of them it joins.
     slots, table = {}, []
     for end in itertools.chain(ends_a, ends_b):
@@ -274,6 +297,7 @@ def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndar
     span = int(keys.max()) + 1 if len(keys) else 1
     tagged = np.repeat(np.arange(len(table), dtype=np.int64), counts) * span + keys
     failures, shortfall = np.zeros(len(pieces), np.int64), np.ones(len(pieces))
+    least = limit[a] + limit[b] - pair_travel[pieces].max(axis=(1, 2))
     for this, other in ((a, b), (b, a)):
         # Every pair `this` end of each piece reports, with its distance at the `other` end (or that end's limit).
         piece = np.repeat(np.arange(len(pieces)), counts[this])
@@ -287,9 +311,11 @@ def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndar
         bound = pair_travel[pieces[piece], row_a[row], row_b[row]]
         failures += np.bincount(piece[distance[row] + there <= bound], minlength=len(pieces))
         np.maximum.at(shortfall, piece, bound / np.maximum(distance[row] + there, 1e-300))
+        np.minimum.at(least, piece, distance[row] + there - bound)
     ok[pieces] = failures == 0
     short[pieces] = shortfall
-    return ok, short
+    slack[pieces] = least
+    return ok, short, slack
 
 
 class Motion(NamedTuple):

@@ -131,6 +131,50 @@ class _Curve:
         return self._last[1]
 
 
+class Margins:
+    """What the proof of a curve found besides that it is free: pieces of the curve (global s), each with a lower
+    bound on every pair's distance all along it, its margin (Certifier.certify's margins). The straight parts' pieces
+    hold whatever the blends become; a blend's hold while its corner keeps the radius it was proved at (`on`).
+    The lines between a trajectory's samples are proved from them (app.motion.trajectory_samples). Pieces cover a
+    span only where they meet exactly: their ends are the same numbers (the certificate cuts an interval at shared
+    points, and a blend and the straight parts beside it end at the same arc lengths)."""
+
+    def __init__(self):
+        self._line: list = []  # (s0, s1, margin)
+        self._blends: dict = {}  # blend piece (s0, s1, corner) -> [(s0, s1, margin)]
+
+    def add_line(self, rows: np.ndarray) -> None:
+        self._line += [tuple(row) for row in rows.tolist()]
+
+    def add_blend(self, piece: tuple, rows: np.ndarray) -> None:
+        self._blends.setdefault(piece, []).extend(tuple(row) for row in rows.tolist())
+
+    def on(self, legs: list[Leg]) -> np.ndarray:
+        """The pieces that hold on the curve of these legs, (s0, s1, margin) rows sorted by s0."""
+        rows = list(self._line)
+        for leg in legs:
+            for piece in leg.pieces:
+                if piece[2] is not None:
+                    rows += self._blends.get(piece, [])
+        return np.array(sorted(rows), float).reshape(-1, 3)
+
+    def least(self, rows: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Per span [a[i], b[i]] of the curve, the least margin of the pieces `rows` (see `on`) over it, or -inf
+        where they leave part of it uncovered."""
+        out = np.full(len(a), -np.inf)
+        if not len(rows) or not len(a):
+            return out
+        s0, s1, margin = rows.T
+        # Runs of pieces that meet or overlap: a span is covered when one run holds it.
+        first = np.flatnonzero(np.concatenate([[True], s0[1:] > np.maximum.accumulate(s1)[:-1]]))
+        starts, ends = s0[first], np.maximum.reduceat(s1, first)
+        run = np.searchsorted(starts, a, side="right") - 1
+        covered = (run >= 0) & (ends[run.clip(0)] >= b)
+        overlap = (s0[None, :] < b[:, None]) & (s1[None, :] > a[:, None])
+        least = np.where(overlap, margin[None, :], np.inf).min(axis=1)
+        return np.where(covered, least, out)
+
+
 def certified_radii(
     certifier: Certifier,
     W,
@@ -152,7 +196,8 @@ def certified_radii(
     radius / 4 x the change of tangent of the blend, coordinate by coordinate (at the blend's middle), so where
     that moves no pair more than clearance / 2 the blend's proof covers it; otherwise it is proved itself, to keep
     clearance / 2 (the path polyline is part of the answer: a controller may follow it). Each round proves the
-    blends, corners and straight parts it has in one certifier call. known: per segment, whether it is certified
+    blends, corners and straight parts it has in one certifier call, and keeps the margins of the curve's pieces
+    (Margins; the last value returned). known: per segment, whether it is certified
     already (then so is its straight part, and its half of each corner). give_up: a straight part that fails ends
     the proof (for a caller that will prove the path another way or change it, rather than time it uncertified).
     stop: what bounds the proofs (Certifier.certify)."""
@@ -161,7 +206,7 @@ def certified_radii(
     while True:
         corners = rounds.prove(radii)
         if not corners or rounds.refused and give_up:
-            return radii, sorted(rounds.refused), rounds.cost
+            return radii, sorted(rounds.refused), rounds.cost, rounds.margins
         for i in corners:
             halvings[i] += 1
             radii[i] = radii[i] / 2 if halvings[i] <= tighten else 0.0
@@ -184,6 +229,7 @@ class _BlendRounds:
         self.covered = certifier.bound.pair_travel(turn / 4).max(axis=(-2, -1))  # per corner, per unit of radius
         self.done: set = set()  # blend pieces proved
         self.refused: set[int] = set()
+        self.margins = Margins()
         self.cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
 
     def prove(self, radii: np.ndarray) -> set[int]:
@@ -210,7 +256,7 @@ class _BlendRounds:
         failed = _certify(self.certifier, both, intervals, margins, floors, self.stop)
         for key in ("pieces", "distance_queries", "seconds"):
             self.cost[key] += failed[key]
-        return self._record(radii, straight, blends, near, corners, failed["failed"])
+        return self._record(radii, straight, blends, near, corners, failed)
 
     def _straight_gains(self, radii: np.ndarray) -> list:
         """(segment, s0, s1): what each straight part not known nor refused has gained since the last round."""
@@ -239,10 +285,16 @@ class _BlendRounds:
         ]
         return near, corners
 
-    def _record(self, radii, straight: list, blends: list, near: list, corners: list, failed: list) -> set[int]:
-        """What a round proved, from the indices of its intervals that failed (straight parts, then blends, then
-        corners); the corners whose blend or cut-off failed."""
-        first_blend, first_corner = len(straight), len(straight) + len(blends)
+    def _record(self, radii, straight: list, blends: list, near: list, corners: list, stats: dict) -> set[int]:
+        """What a round proved, from the certifier's stats on its intervals (straight parts, then blends, then
+        corners): the indices of those that failed and the margins of the pieces that passed; the corners whose blend
+        or cut-off failed."""
+        failed, first_blend, first_corner = stats["failed"], len(straight), len(straight) + len(blends)
+        interval = stats["margins"][:, 0].astype(int)
+        self.margins.add_line(stats["margins"][interval < first_blend, 1:])
+        for k, piece in enumerate(blends):  # a blend's pieces at -s: the curve's at s
+            rows = stats["margins"][interval == first_blend + k]
+            self.margins.add_blend(piece, np.column_stack([-rows[:, 2], -rows[:, 1], rows[:, 3]]))
         failed_straight = {k for k in failed if k < first_blend}
         failed_blends = {k - first_blend for k in failed if first_blend <= k < first_corner}
         failed_corners = {corners[k - first_corner][0] for k in failed if k >= first_corner}
@@ -261,10 +313,11 @@ class _BlendRounds:
 
 def _certify(certifier: Certifier, curve, intervals: list, clearances: list, floors: list, stop: Stop | None) -> dict:
     """The certifier's stats on the intervals of `curve`, each to keep its clearance, cut no finer than its floor
-    (none asked for: no cost)."""
+    (none asked for: no cost), with the margins of the pieces that passed."""
     if not intervals:
-        return {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0}
-    return certifier.certify(curve, intervals, np.array(clearances, float), np.array(floors, float), stop)[1]
+        return {"failed": [], "pieces": 0, "distance_queries": 0, "seconds": 0.0, "margins": np.zeros((0, 4))}
+    clearances, floors = np.array(clearances, float), np.array(floors, float)
+    return certifier.certify(curve, intervals, clearances, floors, stop, margins=True)[1]
 
 
 class _Both:
@@ -323,19 +376,23 @@ def path_geometry(waypoints, weights):
 @dataclass(frozen=True)
 class BlendProof:
     """The curve a path's trajectory follows, certified ahead of its timing (prove_blends) to keep `clearance`: its
-    blend radii, and the path's edges whose straight part could not be proved (none: the whole curve is
-    certified)."""
+    blend radii, the path's edges whose straight part could not be proved (none: the whole curve is certified), and
+    the margins its proof found (None: not known)."""
 
     path: np.ndarray
     radii: np.ndarray
     failed: list[int]
     cost: dict
     clearance: float
+    margins: Margins | None = None
 
     def reversed(self) -> BlendProof:
-        """The proof of the same curve run backwards (a blend is symmetric about its corner)."""
+        """The proof of the same curve run backwards (a blend is symmetric about its corner). Its margins are left
+        out: they are placed by arc length, which the reversed path adds up anew (not to the same last digit)."""
         failed = sorted(len(self.path) - 2 - i for i in self.failed)
-        return dataclasses.replace(self, path=self.path[::-1].copy(), radii=self.radii[::-1].copy(), failed=failed)
+        return dataclasses.replace(
+            self, path=self.path[::-1].copy(), radii=self.radii[::-1].copy(), failed=failed, margins=None
+        )
 
 
 def prove_blends(
@@ -358,7 +415,7 @@ def prove_blends(
         cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
         return BlendProof(path.copy(), np.zeros(len(W)), [], cost, clearance)
     known = np.isin(edge, list(known))
-    radii, failed, cost = certified_radii(
+    radii, failed, cost, margins = certified_radii(
         certifier, W, tangent, arc, first_radii(np.diff(arc)), tighten, known, clearance, give_up=True, stop=stop
     )
-    return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost, clearance)
+    return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost, clearance, margins)

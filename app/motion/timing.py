@@ -182,16 +182,18 @@ def parameterize_smooth(
     """
     W, v, a, tangent, arc = _prepare(waypoints, velocity_limits, acceleration_limits, checker.space.weights)
     known = np.full(max(len(W) - 1, 0), edges_proved)
-    radii = np.zeros(len(W))
+    radii, margins = np.zeros(len(W)), None
     certified, cost = False, {"pieces": 0, "distance_queries": 0, "seconds": 0.0, "rounds": 0}
     if proof is not None:
         if len(proof.radii) != len(W):
             raise ValueError("the blend proof is of other waypoints")
-        radii, certified, clearance = proof.radii.copy(), not proof.failed, proof.clearance
+        radii, certified, clearance, margins = proof.radii.copy(), not proof.failed, proof.clearance, proof.margins
     elif len(W) > 1:
         certifier = certifier or Certifier(checker, floor)
         first = first_radii(np.diff(arc))
-        radii, failed, cost = certified_radii(certifier, W, tangent, arc, first, tighten, known, clearance, stop=stop)
+        radii, failed, cost, margins = certified_radii(
+            certifier, W, tangent, arc, first, tighten, known, clearance, stop=stop
+        )
         certified = not failed
     while True:
         legs = legs_between_stops(W, tangent, arc, radii) if len(W) > 1 else []
@@ -199,7 +201,7 @@ def parameterize_smooth(
             chords = None
             if certified:
                 certifier = certifier or Certifier(checker, floor)
-                chords = Chords(clearance, certifier, stop)
+                chords = Chords(clearance, certifier, stop, margins)
             trajectory = time_legs(checker.oracle.plant, W, arc, legs, v, a, dt, joint_names, chords)
             if chords is not None:
                 cost = {k: cost[k] + chords.cost.get(k, 0) for k in cost}
@@ -215,7 +217,7 @@ def parameterize_smooth(
             radii[corners[np.argmin(radii[corners])]] = 0.0
             if certified and not edges_proved:  # the polyline by that corner was cut off by its blend: prove it
                 certifier = certifier or Certifier(checker, floor)
-                radii, refused, more = certified_radii(
+                radii, refused, more, margins = certified_radii(
                     certifier, W, tangent, arc, radii, tighten, known, clearance, stop=stop
                 )
                 cost = {k: cost[k] + more[k] for k in cost}

@@ -11,7 +11,7 @@ import numpy as np
 
 from app.checking.budget import Stop
 from app.checking.certify import Certifier, straight_edges
-from app.motion.blends import CURVE_SLACK, LINE_CUTS, Leg
+from app.motion.blends import CURVE_SLACK, LINE_CUTS, Leg, Margins
 from app.motion.leg_timing import LegNotTimed, timed_leg, times_at
 from app.motion.trajectory import Trajectory
 
@@ -45,10 +45,14 @@ def time_legs(plant, W, arc, legs, v, a, dt, joint_names, chords: Chords | None)
 class Chords:
     """How the straight lines between a certified curve's samples are proved: the curve keeps `clearance`, the lines
     must keep half of it; `certifier` (its motion bound says how far a pair's distance can change over a change of
-    q, and it proves the lines the bound alone does not cover), `stop` what bounds those proofs; `cost` sums them."""
+    q, and it proves the lines the bound alone does not cover), `stop` what bounds those proofs; `cost` sums them;
+    `margins`: what the curve's proof found it keeps, piece by piece (app.motion.blends.Margins; None: only
+    `clearance` is known)."""
 
-    def __init__(self, clearance: float, certifier: Certifier, stop: Stop | None = None):
-        self.clearance, self.certifier, self.stop = clearance, certifier, stop
+    def __init__(
+        self, clearance: float, certifier: Certifier, stop: Stop | None = None, margins: Margins | None = None
+    ):
+        self.clearance, self.certifier, self.stop, self.margins = clearance, certifier, stop, margins
         self.cost = {"pieces": 0, "distance_queries": 0, "seconds": 0.0}
 
 
@@ -60,10 +64,11 @@ def _sample_times(timed: list[_Timed], dt: float, chords: Chords | None) -> np.n
     Within a leg q(s) is C1 with q'' constant on each piece (0 on straight ones, where the line lies on the curve),
     so the straight line between q(s_a) and q(s_b) lies within (s_b - s_a)^2 / 8 x max |q''| of the curve,
     coordinate by coordinate (linear interpolation's error); moved that far, a pair's distance changes by at most the
-    motion bound's pair travel. A line where that is at most clearance / 2 keeps half the clearance; the others are
-    proved by the certificate, and one that fails is cut in two at the middle of its s (each half within a quarter
-    of it), until every line is covered. A controller that interpolates linearly between the samples then keeps
-    clearance / 2."""
+    motion bound's pair travel. A line where that is at most the curve's margin over its span less clearance / 2
+    keeps half the clearance (the margin: what the curve's proof found its pieces keep, or else the clearance); the
+    others are proved by the certificate, and one that fails is cut in two at the middle of its s (each half within
+    a quarter of it), until every line is covered. A controller that interpolates linearly between the samples then
+    keeps clearance / 2."""
     duration = timed[-1].start + timed[-1].trajectory.end_time() if timed else 0.0
     times = np.arange(int(np.floor(duration / dt + 1e-9)) + 1) * dt
     times = np.union1d(times, [part.start for part in timed[1:]] + [duration])
@@ -80,6 +85,7 @@ def _sample_times(timed: list[_Timed], dt: float, chords: Chords | None) -> np.n
         s = part.s_of_t.vector_values(local).ravel()
         spans = np.array(blends) - part.leg.offset
         bend = np.abs(part.leg.path.MakeDerivative(2).vector_values(spans.mean(axis=1)).T)  # (blends, dim)
+        kept = chords.margins.on([part.leg]) if chords.margins is not None else None
         a, b = s[:-1], s[1:]
         while len(a):
             overlap = (a[:, None] < spans[None, :, 1]) & (b[:, None] > spans[None, :, 0])
@@ -87,7 +93,11 @@ def _sample_times(timed: list[_Timed], dt: float, chords: Chords | None) -> np.n
                 (b - a)[:, None] ** 2 / 8 * np.max(np.where(overlap[:, :, None], bend[None], 0.0), axis=1) * CURVE_SLACK
             )
             reach = chords.certifier.bound.pair_travel(off).max(axis=(-2, -1))
-            ask = np.flatnonzero(reach > chords.clearance / 2)
+            keeps = np.full(len(a), chords.clearance)
+            if kept is not None:
+                offset = part.leg.offset
+                keeps = np.maximum(keeps, chords.margins.least(kept, a + offset, b + offset))
+            ask = np.flatnonzero(reach > keeps - chords.clearance / 2)
             failed = _prove_lines(chords, part.leg.path, a[ask], b[ask])
             a, b = a[ask[failed]], b[ask[failed]]
             middle = 0.5 * (a + b)
