@@ -399,3 +399,36 @@ def test_a_curves_margins_cover_a_span_only_where_its_pieces_meet():
     a, b = np.array([0.2, 0.5, 1.5, 2.6, 0.0]), np.array([0.8, 1.5, 2.6, 2.9, 3.0])
     assert margins.least(rows, a, b).tolist() == [3.0, 2.0, -np.inf, 5.0, -np.inf]
     assert margins.least(rows[:0], a, b).tolist() == [-np.inf] * 5
+
+
+def test_a_corner_whose_own_distances_prove_no_blend_becomes_a_stop_at_its_second_failure(checkers, monkeypatch):
+    """At its second failure a corner's blend is weighed against the corner's own distances: round the pillar 1 cm
+    off, they prove a blend clear (Drake's distances along it and the corner it cuts off keep twice the clearance)
+    at a radius well above the last halving's, so halving goes on; where they prove none, the corner is a stop at
+    once, certified, for fewer rounds."""
+    import app.motion.blends as blends
+    from app.checking.certify import CLEARANCE
+    from app.motion.blends import path_geometry
+
+    oracle = checkers("maze")
+    W = _round_the_pillar(0.01)
+    asked, weighed = [], blends._BlendRounds.safe_radius
+
+    def spy(self, i, radius):
+        asked.append((i, radius, weighed(self, i, radius)))
+        return asked[-1][2]
+
+    monkeypatch.setattr(blends._BlendRounds, "safe_radius", spy)
+    smooth, _, halved = _times(oracle, W)
+    assert smooth.certified and halved["stops"] == 0 and halved["rounds"] > blends.STOP_TEST
+    [(i, radius, safe)] = asked
+    assert radius / 2.0 ** (blends.TIGHTEN - blends.STOP_TEST) < safe < radius
+    _, tangent, _, _ = path_geometry(W, oracle.space.weights)
+    u = np.linspace(0, 1, 64)[:, None]
+    before, after = W[i] - safe * tangent[i - 1], W[i] + safe * tangent[i]
+    curve = (1 - u) ** 2 * before + 2 * u * (1 - u) * W[i] + u**2 * after
+    cut_off = np.vstack([W[i] + u * (before - W[i]), W[i] + u * (after - W[i])])
+    assert min(oracle.diagnostics.clearance(q, 1.0) for q in np.vstack([curve, cut_off])) >= 2 * CLEARANCE * (1 - 1e-6)
+    monkeypatch.setattr(blends._BlendRounds, "safe_radius", lambda self, i, radius: 0.0)
+    stopped, _, stats = _times(oracle, W)
+    assert stopped.certified and stats["stops"] == 1 and stats["rounds"] == blends.STOP_TEST + 1 < halved["rounds"]

@@ -7,7 +7,8 @@ robot stop at each waypoint. Here each corner is rounded instead by a parabolic 
 from a point `radius` before the corner, through the corner as control point, to the point `radius` after it -- so
 the path is C1 and Toppra slows down just as much as its curvature needs. A blend leaves the checked polyline, so
 the whole curve is certified (app.checking.certify); a blend that cannot be certified is halved, and after TIGHTEN
-halvings the corner becomes a stop (the path is cut there into legs, each timed from rest to rest). What is proved
+halvings the corner becomes a stop (the path is cut there into legs, each timed from rest to rest), or sooner where
+the corner's own distances cannot prove even the last halving's blend clear (STOP_TEST). What is proved
 is that curve and the corners the blends cut off, so the returned polyline is proved too (a controller may follow
 either): where the polyline's edges are proved already only the blends are; otherwise (`prove_blends`, what the
 planner asks first) the straight parts between the blends and the cut-off corners are.
@@ -34,6 +35,10 @@ from app.motion.path import distinct
 BLEND = 0.5
 # Halvings of a blend that fails certification before its corner becomes a stop.
 TIGHTEN = 8
+# A blend that fails this many times becomes a stop at once where its corner's own distances cannot prove even the
+# last halving's blend clear: the corner lies that near something, a stop there costs the motion no more than so tight
+# a blend, and the halvings in between cost a certifier call each (the welding cell's queries: benchmark pages).
+STOP_TEST = 2
 # A straight line the certificate cannot prove in this many parts is cheaper to change than to prove finer: a line
 # between two samples gets a sample between (app.motion.trajectory_samples), a blend whose cut-off corner fails is
 # tightened.
@@ -209,7 +214,10 @@ def certified_radii(
             return radii, sorted(rounds.refused), rounds.cost, rounds.margins
         for i in corners:
             halvings[i] += 1
-            radii[i] = radii[i] / 2 if halvings[i] <= tighten else 0.0
+            radii[i] /= 2
+            smallest = radii[i] / 2.0 ** (tighten - halvings[i])
+            if halvings[i] > tighten or halvings[i] == STOP_TEST and rounds.safe_radius(i, radii[i]) < smallest:
+                radii[i] = 0.0
 
 
 class _BlendRounds:
@@ -257,6 +265,23 @@ class _BlendRounds:
         for key in ("pieces", "distance_queries", "seconds"):
             self.cost[key] += failed[key]
         return self._record(radii, straight, blends, near, corners, failed)
+
+    def safe_radius(self, i: int, radius: float) -> float:
+        """The largest radius up to `radius` whose blend at corner i, and the polyline it cuts off, the distances at
+        the corner alone prove keep twice the clearance: both lie within radius x the larger of the corner's two
+        tangents, coordinate by coordinate, of the corner (the blend is a Bezier curve of its ends and the corner),
+        and moved that far a pair's distance changes by at most the motion bound's pair travel."""
+        bound, c = self.certifier.bound, self.clearance
+        unit = bound.pair_travel(np.maximum(np.abs(self.tangent[i - 1]), np.abs(self.tangent[i])))
+        found = self.certifier.distances(self.W[i], float(unit.max() * radius + 2 * c) * (1 + 1e-9))
+        if found is None:
+            return 0.0
+        safe = radius
+        for pair, d in found.items():
+            a, b = (bound.row(g) for g in pair)
+            if unit[a, b] > 0:
+                safe = min(safe, (d - 2 * c) / unit[a, b])
+        return max(safe, 0.0)
 
     def _straight_gains(self, radii: np.ndarray) -> list:
         """(segment, s0, s1): what each straight part not known nor refused has gained since the last round."""
