@@ -190,7 +190,7 @@ class Certifier(EndDistances):
         # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
         # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
         certain = self.certain_shortfall(Q, by_end, travel)
-        found = self.at_ends(Q, ends, by_end, travel * self.MARGIN_ASK if margins else travel, certain, stop)
+        found = self.at_ends(Q, ends, by_end, travel, certain, stop, self.MARGIN_ASK if margins else 1.0)
         lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
         clear, short, slack = _clear([found.get(a) for _, (a, b) in todo], [found.get(b) for _, (a, b) in todo], travel)
         worst = np.maximum(short, certain)

@@ -102,12 +102,20 @@ class EndDistances:
         self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
 
     def at_ends(
-        self, Q: np.ndarray, ends: list, by_end: np.ndarray, travel: np.ndarray, certain: np.ndarray, stop=None
+        self,
+        Q: np.ndarray,
+        ends: list,
+        by_end: np.ndarray,
+        travel: np.ndarray,
+        certain: np.ndarray,
+        stop=None,
+        reach: float = 1.0,
     ):
         """{s: its PairDistances, or None where it collides} for the ends (s, at Q) of the pieces not cut unasked
         (certain <= 1; piece p's ends are Q[by_end[2p]] and Q[by_end[2p + 1]], its pair bounds travel[p]): each end
         asked at the largest max_distance of the pieces it bounds, and each pair there bounded until it reaches the
-        largest of its bounds on those pieces (shared ends once)."""
+        largest of its bounds on those pieces (shared ends once) -- all `reach` times farther, for margins beyond
+        the test's (Certifier.MARGIN_ASK), but with Drake's help only up to the test's own (see _bound_again)."""
         rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
         rows = rows[np.argsort(by_end[rows], kind="stable")]
         ordered = by_end[rows]
@@ -116,10 +124,10 @@ class EndDistances:
         limits, need = np.zeros(0), None
         if len(rows):
             pairs = self._rows[self._gaps.pairs]
-            limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel), 2)[rows], first)
+            limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel * reach), 2)[rows], first)
             if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
                 need = _largest_by_group(travel[rows // 2][:, pairs[:, 0], pairs[:, 1]], first)
-        found = self._distances(list(Q[asked]), limits.tolist(), need, stop)
+        found = self._distances(list(Q[asked]), limits.tolist(), need, stop, reach)
         return dict(zip([ends[j] for j in asked.tolist()], found))
 
     def certain_shortfall(self, Q: np.ndarray, by_end: np.ndarray, travel: np.ndarray) -> np.ndarray:
@@ -152,14 +160,16 @@ class EndDistances:
             for k, d in zip(end.keys.tolist(), end.distance.tolist())
         }
 
-    def _distances(self, Q: list, limits: list, pair_travel: np.ndarray | None = None, stop=None) -> list:
+    def _distances(
+        self, Q: list, limits: list, pair_travel: np.ndarray | None = None, stop=None, reach: float = 1.0
+    ) -> list:
         """For each configuration, the pairs within its limit (a PairDistances), from the cache when it was asked at
         a limit at least as large; None if it collides or lies outside the bounds. pair_travel[k, pair] (pairs of the
         gaps): the largest bound on the pair's change over the pieces configuration k ends; a pair's lower bound
         that reaches it at this end is enough for those pieces, given any positive one at their other end (so no
         tighter bound is sought); without it every pair below the limit is bounded as tightly as the certificate
-        can. stop: polled before each batch (a proof keeps to its query's time limit: among many pieces a batch is
-        dear)."""
+        can. reach: how much farther than pair_travel bounds are sought, without Drake's help (see at_ends). stop:
+        polled before each batch (a proof keeps to its query's time limit: among many pieces a batch is dear)."""
         keys = [np.asarray(q, float).tobytes() for q in Q]
         todo = []
         for k, (key, q, limit) in enumerate(zip(keys, Q, limits)):
@@ -169,13 +179,13 @@ class EndDistances:
         per_batch = max(1, self.BATCH_ROWS // max(1, len(self._gaps.pairs)))
         for first in range(0, len(todo), per_batch):
             poll(stop)
-            self._ends(todo[first : first + per_batch])
+            self._ends(todo[first : first + per_batch], reach)
         return [self._cache[key] for key in keys]
 
-    def _ends(self, todo: list) -> None:
+    def _ends(self, todo: list, reach: float = 1.0) -> None:
         """Into the cache: the certificate's distances at each (key, q, limit, pair travel) of `todo` -- Drake's for
         the pairs it computes exactly, our lower bound for the others (a pair left out is at least `limit` apart);
-        None where q is out of bounds or in contact."""
+        None where q is out of bounds or in contact. reach: see _distances."""
         for key, *_ in todo:
             self._cache[key] = None
         inside = self.checker.space.within_bounds(np.array([q for _, q, *_ in todo]))
@@ -188,13 +198,13 @@ class EndDistances:
         Q = np.array([q for _, q, _, _ in drake])
         # What settles each pair (see _distances): its bound over the pieces, with room for the rounding allowance.
         if drake[0][3] is None:
-            need = np.repeat(limits[:, None], len(self._gaps.pairs), axis=1)
+            travel, reach = np.repeat(limits[:, None], len(self._gaps.pairs), axis=1), 1.0
         else:
-            need = np.array([travel for *_, travel in drake]).reshape(len(drake), -1)
-        need = need * MAX_DISTANCE_MARGIN + 2 * self._rounding + 1e-12
+            travel = np.array([travel for *_, travel in drake]).reshape(len(drake), -1)
+        need, helped = (travel * factor * MAX_DISTANCE_MARGIN + 2 * self._rounding + 1e-12 for factor in (reach, 1))
         rotation, centre = self._poses_at(Q)
         near_k, near_pair, bounds = self._gaps.near(rotation, centre, reported.nhat, limits, need)
-        self._bound_again(Q, near_k, near_pair, bounds, reported.nhat, need, rotation, centre)
+        self._bound_again(Q, near_k, near_pair, bounds, reported.nhat, need, helped, rotation, centre)
         # A configuration in contact stays None: its pieces fail at once (a bound at or below 0 could only fail them
         # by cutting them down to the floor).
         doubtful = np.unique(near_k[bounds <= 0]).tolist()
@@ -265,25 +275,27 @@ class EndDistances:
 
         return rotation, centre
 
-    def _bound_again(self, Q, near_k, near_pair, bounds, nhat, need, rotation, centre) -> None:
+    def _bound_again(self, Q, near_k, near_pair, bounds, nhat, need, helped, rotation, centre) -> None:
         """Raises `bounds` (rows near_k, near_pair of the gaps, in place) where Drake gave no direction and they do
         not reach `need`. A pair Drake's query left out is farther apart than the limit by Drake's reckoning, but
         without Drake's direction our bound can fall far below that: alternating projections converge slowly
         between long shapes side by side (the UR3's upper arm and torch 9.8 mm apart were bounded at -2.4 mm), and
         such a pair fails every piece down to the floor. So those pairs not settled are bounded again: along the
         direction Drake last gave for the pair (ends of one motion are near each other, and any direction gives a
-        lower bound), then, where that is not enough either, along Drake's direction for the pair alone."""
+        lower bound), then, where that is not enough either, along Drake's direction for the pair alone -- asked
+        only below `helped`, the test's own need, which `need` exceeds where margins are sought: a margin is worth
+        a bound of our own, not a Drake query (on the welding cell they were a third of its pair queries)."""
 
         def tighten(rows, directions):
-            """Bound rows again along these directions; the rows still not settled."""
+            """Bound rows again along these directions; the rows still short of what Drake is asked for."""
             k, pair = near_k[rows], near_pair[rows]
             bounds[rows] = np.maximum(bounds[rows], self._gaps.along(k, pair, rotation, centre, directions))
-            return rows[bounds[rows] < need[k, pair]]
+            return rows[bounds[rows] < helped[k, pair]]
 
         rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
         known = np.isfinite(self._recent[near_pair[rows], 0]) if not self._ask_all else np.zeros(len(rows), bool)
-        if known.any():
-            rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
+        rows = np.concatenate([tighten(rows[known], self._recent[near_pair[rows[known]]]), rows[~known]])
+        rows = rows[bounds[rows] < helped[near_k[rows], near_pair[rows]]]
         if len(rows):
             asked = np.empty((len(rows), 3))
             for k in np.unique(near_k[rows]).tolist():
