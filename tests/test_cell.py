@@ -47,11 +47,14 @@ def test_a_loaded_roadmap_answers_as_the_one_in_memory(oracles, tmp_path):
     for start, goal in _queries(oracle, 3, seed=1):
         a, b = kept.solve(start, goal, QUERY), loaded.solve(start, goal, QUERY)
         assert np.array_equal(a.path, b.path) and a.collision_checks == b.collision_checks
-    # what the queries learned survives a save and a load too
+    # what the queries learned survives a save and a load too, but for their proofs: a file's are not trusted
     again = tmp_path / "again.npz"
     kept.save(again)
     kept_info, again_info = kept.info(), CellRoadmap.load(again, oracle).info()
-    assert kept_info["edges"] == again_info["edges"] and kept_info["nodes"] == again_info["nodes"]
+    kept_edges, again_edges = dict(kept_info["edges"]), dict(again_info["edges"])
+    assert kept_edges.pop("certified") > 0 == again_edges.pop("certified")
+    kept_edges["free"] += kept_info["edges"]["certified"]
+    assert kept_edges == again_edges and kept_info["nodes"] == again_info["nodes"]
 
 
 def test_the_same_query_again_costs_fewer_checks_and_decides_no_edge_twice(oracles, bar_file):

@@ -142,17 +142,27 @@ class Margins:
     hold whatever the blends become; a blend's hold while its corner keeps the radius it was proved at (`on`).
     The lines between a trajectory's samples are proved from them (app.motion.trajectory_samples). Pieces cover a
     span only where they meet exactly: their ends are the same numbers (the certificate cuts an interval at shared
-    points, and a blend and the straight parts beside it end at the same arc lengths)."""
+    points, and a blend and the straight parts beside it end at the same arc lengths). The polyline's corners the
+    blends cut off are pieces of the polyline, not of the curve: kept apart (`polyline_least`)."""
 
     def __init__(self):
         self._line: list = []  # (s0, s1, margin)
         self._blends: dict = {}  # blend piece (s0, s1, corner) -> [(s0, s1, margin)]
+        self._corners: list = []  # (s0, s1, margin) on the polyline
 
     def add_line(self, rows: np.ndarray) -> None:
         self._line += [tuple(row) for row in rows.tolist()]
 
     def add_blend(self, piece: tuple, rows: np.ndarray) -> None:
         self._blends.setdefault(piece, []).extend(tuple(row) for row in rows.tolist())
+
+    def add_corners(self, rows: np.ndarray) -> None:
+        self._corners += [tuple(row) for row in rows.tolist()]
+
+    def polyline_least(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Per span [a[i], b[i]] of the polyline, the least margin of its pieces proved (straight parts and the
+        corners the blends cut off) over it, or -inf where they leave part of it uncovered."""
+        return self.least(np.array(sorted(self._line + self._corners), float).reshape(-1, 3), a, b)
 
     def on(self, legs: list[Leg]) -> np.ndarray:
         """The pieces that hold on the curve of these legs, (s0, s1, margin) rows sorted by s0."""
@@ -317,6 +327,7 @@ class _BlendRounds:
         failed, first_blend, first_corner = stats["failed"], len(straight), len(straight) + len(blends)
         interval = stats["margins"][:, 0].astype(int)
         self.margins.add_line(stats["margins"][interval < first_blend, 1:])
+        self.margins.add_corners(stats["margins"][interval >= first_corner, 1:])
         for k, piece in enumerate(blends):  # a blend's pieces at -s: the curve's at s
             rows = stats["margins"][interval == first_blend + k]
             self.margins.add_blend(piece, np.column_stack([-rows[:, 2], -rows[:, 1], rows[:, 3]]))
@@ -401,8 +412,9 @@ def path_geometry(waypoints, weights):
 @dataclass(frozen=True)
 class BlendProof:
     """The curve a path's trajectory follows, certified ahead of its timing (prove_blends) to keep `clearance`: its
-    blend radii, the path's edges whose straight part could not be proved (none: the whole curve is certified), and
-    the margins its proof found (None: not known)."""
+    blend radii, the path's edges whose straight part could not be proved (none: the whole curve is certified), the
+    margins its proof found (None: not known), and the path's edges its pieces cover whole with that clearance (as
+    proved as if the polyline had been certified: a persistent roadmap keeps them proved for later queries)."""
 
     path: np.ndarray
     radii: np.ndarray
@@ -410,13 +422,15 @@ class BlendProof:
     cost: dict
     clearance: float
     margins: Margins | None = None
+    whole: tuple[int, ...] = ()
 
     def reversed(self) -> BlendProof:
         """The proof of the same curve run backwards (a blend is symmetric about its corner). Its margins are left
         out: they are placed by arc length, which the reversed path adds up anew (not to the same last digit)."""
         failed = sorted(len(self.path) - 2 - i for i in self.failed)
+        whole = tuple(sorted(len(self.path) - 2 - i for i in self.whole))
         return dataclasses.replace(
-            self, path=self.path[::-1].copy(), radii=self.radii[::-1].copy(), failed=failed, margins=None
+            self, path=self.path[::-1].copy(), radii=self.radii[::-1].copy(), failed=failed, margins=None, whole=whole
         )
 
 
@@ -443,4 +457,5 @@ def prove_blends(
     radii, failed, cost, margins = certified_radii(
         certifier, W, tangent, arc, first_radii(np.diff(arc)), tighten, known, clearance, give_up=True, stop=stop
     )
-    return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost, clearance, margins)
+    whole = tuple(edge[~known & (margins.polyline_least(arc[:-1], arc[1:]) >= clearance)].tolist())
+    return BlendProof(path.copy(), radii, [int(edge[j]) for j in failed], cost, clearance, margins, whole)

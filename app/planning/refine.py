@@ -114,11 +114,14 @@ class Refinement:
         """Whether the curve the robot will follow along `path` keeps the clearance: its corners blended as timing
         blends them (a blend that cannot be proved tightened, at last a stop), the straight parts between them and
         the corners they cut off proved (app.motion.timing.prove_blends). `failed` lists the edges whose straight
-        part could not be proved; the proof is kept for timing. For a path that is timed: without timing the
-        polyline itself is the answer, and `certify` proves it."""
+        part could not be proved; the proof is kept for timing, and the roadmap edges it covers whole count as proved
+        (as `certify` would have them). For a path that is timed: without timing the polyline itself is the answer,
+        and `certify` proves it."""
         self._make_certifier()
-        known = np.flatnonzero(self.roadmap.proved_with(self.roadmap.edge_pairs(path), self.clearance))
+        pairs = self.roadmap.edge_pairs(path)
+        known = np.flatnonzero(self.roadmap.proved_with(pairs, self.clearance))
         self.blends = self.ledger.run("certify", prove_blends, self.certifier, path, known, self.clearance, stop=stop)
+        self.roadmap.mark_proved([pairs[i] for i in self.blends.whole], self.clearance)
         stats = {**self.blends.cost, "failed": self.blends.failed}
         return Certificate.of(not self.blends.failed, self.clearance, stats, blended=True)
 
