@@ -493,7 +493,10 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
     def refusing_blends(self, path, stop):
         certificate = certify_blends(self, path, stop)
         failed = refuse(path, range(len(path) - 1))
-        return dataclasses.replace(certificate, proved=False, failed=failed) if failed else certificate
+        if not failed:
+            return certificate
+        self.blends = dataclasses.replace(self.blends, whole=tuple(set(self.blends.whole) - set(failed)))
+        return dataclasses.replace(certificate, proved=False, failed=failed)
 
     unwinding = []
 

@@ -284,7 +284,7 @@ class EndDistances:
         direction Drake last gave for the pair (ends of one motion are near each other, and any direction gives a
         lower bound), then, where that is not enough either, along Drake's direction for the pair alone -- asked
         only below `helped`, the test's own need, which `need` exceeds where margins are sought: a margin is worth
-        a bound of our own, not a Drake query (on the welding cell they were a third of its pair queries)."""
+        a bound of our own, not a Drake query (on the welding cell they were 30 % of its pair queries)."""
 
         def tighten(rows, directions):
             """Bound rows again along these directions; the rows still short of what Drake is asked for."""

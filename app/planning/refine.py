@@ -150,6 +150,7 @@ class Refinement:
             if self.settings.timing and repairs == 0 and not self.fine_only:
                 certificate = self.prove(self.certify_blends, path, proving)
                 work = _added(work, certificate)
+                proved_edges.update(path[i : i + 2].tobytes() for i in self.blends.whole)
             if certificate is None or not certificate.proved:  # edges the replay kept were proved already
                 keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
                 todo = [i for i, k in enumerate(keys) if k not in proved_edges]
