@@ -146,15 +146,21 @@ class Refinement:
             # The curve the robot follows first. A path it refuses grazes something: from then on the polyline,
             # which a blended proof spends blends on before it finds the failing edges (single queries: benchmark
             # pages); where it passes, timing proves the blends, or makes stops of them.
-            certificate = None
+            certificate, refused = None, []
             if self.settings.timing and repairs == 0 and not self.fine_only:
                 certificate = self.prove(self.certify_blends, path, proving)
                 work = _added(work, certificate)
+                # The edges its pieces covered whole are proved; those whose straight part failed would fail the
+                # polyline's proof as well (the same test, down to the same floor): neither is proved again.
                 proved_edges.update(path[i : i + 2].tobytes() for i in self.blends.whole)
+                refused = self.blends.failed
             if certificate is None or not certificate.proved:  # edges the replay kept were proved already
                 keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
-                todo = [i for i, k in enumerate(keys) if k not in proved_edges]
+                todo = [i for i, k in enumerate(keys) if k not in proved_edges and i not in refused]
                 certificate = self.prove(self.certify, path, proving, todo)
+                if refused:
+                    failed = sorted(set(certificate.failed) | set(refused))
+                    certificate = dataclasses.replace(certificate, proved=False, failed=failed)
                 proved_edges.update(k for i, k in enumerate(keys) if i not in certificate.failed)
                 work = _added(work, certificate)
             if certificate.proved:
