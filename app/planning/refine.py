@@ -150,8 +150,9 @@ class Refinement:
             if self.settings.timing and repairs == 0 and not self.fine_only:
                 certificate = self.prove(self.certify_blends, path, proving)
                 work = _added(work, certificate)
-                # The edges its pieces covered whole are proved; those whose straight part failed would fail the
-                # polyline's proof as well (the same test, down to the same floor): neither is proved again.
+                # The edges its pieces covered whole are proved; those whose straight part failed are refused at
+                # once: the polyline's proof would run the same test down to the same floor on them, and only other
+                # cut points could let it pass. Neither is proved again.
                 proved_edges.update(path[i : i + 2].tobytes() for i in self.blends.whole)
                 refused = self.blends.failed
             if certificate is None or not certificate.proved:  # edges the replay kept were proved already
