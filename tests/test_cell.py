@@ -97,20 +97,43 @@ def test_samples_a_hard_query_adds_stay_for_the_next(oracles):
 
 
 def test_a_query_on_a_stored_roadmap_draws_what_a_fresh_one_draws_and_adds_no_node_twice(oracles):
-    """Its graph is the fresh query's and more in every round: the same samples, on top of the roadmap's."""
+    """Its graph is the fresh query's and more in every round: the same samples, on top of the roadmap's, and every
+    edge the fresh query's roadmap proposes between them."""
     from app.planning.query import Query
 
     oracle = oracles("bar")
-    cell = CellRoadmap.build(oracle, BuildSettings(nodes=20, seed=1))  # (seed 0's samples would be the query's)
+    cell = CellRoadmap.build(oracle, BuildSettings(nodes=250, seed=1))  # (seed 0's samples would be the query's)
+    n, before = len(cell), cell.graph.arrays()
     stored, fresh = Query(oracle, QUERY, roadmap=cell.graph), Query(oracle, QUERY)
+    rounds = []
     for _ in range(2):
         stored.grow(5, 30, stored.stop)
         fresh.grow(5, 30, fresh.stop)
-    assert len(fresh.roadmap) > 40 and np.array_equal(stored.roadmap.Q[22:], fresh.roadmap.Q[2:])
+        rounds.append(stored.roadmap.Q[n + sum(map(len, rounds)) :])
+    assert len(fresh.roadmap) > 40 and np.array_equal(stored.roadmap.Q[n + 2 :], fresh.roadmap.Q[2:])
+    # Its start and goal are the fresh query's nodes 0 and 1. Nearest neighbours sought among all nodes alone would
+    # crowd out some of the fresh query's edges with the roadmap's nodes.
+    theirs = {tuple(e) for e in (fresh.roadmap.arrays()["ends"] + n).tolist()}
+    ours = {tuple(e) for e in stored.roadmap.arrays()["ends"].tolist()}
+    among_all = {tuple(e) for e in _proposed_among_all(oracle, before, rounds).tolist()}
+    assert theirs <= ours and not theirs <= among_all
+    # and the pockets it grows out of are judged on its own nodes, as the fresh query judges its roadmap
+    assert [sorted(p.tolist()) for p in stored._pockets()] == [sorted((p + n).tolist()) for p in fresh._pockets()]
     size = len(cell.graph)
     again = Query(oracle, QUERY, roadmap=cell.graph)  # the same query again: its start, goal and samples are there
     again.grow(5, 30, again.stop)
     assert len(cell.graph) == size
+
+
+def _proposed_among_all(oracle, arrays, rounds):
+    """The edges a roadmap (as `arrays`) proposes when each round's nodes (configurations) join it in turn, connected to
+    their nearest among all its nodes."""
+    from app.planning.roadmap import UNIFORM, Roadmap
+
+    copy = Roadmap.from_arrays(oracle.context(), arrays)
+    for Q in rounds:
+        copy.connect(copy.add(Q, UNIFORM, connect=False))
+    return copy.arrays()["ends"]
 
 
 def test_a_failed_query_takes_its_samples_away_and_keeps_its_verdicts(oracles):

@@ -128,10 +128,9 @@ class Query:
         self.via = via
         self.route = np.vstack([self.start, *via, self.goal])
 
-        # On a stored roadmap the query draws the very samples a fresh query with its seed draws: its graph is then
-        # the fresh query's and more in every round, so it connects start and goal as soon as the fresh query would,
-        # or sooner (drawn from a stream of their own, its rounds once cost more than no roadmap: benchmark pages).
-        # A sample the roadmap holds already (the same query again) is not added twice (`grow`).
+        # On a stored roadmap the query draws the very samples a fresh query with its seed draws (drawn from a stream
+        # of their own, its rounds once cost more than no roadmap: benchmark pages). A sample the roadmap holds
+        # already (the same query again) is not added twice (`grow`).
         seeds = np.random.SeedSequence(settings.seed).spawn(5)
         workspace = 0.0 if settings.full_roadmap else settings.workspace  # a full roadmap places none
         self.samples = Samples(checker, settings.sampler, self.step, seeds, workspace, settings.sampler_params)
@@ -152,6 +151,16 @@ class Query:
         # Endpoints are connected with the first round's samples, or at once where the roadmap has nodes already.
         self._unconnected = list(dict.fromkeys([self.start_node, *self.goal_nodes]))
         self._searchable = before > 0
+        # On a stored roadmap, the nodes a fresh query's roadmap would hold: the start, the goals and every node the
+        # query adds (`_join_own`). Each round connects its samples to their k nearest among all nodes and, besides,
+        # among these, as the fresh query's roadmap would; and a side's pocket is judged on these (`_pockets`), so
+        # the query escalates and grows out of pockets as the fresh one does. Its graph is then the fresh query's
+        # and more in every round, and it connects start and goal as soon as the fresh query would, as a rule (edges
+        # its search found colliding on the way through stored nodes may judge a pocket differently). Neighbours
+        # among all nodes alone crowd out the edges between the query's own samples that the fresh query's path
+        # uses, and a pocket judged on the whole roadmap grows elsewhere (benchmark pages).
+        self._own = np.empty(0, np.int64) if self._searchable else None
+        self._own_unconnected = list(self._unconnected) if self._searchable else []
         self.refinement = Refinement(checker, roadmap, settings, self.ledger, seeds[2], certifier)
         # What a shared certifier had spent before this query: the answer reports only this query's share.
         self._certificate_before = certifier.seconds if certifier is not None else 0.0
@@ -208,8 +217,18 @@ class Query:
         new = np.concatenate([np.array(self._unconnected, int), *(nodes for _, nodes in added)])
         self._unconnected = []
         self.ledger.run("roadmap", self.roadmap.connect, new, stop)
+        if self._own is not None:
+            mine = [np.array(self._own_unconnected, np.int64), *(roadmap.indices(Q) for _, _, Q in drawn)]
+            self._own_unconnected = []
+            self._join_own(np.concatenate(mine), stop)
         self._reward(new)
         return new
+
+    def _join_own(self, nodes: np.ndarray, stop: Stop) -> None:
+        """On a stored roadmap: `nodes` join the query's own (`_own`) and are connected to their k nearest among
+        them, k as for a roadmap of only those."""
+        self._own = np.array(list(dict.fromkeys([*self._own.tolist(), *nodes.tolist()])), np.int64)
+        self.ledger.run("roadmap", self.roadmap.connect, nodes, stop, self._own)
 
     # ---- search -----------------------------------------------------------------------------------------------------
     def search(self, stop: Stop) -> list[int] | None:
@@ -367,6 +386,8 @@ class Query:
             self._expansion["samples"] += len(grown)
             self._source_of = np.concatenate([self._source_of, np.full(len(grown), EXPANSION, object)])
             self.ledger.run("roadmap", roadmap.connect, np.array(grown), stop)
+            if self._own is not None:
+                self._join_own(np.array(grown, np.int64), stop)
 
     def _uniform_stalled(self) -> bool:
         """After a round that left start and goal apart: whether uniform samples alone have stalled (the class
@@ -376,14 +397,19 @@ class Query:
 
     def _pockets(self) -> list[np.ndarray]:
         """The nodes of each side of the query (the start's; the goals') shut in a pocket: its component of edges not
-        known to collide holds under POCKET_SHARE of the roadmap's nodes, so its candidate edges out have collided."""
-        labels = self.roadmap.labels()
+        known to collide holds under POCKET_SHARE of the roadmap's nodes, so its candidate edges out have collided.
+        On a stored roadmap, judged on the query's own nodes and the edges between them, as the fresh query judges
+        its roadmap."""
+        nodes = np.arange(len(self.roadmap)) if self._own is None else self._own
+        labels = self.roadmap.labels(None if self._own is None else nodes)
+        where = np.full(len(self.roadmap), -1)
+        where[nodes] = np.arange(len(nodes))
         sizes = np.bincount(labels)
         out = []
         for side in ([self.start_node], self.goal_nodes):
-            mine = np.unique(labels[side])
-            if sizes[mine].sum() < POCKET_SHARE * len(self.roadmap):
-                out.append(np.flatnonzero(np.isin(labels, mine)))
+            mine = np.unique(labels[where[side]])
+            if sizes[mine].sum() < POCKET_SHARE * len(nodes):
+                out.append(nodes[np.isin(labels, mine)])
         return out
 
     def _apart(self) -> None:

@@ -189,14 +189,20 @@ class Roadmap:
         wrapped = self.space.wrap(np.atleast_2d(np.asarray(Q, float)).reshape(-1, self.space.dim))
         return np.array([q.tobytes() not in self._nodes for q in wrapped], bool)
 
+    def indices(self, Q: np.ndarray) -> np.ndarray:
+        """The node at each configuration of Q (rows; each must be a node)."""
+        wrapped = self.space.wrap(np.atleast_2d(np.asarray(Q, float)).reshape(-1, self.space.dim))
+        return np.array([self._nodes[q.tobytes()] for q in wrapped], np.int64)
+
     def node(self, q: np.ndarray, kind: str) -> int:
         """The node at configuration q (free), added unconnected if the roadmap has none there: a persistent roadmap
         asked for the same start or goal again reuses the node and every edge decided from it."""
         found = self._nodes.get(self.space.wrap(np.asarray(q, float)).tobytes())
         return found if found is not None else int(self.add(q, kind, connect=False)[0])
 
-    def connect(self, nodes: np.ndarray, stop: Stop | None = None) -> int:
+    def connect(self, nodes: np.ndarray, stop: Stop | None = None, among: np.ndarray | None = None) -> int:
         """Try the edges from `nodes` to their k nearest neighbours not tried before; return how many were free.
+        With `among` (node indices), the neighbours are sought among those nodes only (`candidates`).
 
         Nodes go in chunks; each chunk's candidate edges are one `edges_free` batch, bounded by `stop`.
         """
@@ -206,14 +212,25 @@ class Roadmap:
         step = self.chunk if self.skip_connected and not self.lazy else len(nodes)
         added = 0
         for begin in range(0, len(nodes), step):
-            added += self._connect_chunk(nodes[begin : begin + step], stop)
+            added += self._connect_chunk(nodes[begin : begin + step], stop, among)
         return added
 
-    def candidates(self, nodes: np.ndarray) -> np.ndarray:
+    def candidates(self, nodes: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
         """The edges (node index pairs, smaller first) from `nodes` to their k nearest neighbours that were never
-        tried, now marked tried: each pair is decided at most once in the roadmap's life."""
-        self.k_used = self.k or prm_star_k(len(self), self.space.dim)
-        _, idx = self.neighbours(self.Q[nodes], self.k_used + 1)  # +1: a node is its own nearest neighbour
+        tried, now marked tried: each pair is decided at most once in the roadmap's life. With `among` (node indices,
+        `nodes` among them), the k nearest of those nodes, k as a roadmap of only them would take: the edges a
+        roadmap of those nodes alone would propose (a query on a stored roadmap proposes its own samples' edges so,
+        besides those to the stored nodes)."""
+        if among is None:
+            self.k_used = self.k or prm_star_k(len(self), self.space.dim)
+            _, idx = self.neighbours(self.Q[nodes], self.k_used + 1)  # +1: a node is its own nearest neighbour
+        else:
+            among = np.asarray(among, np.int64)
+            k = self.k or prm_star_k(len(among), self.space.dim)
+            X = self.embed(self.Q[nodes])
+            tree = cKDTree(self._embedded[among], boxsize=self._box)
+            threads = self.checker.threads if len(X) * tree.n >= _THREADED_QUERY else 1
+            idx = among[_query(tree, X, k + 1, 0, threads)[1]]
         a, b = np.repeat(np.asarray(nodes, np.int64), idx.shape[1]), idx.ravel().astype(np.int64)
         real = (a != b) & (b < len(self))  # (a missing neighbour of a small map is numbered len(self))
         P = np.column_stack([np.minimum(a, b), np.maximum(a, b)])[real]
@@ -249,8 +266,8 @@ class Roadmap:
             return
         self._append_rows(P, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]), alive=False, checked=True)
 
-    def _connect_chunk(self, nodes: np.ndarray, stop: Stop | None) -> int:
-        P = self.candidates(nodes)
+    def _connect_chunk(self, nodes: np.ndarray, stop: Stop | None, among: np.ndarray | None) -> int:
+        P = self.candidates(nodes, among)
         if not len(P):
             return 0
         if self.lazy:
@@ -313,9 +330,14 @@ class Roadmap:
             self._labelled = (state, connected_components(graph, directed=True, connection="strong"))
         return self._labelled[1]
 
-    def labels(self) -> np.ndarray:
-        """A component label per node, of the graph of edges not known to collide."""
-        return self._labels()[1]
+    def labels(self, among: np.ndarray | None = None) -> np.ndarray:
+        """A component label per node, of the graph of edges not known to collide; with `among` (node indices), a
+        label per node of `among`, of the graph of those nodes and the edges between them only."""
+        if among is None:
+            return self._labels()[1]
+        among = np.asarray(among, np.int64)
+        graph = self._search_graph(compact=True)[among][:, among]
+        return connected_components(graph, directed=False)[1]
 
     def components(self) -> int:
         return int(self._labels()[0])
