@@ -90,6 +90,46 @@ def test_the_lazy_roadmap_finds_a_free_path_through_the_gap_and_drops_colliding_
     assert checker.checks == checker.oracle.answered
 
 
+def test_edges_and_verdicts_handed_from_one_roadmap_to_another_are_not_checked_again():
+    """What a query on a stored roadmap does with the fresh query's roadmap beside it (app.planning.query)."""
+    checker = toy_checker(WALL + BLOCK)
+    rng = np.random.default_rng(2)
+    Q = np.vstack(
+        [
+            make_sampler("uniform", checker).sample(300, rng),
+            np.column_stack([rng.uniform(46, 54, 20), 50 + rng.uniform(-1, 1, 20)]),
+        ]
+    )
+
+    def roadmap(connect: bool) -> Roadmap:
+        r = Roadmap(checker, k=10, lazy=True)
+        r.node(checker.scene.start, "start"), r.node(checker.scene.goal, "goal")
+        r.add(Q, "uniform", connect=False)
+        if connect:
+            r.connect(np.arange(len(r)))
+        return r
+
+    fresh = roadmap(connect=True)
+    before = checker.checks
+    path = fresh.shortest_path(0, 1)
+    spent = checker.checks - before
+    assert path is not None and spent > 0
+    stored = roadmap(connect=False)
+    stored.propose(fresh.pairs())
+    stored.propose(fresh.pairs())  # proposed once
+    assert sorted(map(tuple, stored.pairs().tolist())) == sorted(map(tuple, fresh.pairs().tolist()))
+    decided, free = fresh.verdicts()
+    stored.learn(fresh.pairs()[decided], free[decided])
+    before = checker.checks
+    assert stored.shortest_path(0, 1) == path and checker.checks == before  # nothing checked again
+    # a roadmap taking only the free verdicts from elsewhere finds its own collisions, and checks no free edge again
+    again = roadmap(connect=True)
+    again.free_elsewhere = lambda P: np.logical_and(*fresh.known(P))
+    before = checker.checks
+    assert again.shortest_path(0, 1) == path and 0 < checker.checks - before < spent
+    assert _free_at_resolution(checker, again.Q[path])
+
+
 def test_smoothing_keeps_the_path_free_shortens_it_and_a_replay_asks_nothing_new():
     checker = toy_checker(WALL + BLOCK)
     P = np.array([[10.0, 50.0], [15.0, 90.0], [40.0, 90.0], [40.0, 50.0], [60.0, 50.0], [70.0, 80.0], [90.0, 50.0]])

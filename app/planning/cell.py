@@ -2,14 +2,14 @@
 
 `CellRoadmap.build(oracle, BuildSettings(...))` samples the cell's free space the way a query does (uniform samples,
 the narrow-passage sampler's, placements in narrow workspace gaps: `Samples`) and decides every k-nearest edge
-between them. `solve(start, goal)` then runs a query's phases (app.planning.planner.Query) on that graph: start and
+between them. `solve(start, goal)` then runs a query's phases (app.planning.query.Query) on that graph: start and
 goal join it, the search uses what is known, smoothing, the certificate and timing follow. `goal` may be several
 configurations (every IK solution of a tool pose): the query reaches whichever it can. A query on the roadmap draws
-the samples a fresh query with its seed draws, on top of what the roadmap holds, proposes the edges between them that
-the fresh query's roadmap would and judges its pockets on them as the fresh query does (app.planning.query.Query),
-so it connects start and goal no later than the fresh query would, as a rule; `roadmap build` then answers the
-scene's own query and its jobs on the new roadmap (app.jobs.cover), so that the hard regions are in it before anyone
-asks.
+the samples a fresh query with its seed draws, on top of what the roadmap holds, and runs the fresh query's roadmap
+beside it (app.planning.query.FreshShadow), whose edges and verdicts it takes: it connects start and goal no later
+than the fresh query would, for at most the fresh query's checks and its own searches through the stored nodes.
+`roadmap build` then answers the scene's own query and its jobs on the new roadmap (app.jobs.cover), so that the
+hard regions are in it before anyone asks.
 
 Nothing a query learns is forgotten: an edge checked free or found colliding is never checked again (nor the points of
 an edge a check found free before it stopped), and the samples a hard query had to add and joined to the roadmap by

@@ -151,16 +151,10 @@ class Query:
         # Endpoints are connected with the first round's samples, or at once where the roadmap has nodes already.
         self._unconnected = list(dict.fromkeys([self.start_node, *self.goal_nodes]))
         self._searchable = before > 0
-        # On a stored roadmap, the nodes a fresh query's roadmap would hold: the start, the goals and every node the
-        # query adds (`_join_own`). Each round connects its samples to their k nearest among all nodes and, besides,
-        # among these, as the fresh query's roadmap would; and a side's pocket is judged on these (`_pockets`), so
-        # the query escalates and grows out of pockets as the fresh one does. Its graph is then the fresh query's
-        # and more in every round, and it connects start and goal as soon as the fresh query would, as a rule (edges
-        # its search found colliding on the way through stored nodes may judge a pocket differently). Neighbours
-        # among all nodes alone crowd out the edges between the query's own samples that the fresh query's path
-        # uses, and a pocket judged on the whole roadmap grows elsewhere (benchmark pages).
-        self._own = np.empty(0, np.int64) if self._searchable else None
-        self._own_unconnected = list(self._unconnected) if self._searchable else []
+        # On a stored roadmap, the fresh query's roadmap beside it (`FreshShadow`): it decides when the query
+        # escalates and where it grows out of pockets, and every edge it proposes or decides is the stored roadmap's
+        # too, so the query connects no later than the fresh query would.
+        self._shadow = FreshShadow(self, roadmap) if self._searchable else None
         self.refinement = Refinement(checker, roadmap, settings, self.ledger, seeds[2], certifier)
         # What a shared certifier had spent before this query: the answer reports only this query's share.
         self._certificate_before = certifier.seconds if certifier is not None else 0.0
@@ -217,18 +211,10 @@ class Query:
         new = np.concatenate([np.array(self._unconnected, int), *(nodes for _, nodes in added)])
         self._unconnected = []
         self.ledger.run("roadmap", self.roadmap.connect, new, stop)
-        if self._own is not None:
-            mine = [np.array(self._own_unconnected, np.int64), *(roadmap.indices(Q) for _, _, Q in drawn)]
-            self._own_unconnected = []
-            self._join_own(np.concatenate(mine), stop)
+        if self._shadow is not None:
+            self._shadow.grow(drawn, stop)
         self._reward(new)
         return new
-
-    def _join_own(self, nodes: np.ndarray, stop: Stop) -> None:
-        """On a stored roadmap: `nodes` join the query's own (`_own`) and are connected to their k nearest among
-        them, k as for a roadmap of only those."""
-        self._own = np.array(list(dict.fromkeys([*self._own.tolist(), *nodes.tolist()])), np.int64)
-        self.ledger.run("roadmap", self.roadmap.connect, nodes, stop, self._own)
 
     # ---- search -----------------------------------------------------------------------------------------------------
     def search(self, stop: Stop) -> list[int] | None:
@@ -247,14 +233,14 @@ class Query:
             for i in np.flatnonzero(~ok):
                 roadmap.remove_edge(nodes[i], nodes[i + 1])
 
-    def search_and_refine(self, stop: Stop, proving: Stop) -> Refined | None:
+    def search_and_refine(self, stop: Stop, proving: Stop, first: list[int] | None = None) -> Refined | None:
         """A roadmap path smoothed and proved (app.planning.refine) once start and goal connect, else None: the
         optimistic pass first; once the certificate has refused a roadmap path, careful (fine-only) passes, whose
         roadmap paths are proved before any smoothing is spent on them, and whose unprovable edges leave the
-        roadmap while the search goes on."""
+        roadmap while the search goes on. `first`: a path of edges checked free to try before searching."""
         refinement = self.refinement
         while True:
-            nodes = self.search(stop)
+            nodes, first = (self.search(stop) if first is None else first), None
             if nodes is None:
                 return None
             if not refinement.fine_only:
@@ -343,7 +329,7 @@ class Query:
         sizes = None if found is not None else self.round_sizes()
         while sizes is not None:
             self.grow(*sizes, stop)
-            found = self.search_and_refine(stop, proving)
+            found = self._search_round(stop, proving)
             if found is not None:
                 break
             self._apart()
@@ -352,6 +338,25 @@ class Query:
             self._expand_pockets(stop)
             sizes = self.round_sizes()
         return None if found is None else ("roadmap", found)
+
+    def _search_round(self, stop: Stop, proving: Stop) -> Refined | None:
+        """A round's search (`search_and_refine`); on a stored roadmap with the fresh query's beside it
+        (`FreshShadow`), whose search runs every round. While the query is easy (no narrow samples yet), the stored
+        roadmap's search goes first and the fresh query's only if it found nothing: a path through stored nodes is
+        usually found for a few checks. Once narrow samples are on, the fresh query's goes first: the rounds are
+        many and fail mostly, and the stored roadmap's search then takes what it decided rather than disproving
+        the same candidate paths again; a path it found is tried first."""
+        shadow = self._shadow
+        if shadow is None:
+            return self.search_and_refine(stop, proving)
+        if self.narrow_from_round is not None and self.rounds >= self.narrow_from_round:
+            return self.search_and_refine(stop, proving, shadow.search(stop))
+        found = self.search_and_refine(stop, proving)
+        if found is None:
+            path = shadow.search(stop)
+            if path is not None:  # an edge of it decided the other way round there: checked in the other direction
+                found = self.search_and_refine(stop, proving, path)
+        return found
 
     def _expand_pockets(self, stop: Stop) -> None:
         """After a search that left start and goal apart: grow the start's side, or the goals', where it is shut in
@@ -363,31 +368,33 @@ class Query:
         (MotionBenchMaker's bookshelves), and the checks it spends each decide an edge."""
         from app.planning.roadmap import UNIFORM
 
-        roadmap, space = self.roadmap, self.checker.space
+        shadow, space = self._shadow, self.checker.space
+        graph = self.roadmap if shadow is None else shadow.graph  # the roadmap that judges pockets
         before = self.checker.checks
-        grown = []
+        grown, stored = [], []  # the nodes grown, in `graph` and in the stored roadmap
         for members in self._pockets():
             targets = space.uniform(self._expansion_rng, EXTENSIONS)
             for target in targets:
-                d = space.distance(roadmap.Q[members], target)
+                d = space.distance(graph.Q[members], target)
                 near = int(members[np.argmin(d)])
                 reach = min(1.0, self.step / max(float(d.min()), 1e-12))
-                q = space.wrap(roadmap.Q[near] + reach * space.difference(roadmap.Q[near], target))
+                q = space.wrap(graph.Q[near] + reach * space.difference(graph.Q[near], target))
                 self._expansion["tried"] += 1
                 free = self.ledger.run(
-                    "sampling", self.checker.edges_free, roadmap.Q[[near]], q[None], roadmap.resolution, stop=stop
+                    "sampling", self.checker.edges_free, graph.Q[[near]], q[None], graph.resolution, stop=stop
                 )
                 if free[0]:
-                    node = roadmap.extend(near, q, UNIFORM)
+                    node = graph.extend(near, q, UNIFORM)
                     members = np.append(members, node)
                     grown.append(node)
+                    stored.append(node if shadow is None else shadow.extended(near, node))
         self._expansion["checks"] += self.checker.checks - before
         if grown:
             self._expansion["samples"] += len(grown)
-            self._source_of = np.concatenate([self._source_of, np.full(len(grown), EXPANSION, object)])
-            self.ledger.run("roadmap", roadmap.connect, np.array(grown), stop)
-            if self._own is not None:
-                self._join_own(np.array(grown, np.int64), stop)
+            self._source_of = np.concatenate([self._source_of, np.full(len(stored), EXPANSION, object)])
+            self.ledger.run("roadmap", self.roadmap.connect, np.array(stored), stop)
+            if shadow is not None:
+                shadow.connect(np.array(grown), stop)
 
     def _uniform_stalled(self) -> bool:
         """After a round that left start and goal apart: whether uniform samples alone have stalled (the class
@@ -398,18 +405,18 @@ class Query:
     def _pockets(self) -> list[np.ndarray]:
         """The nodes of each side of the query (the start's; the goals') shut in a pocket: its component of edges not
         known to collide holds under POCKET_SHARE of the roadmap's nodes, so its candidate edges out have collided.
-        On a stored roadmap, judged on the query's own nodes and the edges between them, as the fresh query judges
-        its roadmap."""
-        nodes = np.arange(len(self.roadmap)) if self._own is None else self._own
-        labels = self.roadmap.labels(None if self._own is None else nodes)
-        where = np.full(len(self.roadmap), -1)
-        where[nodes] = np.arange(len(nodes))
+        On a stored roadmap, judged on the fresh query's roadmap beside it, and given as its nodes."""
+        if self._shadow is None:
+            graph, start, goals = self.roadmap, self.start_node, self.goal_nodes
+        else:
+            graph, start, goals = self._shadow.graph, self._shadow.start, self._shadow.goals
+        labels = graph.labels()
         sizes = np.bincount(labels)
         out = []
-        for side in ([self.start_node], self.goal_nodes):
-            mine = np.unique(labels[where[side]])
-            if sizes[mine].sum() < POCKET_SHARE * len(nodes):
-                out.append(nodes[np.isin(labels, mine)])
+        for side in ([start], goals):
+            mine = np.unique(labels[side])
+            if sizes[mine].sum() < POCKET_SHARE * len(graph):
+                out.append(np.flatnonzero(np.isin(labels, mine)))
         return out
 
     def _apart(self) -> None:
@@ -560,3 +567,77 @@ class Query:
             path_nodes=list(nodes),
             blends=self.refinement.blends if certificate.blended else None,
         )
+
+
+class FreshShadow:
+    """Beside a query on a stored roadmap, the roadmap the fresh query with the same seed grows: the same start,
+    goals and samples (the query's own, drawn once), connected, searched and grown out of pockets as the fresh query
+    does, with only its own verdicts. It decides what the query decides from the graph -- when narrow samples join
+    (`Query._uniform_stalled`) and which pockets grow (`Query._pockets`) -- and every edge it proposes or decides is
+    handed to the stored roadmap (`Roadmap.propose`, `Roadmap.learn`), whose search then holds the fresh query's
+    graph and more in every round. So the query connects no later than the fresh query would, for at most the fresh
+    query's checks plus its own searches through the stored nodes (its sampling is the fresh query's).
+
+    Without it, a sample joined to its nearest among all nodes, mostly stored ones, misses the edges to the query's
+    other samples that the fresh query's path uses, and pockets judged on the whole roadmap grow elsewhere (benchmark
+    pages, "A stored roadmap against none"). Its search takes the stored roadmap's free verdicts
+    (`Roadmap.free_elsewhere`), not its collisions: one known in advance steers the search off the paths it would
+    check, and the pockets would differ."""
+
+    def __init__(self, query: Query, stored):
+        from app.planning.roadmap import GOAL, START, Roadmap
+
+        s = query.settings
+        self.query, self.stored = query, stored
+        self.graph = Roadmap(query.checker, k=s.k, skip_connected=s.skip_connected, lazy=True)
+        # Its search takes an edge the stored roadmap has checked free as checked: it was checked once.
+        self.graph.free_elsewhere = lambda P: np.logical_and(*stored.known(self.stored_of[P]))
+        self.stored_of = np.empty(0, np.int64)  # per node of `graph`, the stored roadmap's node at it
+        self.start = self._node(query.start, START, query.start_node)
+        self.goals = [self._node(g, GOAL, n) for g, n in zip(query.goals, query.goal_nodes)]
+        self._unconnected = list(dict.fromkeys([self.start, *self.goals]))
+        self._handed = np.zeros(0, bool)  # per pair of `graph`, whether its verdict went to the stored roadmap
+
+    def _node(self, q: np.ndarray, kind: str, stored: int) -> int:
+        size = len(self.graph)
+        node = self.graph.node(q, kind)
+        if len(self.graph) > size:
+            self.stored_of = np.append(self.stored_of, stored)
+        return node
+
+    def grow(self, drawn: list, stop: Stop) -> None:
+        """A round's samples (`Samples.draw`'s, already in the stored roadmap) added and connected."""
+        added = []
+        for kind, _, Q in drawn:
+            Q = Q[self.graph.unseen(Q)]
+            added.append(self.graph.add(Q, kind, connect=False))
+            self.stored_of = np.concatenate([self.stored_of, self.stored.indices(Q)])
+        new = np.concatenate([np.array(self._unconnected, int), *added])
+        self._unconnected = []
+        self.connect(new, stop)
+
+    def connect(self, nodes: np.ndarray, stop: Stop) -> None:
+        """Connect nodes as the fresh query does, and propose its new edges to the stored roadmap."""
+        first = len(self.graph.pairs())
+        self.query.ledger.run("roadmap", self.graph.connect, nodes, stop)
+        self.stored.propose(self.stored_of[self.graph.pairs(first)])
+
+    def search(self, stop: Stop) -> list[int] | None:
+        """The fresh query's search of its roadmap, its verdicts handed to the stored roadmap: the path it found as
+        the stored roadmap's nodes (its edges checked free there), or None."""
+        nodes = self.query.ledger.run("search", self.graph.shortest_path, self.start, self.goals, stop)
+        decided, free = self.graph.verdicts()
+        new = decided.copy()
+        new[: len(self._handed)] &= ~self._handed
+        self.stored.learn(self.stored_of[self.graph.pairs()[new]], free[new])
+        self._handed = decided
+        return None if nodes is None else self.stored_of[nodes].tolist()
+
+    def extended(self, near: int, node: int) -> int:
+        """The stored roadmap's node for `node`, which `Query._expand_pockets` grew in this graph from `near` by a
+        free motion: added there too, joined the same way."""
+        from app.planning.roadmap import UNIFORM
+
+        stored = self.stored.extend(int(self.stored_of[near]), self.graph.Q[node], UNIFORM)
+        self.stored_of = np.append(self.stored_of, stored)
+        return stored

@@ -92,6 +92,10 @@ class Roadmap:
         self._tried: set[int] = set()  # `pair_key`s of the pairs ever proposed
         # Edges the certificate proved, (smaller, larger) -> the clearance they were proved to keep.
         self.proved: dict[tuple[int, int], float] = {}
+        # Where set, which node pairs were checked free elsewhere: the search takes those edges as checked (a
+        # query's fresh roadmap beside a stored one, app.planning.query.FreshShadow). Only free verdicts: a
+        # collision known in advance would steer the search off the candidate paths it would otherwise check.
+        self.free_elsewhere = None
         self._labelled = None  # (graph sizes, connected components) of the last `_labels`
         self._nodes: dict[bytes, int] = {}  # a configuration's bytes -> its node, so a repeated one is not added twice
         # Neighbour search (`_trees`): a k-d tree over the first `_tree_size` nodes, and one over the nodes since.
@@ -200,9 +204,8 @@ class Roadmap:
         found = self._nodes.get(self.space.wrap(np.asarray(q, float)).tobytes())
         return found if found is not None else int(self.add(q, kind, connect=False)[0])
 
-    def connect(self, nodes: np.ndarray, stop: Stop | None = None, among: np.ndarray | None = None) -> int:
+    def connect(self, nodes: np.ndarray, stop: Stop | None = None) -> int:
         """Try the edges from `nodes` to their k nearest neighbours not tried before; return how many were free.
-        With `among` (node indices), the neighbours are sought among those nodes only (`candidates`).
 
         Nodes go in chunks; each chunk's candidate edges are one `edges_free` batch, bounded by `stop`.
         """
@@ -212,25 +215,14 @@ class Roadmap:
         step = self.chunk if self.skip_connected and not self.lazy else len(nodes)
         added = 0
         for begin in range(0, len(nodes), step):
-            added += self._connect_chunk(nodes[begin : begin + step], stop, among)
+            added += self._connect_chunk(nodes[begin : begin + step], stop)
         return added
 
-    def candidates(self, nodes: np.ndarray, among: np.ndarray | None = None) -> np.ndarray:
+    def candidates(self, nodes: np.ndarray) -> np.ndarray:
         """The edges (node index pairs, smaller first) from `nodes` to their k nearest neighbours that were never
-        tried, now marked tried: each pair is decided at most once in the roadmap's life. With `among` (node indices,
-        `nodes` among them), the k nearest of those nodes, k as a roadmap of only them would take: the edges a
-        roadmap of those nodes alone would propose (a query on a stored roadmap proposes its own samples' edges so,
-        besides those to the stored nodes)."""
-        if among is None:
-            self.k_used = self.k or prm_star_k(len(self), self.space.dim)
-            _, idx = self.neighbours(self.Q[nodes], self.k_used + 1)  # +1: a node is its own nearest neighbour
-        else:
-            among = np.asarray(among, np.int64)
-            k = self.k or prm_star_k(len(among), self.space.dim)
-            X = self.embed(self.Q[nodes])
-            tree = cKDTree(self._embedded[among], boxsize=self._box)
-            threads = self.checker.threads if len(X) * tree.n >= _THREADED_QUERY else 1
-            idx = among[_query(tree, X, k + 1, 0, threads)[1]]
+        tried, now marked tried: each pair is decided at most once in the roadmap's life."""
+        self.k_used = self.k or prm_star_k(len(self), self.space.dim)
+        _, idx = self.neighbours(self.Q[nodes], self.k_used + 1)  # +1: a node is its own nearest neighbour
         a, b = np.repeat(np.asarray(nodes, np.int64), idx.shape[1]), idx.ravel().astype(np.int64)
         real = (a != b) & (b < len(self))  # (a missing neighbour of a small map is numbered len(self))
         P = np.column_stack([np.minimum(a, b), np.maximum(a, b)])[real]
@@ -260,14 +252,63 @@ class Roadmap:
         self._add_edges(P[free], checked=True)
         self._add_dead(P[~free])
 
+    def propose(self, P: np.ndarray) -> None:
+        """Candidate edges P (node index pairs) decided elsewhere to be worth a try, added unchecked as a lazy
+        roadmap adds its own; pairs tried before are left out."""
+        P = np.sort(np.asarray(P, np.int64).reshape(-1, 2), axis=1)
+        keys = pair_key(P[:, 0], P[:, 1]).tolist()
+        new = np.array([key not in self._tried for key in keys], bool)
+        self._tried.update(itertools.compress(keys, new))
+        if new.any():
+            self._add_edges(P[new], checked=False)
+            self.edges_proposed += int(new.sum())
+
+    def learn(self, P: np.ndarray, free: np.ndarray) -> None:
+        """Verdicts reached elsewhere on edges P (node index pairs) this roadmap holds undecided: the free ones are
+        checked, the colliding ones leave the graph. Edges it has decided, or does not hold, are left as they are."""
+        P = np.sort(np.asarray(P, np.int64).reshape(-1, 2), axis=1)
+        rows = np.array([self._rows.get(key, -1) for key in pair_key(P[:, 0], P[:, 1]).tolist()], np.int64)
+        free = np.asarray(free, bool)
+        take = rows >= 0
+        take[take] = self._alive[rows[take]] & ~self._checked[rows[take]]
+        ok, bad = rows[take & free], rows[take & ~free]
+        self._checked[ok] = True
+        self._free = joined_labels(self._free, self._ends[ok])
+        if len(bad):
+            self._alive[bad] = False
+            merged = bad[bad < self._search_synced]  # in the search's graph: out of it too
+            keys, lengths = self._search[0], self._search[2]
+            U, V = self._ends[merged, 0].astype(np.int64), self._ends[merged, 1].astype(np.int64)
+            lengths[np.searchsorted(keys, np.concatenate([U << 32 | V, V << 32 | U]))] = np.inf
+            self._search_dead += 2 * len(merged)
+            self._recount_components()
+
+    def known(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per pair of P (node index pairs): (whether this roadmap has decided that edge, whether it is free)."""
+        P = np.sort(np.asarray(P, np.int64).reshape(-1, 2), axis=1)
+        rows = np.array([self._rows.get(key, -1) for key in pair_key(P[:, 0], P[:, 1]).tolist()], np.int64)
+        held = rows >= 0
+        alive, checked = np.zeros(len(P), bool), np.zeros(len(P), bool)
+        alive[held], checked[held] = self._alive[rows[held]], self._checked[rows[held]]
+        return held & (checked | ~alive), alive
+
+    def pairs(self, first: int = 0) -> np.ndarray:
+        """Every pair proposed or decided (smaller index first), in the order they came, from the `first`th on."""
+        return self._ends[first:]
+
+    def verdicts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per pair of `pairs()`: (whether it is decided -- checked free, or known to collide --, whether it is not
+        known to collide)."""
+        return self._checked | ~self._alive, self._alive.copy()
+
     def _add_dead(self, P: np.ndarray) -> None:
         """Rows for edges known to collide: out of the graph, remembered (and saved) so they are never tried again."""
         if not len(P):
             return
         self._append_rows(P, self.space.distance(self.Q[P[:, 0]], self.Q[P[:, 1]]), alive=False, checked=True)
 
-    def _connect_chunk(self, nodes: np.ndarray, stop: Stop | None, among: np.ndarray | None) -> int:
-        P = self.candidates(nodes, among)
+    def _connect_chunk(self, nodes: np.ndarray, stop: Stop | None) -> int:
+        P = self.candidates(nodes)
         if not len(P):
             return 0
         if self.lazy:
@@ -330,14 +371,9 @@ class Roadmap:
             self._labelled = (state, connected_components(graph, directed=True, connection="strong"))
         return self._labelled[1]
 
-    def labels(self, among: np.ndarray | None = None) -> np.ndarray:
-        """A component label per node, of the graph of edges not known to collide; with `among` (node indices), a
-        label per node of `among`, of the graph of those nodes and the edges between them only."""
-        if among is None:
-            return self._labels()[1]
-        among = np.asarray(among, np.int64)
-        graph = self._search_graph(compact=True)[among][:, among]
-        return connected_components(graph, directed=False)[1]
+    def labels(self) -> np.ndarray:
+        """A component label per node, of the graph of edges not known to collide."""
+        return self._labels()[1]
 
     def components(self) -> int:
         return int(self._labels()[0])
@@ -437,6 +473,12 @@ class Roadmap:
         rows = rows[~self._checked[rows]]
         if not len(rows):
             return True
+        if self.free_elsewhere is not None:
+            known = self.free_elsewhere(self._ends[rows])
+            self._checked[rows[known]] = True
+            rows = rows[~known]
+            if not len(rows):
+                return True
         P, progress = self._ends[rows], self._progress[rows]
         free, decided = self.checker.edges_status(
             self.Q[P[:, 0]],
@@ -449,7 +491,13 @@ class Roadmap:
         )
         self._progress[rows] = progress
         self.edges_tried += int(decided.sum())
-        for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
+        self._decide(matrix, rows[decided], free[decided], trees)
+        return bool(decided.all() and free.all())
+
+    def _decide(self, matrix: csr_matrix, rows: np.ndarray, free: np.ndarray, trees) -> None:
+        """Verdicts on edge rows: free ones are checked; a colliding one leaves the graph, the search's matrix and
+        the trees."""
+        for row, (u, v), ok in zip(rows, self._ends[rows], free):
             if ok:
                 self._checked[row] = True
             else:
@@ -459,7 +507,6 @@ class Roadmap:
                 self._search_dead += 2
                 for tree in trees:
                     tree.cut(int(u), int(v))
-        return bool(decided.all() and free.all())
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
