@@ -354,7 +354,7 @@ class Query:
         found = self.search_and_refine(stop, proving)
         if found is None:
             path = shadow.search(stop)
-            if path is not None:  # an edge of it decided the other way round there: checked in the other direction
+            if path is not None:  # rare: its edges are the stored roadmap's, whose search found none first
                 found = self.search_and_refine(stop, proving, path)
         return found
 
@@ -624,14 +624,19 @@ class FreshShadow:
 
     def search(self, stop: Stop) -> list[int] | None:
         """The fresh query's search of its roadmap, its verdicts handed to the stored roadmap: the path it found as
-        the stored roadmap's nodes (its edges checked free there), or None."""
+        the stored roadmap's nodes, or None (also where the stored roadmap holds one of its edges colliding: checked
+        the other way round, or decided before this query)."""
         nodes = self.query.ledger.run("search", self.graph.shortest_path, self.start, self.goals, stop)
         decided, free = self.graph.verdicts()
         new = decided.copy()
         new[: len(self._handed)] &= ~self._handed
         self.stored.learn(self.stored_of[self.graph.pairs()[new]], free[new])
         self._handed = decided
-        return None if nodes is None else self.stored_of[nodes].tolist()
+        if nodes is None:
+            return None
+        path = self.stored_of[nodes]
+        decided, free = self.stored.known(np.column_stack([path[:-1], path[1:]]))
+        return path.tolist() if (decided & free).all() else None
 
     def extended(self, near: int, node: int) -> int:
         """The stored roadmap's node for `node`, which `Query._expand_pockets` grew in this graph from `near` by a

@@ -266,31 +266,31 @@ class Roadmap:
     def learn(self, P: np.ndarray, free: np.ndarray) -> None:
         """Verdicts reached elsewhere on edges P (node index pairs) this roadmap holds undecided: the free ones are
         checked, the colliding ones leave the graph. Edges it has decided, or does not hold, are left as they are."""
-        P = np.sort(np.asarray(P, np.int64).reshape(-1, 2), axis=1)
-        rows = np.array([self._rows.get(key, -1) for key in pair_key(P[:, 0], P[:, 1]).tolist()], np.int64)
-        free = np.asarray(free, bool)
+        rows, free = self._rows_of(P), np.asarray(free, bool)
         take = rows >= 0
         take[take] = self._alive[rows[take]] & ~self._checked[rows[take]]
         ok, bad = rows[take & free], rows[take & ~free]
         self._checked[ok] = True
         self._free = joined_labels(self._free, self._ends[ok])
-        if len(bad):
-            self._alive[bad] = False
-            merged = bad[bad < self._search_synced]  # in the search's graph: out of it too
-            keys, lengths = self._search[0], self._search[2]
-            U, V = self._ends[merged, 0].astype(np.int64), self._ends[merged, 1].astype(np.int64)
-            lengths[np.searchsorted(keys, np.concatenate([U << 32 | V, V << 32 | U]))] = np.inf
-            self._search_dead += 2 * len(merged)
-            self._recount_components()
+        # (an edge not checked joined no components of `_free`: killing one leaves them as they are)
+        self._alive[bad] = False
+        merged = bad[bad < self._search_synced]  # in the search's graph: out of it too
+        U, V = self._ends[merged, 0].astype(np.int64), self._ends[merged, 1].astype(np.int64)
+        self._search[2][np.searchsorted(self._search[0], np.concatenate([U << 32 | V, V << 32 | U]))] = np.inf
+        self._search_dead += 2 * len(merged)
 
     def known(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per pair of P (node index pairs): (whether this roadmap has decided that edge, whether it is free)."""
-        P = np.sort(np.asarray(P, np.int64).reshape(-1, 2), axis=1)
-        rows = np.array([self._rows.get(key, -1) for key in pair_key(P[:, 0], P[:, 1]).tolist()], np.int64)
+        rows = self._rows_of(P)
         held = rows >= 0
-        alive, checked = np.zeros(len(P), bool), np.zeros(len(P), bool)
+        alive, checked = np.zeros(len(rows), bool), np.zeros(len(rows), bool)
         alive[held], checked[held] = self._alive[rows[held]], self._checked[rows[held]]
         return held & (checked | ~alive), alive
+
+    def _rows_of(self, P: np.ndarray) -> np.ndarray:
+        """The edge row of each pair of P (node index pairs, either order), -1 where there is none."""
+        P = np.sort(np.asarray(P, np.int64).reshape(-1, 2), axis=1)
+        return np.array([self._rows.get(key, -1) for key in pair_key(P[:, 0], P[:, 1]).tolist()], np.int64)
 
     def pairs(self, first: int = 0) -> np.ndarray:
         """Every pair proposed or decided (smaller index first), in the order they came, from the `first`th on."""
