@@ -491,13 +491,7 @@ class Roadmap:
         )
         self._progress[rows] = progress
         self.edges_tried += int(decided.sum())
-        self._decide(matrix, rows[decided], free[decided], trees)
-        return bool(decided.all() and free.all())
-
-    def _decide(self, matrix: csr_matrix, rows: np.ndarray, free: np.ndarray, trees) -> None:
-        """Verdicts on edge rows: free ones are checked; a colliding one leaves the graph, the search's matrix and
-        the trees."""
-        for row, (u, v), ok in zip(rows, self._ends[rows], free):
+        for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
             if ok:
                 self._checked[row] = True
             else:
@@ -507,6 +501,7 @@ class Roadmap:
                 self._search_dead += 2
                 for tree in trees:
                     tree.cut(int(u), int(v))
+        return bool(decided.all() and free.all())
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
