@@ -114,6 +114,16 @@ def test_a_repair_keeps_only_verdicts_the_new_cell_confirms(bar_cell, change):
     assert len(_free_edges(bar_cell)) == before and bar_cell.oracle.scene.name == "bar"
 
 
+@pytest.mark.parametrize("change", [ADD_POST, REMOVE_BOX0, CARRY], ids=["add", "remove", "attach"])
+def test_a_repair_asked_in_blocks_over_threads_resets_what_one_block_resets(bar_cell, change, monkeypatch):
+    import app.planning.repair as repair
+
+    whole = bar_cell.changed([change]).graph.arrays()
+    monkeypatch.setattr(repair, "BLOCK", 7)  # many blocks per round, spread over the oracle's threads
+    blocks = bar_cell.changed([change]).graph.arrays()
+    assert whole.keys() == blocks.keys() and all(np.array_equal(whole[k], blocks[k]) for k in whole)
+
+
 def test_a_repaired_roadmap_answers_certified_in_the_new_cell(bar_cell):
     repaired = bar_cell.changed([REMOVE_BOX0])
     result = repaired.solve(settings=QUERY)

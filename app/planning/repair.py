@@ -25,6 +25,7 @@ less. The certificate never rests on these verdicts (it proves every answer in t
 """
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -38,6 +39,9 @@ from app.scene.shapes import half_extent
 PIECE_TRAVEL = 0.01
 # The most parts a piece of an edge is cut into at once.
 SPLIT_MAX = 8
+# Pieces asked at once, so that a block's arrays stay in the processor's cache; blocks are spread over the oracle's
+# threads (numpy's arithmetic leaves the interpreter lock).
+BLOCK = 4096
 
 
 @dataclass
@@ -148,8 +152,8 @@ class _Side:
     """One cell's side of a change: its robot's balls, which of its robot geometries the other cell lacks, the boxes
     of its obstacles the other cell lacks and of all its obstacles."""
 
-    def __init__(self, oracle, own: _Geometry, other: _Geometry):
-        self.sweeps = _Sweeps(oracle)
+    def __init__(self, oracle, own: _Geometry, other: _Geometry, pool: ThreadPoolExecutor):
+        self.sweeps, self._pool = _Sweeps(oracle), pool
         index = {g: i for i, g in enumerate(self.sweeps.ids)}
         self.robot_only = [index[g] for key, g in own.robot.items() if key not in other.robot]
         self.only = _boxes(oracle, [g for key, g in own.environment.items() if key not in other.environment])
@@ -173,13 +177,13 @@ class _Side:
         balls come within PIECE_TRAVEL of the change at its middle, with no travel, settles its edge at once: the
         pieces about that point would come as near."""
         if B is None:
-            return self._reaches(A, None)[0]
+            return self._blocks(A, None)[0]
         hit = np.zeros(len(A), bool)
         D = self.sweeps.space.difference(A, B)
         edge, t0, t1 = np.arange(len(A)), np.zeros(len(A)), np.ones(len(A))
         while len(edge):
             P0, P1 = A[edge] + t0[:, None] * D[edge], A[edge] + t1[:, None] * D[edge]
-            near, there, shortfall = self._reaches(P0, P1)
+            near, there, shortfall = self._blocks(P0, P1)
             short = self.sweeps.travel(P1 - P0) <= PIECE_TRAVEL
             hit[edge[there | (near & short)]] = True
             split = near & ~short & ~hit[edge]
@@ -189,6 +193,14 @@ class _Side:
             parts = np.repeat(parts, parts)
             t0, t1 = t0 + (t1 - t0) * k / parts, np.where(k + 1 == parts, t1, t0 + (t1 - t0) * (k + 1) / parts)
         return hit
+
+    def _blocks(self, A: np.ndarray, B: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`_reaches`, asked BLOCK rows at a time over the pool's threads: the same answers row by row."""
+        if len(A) <= BLOCK:
+            return self._reaches(A, B)
+        blocks = [slice(i, i + BLOCK) for i in range(0, len(A), BLOCK)]
+        answers = self._pool.map(lambda b: self._reaches(A[b], None if B is None else B[b]), blocks)
+        return tuple(np.concatenate(column) for column in zip(*answers))
 
     def _reaches(self, A: np.ndarray, B: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """`reaches` with one ball per robot geometry and configuration or edge (its middle): (with the travel
@@ -228,7 +240,14 @@ def repair(arrays: dict, old_oracle, new_oracle, context) -> tuple[dict, np.ndar
     coordinates): (arrays with the verdicts a change can affect set back to unknown, the mask of nodes that stay,
     counts). Nodes are checked again through `context` (a new_oracle context, which counts them)."""
     old_geometry, new_geometry = _geometries(old_oracle), _geometries(new_oracle)
-    gone, come = _Side(old_oracle, old_geometry, new_geometry), _Side(new_oracle, new_geometry, old_geometry)
+    with ThreadPoolExecutor(new_oracle.threads) as pool:
+        gone = _Side(old_oracle, old_geometry, new_geometry, pool)
+        come = _Side(new_oracle, new_geometry, old_geometry, pool)
+        return _repaired(arrays, gone, come, context)
+
+
+def _repaired(arrays: dict, gone: _Side, come: _Side, context) -> tuple[dict, np.ndarray, dict]:
+    """`repair` with each cell's side of the change."""
     Q, ends = arrays["Q"], arrays["ends"]
     alive, checked, progress = arrays["alive"], arrays["checked"], arrays["progress"]
     A, B = Q[ends[:, 0]], Q[ends[:, 1]]
