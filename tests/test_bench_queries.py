@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.bench.queries import Settings, check_methods, make_queries, measure
+from app.bench.queries import GOALS, QuerySet, Settings, _cell, _per_query, check_methods, make_queries, measure
 from app.checking.budget import Budget
 from app.errors import UserError
 
@@ -60,6 +60,11 @@ def test_fresh_and_cell_answer_the_same_queries_and_the_cell_is_built_once(oracl
     assert ratio["seconds_both_answered"] == pytest.approx(
         sum(c["seconds"] for c, _ in both) / sum(f["seconds"] for _, f in both)
     )
+
+    # independent queries: each starts where its fresh counterpart does
+    dearer = [i for i, (c, f) in enumerate(zip(cell["answers"], fresh["answers"])) if c["checks"] > 1.1 * f["checks"]]
+    assert ratio["per_query"]["same_start"] == 3 and ratio["per_query"]["other_start"] == 0
+    assert ratio["per_query"]["dearer"] == dearer
 
     again, reuse = measure(["bar-3link"], ["fresh", "cell"], TINY, tmp_path / "q.sqlite")
     assert reuse.reused == 2 and again["scenes"][0]["methods"] == scene["methods"]
@@ -218,3 +223,34 @@ def test_the_figures_caption_spells_the_budget():
     assert _spelled(str(Budget(checks=200_000))) == "200,000 checks"
     assert _spelled(str(Budget(seconds=2.5, checks=5000))) == "2.5 s, 5,000 checks"
     assert _spelled(str(Budget())) == "no limit"
+
+
+def test_each_query_is_weighed_against_the_fresh_query_from_its_own_start():
+    start = [0.0, 0.0]
+
+    def answer(checks, at=start, **more):
+        return {"checks": checks, "start": at, **more}
+
+    cell = {"answers": [answer(100), answer(120, fresh_checks=100), answer(300, [1.0, 0.0]), answer(50), answer(None)]}
+    fresh = {"answers": [answer(100), answer(10), answer(100), answer(40), answer(10)]}
+    # 0: same start; 1: its own counterpart, not fresh's answer; 2: another start, no counterpart: not weighed;
+    # 3: same start, over 1.1x; 4: a failure that spent an unknown count
+    assert GOALS["query vs fresh"] == 1.1
+    assert _per_query(cell, fresh) == {"same_start": 3, "other_start": 2, "dearer": [1, 3], "dearest": 1.25}
+
+
+def test_a_chained_cell_query_is_also_answered_fresh_from_its_own_start(oracles):
+    from app.planning.query import plan
+    from app.planning.settings import PlanSettings
+
+    oracle = oracles("bar-3link")
+    goals = [np.asarray(oracle.scene.goal, float)[None], np.asarray(oracle.scene.start, float)[None]]
+    home = np.asarray(oracle.scene.start, float)[None]
+    queries = QuerySet("two queries, chained", home, goals, np.zeros(2, bool), chained=True)
+    answers = _cell(oracle, queries, TINY, lambda: None)["answers"]
+    assert "fresh_checks" not in answers[0]  # the first query starts where the fresh method's does
+    second = answers[1]
+    assert second["success"] and np.allclose(second["start"], oracle.scene.goal)
+    settings = PlanSettings(budget=TINY.budget, seed=TINY.seed + 1)
+    counterpart = plan(oracle, settings, start=second["start"], goal=goals[1])
+    assert second["fresh_checks"] == counterpart.collision_checks

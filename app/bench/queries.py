@@ -19,7 +19,8 @@ Methods (`METHODS`), on a per-query budget (`--budget`: a CHECK budget, so ours 
 stops on time, so its planners get `ompl_seconds` per query):
 - fresh: `app.plan` per query (a new roadmap each time);
 - cell: one `CellRoadmap.build` (its seconds, checks, nodes and edges reported apart), then `cell.solve` per query
-  in order, the roadmap keeping what each query learned;
+  in order, the roadmap keeping what each query learned; in a chained set, each query also answered fresh from the
+  start the roadmap's own answers left it at, outside its seconds, so that every query has its fresh counterpart;
 - ompl-prm: one OMPL PRM whose graph is kept across queries (`OmplProblem.set_query`: `clearQuery()`, new start and
   goal states). Its build is `PRM.growRoadmap` for as many seconds as the cell's build took in this run (so
   `cell` must be among the methods); after that, its own queries grow it further (PRM's solve keeps sampling);
@@ -70,7 +71,8 @@ FREE_BATCH, FREE_ROUNDS = 256, 1000
 POSE_ATTEMPTS = 50
 # How near (scene metric) a path's end must be to a goal to count as reaching it.
 REACHED = 1e-6
-GOALS = {"cell vs fresh": 0.1, "cell vs ompl-prm": 0.5}  # the issue's goals for the total time of the queries
+# The goals for the total time of the queries, and for any one query's checks over its fresh counterpart's.
+GOALS = {"cell vs fresh": 0.1, "cell vs ompl-prm": 0.5, "query vs fresh": 1.1}
 
 
 @dataclass
@@ -364,9 +366,15 @@ def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds
         "workers": settings.workers,
     }
 
+    def fresh(start, goals, plan_settings):
+        return plan(oracle, plan_settings, start=start, goal=goals)
+
     def answer(i, start, goals):
         out = _ours(oracle, cell.solve, start, goals, settings.seed + i, settings.budget)
-        return {**out, "nodes": len(cell)}  # the roadmap after this query, with what the query added and kept
+        out["nodes"] = len(cell)  # the roadmap after this query, with what the query added and kept
+        if queries.chained and i > 0:  # from where this roadmap's answers left the robot: its own fresh counterpart
+            out["fresh_checks"] = _ours(oracle, fresh, start, goals, settings.seed + i, settings.budget)["checks"]
+        return out
 
     answers = answer_all(queries, answer, progress)
     return {"build": build, "answers": answers, "builds": len(cell.provenance["builds"])}
@@ -500,10 +508,43 @@ def _both_answered(a: dict, b: dict, key: str) -> tuple[int, float | None]:
     return len(pairs), _over(sum(x for x, _ in pairs), sum(y for _, y in pairs))
 
 
+def _per_query(cell: dict, fresh: dict) -> dict:
+    """Each query's checks on the cell roadmap over its fresh counterpart's: the fresh query from the same start. In
+    a chained query set a method starts where its own last answer left the robot, so the cell method answers each
+    query fresh from its own start too (`fresh_checks`); in a run stored without those, the fresh method's answer
+    where it started from the same configuration. How many queries compare, how many do not, the indices of those
+    over the goal, and the largest ratio."""
+    same = []
+    for i, (a, b) in enumerate(zip(cell["answers"], fresh["answers"])):
+        if "fresh_checks" in a:
+            same.append((i, a["checks"], a["fresh_checks"]))
+        elif "start" in a and "start" in b and np.allclose(a["start"], b["start"], rtol=0, atol=1e-9):
+            same.append((i, a["checks"], b["checks"]))
+    same = [(i, c, f) for i, c, f in same if c is not None and f is not None]
+    over = [c / f if f else (math.inf if c else 1.0) for _, c, f in same]
+    return {
+        "same_start": len(same),
+        "other_start": len(cell["answers"]) - len(same),
+        "dearer": [i for (i, _, _), r in zip(same, over) if r > GOALS["query vs fresh"]],
+        "dearest": max(over, default=None),
+    }
+
+
+def per_query_words(per_query: dict) -> str:
+    """`_per_query` in words: "0 of 49 (1 from another start; the dearest 1.02x)"."""
+    words = f"{len(per_query['dearer'])} of {per_query['same_start']}"
+    notes = [f"{per_query['other_start']} from another start"] if per_query["other_start"] else []
+    if per_query["dearer"]:
+        notes.append("queries " + ", ".join(str(i) for i in per_query["dearer"]))
+    if per_query["dearest"] is not None:
+        notes.append(f"the dearest {per_query['dearest']:.3g}x")
+    return words + (f" ({'; '.join(notes)})" if notes else "")
+
+
 def ratios(rows: list[dict]) -> list[dict]:
     """The cell's totals over fresh's and ompl-prm's, queries only and with each build added (None when a method
     is missing); and over the queries both answered (a query neither can answer costs each its whole budget, which
-    bounds the ratio of the totals from below)."""
+    bounds the ratio of the totals from below); over fresh's also query by query (`_per_query`)."""
     by = {r["method"]: r for r in rows}
     cell = by.get("cell")
     out = []
@@ -524,6 +565,7 @@ def ratios(rows: list[dict]) -> list[dict]:
                 "checks_both_answered": _both_answered(cell, o, "checks")[1],
                 "seconds_both_answered": seconds_both,
                 "goal_seconds": goal,
+                "per_query": _per_query(cell, o) if other == "fresh" else None,
             }
         )
     return out

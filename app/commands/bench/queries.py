@@ -1,7 +1,7 @@
 """`bench queries`: many queries in one cell, answered by fresh single queries, one persistent cell roadmap, OMPL's
 multi-query PRM and OMPL's RRTConnect (app.bench.queries)."""
 
-from app.bench.queries import METHODS, MIXES, Settings, check_methods, figure, measure
+from app.bench.queries import GOALS, METHODS, MIXES, Settings, check_methods, figure, measure, per_query_words
 from app.bench.statistics import shown
 from app.commands.bench import results
 from app.commands.common import (
@@ -150,4 +150,6 @@ def table(report: dict) -> str:
                 f"the {q['both_answered']} queries both answered: checks {shown(q['checks_both_answered'], '.3g')}x, "
                 f"seconds {shown(q['seconds_both_answered'], '.3g')}x"
             )
+            if q["per_query"] is not None:
+                lines.append(f"\nqueries over {GOALS['query vs fresh']:g}x fresh: {per_query_words(q['per_query'])}")
     return "\n".join(lines)
