@@ -188,6 +188,11 @@ def test_roadmap_update_info_and_plan_on_the_repaired_roadmap(cli, tmp_path, bar
     assert "changed   remove box0:" in cli("roadmap", "info", out).stdout
     planned = cli("plan", "bar", "--roadmap", out, "--json")
     assert planned.returncode == 0, planned.stderr and json.loads(planned.stdout)["certified"]
+    post = tmp_path / "post.yaml"
+    post.write_text("add:\n- {name: post, box: [4.0, 4.0, 2.0], pose: {xyz: [25.0, 50.0, 0.0]}}\n")
+    said = cli("plan", "bar", "--roadmap", out, "--change", post)
+    assert said.returncode == 0, said.stderr
+    assert "\n  changed   remove box0; add post\n" in said.stdout + "\n"  # the file's change, then --change
     # the repaired file refuses the old cell given as a scene file (its environment differs) -- and planning on the
     # old file with --change repairs it in memory
     assert cli("plan", "bar", "--roadmap", path, "--change", change, "--json").returncode == 0

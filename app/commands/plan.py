@@ -39,6 +39,7 @@ from app.planning.query import plan
 from app.planning.settings import PlanSettings
 from app.scene import moveit as moveit_files
 from app.scene import moveit_messages
+from app.scene.changes import ChangedScene
 
 DEFAULTS = PlanSettings()
 
@@ -278,6 +279,8 @@ def run(args) -> int:
                 print_json({**answer, **scene_details(oracle.scene)})
             else:
                 lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
+                if isinstance(oracle.scene, ChangedScene):  # the roadmap's recorded changes, then --change
+                    lines.append("changed   " + "; ".join(c.describe() for c in oracle.scene.changes))
                 if tool is not None:
                     lines.append(f"tool      {tool['name']} placed by the pose(s) ({TOOL_CHOSEN[tool['chosen']]})")
                 print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
