@@ -413,9 +413,9 @@ def queries_table(results: Path) -> list[str]:
         lines += [
             "",
             "The cell roadmap's totals over the other methods' on the same queries, in the same run, and the queries "
-            f"whose checks on the cell roadmap came to over {queries.GOALS['query vs fresh']:g}x their fresh "
-            "counterpart's, of those that started where the fresh query started (a method starts where its own last "
-            "answer left the robot):",
+            f"whose checks on the cell roadmap came to over {queries.GOALS['query vs fresh']:g}x those of the fresh "
+            "query from the same start (each method starts where its own last answer left the robot, so the cell "
+            "method also answers each query fresh from its own start):",
             "",
             f"| cell | over | checks | seconds | seconds, builds included | queries over "
             f"{queries.GOALS['query vs fresh']:g}x |",
