@@ -188,6 +188,7 @@ def test_roadmap_update_info_and_plan_on_the_repaired_roadmap(cli, tmp_path, bar
     assert "changed   remove box0:" in cli("roadmap", "info", out).stdout
     planned = cli("plan", "bar", "--roadmap", out, "--json")
     assert planned.returncode == 0, planned.stderr and json.loads(planned.stdout)["certified"]
+    assert json.loads(planned.stdout)["changes"] == [REMOVE_BOX0.to_dict()]
     post = tmp_path / "post.yaml"
     post.write_text("add:\n- {name: post, box: [4.0, 4.0, 2.0], pose: {xyz: [25.0, 50.0, 0.0]}}\n")
     said = cli("plan", "bar", "--roadmap", out, "--change", post)

@@ -276,6 +276,8 @@ def run(args) -> int:
             viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
             if args.json:
                 answer = {**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool}
+                if isinstance(oracle.scene, ChangedScene):  # the roadmap's recorded changes, then --change
+                    answer["changes"] = [c.to_dict() for c in oracle.scene.changes]
                 print_json({**answer, **scene_details(oracle.scene)})
             else:
                 lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
