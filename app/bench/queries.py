@@ -317,12 +317,14 @@ def _ours(oracle, solve, start, goals, seed: int, budget: Budget) -> dict:
     }
 
 
-def _fresh(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
-    def solve(start, goals, plan_settings):
-        return plan(oracle, plan_settings, start=start, goal=goals)
+def _plan_fresh(oracle, start, goals, plan_settings):
+    """A fresh single query, as `_ours` asks its solver."""
+    return plan(oracle, plan_settings, start=start, goal=goals)
 
+
+def _fresh(oracle, queries: QuerySet, settings: Settings, progress, build_seconds=None) -> dict:
     def answer(i, start, goals):
-        return _ours(oracle, solve, start, goals, settings.seed + i, settings.budget)
+        return _ours(oracle, partial(_plan_fresh, oracle), start, goals, settings.seed + i, settings.budget)
 
     return {"build": None, "answers": answer_all(queries, answer, progress)}
 
@@ -366,14 +368,12 @@ def _cell(oracle, queries: QuerySet, settings: Settings, progress, build_seconds
         "workers": settings.workers,
     }
 
-    def fresh(start, goals, plan_settings):
-        return plan(oracle, plan_settings, start=start, goal=goals)
-
     def answer(i, start, goals):
         out = _ours(oracle, cell.solve, start, goals, settings.seed + i, settings.budget)
         out["nodes"] = len(cell)  # the roadmap after this query, with what the query added and kept
         if queries.chained and i > 0:  # from where this roadmap's answers left the robot: its own fresh counterpart
-            out["fresh_checks"] = _ours(oracle, fresh, start, goals, settings.seed + i, settings.budget)["checks"]
+            fresh = _ours(oracle, partial(_plan_fresh, oracle), start, goals, settings.seed + i, settings.budget)
+            out["fresh_checks"] = fresh["checks"]
         return out
 
     answers = answer_all(queries, answer, progress)

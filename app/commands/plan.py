@@ -274,15 +274,17 @@ def run(args) -> int:
         # Files first (all or none), the answer last: a failure writing one leaves no success printed.
         with answering():  # from here an interrupt waits until the files and the answer are written
             viewer = view.write_outputs(args, oracle.scene, result.trajectory_file(), args.out, saved)
+            # a changed cell: the changes a roadmap file records, then --change
+            changed = oracle.scene.changes if isinstance(oracle.scene, ChangedScene) else []
             if args.json:
                 answer = {**result.to_json(), **certificate_scope(oracle.scene), "tool_frame": tool}
-                if isinstance(oracle.scene, ChangedScene):  # the roadmap's recorded changes, then --change
-                    answer["changes"] = [c.to_dict() for c in oracle.scene.changes]
+                if changed:
+                    answer["changes"] = [c.to_dict() for c in changed]
                 print_json({**answer, **scene_details(oracle.scene)})
             else:
                 lines = [f"collisions {collisions(oracle.scene)}", *custom.describe(oracle.scene)]
-                if isinstance(oracle.scene, ChangedScene):  # the roadmap's recorded changes, then --change
-                    lines.append("changed   " + "; ".join(c.describe() for c in oracle.scene.changes))
+                if changed:
+                    lines.append("changed   " + "; ".join(c.describe() for c in changed))
                 if tool is not None:
                     lines.append(f"tool      {tool['name']} placed by the pose(s) ({TOOL_CHOSEN[tool['chosen']]})")
                 print("\n".join([summary(result, oracle.scene), *("  " + line for line in lines)]))
