@@ -467,8 +467,7 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
     from app.scene.model import Scene
 
     oracle = CollisionOracle(Scene("bar-3link"))
-    raw, refused, smooth = [], [], Refinement.smooth
-    certify, certify_blends = Refinement.certify, Refinement.certify_blends
+    raw, refused, smooth, certify = [], [], Refinement.smooth, Refinement.certify
 
     def recording(self, nodes, stop, memo=None):
         raw.append(self.roadmap.Q[nodes])
@@ -490,14 +489,6 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
         failed = refuse(path, range(len(path) - 1) if edges is None else edges)
         return dataclasses.replace(certificate, proved=False, failed=failed) if failed else certificate
 
-    def refusing_blends(self, path, stop):
-        certificate = certify_blends(self, path, stop)
-        failed = refuse(path, range(len(path) - 1))
-        if not failed:
-            return certificate
-        self.blends = dataclasses.replace(self.blends, whole=tuple(set(self.blends.whole) - set(failed)))
-        return dataclasses.replace(certificate, proved=False, failed=failed)
-
     unwinding = []
 
     def counted_unwind(o, path, *args):
@@ -509,7 +500,6 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
 
     monkeypatch.setattr(Refinement, "smooth", recording)
     monkeypatch.setattr(Refinement, "certify", refusing)
-    monkeypatch.setattr(Refinement, "certify_blends", refusing_blends)
     monkeypatch.setattr(refine, "unwind", counted_unwind)
     result = plan(oracle, PlanSettings(seed=0))
     assert refused and result.smoothing.repairs == 1 and not result.smoothing.fine_only
@@ -519,6 +509,35 @@ def test_a_shortcut_the_certificate_refuses_is_undone_and_the_others_kept(monkey
     assert result.smoothing.length_after < result.smoothing.raw_length
     finding = result.collision_checks - result.stats.checks.smoothing - result.stats.checks.timing
     assert result.stats.checks.smoothing - sum(unwinding) <= SMOOTHING_CAP * finding + 1
+
+
+def test_the_blends_are_proved_only_on_a_path_whose_polyline_is_proved(monkeypatch):
+    """Smoothing's proof takes the polyline first and the blends after it, with every edge known: a path the
+    certificate refuses pays for no blends, and the blends' proof does not prove a straight part again."""
+    from app.checking.oracle import CollisionOracle
+    from app.planning import refine
+    from app.planning.refine import Refinement
+    from app.scene.model import Scene
+
+    events, certify, prove_blends = [], Refinement.certify, refine.prove_blends
+
+    def certifying(self, path, stop, edges=None):
+        certificate = certify(self, path, stop, edges)
+        events.append(("polyline", path.tobytes(), certificate.proved))
+        return certificate
+
+    def blending(certifier, path, known=(), *args, **kwargs):
+        events.append(("blends", path.tobytes(), [int(i) for i in known] == list(range(len(path) - 1))))
+        return prove_blends(certifier, path, known, *args, **kwargs)
+
+    monkeypatch.setattr(Refinement, "certify", certifying)
+    monkeypatch.setattr(refine, "prove_blends", blending)
+    result = plan(CollisionOracle(Scene("bar-3link")), PlanSettings(seed=0))
+    blends = [(i, e) for i, e in enumerate(events) if e[0] == "blends"]
+    assert blends and all(known for _, (_, _, known) in blends)
+    for i, (_, path, _) in blends:
+        assert ("polyline", path, True) in events[:i]
+    assert result.certificate.blended and result.trajectory.certified
 
 
 def test_same_seed_same_path(oracles, planned):

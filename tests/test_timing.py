@@ -394,15 +394,10 @@ def test_lines_the_curves_margins_cover_are_proved_without_asking_and_keep_half_
 def test_the_edges_a_curves_proof_covers_whole_count_as_proved_and_are_not_proved_again(checkers):
     """Round the pillar: the curve's proof proves the straight parts at the clearance and the corners the blends
     cut off at half of it, with margins; where those pieces cover an edge of the path whole, each keeping the
-    clearance, the edge counts as proved (Drake's distances, 64 points an edge, agree). A roadmap keeps those edges
-    proved, and a later proof of the same curve proves fewer pieces and blends no less."""
-    from app.checking.budget import Budget, Stop
+    clearance, the edge counts as proved (Drake's distances, 64 points an edge, agree), and a later proof of the same
+    curve with those edges known proves fewer pieces and blends no less."""
     from app.checking.certify import Certifier
     from app.motion.timing import prove_blends
-    from app.planning.refine import Refinement
-    from app.planning.result import Ledger
-    from app.planning.roadmap import Roadmap
-    from app.planning.settings import PlanSettings
 
     oracle = checkers("maze")
     W = _round_the_pillar(0.02)
@@ -415,15 +410,6 @@ def test_the_edges_a_curves_proof_covers_whole_count_as_proved_and_are_not_prove
     assert not again.failed and not set(again.whole) & set(first.whole)
     assert again.cost["pieces"] < first.cost["pieces"] and np.all(again.radii >= first.radii)
     assert first.reversed().whole == tuple(sorted(len(W) - 2 - i for i in first.whole))
-
-    roadmap = Roadmap(oracle, k=4, lazy=True)
-    nodes = [roadmap.node(q, "uniform") for q in W]
-    roadmap.record(np.array([[nodes[0], nodes[1]], [nodes[1], nodes[2]]]), np.array([True, True]))
-    settings = PlanSettings(seed=0)
-    refinement = Refinement(oracle, roadmap, settings, Ledger(oracle), 0)
-    refinement.certify_blends(W, Stop(Budget(), oracle))
-    pairs = roadmap.edge_pairs(W)
-    assert roadmap.proved_with(pairs, settings.clearance).tolist() == [i in first.whole for i in range(len(W) - 1)]
 
 
 def test_a_curves_margins_cover_a_span_only_where_its_pieces_meet():

@@ -111,17 +111,13 @@ class Refinement:
         return Certificate.of(proved, self.clearance, {**stats, "failed": failed})
 
     def certify_blends(self, path: np.ndarray, stop: Stop) -> Certificate:
-        """Whether the curve the robot will follow along `path` keeps the clearance: its corners blended as timing
-        blends them (a blend that cannot be proved tightened, at last a stop), the straight parts between them and
-        the corners they cut off proved (app.motion.timing.prove_blends). `failed` lists the edges whose straight
-        part could not be proved; the proof is kept for timing, and the roadmap edges it covers whole count as proved
-        (as `certify` would have them). For a path that is timed: without timing the polyline itself is the answer,
-        and `certify` proves it."""
+        """The blends timing will cut the corners of `path` with, proved to keep the clearance (a blend that cannot
+        be proved tightened, at last a stop; app.motion.timing.prove_blends), for a path to be timed whose edges are
+        proved already (so its straight parts and the corners the blends cut off are too); the proof is kept for
+        timing."""
         self._make_certifier()
-        pairs = self.roadmap.edge_pairs(path)
-        known = np.flatnonzero(self.roadmap.proved_with(pairs, self.clearance))
+        known = np.arange(len(path) - 1)
         self.blends = self.ledger.run("certify", prove_blends, self.certifier, path, known, self.clearance, stop=stop)
-        self.roadmap.mark_proved([pairs[i] for i in self.blends.whole], self.clearance)
         stats = {**self.blends.cost, "failed": self.blends.failed}
         return Certificate.of(not self.blends.failed, self.clearance, stats, blended=True)
 
@@ -143,26 +139,17 @@ class Refinement:
             path, stats = self.smooth(nodes, stop, memo)
             if proof is not None and np.array_equal(path, self.roadmap.Q[nodes]):
                 return path, stats, repairs, proof
-            # The curve the robot follows first. A path it refuses grazes something: from then on the polyline,
-            # which a blended proof spends blends on before it finds the failing edges (single queries: benchmark
-            # pages); where it passes, timing proves the blends, or makes stops of them.
-            certificate, refused = None, []
-            if self.settings.timing and repairs == 0 and not self.fine_only:
+            # The polyline first, then the blends that cut its corners (tightened where they fail, at last stops):
+            # a smoothed path often grazes something, and a proof of the blended curve first spent blends and
+            # corners on it before it found the failing edges (benchmark pages, "Certification"). Edges the replay
+            # kept were proved already.
+            keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
+            todo = [i for i, k in enumerate(keys) if k not in proved_edges]
+            certificate = self.prove(self.certify, path, proving, todo)
+            proved_edges.update(k for i, k in enumerate(keys) if i not in certificate.failed)
+            work = _added(work, certificate)
+            if certificate.proved and self.settings.timing:  # its edges proved: only blends and corners are left
                 certificate = self.prove(self.certify_blends, path, proving)
-                work = _added(work, certificate)
-                # The edges its pieces covered whole are proved; those whose straight part failed are refused at
-                # once: the polyline's proof would run the same test down to the same floor on them, and only other
-                # cut points could let it pass. Neither is proved again.
-                proved_edges.update(path[i : i + 2].tobytes() for i in self.blends.whole)
-                refused = self.blends.failed
-            if certificate is None or not certificate.proved:  # edges the replay kept were proved already
-                keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
-                todo = [i for i, k in enumerate(keys) if k not in proved_edges and i not in refused]
-                certificate = self.prove(self.certify, path, proving, todo)
-                if refused:
-                    failed = sorted(set(certificate.failed) | set(refused))
-                    certificate = dataclasses.replace(certificate, proved=False, failed=failed)
-                proved_edges.update(k for i, k in enumerate(keys) if i not in certificate.failed)
                 work = _added(work, certificate)
             if certificate.proved:
                 return path, stats, repairs, dataclasses.replace(certificate, **work)
