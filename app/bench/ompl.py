@@ -105,8 +105,8 @@ WARM_SEED = 2**31 - 1  # the warm-up's seed: none a bench runs
 
 def _warm(oracle, spec: TrialSpec, settings: PlanSettings) -> None:
     """Run the planner once, untimed, before its first timed run on this oracle in this process: the first query in
-    a process pays for imports and caches that every later one finds ready (on bar about a fifth of its time),
-    and OMPL's problem set-up is not timed either."""
+    a process pays for imports and caches that every later one finds ready, and OMPL's problem set-up is not timed
+    either."""
     key = (id(oracle), spec.method)
     if key not in _warmed:
         _warmed.add(key)

@@ -141,14 +141,14 @@ class Refinement:
                 return path, stats, repairs, proof
             # The polyline first, then the blends that cut its corners (tightened where they fail, at last stops):
             # a smoothed path often grazes something, and a proof of the blended curve first spent blends and
-            # corners on it before it found the failing edges (benchmark pages, "Certification"). Edges the replay
-            # kept were proved already.
+            # corners on it before it found the failing edges (benchmark history, "The polyline first again").
+            # Edges the replay kept were proved already.
             keys = [path[i : i + 2].tobytes() for i in range(len(path) - 1)]
             todo = [i for i, k in enumerate(keys) if k not in proved_edges]
             certificate = self.prove(self.certify, path, proving, todo)
             proved_edges.update(k for i, k in enumerate(keys) if i not in certificate.failed)
             work = _added(work, certificate)
-            if certificate.proved and self.settings.timing:  # its edges proved: only blends and corners are left
+            if certificate.proved and self.settings.timing:  # its edges proved: only the blends are left
                 certificate = self.prove(self.certify_blends, path, proving)
                 work = _added(work, certificate)
             if certificate.proved:
