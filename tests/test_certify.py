@@ -553,36 +553,6 @@ def test_bounds_settled_by_what_the_pieces_need_are_never_larger_than_the_sample
     assert looser > 30 and checked > 200
 
 
-def test_a_piece_cut_unasked_fails_by_at_least_that_factor_with_its_ends_distances(tmp_path, monkeypatch):
-    """On a mesh scene a piece whose bound exceeds upper bounds on some pair's distance at its ends is cut before
-    its ends are asked: asked anyway, its ends' distances fail it, by at least the factor it was cut by."""
-    from app.checking.certify import _clear
-
-    oracle, *_ = _mesh_scene(tmp_path, monkeypatch)
-    certifier, bound = Certifier(oracle.context()), motion_bound(oracle)
-    rng = np.random.default_rng(5)
-    free = [q for q in oracle.space.uniform(rng, 300) if oracle.free(q)]
-    doomed, kept = 0, 0
-    for a, b in zip(free[::2], free[1::2]):
-        b = a + rng.uniform(0.02, 1.0) * oracle.space.difference(a, b)
-        if not oracle.free(b):
-            continue
-        travel = bound.pair_travel(np.abs(oracle.space.difference(a, b))[None])
-        certain = certifier.certain_shortfall(np.array([a, b]), np.array([0, 1]), travel)[0]
-        limit = float(bound.max_distance(travel)[0])
-        ends = certifier._distances([a, b], [limit, limit])
-        ok, short, _ = _clear(ends[:1], ends[1:], travel)
-        if certain > 1.0:
-            assert not ok[0] and short[0] >= certain * (1 - 1e-9)
-            if not doomed:  # the whole edge is cut unasked in the first round, and judged from its parts
-                stats = certify_path(oracle.context(), np.array([a, b]))[1]
-                assert stats["distance_queries"] > 2 and stats["pieces"] + len(stats["failed"]) > 0
-            doomed += 1
-        else:
-            kept += 1
-    assert doomed > 10 and kept > 10
-
-
 @pytest.mark.parametrize("name", ["maze", "window", "joint3d"])
 def test_the_margins_kept_hold_all_along_the_pieces_that_passed(checkers, name):
     """Asked to keep margins, the certificate gives every piece that passed a lower bound on every pair's distance

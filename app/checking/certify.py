@@ -14,9 +14,6 @@ besides its distance queries); a piece that fails is cut into parts (as many as 
 2 to 8); one that still fails once its motion is shorter than the floor (in the space's weighted metric) is
 reported as colliding. Each interval is cut nearest to contact first, several pieces of every interval at a time
 with their ends bounded in one batch (see Certifier).
-A piece that certainly fails -- some pair's B_PQ exceeds the sum of upper bounds on its distance at the two ends,
-the distances between a point inside each shape -- is cut before its ends are asked (on mesh scenes, where asking
-costs most): no lower bound could pass it, and it falls short by at least that factor.
 """
 
 from __future__ import annotations
@@ -187,19 +184,14 @@ class Certifier(EndDistances):
         travel = self._travel(Q, by_end, spans, variations, motion.derivatives)
         clearance = clearances[[i for i, _ in todo]]
         travel = travel + 2 * clearance[:, None, None]
-        # A piece whose pairs are certainly too near at its ends for its bound fails whatever their distances: it
-        # is cut unasked, into as many parts as it certainly falls short (its ends are asked as its parts' ends).
-        certain = self.certain_shortfall(Q, by_end, travel)
-        found = self.at_ends(Q, ends, by_end, travel, certain, stop, self.MARGIN_ASK if margins else 1.0)
+        found = self.at_ends(Q, ends, by_end, travel, stop, self.MARGIN_ASK if margins else 1.0)
         lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
         clear, short, slack = _clear([found.get(a) for _, (a, b) in todo], [found.get(b) for _, (a, b) in todo], travel)
-        worst = np.maximum(short, certain)
         return _Judged(
             passed=clear.tolist(),
             lengths=lengths.tolist(),
-            parts=np.clip(np.ceil(worst), 2, self.SPLIT_MAX).astype(int).tolist(),
-            unasked=(certain > 1.0).tolist(),
-            closing=(worst >= self.CLOSING).tolist(),
+            parts=np.clip(np.ceil(short), 2, self.SPLIT_MAX).astype(int).tolist(),
+            closing=(short >= self.CLOSING).tolist(),
             ends=found,
             # d(a) + d(b) - B - 2c >= slack for every pair: d >= slack / 2 + c all along the piece.
             margins=(slack / 2 + clearance).tolist(),
@@ -229,18 +221,16 @@ class Certifier(EndDistances):
         passed over); the other failed pieces are cut into parts, pushed on their intervals' heaps by the distance
         at their ends interpolated to each part's middle (see the class doc)."""
         passed_pieces, ends = 0, judged.ends
-        for (i, (a, b)), passed, length, n, unasked in zip(
-            todo, judged.passed, judged.lengths, judged.parts, judged.unasked
-        ):
+        for (i, (a, b)), passed, length, n in zip(todo, judged.passed, judged.lengths, judged.parts):
             if i not in heaps:
                 continue
             if passed:
                 passed_pieces += 1
-            elif length <= floors[i] or not unasked and (ends[a] is None or ends[b] is None):
+            elif length <= floors[i] or ends[a] is None or ends[b] is None:
                 failed.append(i)
                 del heaps[i]
             else:
-                near_a, near_b = (0.0, 0.0) if unasked else (ends[a].nearest(), ends[b].nearest())
+                near_a, near_b = ends[a].nearest(), ends[b].nearest()
                 for j, (s0, s1) in enumerate(itertools.pairwise(_cuts(a, b, n))):
                     heapq.heappush(heaps[i], (near_a + (near_b - near_a) * (j + 0.5) / n, s0, s1))
         return passed_pieces
@@ -253,14 +243,13 @@ def _cuts(a: float, b: float, n: int) -> list[float]:
 
 class _Judged(NamedTuple):
     """A round's pieces as the certificate found them, an entry a piece: whether it passed, its length (weighted
-    metric), into how many parts it is cut if it failed, whether it was cut unasked (it certainly fails), whether it
-    fell CLOSING short or more, a lower bound on every pair's distance all along it (meaningful where it passed);
-    and the distances at the ends asked, {s: PairDistances or None}."""
+    metric), into how many parts it is cut if it failed, whether it fell CLOSING short or more, a lower bound on every
+    pair's distance all along it (meaningful where it passed); and the distances at the ends asked, {s: PairDistances or
+    None}."""
 
     passed: list
     lengths: list
     parts: list
-    unasked: list
     closing: list
     ends: dict
     margins: list

@@ -74,8 +74,6 @@ class EndDistances:
         self._ask_all = any(
             not inspector.CollisionFiltered(geometries[i], geometries[j]) for i, j in zip(*np.nonzero(counted))
         )
-        # Pieces that certainly fail are cut unasked where asking costs most: on mesh scenes (see certain_shortfall).
-        self._cut_unasked = not self._ask_all and bool(self._gaps.hulls)
         # The direction Drake last gave for each pair of the gaps (world frame), NaN before it gave one.
         self._recent = np.full((len(self._gaps.pairs), 3), np.nan)
         # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in
@@ -93,12 +91,6 @@ class EndDistances:
         poses = [query.GetPoseInWorld(g) for g in geometries]
         self._R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
         self._p = np.array([X.translation() for X in poses]).reshape(-1, 3)
-        # A point inside each shape, in its frame (its centre; a hull's mean vertex), and in the world for the
-        # environment's.
-        self._inside = self._gaps.offset.copy()
-        for i, vertices in self._gaps.hulls.items():
-            self._inside[i] += vertices.mean(axis=0)
-        self._anchors = self._p + np.einsum("gij,gj->gi", self._R, self._inside)
         self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
 
     def at_ends(
@@ -107,17 +99,15 @@ class EndDistances:
         ends: list,
         by_end: np.ndarray,
         travel: np.ndarray,
-        certain: np.ndarray,
         stop=None,
         reach: float = 1.0,
     ):
-        """{s: its PairDistances, or None where it collides} for the ends (s, at Q) of the pieces not cut unasked
-        (certain <= 1; piece p's ends are Q[by_end[2p]] and Q[by_end[2p + 1]], its pair bounds travel[p]): each end
-        asked at the largest max_distance of the pieces it bounds, and each pair there bounded until it reaches the
-        largest of its bounds on those pieces (shared ends once) -- all `reach` times farther, for margins beyond
-        the test's (Certifier.MARGIN_ASK), but with Drake's help only up to the test's own (see _bound_again)."""
-        rows = np.flatnonzero(np.repeat(certain <= 1.0, 2))
-        rows = rows[np.argsort(by_end[rows], kind="stable")]
+        """{s: its PairDistances, or None where it collides} for the ends (s, at Q) of the pieces (piece p's ends are
+        Q[by_end[2p]] and Q[by_end[2p + 1]], its pair bounds travel[p]): each end asked at the largest max_distance of
+        the pieces it bounds, and each pair there bounded until it reaches the largest of its bounds on those pieces
+        (shared ends once) -- all `reach` times farther, for margins beyond the test's (Certifier.MARGIN_ASK), but with
+        Drake's help only up to the test's own (see _bound_again)."""
+        rows = np.argsort(by_end, kind="stable")
         ordered = by_end[rows]
         first = np.flatnonzero(np.concatenate([[len(rows) > 0], ordered[1:] != ordered[:-1]]))
         asked = by_end[rows[first]]
@@ -129,22 +119,6 @@ class EndDistances:
                 need = _largest_by_group(travel[rows // 2][:, pairs[:, 0], pairs[:, 1]], first)
         found = self._distances(list(Q[asked]), limits.tolist(), need, stop, reach)
         return dict(zip([ends[j] for j in asked.tolist()], found))
-
-    def certain_shortfall(self, Q: np.ndarray, by_end: np.ndarray, travel: np.ndarray) -> np.ndarray:
-        """Per piece (ends Q[by_end[2p]] and Q[by_end[2p + 1]], pair bounds travel[p]), a factor by which its bound
-        certainly exceeds its ends' distances for some pair of the gaps: the largest B_PQ / (U_a + U_b), with U an
-        upper bound on the pair's distance at an end -- the distance between a point inside each shape (its centre,
-        a hull's mean vertex). Our lower bounds are at most U, so a piece with a factor above 1 fails its test, and
-        by at least that factor (0 without pairs, and where pieces are not cut unasked)."""
-        if not self._cut_unasked or not len(self._gaps.pairs):
-            return np.zeros(len(travel))
-        rotations, centres = self._robot_poses(Q)
-        anchors = np.repeat(self._anchors[None], len(Q), axis=0)
-        anchors[:, self._slot >= 0] = centres + np.einsum("nrij,rj->nri", rotations, self._inside[self._slot >= 0])
-        a, b = self._gaps.pairs.T
-        upper = np.linalg.norm(anchors[:, a] - anchors[:, b], axis=2)  # (ends, pairs)
-        bound = travel[:, self._rows[a], self._rows[b]]  # (pieces, pairs)
-        return (bound / np.maximum(upper[by_end[0::2]] + upper[by_end[1::2]], 1e-300)).max(axis=1)
 
     def distances(self, q: np.ndarray, max_distance: float, pair_travel: np.ndarray | None = None) -> dict | None:
         """The distances the certificate uses at q, {frozenset of the pair's two GeometryIds: distance}, for the
