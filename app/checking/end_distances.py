@@ -176,8 +176,8 @@ class EndDistances:
         else:
             travel = np.array([travel for *_, travel in drake]).reshape(len(drake), -1)
         need, helped = (travel * factor * MAX_DISTANCE_MARGIN + 2 * self._rounding + 1e-12 for factor in (reach, 1))
-        rotation, centre = self._poses_at(Q)
-        near_k, near_pair, bounds = self._gaps.near(rotation, centre, reported.nhat, limits, need)
+        rotation, centre, centres = self._poses_at(Q)
+        near_k, near_pair, bounds = self._gaps.near(rotation, centre, centres, reported.nhat, limits, need)
         self._bound_again(Q, near_k, near_pair, bounds, reported.nhat, need, helped, rotation, centre)
         # A configuration in contact stays None: its pieces fail at once (a bound at or below 0 could only fail them
         # by cutting them down to the floor).
@@ -230,13 +230,16 @@ class EndDistances:
 
     def _poses_at(self, Q: np.ndarray) -> tuple:
         """rotation(k, g) and centre(k, g): the poses of geometries g in configurations Q[k] (index arrays), for the
-        gaps, from one table of poses, the environment's then each configuration's robot geometries. Centres are
-        the shapes' (see ShapeGaps.offset), not their frames' origins."""
-        rotations, centres = self._robot_poses(Q)
-        centres = centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[self._slot >= 0])
+        gaps, from one table of poses, the environment's then each configuration's robot geometries; and every
+        geometry's centre in every configuration, (n, geometries, 3). Centres are the shapes' (see ShapeGaps.offset),
+        not their frames' origins."""
+        rotations, robot_centres = self._robot_poses(Q)
+        robot_centres = robot_centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[self._slot >= 0])
         rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
-        centres = np.concatenate([self._centres, centres.reshape(-1, 3)])
+        centres = np.concatenate([self._centres, robot_centres.reshape(-1, 3)])
         slot, count, robots = self._slot, len(self._slot), len(self._robot)
+        every = np.repeat(self._centres[None], len(Q), axis=0)
+        every[:, slot >= 0] = robot_centres
 
         def row(k, g):
             return np.where(slot[g] >= 0, count + k * robots + slot[g], g)
@@ -247,7 +250,7 @@ class EndDistances:
         def centre(k, g):
             return centres[row(k, g)]
 
-        return rotation, centre
+        return rotation, centre, every
 
     def _bound_again(self, Q, near_k, near_pair, bounds, nhat, need, helped, rotation, centre) -> None:
         """Raises `bounds` (rows near_k, near_pair of the gaps, in place) where Drake gave no direction and they do

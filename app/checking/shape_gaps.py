@@ -133,30 +133,39 @@ class ShapeGaps:
         self.is_hull = np.isin(np.arange(count), list(hulls))
         self.hulls = hulls
 
-    def near(self, rotation, centre, nhat: np.ndarray, limit: np.ndarray, need: np.ndarray) -> tuple[np.ndarray, ...]:
+    def near(self, rotation, centre, centres, nhat, limit: np.ndarray, need: np.ndarray) -> tuple[np.ndarray, ...]:
         """(configurations, pairs, bounds): the rows (configuration k, pair) whose lower bound is below limit[k],
         and their bounds, given the shapes' poses -- rotation(k, g) (n, 3, 3) and centre(k, g) (n, 3; the shape's
-        centre, see offset) of geometries g in configurations k (index arrays) -- Drake's direction from b to a where
-        it reported the pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance
-        that settles each row (need (configurations, pairs)). All configurations are done at once."""
-        k = np.repeat(np.arange(len(limit)), len(self.pairs))
-        pair = np.tile(np.arange(len(self.pairs)), len(limit))
-        bounds = self.bounds(k, pair, rotation, centre, nhat.reshape(-1, 3), limit[k], need.ravel())
-        below = np.flatnonzero(bounds < limit[k])
-        return k[below], pair[below], bounds[below]
+        centre, see offset) of geometries g in configurations k (index arrays), and every shape's centre in every
+        configuration, centres (configurations, geometries, 3) -- Drake's direction from b to a where it reported the
+        pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance that settles each
+        row (need (configurations, pairs)). Each row keeps the first of the tiered bounds that reaches min(need,
+        limit) (see the class doc). The bounding spheres are taken for every row at once, with no row gathered: most
+        rows stop there, and gathering them took longer than the test."""
+        a, b = self.pairs.T
+        n, count = len(limit), len(self.pairs)
+        spheres = (
+            _norm((centres[:, a] - centres[:, b]).reshape(-1, 3)).reshape(n, count) - self.radius[a]
+        ) - self.radius[b]
+        settle = np.minimum(need, limit[:, None]).ravel()
+        bound = spheres.ravel()
+        live = np.flatnonzero(bound < settle)
+        k, pair = np.divmod(live, count)
+        bound[live] = self._closer(k, pair, bound[live], rotation, centre, nhat.reshape(-1, 3)[live], settle[live])
+        below = np.flatnonzero(bound < np.repeat(limit, count))
+        k, pair = np.divmod(below, count)
+        return k, pair, bound[below]
 
-    def bounds(self, k, pair, rotation, centre, nhat, limit, need) -> np.ndarray:
-        """Lower bounds on the distance of rows (configuration k, pair) (see near), each at least as large as the
-        first tier's that reached min(need, limit) of the row; nhat, limit and need per row."""
+    def _closer(self, k, pair, bound, rotation, centre, nhat, settle) -> np.ndarray:
+        """The bounds of rows (configuration k, pair) whose bounding spheres (`bound`) did not reach `settle`: from
+        a's centre to shape b, and the other way, then the gaps along three directions, each on the rows the tier
+        before left below `settle` (see near)."""
         a, b = self.pairs[pair].T
         pa, pb = centre(k, a), centre(k, b)
-        settle = np.minimum(need, limit)
-        # Bounding spheres; then from a's centre to shape b, and the other way, on the rows left.
-        bound = _norm(pa - pb) - self.radius[a] - self.radius[b]
-        live = np.flatnonzero(bound < settle)
-        B = self._posed(b[live], rotation(k[live], b[live]), pb[live])
-        bound[live] = np.maximum(bound[live], self._distance_to(B, pa[live]) - self.radius[a[live]])
-        keep = np.flatnonzero(bound[live] < settle[live])
+        live = np.arange(len(k))
+        B = self._posed(b, rotation(k, b), pb)
+        bound = np.maximum(bound, self._distance_to(B, pa) - self.radius[a])
+        keep = np.flatnonzero(bound < settle)
         live, B = live[keep], _rows(B, keep)
         A = self._posed(a[live], rotation(k[live], a[live]), pa[live])
         bound[live] = np.maximum(bound[live], self._distance_to(A, B.p) - B.radius)
@@ -167,7 +176,7 @@ class ShapeGaps:
 
     def along(self, k, pair, rotation, centre, d: np.ndarray) -> np.ndarray:
         """The gaps of rows (configuration k, pair) along directions d (unit, from the pair's second shape to its
-        first), hulls by their vertices: a lower bound on each row's distance (see bounds for rotation and centre)."""
+        first), hulls by their vertices: a lower bound on each row's distance (see near for rotation and centre)."""
         a, b = self.pairs[pair].T
         A = self._posed(a, rotation(k, a), centre(k, a))
         B = self._posed(b, rotation(k, b), centre(k, b))
