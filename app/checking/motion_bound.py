@@ -88,7 +88,9 @@ class MotionBound:
             self.rates, self.pair_rates = self.rates @ spread, self.pair_rates @ spread
         if not oracle.scene.self_collisions:  # robot-robot pairs do not count
             self.pair_rates[:-1, :-1] = 0.0
-        self._unshared = self.pair_rates > 0  # where a pair's rates count a coordinate (shared: 0)
+        # Where a pair's rates count a coordinate (shared: 0), as (rows, coordinates, rows) for batched products;
+        # symmetric in the two rows, as pair_rates is.
+        self._unshared = (self.pair_rates > 0).astype(float).transpose(0, 2, 1).copy()
         self._levers = None if mimic is not None else _LeverArms.of(oracle, inboard, self.rows, self.rates)
 
     def row(self, geometry_id) -> int:
@@ -123,8 +125,10 @@ class MotionBound:
 
     def pair_travel_of(self, variation: np.ndarray, rates: np.ndarray) -> np.ndarray:
         """pair_travel for pieces of motion (n, dim) whose rates all along them are `rates` (n, rows, dim)."""
-        moved = rates * variation[:, None, :]
-        return np.einsum("npj,pqj->npq", moved, self._unshared) + np.einsum("nqj,pqj->npq", moved, self._unshared)
+        # P's own travel summed over the coordinates the pair counts, (rows P, n, rows Q); Q's is the same array
+        # read the other way round.
+        own = np.matmul((rates * variation[:, None, :]).transpose(1, 0, 2), self._unshared)
+        return own.transpose(1, 0, 2) + own.transpose(1, 2, 0)
 
     def pair_travel_along(self, rates: np.ndarray, at_a: _Local, at_b: _Local, da, db, dd) -> np.ndarray:
         """Bounds (n, rows, rows) on how much each pair's distance changes along pieces of a curve, from the curve's
@@ -145,7 +149,7 @@ class MotionBound:
         arms = self._levers
         speed = 0.5 * (np.abs(da) + np.abs(db) + dd)  # |q'| all along the piece: q' changes by at most dd
         turning = speed * arms.revolute
-        inboard = np.einsum("nk,rkj->nrj", turning, arms.below)
+        inboard = (turning @ arms.below_by_k).reshape(len(turning), -1, turning.shape[1])
         change = np.einsum(
             "nrj,nrj->nr", rates, speed[:, None, :] * (turning[:, None, :] + 2 * inboard) + dd[:, None, :]
         )
@@ -173,7 +177,10 @@ class _LeverArms:
         self._columns = columns  # its coordinate
         self._centres = centres  # frames (after the axes' frames) of the robot rows' centres
         self._radius = radius  # per robot row, about its centre
-        self.below = below  # (rows, dim, dim): coordinate k moves a row's geometry relative to coordinate j's axis
+        # below (rows, dim, dim): coordinate k moves a row's geometry relative to coordinate j's axis (see `of`),
+        # kept as float matrices laid out for batched products (MotionBound.pair_travel_along, slack).
+        self.below_by_k = below.astype(float).transpose(1, 0, 2).reshape(rates.shape[1], -1)
+        self._below_of_row = below.astype(float).transpose(0, 2, 1).copy()
         self._rates = rates
         self._slides = slides  # per prismatic joint: (frame after the centres', unit axis in it, coordinate)
         self._chain = chain  # (rows, dim): the coordinates that move each row
@@ -253,19 +260,21 @@ class _LeverArms:
         angular[:, :-1, self._columns] = (u * moves).transpose(0, 2, 1, 3)
         for frame, axis, column in self._slides:
             linear[:, :-1, column] = (R[:, frame] @ axis)[:, None] * self._chain[None, :-1, column, None]
+        # Coordinates first, (n, dim, rows x 3): a velocity's effect on every row is then one product.
+        linear, angular = (np.ascontiguousarray(a.transpose(0, 2, 1, 3)).reshape(n, dim, -1) for a in (linear, angular))
         return _Local(levers, linear, angular, np.append(self._radius, 0.0))
 
     def slack(self, variation: np.ndarray) -> np.ndarray:
         """How much each row's lever arm about each coordinate's axis can grow over a piece of motion (n, dim):
         what the coordinates between that axis and the geometry move the geometry's points, (n, rows, dim)."""
-        moved = self._rates[None] * variation[:, None, :]  # (n, rows, k)
-        return np.einsum("nrk,rjk->nrj", moved, self.below)
+        moved = self._rates[:, None, :] * variation[None, :, :]  # (rows, n, k)
+        return np.matmul(moved, self._below_of_row).transpose(1, 0, 2)
 
 
 class _Local(NamedTuple):
-    """A robot's kinematics at configurations (n): lever arms (see MotionBound.local), and per row (the environment's
-    last) and coordinate, the velocity of the row's centre and the geometry's angular velocity per unit of the
-    coordinate, (n, rows, dim, 3); the rows' radii about their centres."""
+    """A robot's kinematics at configurations (n): lever arms (see MotionBound.local), and per coordinate and row (the
+    environment's last), the velocity of the row's centre and the geometry's angular velocity per unit of the
+    coordinate, (n, dim, rows x 3); the rows' radii about their centres."""
 
     levers: np.ndarray
     linear: np.ndarray
@@ -278,8 +287,8 @@ class _Local(NamedTuple):
     def speed(self, velocity: np.ndarray) -> np.ndarray:
         """The largest speed of a point of each row's geometry, (n, rows), with the coordinates' velocities (n, dim)
         at these configurations: |v_c| + |w| rho."""
-        v = np.einsum("nrjx,nj->nrx", self.linear, velocity)
-        w = np.einsum("nrjx,nj->nrx", self.angular, velocity)
+        v = np.matmul(velocity[:, None, :], self.linear).reshape(len(velocity), -1, 3)
+        w = np.matmul(velocity[:, None, :], self.angular).reshape(len(velocity), -1, 3)
         return np.sqrt((v * v).sum(axis=2)) + np.sqrt((w * w).sum(axis=2)) * self.radius
 
 
