@@ -230,27 +230,22 @@ class EndDistances:
 
     def _poses_at(self, Q: np.ndarray) -> tuple:
         """rotation(k, g) and centre(k, g): the poses of geometries g in configurations Q[k] (index arrays), for the
-        gaps, from one table of poses, the environment's then each configuration's robot geometries; and every
+        gaps -- rotations from one table, the environment's then each configuration's robot geometries -- and every
         geometry's centre in every configuration, (n, geometries, 3). Centres are the shapes' (see ShapeGaps.offset),
         not their frames' origins."""
         rotations, robot_centres = self._robot_poses(Q)
-        robot_centres = robot_centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[self._slot >= 0])
-        rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
-        centres = np.concatenate([self._centres, robot_centres.reshape(-1, 3)])
         slot, count, robots = self._slot, len(self._slot), len(self._robot)
-        every = np.repeat(self._centres[None], len(Q), axis=0)
-        every[:, slot >= 0] = robot_centres
-
-        def row(k, g):
-            return np.where(slot[g] >= 0, count + k * robots + slot[g], g)
+        centres = np.repeat(self._centres[None], len(Q), axis=0)
+        centres[:, slot >= 0] = robot_centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[slot >= 0])
+        rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
 
         def rotation(k, g):
-            return rotations[row(k, g)]
+            return rotations[np.where(slot[g] >= 0, count + k * robots + slot[g], g)]
 
         def centre(k, g):
-            return centres[row(k, g)]
+            return centres[k, g]
 
-        return rotation, centre, every
+        return rotation, centre, centres
 
     def _bound_again(self, Q, near_k, near_pair, bounds, nhat, need, helped, rotation, centre) -> None:
         """Raises `bounds` (rows near_k, near_pair of the gaps, in place) where Drake gave no direction and they do
