@@ -113,7 +113,7 @@ class Certifier(EndDistances):
         The curve (a Motion, or any object with the same methods) gives position(s), and variation(s0, s1), a bound
         on each coordinate's travel between s0 and s1, for s0 < s1 within one interval; and, if it has them,
         derivatives(s0, s1): the velocity dq/ds at s0 and at s1 and a bound on |d2q/ds2| between them, each
-        coordinate's (then pieces are also bounded from the motion itself: MotionBound.pair_travel_along). All
+        coordinate's (then pieces are also bounded from the motion itself: MotionBound.piece_bounds). All
         take arrays of s, (n,), and give rows, (n, dim): a round asks for all its pieces in one call.
         The curve must stay within the space's bounds between in-bound ends (a straight edge or a blend does).
         stats: failed (indices of intervals not certified), pieces (certified), distance_queries, seconds; with
@@ -181,10 +181,11 @@ class Certifier(EndDistances):
         slot = {s: j for j, s in enumerate(ends)}
         by_end = np.array([slot[s] for _, ab in todo for s in ab])  # piece p's ends are rows 2p and 2p + 1
         Q = motion.position(np.array(ends))
-        travel = self._travel(Q, by_end, spans, variations, motion.derivatives)
+        local = self.bound.local(Q)
+        travel = self._travel(local, by_end, spans, variations, motion.derivatives)
         clearance = clearances[[i for i, _ in todo]]
         travel = travel + 2 * clearance[:, None, None]
-        found = self.at_ends(Q, ends, by_end, travel, stop, self.MARGIN_ASK if margins else 1.0)
+        found = self.at_ends(Q, ends, by_end, travel, stop, self.MARGIN_ASK if margins else 1.0, local)
         lengths = np.linalg.norm(variations * self.checker.space.weights, axis=1)
         clear, short, slack = _clear([found.get(a) for _, (a, b) in todo], [found.get(b) for _, (a, b) in todo], travel)
         return _Judged(
@@ -197,23 +198,19 @@ class Certifier(EndDistances):
             margins=(slack / 2 + clearance).tolist(),
         )
 
-    def _travel(self, Q: np.ndarray, by_end: np.ndarray, spans: np.ndarray, variations: np.ndarray, derivatives):
-        """Bounds (pieces, rows, rows) on how much each pair's distance changes along each piece (ends Q[by_end[2p]]
-        and Q[by_end[2p + 1]], from spans[p, 0] to spans[p, 1], each coordinate travelling variations[p]): from the
-        rates anywhere in the space, or where the robot has them, from its lever arms at the piece's ends; and where
-        the curve has derivatives, the lesser of that and the bound from the motion itself."""
-        local = self.bound.local(Q)
+    def _travel(self, local, by_end: np.ndarray, spans: np.ndarray, variations: np.ndarray, derivatives):
+        """Bounds (pieces, rows, rows) on how much each pair's distance changes along each piece (its ends are rows
+        by_end[2p] and by_end[2p + 1] of `local`, the robot's kinematics there (MotionBound.local); from spans[p, 0]
+        to spans[p, 1], each coordinate travelling variations[p]): from the rates anywhere in the space, or where
+        the robot has them (local is not None), from its lever arms at the piece's ends; and where the curve has
+        derivatives, the lesser of that and the bound from the motion itself."""
         if local is None:
             return self.bound.pair_travel(variations)
-        at_a, at_b = local.rows(by_end[0::2]), local.rows(by_end[1::2])
-        rates = self.bound.piece_rates(variations, at_a.levers, at_b.levers)
-        travel = self.bound.pair_travel_of(variations, rates)
-        if derivatives is not None:  # both bounds hold: the lesser (per unit of tau = (s - s0) / span)
+        if derivatives is not None:  # per unit of tau = (s - s0) / span
             span = (spans[:, 1] - spans[:, 0])[:, None]
             da, db, dd = derivatives(spans[:, 0], spans[:, 1])
-            along = self.bound.pair_travel_along(rates, at_a, at_b, da * span, db * span, dd * span**2)
-            travel = np.minimum(travel, along)
-        return travel
+            derivatives = (da * span, db * span, dd * span**2)
+        return self.bound.piece_bounds(variations, local, by_end[0::2], by_end[1::2], derivatives)[0]
 
     def _cut(self, heaps: dict, todo: list, judged: _Judged, floors: np.ndarray, failed: list) -> int:
         """After a round (todo, judged): how many of its pieces passed. An interval with a piece that failed at its

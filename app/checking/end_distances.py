@@ -21,15 +21,17 @@ caller that retries, are asked once.
 
 from __future__ import annotations
 
+import weakref
 from typing import NamedTuple
 
 import numpy as np
 
+from app.checking import gap_kernel
 from app.checking.budget import poll
 from app.checking.kinematics import TreeKinematics
 from app.checking.motion_bound import MAX_DISTANCE_MARGIN, motion_bound
 from app.checking.protocol import Checker
-from app.checking.shape_gaps import PAIR_KEY, shape_gaps
+from app.checking.shape_gaps import PAIR_KEY, Poses, shape_gaps
 
 # Shape pairs Drake computes signed distance for in closed form.
 _EXACT = {
@@ -47,51 +49,16 @@ class EndDistances:
     BATCH_ROWS = 1 << 17
 
     def __init__(self, checker: Checker):
-        from pydrake.geometry import Role
-
         oracle = checker.oracle
         self.checker = checker
         self.bound = motion_bound(oracle)
         self._cache = {}  # configuration bytes -> PairDistances, or None where it collides
         self._rounding = 1e-9 * oracle.space.resolution
-        inspector = oracle.model.scene_graph().model_inspector()
-        geometries = inspector.GetAllGeometryIds(Role.kProximity)
-        # A small integer per geometry, for pair keys, by the GeometryId's value (cheaper to hash than the id).
-        self._index_of_value = {g.get_value(): i for i, g in enumerate(geometries)}
-        self._ids = list(geometries)
-        self._rows = np.array([self.bound.row(g) for g in geometries], np.int64)  # -1: environment
-        kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
-        self._exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
-        self._gaps = shape_gaps(oracle, geometries, self._rows >= 0, self._exact)
-        # Whether Drake's pairwise query is asked, for every pair within the limit with its direction: where a
-        # counted pair is of a kind Drake computes exactly (its distance is used). Otherwise most pairs are settled
-        # by our bounds alone, and Drake is asked for the direction of the others, one pair at a time, and where a
-        # bound comes out at or below 0 whether anything is in contact (see the module doc and _ends).
-        robot = self._rows >= 0
-        counted = np.triu(robot[:, None] | robot[None, :], 1) & self._exact
-        if not oracle.scene.self_collisions:
-            counted &= ~(robot[:, None] & robot[None, :])
-        self._ask_all = any(
-            not inspector.CollisionFiltered(geometries[i], geometries[j]) for i, j in zip(*np.nonzero(counted))
-        )
+        geometry = _geometry(oracle)
+        self._index_of_value, self._ids, self._rows, self._exact, self._gaps, self._ask_all = geometry[:6]
+        self._robot, self._slot, self._kinematics, self._R, self._centres = geometry[6:]
         # The direction Drake last gave for each pair of the gaps (world frame), NaN before it gave one.
         self._recent = np.full((len(self._gaps.pairs), 3), np.nan)
-        # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in
-        # robot slots (slot -1: environment).
-        self._robot = [g for i, g in enumerate(geometries) if self._rows[i] >= 0]
-        self._slot = np.full(len(geometries), -1)
-        self._slot[self._rows >= 0] = np.arange(len(self._robot))
-        plant = oracle.plant
-        self._kinematics = TreeKinematics.of(
-            plant,
-            [(plant.GetBodyFromFrameId(inspector.GetFrameId(g)), inspector.GetPoseInFrame(g)) for g in self._robot],
-            oracle.scene.position_map,
-        )
-        query = oracle.query_object(oracle.scene.start)
-        poses = [query.GetPoseInWorld(g) for g in geometries]
-        self._R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
-        self._p = np.array([X.translation() for X in poses]).reshape(-1, 3)
-        self._centres = self._p + np.einsum("gij,gj->gi", self._R, self._gaps.offset)
 
     def at_ends(
         self,
@@ -101,12 +68,14 @@ class EndDistances:
         travel: np.ndarray,
         stop=None,
         reach: float = 1.0,
+        local=None,
     ):
         """{s: its PairDistances, or None where it collides} for the ends (s, at Q) of the pieces (piece p's ends are
         Q[by_end[2p]] and Q[by_end[2p + 1]], its pair bounds travel[p]): each end asked at the largest max_distance of
         the pieces it bounds, and each pair there bounded until it reaches the largest of its bounds on those pieces
         (shared ends once) -- all `reach` times farther, for margins beyond the test's (Certifier.MARGIN_ASK), but with
-        Drake's help only up to the test's own (see _bound_again)."""
+        Drake's help only up to the test's own (see _bound_again). local: the motion bound's kinematics at Q
+        (MotionBound.local), whose poses of the robot's shapes are then not computed again."""
         rows = np.argsort(by_end, kind="stable")
         ordered = by_end[rows]
         first = np.flatnonzero(np.concatenate([[len(rows) > 0], ordered[1:] != ordered[:-1]]))
@@ -116,8 +85,12 @@ class EndDistances:
             pairs = self._rows[self._gaps.pairs]
             limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel * reach), 2)[rows], first)
             if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
-                need = _largest_by_group(travel[rows // 2][:, pairs[:, 0], pairs[:, 1]], first)
-        found = self._distances(list(Q[asked]), limits.tolist(), need, stop, reach)
+                need = gap_kernel.largest_per_end(travel, rows // 2, first, pairs)
+        poses = None
+        if local is not None:
+            robot_rows = self._rows[self._rows >= 0]
+            poses = list(zip(local.rotations[asked][:, robot_rows], local.centres[asked][:, robot_rows]))
+        found = self._distances(list(Q[asked]), limits.tolist(), need, stop, reach, poses)
         return dict(zip([ends[j] for j in asked.tolist()], found))
 
     def distances(self, q: np.ndarray, max_distance: float, pair_travel: np.ndarray | None = None) -> dict | None:
@@ -135,7 +108,7 @@ class EndDistances:
         }
 
     def _distances(
-        self, Q: list, limits: list, pair_travel: np.ndarray | None = None, stop=None, reach: float = 1.0
+        self, Q: list, limits: list, pair_travel: np.ndarray | None = None, stop=None, reach: float = 1.0, poses=None
     ) -> list:
         """For each configuration, the pairs within its limit (a PairDistances), from the cache when it was asked at
         a limit at least as large; None if it collides or lies outside the bounds. pair_travel[k, pair] (pairs of the
@@ -143,13 +116,15 @@ class EndDistances:
         that reaches it at this end is enough for those pieces, given any positive one at their other end (so no
         tighter bound is sought); without it every pair below the limit is bounded as tightly as the certificate
         can. reach: how much farther than pair_travel bounds are sought, without Drake's help (see at_ends). stop:
-        polled before each batch (a proof keeps to its query's time limit: among many pieces a batch is dear)."""
+        polled before each batch (a proof keeps to its query's time limit: among many pieces a batch is dear).
+        poses: per configuration, the rotations and centres of the robot's shapes, where the caller has them."""
         keys = [np.asarray(q, float).tobytes() for q in Q]
         todo = []
         for k, (key, q, limit) in enumerate(zip(keys, Q, limits)):
             cached = self._cache.get(key, False)
             if cached is False or (cached is not None and cached.limit < limit):
-                todo.append((key, np.asarray(q, float), limit, None if pair_travel is None else pair_travel[k]))
+                travel = None if pair_travel is None else pair_travel[k]
+                todo.append((key, np.asarray(q, float), limit, travel, None if poses is None else poses[k]))
         per_batch = max(1, self.BATCH_ROWS // max(1, len(self._gaps.pairs)))
         for first in range(0, len(todo), per_batch):
             poll(stop)
@@ -157,7 +132,8 @@ class EndDistances:
         return [self._cache[key] for key in keys]
 
     def _ends(self, todo: list, reach: float = 1.0) -> None:
-        """Into the cache: the certificate's distances at each (key, q, limit, pair travel) of `todo` -- Drake's for
+        """Into the cache: the certificate's distances at each (key, q, limit, pair travel, robot poses or None) of
+        `todo` -- Drake's for
         the pairs it computes exactly, our lower bound for the others (a pair left out is at least `limit` apart);
         None where q is out of bounds or in contact. reach: see _distances."""
         for key, *_ in todo:
@@ -168,17 +144,17 @@ class EndDistances:
         if reported is None:
             return
         drake = [todo[k] for k in reported.kept.tolist()]
-        limits = np.array([limit for _, _, limit, _ in drake])
-        Q = np.array([q for _, q, _, _ in drake])
+        limits = np.array([limit for _, _, limit, *_ in drake])
+        Q = np.array([q for _, q, *_ in drake])
         # What settles each pair (see _distances): its bound over the pieces, with room for the rounding allowance.
         if drake[0][3] is None:
             travel, reach = np.repeat(limits[:, None], len(self._gaps.pairs), axis=1), 1.0
         else:
-            travel = np.array([travel for *_, travel in drake]).reshape(len(drake), -1)
+            travel = np.array([item[3] for item in drake]).reshape(len(drake), -1)
         need, helped = (travel * factor * MAX_DISTANCE_MARGIN + 2 * self._rounding + 1e-12 for factor in (reach, 1))
-        rotation, centre, centres = self._poses_at(Q)
-        near_k, near_pair, bounds = self._gaps.near(rotation, centre, centres, reported.nhat, limits, need)
-        self._bound_again(Q, near_k, near_pair, bounds, reported.nhat, need, helped, rotation, centre)
+        poses = self._poses_at(Q, [item[4] for item in drake])
+        near_k, near_pair, bounds = self._gaps.near(poses, reported.nhat, limits, need)
+        self._bound_again(Q, near_k, near_pair, bounds, reported.nhat, need, helped, poses)
         # A configuration in contact stays None: its pieces fail at once (a bound at or below 0 could only fail them
         # by cutting them down to the floor).
         doubtful = np.unique(near_k[bounds <= 0]).tolist()
@@ -193,7 +169,7 @@ class EndDistances:
         lower bound comes out positive nothing touches, and only a configuration with a bound at or below 0 is asked
         about contact (at the end of _ends)."""
         if self._ask_all:
-            answers = [self.checker.signed_distances(q, limit) for _, q, limit, _ in todo]
+            answers = [self.checker.signed_distances(q, limit) for _, q, limit, *_ in todo]
         else:
             answers = [[] for _ in todo]
             self.checker.count_bounded(len(todo))
@@ -228,26 +204,21 @@ class EndDistances:
             self._recent[pairs] = nhat[last[pairs], pairs]
         return _Reported(kept, config, index, keys, exact, found[:, 2], nhat)
 
-    def _poses_at(self, Q: np.ndarray) -> tuple:
-        """rotation(k, g) and centre(k, g): the poses of geometries g in configurations Q[k] (index arrays), for the
-        gaps -- rotations from one table, the environment's then each configuration's robot geometries -- and every
-        geometry's centre in every configuration, (n, geometries, 3). Centres are the shapes' (see ShapeGaps.offset),
-        not their frames' origins."""
-        rotations, robot_centres = self._robot_poses(Q)
-        slot, count, robots = self._slot, len(self._slot), len(self._robot)
+    def _poses_at(self, Q: np.ndarray, given: list) -> Poses:
+        """The poses of every geometry of the gaps in configurations Q: the environment's rotations from the start,
+        the robot's per configuration (given: the robot shapes' rotations and centres per configuration, or None
+        where the caller has none), and every shape's centre (see ShapeGaps.offset), not its frame's origin."""
+        robot = self._slot >= 0
         centres = np.repeat(self._centres[None], len(Q), axis=0)
-        centres[:, slot >= 0] = robot_centres + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[slot >= 0])
-        rotations = np.concatenate([self._R, rotations.reshape(-1, 3, 3)])
+        if all(pose is not None for pose in given):
+            rotations = np.array([R for R, _ in given])
+            centres[:, robot] = [c for _, c in given]
+        else:
+            rotations, origins = self._robot_poses(Q)
+            centres[:, robot] = origins + np.einsum("nrij,rj->nri", rotations, self._gaps.offset[robot])
+        return Poses(centres, self._R, np.ascontiguousarray(rotations), self._slot)
 
-        def rotation(k, g):
-            return rotations[np.where(slot[g] >= 0, count + k * robots + slot[g], g)]
-
-        def centre(k, g):
-            return centres[k, g]
-
-        return rotation, centre, centres
-
-    def _bound_again(self, Q, near_k, near_pair, bounds, nhat, need, helped, rotation, centre) -> None:
+    def _bound_again(self, Q, near_k, near_pair, bounds, nhat, need, helped, poses: Poses) -> None:
         """Raises `bounds` (rows near_k, near_pair of the gaps, in place) where Drake gave no direction and they do
         not reach `need`. A pair Drake's query left out is farther apart than the limit by Drake's reckoning, but
         without Drake's direction our bound can fall far below that: alternating projections converge slowly
@@ -261,7 +232,7 @@ class EndDistances:
         def tighten(rows, directions):
             """Bound rows again along these directions; the rows still short of what Drake is asked for."""
             k, pair = near_k[rows], near_pair[rows]
-            bounds[rows] = np.maximum(bounds[rows], self._gaps.along(k, pair, rotation, centre, directions))
+            bounds[rows] = np.maximum(bounds[rows], self._gaps.along(k, pair, poses, directions))
             return rows[bounds[rows] < helped[k, pair]]
 
         rows = np.flatnonzero(np.isnan(nhat[near_k, near_pair, 0]) & (bounds < need[near_k, near_pair]))
@@ -294,7 +265,7 @@ class EndDistances:
         rows = self._rows[index[order]]
         split = np.cumsum(np.bincount(config, minlength=len(drake)))[:-1]
         parts = zip(*(np.split(array, split) for array in (keys[order], distance[order], rows[:, 0], rows[:, 1])))
-        for k, ((key, _, limit, _), part) in enumerate(zip(drake, parts)):
+        for k, ((key, _, limit, *_), part) in enumerate(zip(drake, parts)):
             if k not in in_contact:
                 self._cache[key] = PairDistances(limit, *part)
 
@@ -353,13 +324,76 @@ class _Reported(NamedTuple):
     nhat: np.ndarray
 
 
-def _largest_by_group(values: np.ndarray, first: np.ndarray) -> np.ndarray:
-    """The largest row of each group of consecutive rows of `values` (groups start at `first`), elementwise; as
-    np.maximum.reduceat, which is slow on 2-d arrays, where groups here have one or two rows (an end bounds the
-    pieces either side of it)."""
-    size = np.diff(first, append=len(values))
-    largest = values[first]
-    for j in range(1, int(size.max(initial=1))):
-        more = np.flatnonzero(size > j)
-        largest[more] = np.maximum(largest[more], values[first[more] + j])
-    return largest
+class _Geometry(NamedTuple):
+    """What EndDistances knows of an oracle's geometries, the same for every certifier on it (see _geometry)."""
+
+    index_of_value: dict  # a small integer per geometry, by its GeometryId's value (cheaper to hash than the id)
+    ids: list
+    rows: np.ndarray  # the motion bound's row per geometry, -1: environment
+    exact: np.ndarray  # (geometries, geometries): whether Drake computes the pair's distance exactly
+    gaps: object  # the ShapeGaps of the other counted pairs
+    ask_all: bool  # whether Drake's pairwise query is asked (see _geometry)
+    robot: list  # the robot's geometries, in robot slots
+    slot: np.ndarray  # per geometry, its robot slot (-1: environment)
+    kinematics: TreeKinematics | None  # the robot geometries' poses
+    R: np.ndarray  # every geometry's rotation at the start (the environment's never change)
+    centres: np.ndarray  # and its shape's centre (see ShapeGaps.offset)
+
+
+# Per shared oracle, its _Geometry, made once (a certifier is made per query); gone with the oracle.
+_per_oracle: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _geometry(oracle) -> _Geometry:
+    """The oracle's _Geometry, made once per oracle."""
+    if oracle in _per_oracle:
+        return _per_oracle[oracle]
+    from pydrake.geometry import Role
+
+    bound = motion_bound(oracle)
+    inspector = oracle.model.scene_graph().model_inspector()
+    geometries = inspector.GetAllGeometryIds(Role.kProximity)
+    rows = np.array([bound.row(g) for g in geometries], np.int64)
+    kinds = [type(inspector.GetShape(g)).__name__ for g in geometries]
+    exact = np.array([[frozenset((a, b)) in _EXACT for b in kinds] for a in kinds], bool)
+    gaps = shape_gaps(oracle, geometries, rows >= 0, exact)
+    # Whether Drake's pairwise query is asked, for every pair within the limit with its direction: where a counted
+    # pair is of a kind Drake computes exactly (its distance is used). Otherwise most pairs are settled by our bounds
+    # alone, and Drake is asked for the direction of the others, one pair at a time, and where a bound comes out at
+    # or below 0 whether anything is in contact (see the module doc and EndDistances._ends).
+    robot = rows >= 0
+    counted = np.triu(robot[:, None] | robot[None, :], 1) & exact
+    if not oracle.scene.self_collisions:
+        counted &= ~(robot[:, None] & robot[None, :])
+    ask_all = any(not inspector.CollisionFiltered(geometries[i], geometries[j]) for i, j in zip(*np.nonzero(counted)))
+    # Shape poses for the gaps: the environment's never change; the robot's are taken per configuration, in robot
+    # slots (slot -1: environment).
+    robot_geometries = [g for g, r in zip(geometries, rows.tolist()) if r >= 0]
+    slot = np.full(len(geometries), -1)
+    slot[robot] = np.arange(len(robot_geometries))
+    plant = oracle.plant
+    kinematics = TreeKinematics.of(
+        plant,
+        [(plant.GetBodyFromFrameId(inspector.GetFrameId(g)), inspector.GetPoseInFrame(g)) for g in robot_geometries],
+        oracle.scene.position_map,
+    )
+    query = oracle.query_object(oracle.scene.start)
+    poses = [query.GetPoseInWorld(g) for g in geometries]
+    R = np.array([X.rotation().matrix() for X in poses]).reshape(-1, 3, 3)
+    p = np.array([X.translation() for X in poses]).reshape(-1, 3)
+    centres = p + np.einsum("gij,gj->gi", R, gaps.offset)
+    geometry = _Geometry(
+        {g.get_value(): i for i, g in enumerate(geometries)},
+        list(geometries),
+        rows,
+        exact,
+        gaps,
+        ask_all,
+        robot_geometries,
+        slot,
+        kinematics,
+        R,
+        centres,
+    )
+    _per_oracle[oracle] = geometry
+    return geometry

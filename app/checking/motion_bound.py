@@ -15,7 +15,7 @@ lesser of the two ends and never more than the rate anywhere. An arm folded near
 less per radian of the shoulder than the outstretched arm the rate anywhere assumes: on the UR3 the tool's bound
 is about half, and proving a piece takes fewer, longer parts.
 
-A second bound starts from the motion itself (MotionBound.pair_travel_along): at each end of a piece, the speed of
+A second bound starts from the motion itself (MotionBound.piece_bounds): at each end of a piece, the speed of
 g's points from its centre's velocity and its angular velocity (a Jacobian product, in which joints turning the arm
 both ways cancel, where the sum above adds them up), plus how much that speed can change along the piece (products
 of the joints' rates and speeds, and the curve's own acceleration). Both hold; each pair takes the lesser. On the
@@ -35,6 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from app.checking import bound_kernel
 from app.checking.kinematics import TreeKinematics
 from app.checking.shape_gaps import centred_shape, describe_shape, shape_radius
 
@@ -114,49 +115,46 @@ class MotionBound:
         its pieces take the bound anywhere in the space."""
         return None if self._levers is None else self._levers(Q)
 
-    def piece_rates(self, variation: np.ndarray, levers_a: np.ndarray, levers_b: np.ndarray) -> np.ndarray:
-        """Rates (n, rows, dim) that hold all along pieces of motion (n, dim) with their ends' levers (n, rows, dim):
-        a revolute joint moves a geometry's points at most its lever arm per radian, and along the piece that arm
-        grows by no more than the joints between the axis and the geometry move its points (a joint's own turn
+    def piece_bounds(self, variation: np.ndarray, local: _Local, end_a, end_b, derivatives=None) -> tuple:
+        """Bounds (n, rows, rows) on how much each pair's distance changes along n pieces of motion, and the rates
+        (n, rows, dim) that hold all along them: piece p moves coordinate j by at most variation[p, j] between the
+        configurations end_a[p] and end_b[p] of `local`. derivatives: (da, db, dd), each (n, dim), the curve's
+        velocity at the pieces' ends and a bound on its acceleration, per unit of a parameter tau running from 0 to
+        1 along each piece; with them each pair takes the lesser of the two bounds (see the module doc).
+
+        Rates: a revolute joint moves a geometry's points at most its lever arm per radian, and along the piece that
+        arm grows by no more than the joints between the axis and the geometry move its points (a joint's own turn
         does not change it), so each end's lever plus that growth bounds the arm -- the lesser of the two ends',
-        and never more than the rate anywhere in the space."""
-        slack = self._levers.slack(variation)
-        return np.minimum(self.rates, np.minimum(levers_a, levers_b) + slack)
+        and never more than the rate anywhere in the space. The travel sums them over the coordinates the pair
+        counts.
 
-    def pair_travel_of(self, variation: np.ndarray, rates: np.ndarray) -> np.ndarray:
-        """pair_travel for pieces of motion (n, dim) whose rates all along them are `rates` (n, rows, dim)."""
-        # P's own travel summed over the coordinates the pair counts, (rows P, n, rows Q); Q's is the same array
-        # read the other way round.
-        own = np.matmul((rates * variation[:, None, :]).transpose(1, 0, 2), self._unshared)
-        return own.transpose(1, 0, 2) + own.transpose(1, 2, 0)
-
-    def pair_travel_along(self, rates: np.ndarray, at_a: _Local, at_b: _Local, da, db, dd) -> np.ndarray:
-        """Bounds (n, rows, rows) on how much each pair's distance changes along pieces of a curve, from the curve's
-        velocity at the pieces' ends, da and db (n, dim), and a bound dd (n, dim) on its acceleration, all per unit
-        of a parameter tau running from 0 to 1 along each piece; at_a, at_b: the local kinematics at the ends (see
-        `local`), rates: as piece_rates (every point of the row's geometry lies within rates[j] of axis j all along
-        the piece).
-
-        Where the bound from the travel sums every joint's share of the motion, this one starts from the motion
-        itself: at an end, a point x of a geometry moves at |v_c + w x (x - c)| <= |v_c| + |w| rho (centre c, radius
-        rho about it), and along the piece its speed changes at most M = sum_j rates_j (|q_j'| (|q_j'| [j revolute] +
-        2 sum_{k revolute, inboard of j} |q_k'|) + |q_j''|) per unit of tau -- the derivative of joint j's column of
-        the Jacobian along joint k is w_k x J_j for k inboard of or at j and w_j x J_k outboard of it, each at most
-        the outboard one's rate. So by tau a point has moved at most tau V_a + tau^2 M / 2 <= tau (V_a + M / 2) from
-        end a, and as much the other way from end b: two points (one per geometry) move their distance by at most
-        the larger of the two sums. Joints that turn the arm both ways about parallel axes (the UR3's shoulder,
-        elbow and wrist) cancel here; the travel adds them up."""
+        The bound from the motion itself: at an end, a point x of a geometry moves at |v_c + w x (x - c)| <= |v_c| +
+        |w| rho (centre c, radius rho about it), and along the piece its speed changes at most M = sum_j rates_j
+        (|q_j'| (|q_j'| [j revolute] + 2 sum_{k revolute, inboard of j} |q_k'|) + |q_j''|) per unit of tau -- the
+        derivative of joint j's column of the Jacobian along joint k is w_k x J_j for k inboard of or at j and
+        w_j x J_k outboard of it, each at most the outboard one's rate. So by tau a point has moved at most tau V_a
+        + tau^2 M / 2 <= tau (V_a + M / 2) from end a, and as much the other way from end b: two points (one per
+        geometry) move their distance by at most the larger of the two sums. Joints that turn the arm both ways
+        about parallel axes (the UR3's shoulder, elbow and wrist) cancel here; the travel adds them up."""
         arms = self._levers
-        speed = 0.5 * (np.abs(da) + np.abs(db) + dd)  # |q'| all along the piece: q' changes by at most dd
-        turning = speed * arms.revolute
-        inboard = (turning @ arms.below_by_k).reshape(len(turning), -1, turning.shape[1])
-        change = np.einsum(
-            "nrj,nrj->nr", rates, speed[:, None, :] * (turning[:, None, :] + 2 * inboard) + dd[:, None, :]
+        along = derivatives is not None
+        da, db, dd = derivatives if along else (np.zeros((0, 0)),) * 3
+        return bound_kernel.piece_travel(
+            np.ascontiguousarray(variation, float),
+            np.ascontiguousarray(end_a, np.int64),
+            np.ascontiguousarray(end_b, np.int64),
+            local.levers,
+            self.rates,
+            arms.below,
+            self._unshared,
+            along,
+            *(np.ascontiguousarray(x, float) for x in (da, db, dd)),
+            local.linear,
+            local.angular,
+            local.radius,
+            arms.revolute,
+            _SLACK,
         )
-        reach_a = at_a.speed(da) + 0.5 * change
-        reach_b = at_b.speed(db) + 0.5 * change
-        pairs = np.maximum(reach_a[:, :, None] + reach_a[:, None, :], reach_b[:, :, None] + reach_b[:, None, :])
-        return pairs * _SLACK
 
     @staticmethod
     def max_distance(pair_travel: np.ndarray) -> np.ndarray:
@@ -169,7 +167,7 @@ class _LeverArms:
     """Lever arms of a robot's geometries about its revolute axes, at given configurations (see
     MotionBound.local): from each axis (a line through its joint frame's origin) to the geometry's centre, plus
     the geometry's radius about that centre; and with them each geometry's Jacobian columns at its centre (see
-    _Local), for MotionBound.pair_travel_along."""
+    _Local), for MotionBound.piece_bounds."""
 
     def __init__(self, kinematics: TreeKinematics, axes, columns, centres, radius, below, rates, slides, chain):
         self._kinematics = kinematics
@@ -177,12 +175,13 @@ class _LeverArms:
         self._columns = columns  # its coordinate
         self._centres = centres  # frames (after the axes' frames) of the robot rows' centres
         self._radius = radius  # per robot row, about its centre
-        # below (rows, dim, dim): coordinate k moves a row's geometry relative to coordinate j's axis (see `of`),
-        # kept as float matrices laid out for batched products (MotionBound.pair_travel_along, slack).
-        self.below_by_k = below.astype(float).transpose(1, 0, 2).reshape(rates.shape[1], -1)
-        self._below_of_row = below.astype(float).transpose(0, 2, 1).copy()
+        # below[row, j, k]: coordinate k moves the row's geometry relative to coordinate j's axis (see `of`).
+        self.below = below.astype(float)
         self._rates = rates
-        self._slides = slides  # per prismatic joint: (frame after the centres', unit axis in it, coordinate)
+        # Per prismatic joint: its frame (after the centres'), its unit axis in that frame, its coordinate.
+        self._slide_frames = np.array([frame for frame, _, _ in slides], np.int64)
+        self._slide_axes = np.array([axis for _, axis, _ in slides], float).reshape(-1, 3)
+        self._slide_columns = np.array([column for _, _, column in slides], np.int64)
         self._chain = chain  # (rows, dim): the coordinates that move each row
         self.revolute = np.isin(np.arange(rates.shape[1]), columns)
 
@@ -238,58 +237,35 @@ class _LeverArms:
 
     def __call__(self, Q: np.ndarray) -> _Local:
         R, p = self._kinematics.poses(Q)
-        n, count, dim, rows = len(Q), len(self._columns), self._rates.shape[1], len(self._radius)
-        u = np.einsum("naij,aj->nai", R[:, :count], self._axes)[:, :, None, :]  # world axes (n, axes, 1, 3)
-        v = p[:, None, self._centres] - p[:, :count, None]  # axis point to centre (n, axes, rows, 3)
-        # u x v: the centre's velocity per unit turn of the axis; its length, the centre's distance from the axis.
-        turn = np.stack(
-            [
-                u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
-                u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
-                u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0],
-            ],
-            axis=3,
+        levers, linear, angular = bound_kernel.lever_arms(
+            R,
+            p,
+            self._axes,
+            self._columns,
+            self._centres,
+            self._radius,
+            self._chain,
+            self._slide_frames,
+            self._slide_axes,
+            self._slide_columns,
+            self._rates.shape[1],
         )
-        levers = np.full((n, rows + 1, dim), np.inf)
-        levers[:, :-1, self._columns] = np.sqrt((turn * turn).sum(axis=3)).transpose(0, 2, 1) + self._radius[:, None]
-        # Per row and coordinate, the centre's velocity and the angular velocity per unit of it (the environment
-        # row and the coordinates that do not move a row: 0).
-        linear, angular = np.zeros((n, rows + 1, dim, 3)), np.zeros((n, rows + 1, dim, 3))
-        moves = self._chain[:-1, self._columns].T[None, :, :, None]  # (1, axes, rows, 1)
-        linear[:, :-1, self._columns] = (turn * moves).transpose(0, 2, 1, 3)
-        angular[:, :-1, self._columns] = (u * moves).transpose(0, 2, 1, 3)
-        for frame, axis, column in self._slides:
-            linear[:, :-1, column] = (R[:, frame] @ axis)[:, None] * self._chain[None, :-1, column, None]
-        # Coordinates first, (n, dim, rows x 3): a velocity's effect on every row is then one product.
-        linear, angular = (np.ascontiguousarray(a.transpose(0, 2, 1, 3)).reshape(n, dim, -1) for a in (linear, angular))
-        return _Local(levers, linear, angular, np.append(self._radius, 0.0))
-
-    def slack(self, variation: np.ndarray) -> np.ndarray:
-        """How much each row's lever arm about each coordinate's axis can grow over a piece of motion (n, dim):
-        what the coordinates between that axis and the geometry move the geometry's points, (n, rows, dim)."""
-        moved = self._rates[:, None, :] * variation[None, :, :]  # (rows, n, k)
-        return np.matmul(moved, self._below_of_row).transpose(1, 0, 2)
+        shapes = self._centres
+        return _Local(levers, linear, angular, np.append(self._radius, 0.0), R[:, shapes], p[:, shapes])
 
 
 class _Local(NamedTuple):
     """A robot's kinematics at configurations (n): lever arms (see MotionBound.local), and per coordinate and row (the
     environment's last), the velocity of the row's centre and the geometry's angular velocity per unit of the
-    coordinate, (n, dim, rows x 3); the rows' radii about their centres."""
+    coordinate, (n, dim, rows x 3); the rows' radii about their centres; and the robot rows' shapes' rotations (n,
+    rows, 3, 3) and centres (n, rows, 3)."""
 
     levers: np.ndarray
     linear: np.ndarray
     angular: np.ndarray
     radius: np.ndarray
-
-    def rows(self, k: np.ndarray) -> _Local:
-        return _Local(self.levers[k], self.linear[k], self.angular[k], self.radius)
-
-    def speed(self, velocity: np.ndarray) -> np.ndarray:
-        """The largest speed of a point of each row's geometry, (n, rows), with the coordinates' velocities (n, dim)
-        at these configurations: |v_c| + |w| rho."""
-        v = np.matmul(velocity[:, None, :], self.linear).reshape(len(velocity), -1, 3)
-        w = np.matmul(velocity[:, None, :], self.angular).reshape(len(velocity), -1, 3)
-        return np.sqrt((v * v).sum(axis=2)) + np.sqrt((w * w).sum(axis=2)) * self.radius
+    rotations: np.ndarray
+    centres: np.ndarray
 
 
 def _chain(inboard: dict, body_index) -> list:

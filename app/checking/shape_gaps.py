@@ -25,10 +25,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from app.checking import gap_kernel
 from app.scene.shapes import hull_vertices
 
-# Alternating projections between two shapes, for the direction of their gap.
-PROJECTIONS = 2
 # A pair's key: its smaller geometry index * PAIR_KEY + its larger one.
 PAIR_KEY = 1 << 31
 
@@ -113,7 +112,7 @@ class ShapeGaps:
         self.radius = np.zeros(count)  # about the shape's centre
         # A shape's centre in its own frame (see centred_shape), about which a mesh's vertices are kept.
         self.offset = np.zeros((count, 3))
-        self.special = {}  # geometry index -> semi-axes of an ellipsoid
+        semi = np.zeros((count, 3))  # an ellipsoid's semi-axes
         hulls = {}  # geometry index -> a mesh hull's vertices (n, 3) about its centre
         for i in np.unique(self.pairs):
             kind, data, self.offset[i], self.radius[i] = centred_shape(*describe_shape(inspector, geometries[i]))
@@ -128,169 +127,40 @@ class ShapeGaps:
                 self.core[i] = np.abs(data).max(axis=0)
                 hulls[i] = data
             else:
-                self.special[i] = data
-        self.is_special = np.isin(np.arange(count), list(self.special))
-        self.is_hull = np.isin(np.arange(count), list(hulls))
-        self.hulls = hulls
+                semi[i] = data
+        special = semi.any(axis=1)
+        hull = np.zeros(count, bool)
+        hull[list(hulls)] = True
+        sizes = [len(hulls[g]) if g in hulls else 0 for g in range(count)]
+        vstart = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        verts = np.concatenate([hulls[g] for g in sorted(hulls)] or [np.zeros((0, 3))]).astype(float)
+        # The shape tables in gap_kernel's order.
+        self._tables = (self.core, self.disc, self.ball, self.radius, special, semi, hull, vstart, verts)
 
-    def near(self, rotation, centre, centres, nhat, limit: np.ndarray, need: np.ndarray) -> tuple[np.ndarray, ...]:
+    def near(self, poses: Poses, nhat, limit: np.ndarray, need: np.ndarray) -> tuple[np.ndarray, ...]:
         """(configurations, pairs, bounds): the rows (configuration k, pair) whose lower bound is below limit[k],
-        and their bounds, given the shapes' poses -- rotation(k, g) (n, 3, 3) and centre(k, g) (n, 3; the shape's
-        centre, see offset) of geometries g in configurations k (index arrays), and every shape's centre in every
-        configuration, centres (configurations, geometries, 3) -- Drake's direction from b to a where it reported the
-        pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance that settles each
-        row (need (configurations, pairs)). Each row keeps the first of the tiered bounds that reaches min(need,
-        limit) (see the class doc). The bounding spheres are taken for every row at once, with no row gathered: most
-        rows stop there, and gathering them took longer than the test."""
-        a, b = self.pairs.T
-        n, count = len(limit), len(self.pairs)
-        spheres = (
-            _norm((centres[:, a] - centres[:, b]).reshape(-1, 3)).reshape(n, count) - self.radius[a]
-        ) - self.radius[b]
-        settle = np.minimum(need, limit[:, None]).ravel()
-        bound = spheres.ravel()
-        live = np.flatnonzero(bound < settle)
-        k, pair = np.divmod(live, count)
-        bound[live] = self._closer(k, pair, bound[live], rotation, centre, nhat.reshape(-1, 3)[live], settle[live])
-        below = np.flatnonzero(bound < np.repeat(limit, count))
-        k, pair = np.divmod(below, count)
-        return k, pair, bound[below]
+        and their bounds, given the shapes' poses in each configuration, Drake's direction from b to a where it
+        reported the pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance that
+        settles each row (need (configurations, pairs)). Each row keeps the first of the tiered bounds that reaches
+        min(need, limit) (see the class doc)."""
+        bound = gap_kernel.near_bounds(self.pairs, tuple(poses), nhat, limit, need, self._tables)
+        k, pair = np.nonzero(bound < limit[:, None])
+        return k, pair, bound[k, pair]
 
-    def _closer(self, k, pair, bound, rotation, centre, nhat, settle) -> np.ndarray:
-        """The bounds of rows (configuration k, pair) whose bounding spheres (`bound`) did not reach `settle`: from
-        a's centre to shape b, and the other way, then the gaps along three directions, each on the rows the tier
-        before left below `settle` (see near)."""
-        a, b = self.pairs[pair].T
-        pa, pb = centre(k, a), centre(k, b)
-        live = np.arange(len(k))
-        B = self._posed(b, rotation(k, b), pb)
-        bound = np.maximum(bound, self._distance_to(B, pa) - self.radius[a])
-        keep = np.flatnonzero(bound < settle)
-        live, B = live[keep], _rows(B, keep)
-        A = self._posed(a[live], rotation(k[live], a[live]), pa[live])
-        bound[live] = np.maximum(bound[live], self._distance_to(A, B.p) - B.radius)
-        keep = np.flatnonzero(bound[live] < settle[live])
-        live, A, B = live[keep], _rows(A, keep), _rows(B, keep)
-        bound[live] = np.maximum(bound[live], self._gap(A, B, nhat[live], settle[live]))
-        return bound
-
-    def along(self, k, pair, rotation, centre, d: np.ndarray) -> np.ndarray:
+    def along(self, k, pair, poses: Poses, d: np.ndarray) -> np.ndarray:
         """The gaps of rows (configuration k, pair) along directions d (unit, from the pair's second shape to its
-        first), hulls by their vertices: a lower bound on each row's distance (see near for rotation and centre)."""
-        a, b = self.pairs[pair].T
-        A = self._posed(a, rotation(k, a), centre(k, a))
-        B = self._posed(b, rotation(k, b), centre(k, b))
-        return self._along(A, B, d, exact=True)
-
-    def _posed(self, g: np.ndarray, R: np.ndarray, p: np.ndarray) -> _Posed:
-        return _Posed(R, p, self.core[g], self.disc[g], self.ball[g], self.radius[g], g)
-
-    def _gap(self, A: _Posed, B: _Posed, nhat: np.ndarray, settle: np.ndarray) -> np.ndarray:
-        """The largest gap between the shapes along three directions: Drake's where it has one, and the normals of
-        each shape at the near points that alternating projections onto the two shapes find (a mesh as its box, an
-        ellipsoid as its centre). Any direction's gap bounds the distance from below; a normal of a shape makes that
-        shape's side of the bound exact. Hulls count as their boxes first; the rows with a hull still below `settle`
-        are bounded again with the hull's vertices, along Drake's direction if it has one (GJK's direction between
-        two hulls is close to theirs; it costs one pair query where the hull's face normals would cost faces x
-        vertices per pair), else along the projections'."""
-        on_a = A.p
-        for _ in range(PROJECTIONS):
-            on_b = self._project(B, on_a)
-            on_a = self._project(A, on_b)
-        n = np.stack([on_a - on_b, on_a - self._project(B, on_a), nhat], 1)
-        length = np.linalg.norm(n, axis=2)
-        n = np.where(length[..., None] > 1e-12, n / np.maximum(length, 1e-300)[..., None], np.nan)
-        best = self._best_gap(A, B, n, np.isfinite(n[:, :, 0]), exact=False)
-        again = np.flatnonzero((self.is_hull[A.g] | self.is_hull[B.g]) & (best < settle)) if self.hulls else []
-        if len(again):
-            m = n[again]
-            use = np.isfinite(m[:, :, 0])
-            use[:, :2] &= ~use[:, 2:]  # Drake's direction alone where there is one
-            best[again] = np.maximum(best[again], self._best_gap(_rows(A, again), _rows(B, again), m, use, exact=True))
-        return best
-
-    def _best_gap(self, A: _Posed, B: _Posed, n: np.ndarray, use: np.ndarray, exact: bool) -> np.ndarray:
-        """Per row, the largest gap along the directions n[row, j] (unit, from B to A) where use[row, j]; -inf
-        where none. A direction every row has goes in one call without gathering the rows; the rest in one more."""
-        gaps = np.full(use.shape, -np.inf)
-        every = use.all(axis=0)
-        for j in np.flatnonzero(every).tolist():
-            gaps[:, j] = self._along(A, B, n[:, j], exact)
-        partial = np.flatnonzero(~every)
-        row, column = np.nonzero(use[:, partial])
-        if len(row):
-            column = partial[column]
-            gaps[row, column] = self._along(_rows(A, row), _rows(B, row), n[row, column], exact)
-        return gaps.max(axis=1)
-
-    def _along(self, A: _Posed, B: _Posed, d: np.ndarray, exact: bool) -> np.ndarray:
-        """The gap of each pair of rows A[i], B[i] along d[i] (unit, from B to A). With hulls' vertices both shapes'
-        supports go in one call (they cost one product per hull and call); in closed form, two calls cost less than
-        gathering the rows into one."""
-        if not exact:
-            return np.einsum("ij,ij->i", d, A.p - B.p) - self._support(A, -d, False) - self._support(B, d, False)
-        both = _Posed(*(np.concatenate(fields) for fields in zip(A, B)))
-        support = self._support(both, np.concatenate([-d, d]), exact)
-        return np.einsum("ij,ij->i", d, A.p - B.p) - support[: len(d)] - support[len(d) :]
-
-    def _support(self, S: _Posed, n: np.ndarray, exact: bool) -> np.ndarray:
-        """max over each posed shape of n . (x - its centre), for world directions n (unit rows): exact, or for a
-        hull, its box's (larger) unless `exact`."""
-        u = np.einsum("mji,mj->mi", S.R, n)
-        out = (S.core * np.abs(u)).sum(1) + S.disc * np.hypot(u[:, 0], u[:, 1]) + S.ball
-        if exact:  # rows by hull, one product with each hull's vertices
-            rows = np.flatnonzero(self.is_hull[S.g])
-            rows = rows[np.argsort(S.g[rows], kind="stable")]
-            starts = np.flatnonzero(np.diff(S.g[rows], prepend=-1))
-            for group, g in zip(np.split(rows, starts[1:]), S.g[rows[starts]].tolist()):
-                out[group] = (u[group] @ self.hulls[g].T).max(1)
-        for i in np.unique(S.g[self.is_special[S.g]]):  # ellipsoids
-            m = S.g == i
-            out[m] = np.linalg.norm(self.special[i] * u[m], axis=1)
-        return out
-
-    def _project(self, S: _Posed, x: np.ndarray) -> np.ndarray:
-        """The point of each posed shape nearest to x, in the world (a hull's box's; an ellipsoid's centre)."""
-        local = np.einsum("mji,mj->mi", S.R, x - S.p)
-        near = np.clip(local, -S.core, S.core)
-        disc = S.disc > 0
-        if disc.any():
-            near[disc, :2] = local[disc, :2] * _shrink(local[disc, :2], S.disc[disc])
-        near += (local - near) * _shrink(local - near, S.ball)
-        return S.p + np.einsum("mij,mj->mi", S.R, near)
-
-    def _distance_to(self, S: _Posed, x: np.ndarray) -> np.ndarray:
-        """A lower bound on the distance from x to each posed shape: to its nearest point as _project finds it (a
-        hull's box holds the hull, so it is no farther), or for an ellipsoid, to its bounding sphere."""
-        exact = _norm(self._project(S, x) - x)
-        rough = np.maximum(_norm(S.p - x) - S.radius, 0.0)
-        return np.where(self.is_special[S.g], rough, exact)
+        first), hulls by their vertices: a lower bound on each row's distance."""
+        return gap_kernel.gaps_along(k, pair, np.ascontiguousarray(d, float), self.pairs, tuple(poses), self._tables)
 
 
-class _Posed(NamedTuple):
-    """Shapes of the gaps' pairs, one a row, posed: rotation, centre, and their ShapeGaps parameters."""
+class Poses(NamedTuple):
+    """The shapes' poses in n configurations: every shape's centre (n, geometries, 3; see ShapeGaps.offset), and
+    its rotation -- robot[k, slot[g]] for a robot geometry (slot >= 0), environment[g] for the others."""
 
-    R: np.ndarray
-    p: np.ndarray
-    core: np.ndarray
-    disc: np.ndarray
-    ball: np.ndarray
-    radius: np.ndarray
-    g: np.ndarray  # geometry indices
-
-
-def _rows(S: _Posed, rows) -> _Posed:
-    return _Posed(*(field[rows] for field in S))
-
-
-def _shrink(v: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """Factors that bring vectors v (rows) within `radius` of the origin, (n, 1)."""
-    return np.minimum(1.0, radius / np.maximum(_norm(v), 1e-300))[:, None]
-
-
-def _norm(v: np.ndarray) -> np.ndarray:
-    """Lengths of the rows of v (n, 3): np.linalg.norm's checks cost more than the sum on a few thousand rows."""
-    return np.sqrt(np.einsum("ij,ij->i", v, v))
+    centres: np.ndarray
+    environment: np.ndarray
+    robot: np.ndarray
+    slot: np.ndarray
 
 
 # Per shared oracle, its ShapeGaps, made once; gone with the oracle.
@@ -298,7 +168,7 @@ _per_oracle: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def shape_gaps(oracle, geometries: list, robot: np.ndarray, exact: np.ndarray) -> ShapeGaps:
-    """The shared oracle's ShapeGaps, made once per oracle (its hulls' support tables fill as they are used)."""
+    """The shared oracle's ShapeGaps, made once per oracle."""
     if oracle not in _per_oracle:
         _per_oracle[oracle] = ShapeGaps(oracle, geometries, robot, exact)
     return _per_oracle[oracle]

@@ -78,6 +78,8 @@ _VERDICT_MODULES = (
     "checking/certify.py",
     "checking/motion_bound.py",
     "checking/shape_gaps.py",
+    "checking/gap_kernel.py",
+    "checking/bound_kernel.py",
     "checking/end_distances.py",
     "checking/kinematics.py",
     "scene/cspace.py",
