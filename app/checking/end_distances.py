@@ -26,7 +26,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from app.checking import gap_kernel
 from app.checking.budget import poll
 from app.checking.kinematics import TreeKinematics
 from app.checking.motion_bound import MAX_DISTANCE_MARGIN, motion_bound
@@ -85,6 +84,8 @@ class EndDistances:
             pairs = self._rows[self._gaps.pairs]
             limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel * reach), 2)[rows], first)
             if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
+                from app.checking import gap_kernel  # numba, loaded on first use (see shape_gaps)
+
                 need = gap_kernel.largest_per_end(travel, rows // 2, first, pairs)
         poses = None
         if local is not None:

@@ -35,7 +35,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from app.checking import bound_kernel
 from app.checking.kinematics import TreeKinematics
 from app.checking.shape_gaps import centred_shape, describe_shape, shape_radius
 
@@ -139,6 +138,8 @@ class MotionBound:
         arms = self._levers
         along = derivatives is not None
         da, db, dd = derivatives if along else (np.zeros((0, 0)),) * 3
+        from app.checking import bound_kernel  # numba, loaded on first use (see shape_gaps)
+
         return bound_kernel.piece_travel(
             np.ascontiguousarray(variation, float),
             np.ascontiguousarray(end_a, np.int64),
@@ -237,6 +238,8 @@ class _LeverArms:
 
     def __call__(self, Q: np.ndarray) -> _Local:
         R, p = self._kinematics.poses(Q)
+        from app.checking import bound_kernel
+
         levers, linear, angular = bound_kernel.lever_arms(
             R,
             p,

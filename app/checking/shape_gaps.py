@@ -25,7 +25,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from app.checking import gap_kernel
 from app.scene.shapes import hull_vertices
 
 # A pair's key: its smaller geometry index * PAIR_KEY + its larger one.
@@ -143,6 +142,9 @@ class ShapeGaps:
         reported the pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance that
         settles each row (need (configurations, pairs)). Each row keeps the first of the tiered bounds that reaches
         min(need, limit) (see the class doc)."""
+        # The kernels load numba on first use: importing the package (the command line's parser) does not need it.
+        from app.checking import gap_kernel
+
         bound = gap_kernel.near_bounds(self.pairs, tuple(poses), nhat, limit, need, self._tables)
         k, pair = np.nonzero(bound < limit[:, None])
         return k, pair, bound[k, pair]
@@ -150,6 +152,8 @@ class ShapeGaps:
     def along(self, k, pair, poses: Poses, d: np.ndarray) -> np.ndarray:
         """The gaps of rows (configuration k, pair) along directions d (unit, from the pair's second shape to its
         first), hulls by their vertices: a lower bound on each row's distance."""
+        from app.checking import gap_kernel
+
         return gap_kernel.gaps_along(k, pair, np.ascontiguousarray(d, float), self.pairs, tuple(poses), self._tables)
 
 
