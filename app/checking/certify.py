@@ -274,34 +274,18 @@ def _clear(ends_a: list, ends_b: list, pair_travel: np.ndarray) -> tuple[np.ndar
     b = np.array([slots[id(ends_b[p])] for p in pieces.tolist()], np.int64)
     counts = np.array([len(end.keys) for end in table], np.int64)
     first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    keys = np.concatenate([end.keys for end in table])
-    distance = np.concatenate([end.distance for end in table])
-    row_a = np.concatenate([end.row_a for end in table])
-    row_b = np.concatenate([end.row_b for end in table])
+    keys, distance, row_a, row_b = (np.concatenate([getattr(end, field) for end in table]) for field in _END_FIELDS)
     limit = np.array([end.limit for end in table])
-    # Keys of every end in one sorted array: each end's keys are sorted, and ends follow in slot order.
-    span = int(keys.max()) + 1 if len(keys) else 1
-    tagged = np.repeat(np.arange(len(table), dtype=np.int64), counts) * span + keys
-    failures, shortfall = np.zeros(len(pieces), np.int64), np.ones(len(pieces))
-    least = limit[a] + limit[b] - pair_travel[pieces].max(axis=(1, 2))
-    for this, other in ((a, b), (b, a)):
-        # Every pair `this` end of each piece reports, with its distance at the `other` end (or that end's limit).
-        piece = np.repeat(np.arange(len(pieces)), counts[this])
-        row = (
-            first[this][piece] + np.arange(len(piece)) - np.repeat(np.cumsum(counts[this]) - counts[this], counts[this])
-        )
-        wanted = other[piece] * span + keys[row]
-        at = np.searchsorted(tagged, wanted).clip(max=max(len(tagged) - 1, 0))
-        found = tagged[at] == wanted if len(tagged) else np.zeros(len(wanted), bool)
-        there = np.where(found, distance[at], limit[other[piece]])
-        bound = pair_travel[pieces[piece], row_a[row], row_b[row]]
-        failures += np.bincount(piece[distance[row] + there <= bound], minlength=len(pieces))
-        np.maximum.at(shortfall, piece, bound / np.maximum(distance[row] + there, 1e-300))
-        np.minimum.at(least, piece, distance[row] + there - bound)
-    ok[pieces] = failures == 0
-    short[pieces] = shortfall
-    slack[pieces] = least
+    from app.checking import kernels  # loads numba on first use (see there)
+
+    ok[pieces], short[pieces], slack[pieces] = kernels.clear_pieces(
+        pieces, a, b, first, counts, keys, distance, row_a, row_b, limit, pair_travel
+    )
     return ok, short, slack
+
+
+# A PairDistances' arrays, a row per pair, for the test's kernel.
+_END_FIELDS = ("keys", "distance", "row_a", "row_b")
 
 
 class Motion(NamedTuple):

@@ -84,9 +84,9 @@ class EndDistances:
             pairs = self._rows[self._gaps.pairs]
             limits = np.maximum.reduceat(np.repeat(self.bound.max_distance(travel * reach), 2)[rows], first)
             if not self._ask_all:  # where Drake's query is cheap, settling pairs early saves nothing measurable
-                from app.checking import gap_kernel  # numba, loaded on first use (see shape_gaps)
+                from app.checking import kernels  # loads numba on first use (see there)
 
-                need = gap_kernel.largest_per_end(travel, rows // 2, first, pairs)
+                need = kernels.largest_per_end(travel, rows // 2, first, pairs)
         poses = None
         if local is not None:
             robot_rows = self._rows[self._rows >= 0]
@@ -169,19 +169,21 @@ class EndDistances:
         mapped through its integer value. Without the pairwise query Drake is asked nothing yet: where every pair's
         lower bound comes out positive nothing touches, and only a configuration with a bound at or below 0 is asked
         about contact (at the end of _ends)."""
-        if self._ask_all:
-            answers = [self.checker.signed_distances(q, limit) for _, q, limit, *_ in todo]
-        else:
-            answers = [[] for _ in todo]
+        if not self._ask_all:
             self.checker.count_bounded(len(todo))
+            none = np.zeros(0, np.int64)
+            nhat = np.full((len(todo), len(self._gaps.pairs), 3), np.nan)
+            return _Reported(np.arange(len(todo)), none, none.reshape(0, 2), none, none.astype(bool), none * 0.0, nhat)
+        answers = [self.checker.signed_distances(q, limit) for _, q, limit, *_ in todo]
         value = self._index_of_value
         found = np.array(
             [(value[p.id_A.get_value()], value[p.id_B.get_value()], p.distance) for pairs in answers for p in pairs],
             float,
         ).reshape(-1, 3)
         config = np.repeat(np.arange(len(answers)), [len(pairs) for pairs in answers])
-        touching = np.unique(config[found[:, 2] <= 0])
-        kept = np.setdiff1d(np.arange(len(answers)), touching)
+        touching = np.zeros(len(answers), bool)
+        touching[config[found[:, 2] <= 0]] = True
+        kept = np.flatnonzero(~touching)
         if not len(kept):
             return None
         # Renumber the configurations left, 0..len(kept)-1.
@@ -198,11 +200,6 @@ class EndDistances:
         flat = [p for pairs in answers for p in pairs]
         directions = np.array([flat[j].nhat_BA_W for j in position[~exact].tolist()], float).reshape(-1, 3)
         nhat = self._directions(len(kept), config[~exact], keys[~exact], swapped[~exact], directions)
-        if not self._ask_all:  # Drake's directions for the pairs it reported, kept for the rows it did not
-            reported = np.isfinite(nhat[:, :, 0])
-            last = len(nhat) - 1 - reported[::-1].argmax(axis=0)  # the last configuration that reported each pair
-            pairs = np.flatnonzero(reported.any(axis=0))
-            self._recent[pairs] = nhat[last[pairs], pairs]
         return _Reported(kept, config, index, keys, exact, found[:, 2], nhat)
 
     def _poses_at(self, Q: np.ndarray, given: list) -> Poses:
@@ -264,11 +261,12 @@ class EndDistances:
         distance = np.concatenate([reported.distance[exact], bounds]) - self._rounding
         order = np.lexsort((keys, config))
         rows = self._rows[index[order]]
-        split = np.cumsum(np.bincount(config, minlength=len(drake)))[:-1]
-        parts = zip(*(np.split(array, split) for array in (keys[order], distance[order], rows[:, 0], rows[:, 1])))
-        for k, ((key, _, limit, *_), part) in enumerate(zip(drake, parts)):
+        keys, distance, row_a, row_b = keys[order], distance[order], rows[:, 0].copy(), rows[:, 1].copy()
+        bounds = np.concatenate([[0], np.cumsum(np.bincount(config, minlength=len(drake)))]).tolist()
+        for k, (key, _, limit, *_) in enumerate(drake):
             if k not in in_contact:
-                self._cache[key] = PairDistances(limit, *part)
+                part = slice(bounds[k], bounds[k + 1])
+                self._cache[key] = PairDistances(limit, keys[part], distance[part], row_a[part], row_b[part])
 
     def _robot_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rotations (n, robots, 3, 3) and centres (n, robots, 3) of the robot geometries at configurations Q."""

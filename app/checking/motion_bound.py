@@ -138,9 +138,9 @@ class MotionBound:
         arms = self._levers
         along = derivatives is not None
         da, db, dd = derivatives if along else (np.zeros((0, 0)),) * 3
-        from app.checking import bound_kernel  # numba, loaded on first use (see shape_gaps)
+        from app.checking import kernels  # loads numba on first use (see there)
 
-        return bound_kernel.piece_travel(
+        return kernels.piece_travel(
             np.ascontiguousarray(variation, float),
             np.ascontiguousarray(end_a, np.int64),
             np.ascontiguousarray(end_b, np.int64),
@@ -238,9 +238,9 @@ class _LeverArms:
 
     def __call__(self, Q: np.ndarray) -> _Local:
         R, p = self._kinematics.poses(Q)
-        from app.checking import bound_kernel
+        from app.checking import kernels
 
-        levers, linear, angular = bound_kernel.lever_arms(
+        levers, linear, angular = kernels.lever_arms(
             R,
             p,
             self._axes,

@@ -133,7 +133,7 @@ class ShapeGaps:
         sizes = [len(hulls[g]) if g in hulls else 0 for g in range(count)]
         vstart = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         verts = np.concatenate([hulls[g] for g in sorted(hulls)] or [np.zeros((0, 3))]).astype(float)
-        # The shape tables in gap_kernel's order.
+        # The shape tables, in the order the kernels take them.
         self._tables = (self.core, self.disc, self.ball, self.radius, special, semi, hull, vstart, verts)
 
     def near(self, poses: Poses, nhat, limit: np.ndarray, need: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -142,19 +142,19 @@ class ShapeGaps:
         reported the pair in that configuration (nhat (configurations, pairs, 3), else NaN), and the distance that
         settles each row (need (configurations, pairs)). Each row keeps the first of the tiered bounds that reaches
         min(need, limit) (see the class doc)."""
-        # The kernels load numba on first use: importing the package (the command line's parser) does not need it.
-        from app.checking import gap_kernel
+        # The kernels load numba on first use (see there).
+        from app.checking import kernels
 
-        bound = gap_kernel.near_bounds(self.pairs, tuple(poses), nhat, limit, need, self._tables)
+        bound = kernels.near_bounds(self.pairs, tuple(poses), nhat, limit, need, self._tables)
         k, pair = np.nonzero(bound < limit[:, None])
         return k, pair, bound[k, pair]
 
     def along(self, k, pair, poses: Poses, d: np.ndarray) -> np.ndarray:
         """The gaps of rows (configuration k, pair) along directions d (unit, from the pair's second shape to its
         first), hulls by their vertices: a lower bound on each row's distance."""
-        from app.checking import gap_kernel
+        from app.checking import kernels
 
-        return gap_kernel.gaps_along(k, pair, np.ascontiguousarray(d, float), self.pairs, tuple(poses), self._tables)
+        return kernels.gaps_along(k, pair, np.ascontiguousarray(d, float), self.pairs, tuple(poses), self._tables)
 
 
 class Poses(NamedTuple):
