@@ -26,27 +26,34 @@ from numba import njit
 # Alternating projections between two shapes, for the direction of their gap.
 PROJECTIONS = 2
 
+# Points and directions are 3-tuples of floats, not arrays: a row's tiers would otherwise allocate a dozen small
+# arrays, which cost more than their arithmetic.
+
 
 @njit(cache=True)
 def _project(R, p, core, disc, ball, x):
     """The point of a posed shape nearest to x (a hull's box's; an ellipsoid's centre), in the world."""
-    local = np.empty(3)
-    for i in range(3):
-        local[i] = R[0, i] * (x[0] - p[0]) + R[1, i] * (x[1] - p[1]) + R[2, i] * (x[2] - p[2])
-    near = np.empty(3)
-    for i in range(3):
-        near[i] = min(max(local[i], -core[i]), core[i])
+    d0, d1, d2 = x[0] - p[0], x[1] - p[1], x[2] - p[2]
+    l0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
+    l1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+    l2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    n0, n1, n2 = min(max(l0, -core[0]), core[0]), min(max(l1, -core[1]), core[1]), min(max(l2, -core[2]), core[2])
     if disc > 0:
-        shrink = min(1.0, disc / max(math.sqrt(local[0] ** 2 + local[1] ** 2), 1e-300))
-        near[0], near[1] = local[0] * shrink, local[1] * shrink
-    rest = math.sqrt((local[0] - near[0]) ** 2 + (local[1] - near[1]) ** 2 + (local[2] - near[2]) ** 2)
-    shrink = min(1.0, ball / max(rest, 1e-300))
-    for i in range(3):
-        near[i] += (local[i] - near[i]) * shrink
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = p[i] + R[i, 0] * near[0] + R[i, 1] * near[1] + R[i, 2] * near[2]
-    return out
+        shrink = min(1.0, disc / max(math.sqrt(l0 * l0 + l1 * l1), 1e-300))
+        n0, n1 = l0 * shrink, l1 * shrink
+    r0, r1, r2 = l0 - n0, l1 - n1, l2 - n2
+    shrink = min(1.0, ball / max(math.sqrt(r0 * r0 + r1 * r1 + r2 * r2), 1e-300))
+    n0, n1, n2 = n0 + r0 * shrink, n1 + r1 * shrink, n2 + r2 * shrink
+    return (
+        p[0] + R[0, 0] * n0 + R[0, 1] * n1 + R[0, 2] * n2,
+        p[1] + R[1, 0] * n0 + R[1, 1] * n1 + R[1, 2] * n2,
+        p[2] + R[2, 0] * n0 + R[2, 1] * n1 + R[2, 2] * n2,
+    )
+
+
+@njit(cache=True)
+def _length(x0, x1, x2):
+    return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
 
 @njit(cache=True)
@@ -55,21 +62,21 @@ def _distance_to(g, R, p, x, shapes):
     box holds the hull, so it is no farther), or for an ellipsoid, to its bounding sphere."""
     core, disc, ball, radius, special = shapes[:5]
     if special[g]:
-        return max(math.sqrt((p[0] - x[0]) ** 2 + (p[1] - x[1]) ** 2 + (p[2] - x[2]) ** 2) - radius[g], 0.0)
+        return max(_length(p[0] - x[0], p[1] - x[1], p[2] - x[2]) - radius[g], 0.0)
     y = _project(R, p, core[g], disc[g], ball[g], x)
-    return math.sqrt((y[0] - x[0]) ** 2 + (y[1] - x[1]) ** 2 + (y[2] - x[2]) ** 2)
+    return _length(y[0] - x[0], y[1] - x[1], y[2] - x[2])
 
 
 @njit(cache=True)
-def _support(g, R, n, exact, shapes):
+def _support(g, R, n0, n1, n2, exact, shapes):
     """max over posed shape g of n . (x - its centre), for a world direction n (unit): exact, or for a hull, its
     box's (larger) unless `exact`."""
     core, disc, ball, _, special, semi, hull, vstart, verts = shapes
-    u0 = R[0, 0] * n[0] + R[1, 0] * n[1] + R[2, 0] * n[2]
-    u1 = R[0, 1] * n[0] + R[1, 1] * n[1] + R[2, 1] * n[2]
-    u2 = R[0, 2] * n[0] + R[1, 2] * n[1] + R[2, 2] * n[2]
+    u0 = R[0, 0] * n0 + R[1, 0] * n1 + R[2, 0] * n2
+    u1 = R[0, 1] * n0 + R[1, 1] * n1 + R[2, 1] * n2
+    u2 = R[0, 2] * n0 + R[1, 2] * n1 + R[2, 2] * n2
     if special[g]:
-        return math.sqrt((semi[g, 0] * u0) ** 2 + (semi[g, 1] * u1) ** 2 + (semi[g, 2] * u2) ** 2)
+        return _length(semi[g, 0] * u0, semi[g, 1] * u1, semi[g, 2] * u2)
     if exact and hull[g]:
         best = -np.inf
         for v in range(vstart[g], vstart[g + 1]):
@@ -82,21 +89,23 @@ def _support(g, R, n, exact, shapes):
 @njit(cache=True)
 def _along(a, Ra, pa, b, Rb, pb, d, exact, shapes):
     """The gap of shapes a and b along d (unit, from b to a)."""
-    minus = -d
+    d0, d1, d2 = d[0], d[1], d[2]
     return (
-        d[0] * (pa[0] - pb[0])
-        + d[1] * (pa[1] - pb[1])
-        + d[2] * (pa[2] - pb[2])
-        - _support(a, Ra, minus, exact, shapes)
-        - _support(b, Rb, d, exact, shapes)
+        d0 * (pa[0] - pb[0])
+        + d1 * (pa[1] - pb[1])
+        + d2 * (pa[2] - pb[2])
+        - _support(a, Ra, -d0, -d1, -d2, exact, shapes)
+        - _support(b, Rb, d0, d1, d2, exact, shapes)
     )
 
 
 @njit(cache=True)
-def _unit(v):
-    """v / |v|, or NaN where it is too short to give a direction."""
-    length = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
-    return v / length if length > 1e-12 else np.full(3, np.nan)
+def _unit(x0, x1, x2):
+    """x / |x|, or NaN where it is too short to give a direction."""
+    length = _length(x0, x1, x2)
+    if length > 1e-12:
+        return (x0 / length, x1 / length, x2 / length)
+    return (np.nan, np.nan, np.nan)
 
 
 @njit(cache=True)
@@ -106,26 +115,27 @@ def _gap(a, Ra, pa, b, Rb, pb, nhat, settle, shapes):
     an ellipsoid as its centre). With a hull and still below `settle`: again with the hull's vertices, along Drake's
     direction if it has one, else along the projections'."""
     core, disc, ball, hull = shapes[0], shapes[1], shapes[2], shapes[6]
-    on_a = pa.copy()
-    on_b = pb.copy()
+    on_a = (pa[0], pa[1], pa[2])
+    on_b = on_a
     for _ in range(PROJECTIONS):
         on_b = _project(Rb, pb, core[b], disc[b], ball[b], on_a)
         on_a = _project(Ra, pa, core[a], disc[a], ball[a], on_b)
-    directions = np.empty((3, 3))
-    directions[0] = _unit(on_a - on_b)
-    directions[1] = _unit(on_a - _project(Rb, pb, core[b], disc[b], ball[b], on_a))
-    directions[2] = _unit(nhat)
+    back = _project(Rb, pb, core[b], disc[b], ball[b], on_a)
+    directions = (
+        _unit(on_a[0] - on_b[0], on_a[1] - on_b[1], on_a[2] - on_b[2]),
+        _unit(on_a[0] - back[0], on_a[1] - back[1], on_a[2] - back[2]),
+        _unit(nhat[0], nhat[1], nhat[2]),
+    )
     best = -np.inf
-    for j in range(3):
-        if math.isfinite(directions[j, 0]):
-            gap = _along(a, Ra, pa, b, Rb, pb, directions[j], False, shapes)
-            best = max(best, gap)
+    for d in directions:
+        if math.isfinite(d[0]):
+            best = max(best, _along(a, Ra, pa, b, Rb, pb, d, False, shapes))
     if (hull[a] or hull[b]) and best < settle:
-        drake = math.isfinite(directions[2, 0])
+        drake = math.isfinite(directions[2][0])
         for j in range(3):
-            if math.isfinite(directions[j, 0]) and (j == 2 or not drake):
-                gap = _along(a, Ra, pa, b, Rb, pb, directions[j], True, shapes)
-                best = max(best, gap)
+            d = directions[j]
+            if math.isfinite(d[0]) and (j == 2 or not drake):
+                best = max(best, _along(a, Ra, pa, b, Rb, pb, d, True, shapes))
     return best
 
 
@@ -146,11 +156,15 @@ def near_bounds(pairs, poses, nhat, limit, need, shapes):
     for k in range(n):
         for q in range(count):
             a, b = pairs[q, 0], pairs[q, 1]
-            pa, pb = centres[k, a], centres[k, b]
-            apart = math.sqrt((pa[0] - pb[0]) ** 2 + (pa[1] - pb[1]) ** 2 + (pa[2] - pb[2]) ** 2)
+            apart = _length(
+                centres[k, a, 0] - centres[k, b, 0],
+                centres[k, a, 1] - centres[k, b, 1],
+                centres[k, a, 2] - centres[k, b, 2],
+            )
             bound = apart - radius[a] - radius[b]
             settle = min(need[k, q], limit[k])
-            if bound < settle:
+            if bound < settle:  # most rows stop at their spheres: no views are made for them
+                pa, pb = centres[k, a], centres[k, b]
                 Rb = _rotation(k, b, poses)
                 bound = max(bound, _distance_to(b, Rb, pb, pa, shapes) - radius[a])
                 if bound < settle:
@@ -171,7 +185,7 @@ def gaps_along(ks, qs, d, pairs, poses, shapes):
     for i in range(len(ks)):
         k, a, b = ks[i], pairs[qs[i], 0], pairs[qs[i], 1]
         Ra, Rb = _rotation(k, a, poses), _rotation(k, b, poses)
-        out[i] = _along(a, Ra, centres[k, a], b, Rb, centres[k, b], d[i], True, shapes)
+        out[i] = _along(a, Ra, centres[k, a], b, Rb, centres[k, b], (d[i, 0], d[i, 1], d[i, 2]), True, shapes)
     return out
 
 
