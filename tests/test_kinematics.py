@@ -1,4 +1,4 @@
-"""Numpy forward kinematics (app.checking.kinematics) against Drake's own: the same geometry poses, many configurations
+"""Our forward kinematics (app.checking.kinematics) against Drake's own: the same geometry poses, many configurations
 at once; a plant with a joint it does not handle has none, and its callers ask Drake."""
 
 import numpy as np
@@ -24,7 +24,7 @@ def test_geometry_poses_are_drakes(oracles, name):
     assert np.allclose(kinematics.origins(Q, pieces), p[np.arange(len(Q)), pieces], rtol=0, atol=1e-15)
 
 
-def test_a_floating_body_has_no_numpy_kinematics():
+def test_a_floating_body_has_no_tree_kinematics():
     from pydrake.math import RigidTransform
     from pydrake.multibody.plant import MultibodyPlant
     from pydrake.multibody.tree import SpatialInertia
@@ -37,7 +37,7 @@ def test_a_floating_body_has_no_numpy_kinematics():
 
 @pytest.mark.parametrize("name", ["welding", "maze"])
 def test_the_oracle_and_the_certificate_answer_the_same_with_drakes_poses(oracles, name):
-    """What the numpy kinematics feed -- workspace piece centres, the certificate's gap bounds -- is what Drake's
+    """What our kinematics feed -- workspace piece centres, the certificate's gap bounds -- is what Drake's
     poses give, to rounding."""
     from app.checking.certify import Certifier
 

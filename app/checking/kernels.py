@@ -206,6 +206,66 @@ def largest_per_end(travel, piece, first, pairs):
 
 
 @njit(cache=True)
+def body_poses(turn, bend, tables, parent, moving, welded_R, welded_p):
+    """World rotations (n, bodies, 3, 3) and positions (n, bodies, 3) of a tree's bodies, parents before children
+    (app.checking.kinematics): body b's pose in its parent's frame is welded_*[b] where moving[b] < 0, else the
+    12 numbers [1, turn, bend] @ tables[moving[b]] (R row-major, then p), turn and bend (n, moving bodies) being
+    sin q and 1 - cos q of a revolute joint, q and 0 of a prismatic one; parent -1: the world."""
+    n, bodies = turn.shape[0], len(parent)
+    R, p = np.empty((n, bodies, 3, 3)), np.empty((n, bodies, 3))
+    local = np.empty(12)
+    for k in range(n):
+        for b in range(bodies):
+            if parent[b] < 0:
+                R[k, b] = np.eye(3)
+                p[k, b] = 0.0
+                continue
+            m = moving[b]
+            if m < 0:
+                for j in range(9):
+                    local[j] = welded_R[b, j // 3, j % 3]
+                for j in range(3):
+                    local[9 + j] = welded_p[b, j]
+            else:
+                for j in range(12):
+                    local[j] = tables[m, 0, j] + turn[k, m] * tables[m, 1, j] + bend[k, m] * tables[m, 2, j]
+            P = R[k, parent[b]]
+            for i in range(3):
+                for j in range(3):
+                    R[k, b, i, j] = P[i, 0] * local[j] + P[i, 1] * local[3 + j] + P[i, 2] * local[6 + j]
+                p[k, b, i] = p[k, parent[b], i] + (P[i, 0] * local[9] + P[i, 1] * local[10] + P[i, 2] * local[11])
+    return R, p
+
+
+@njit(cache=True)
+def frame_origins_at(R, p, body, frame_p):
+    """The world origin (n, 3) of a frame at frame_p[i] on body[i] in configuration i, from the bodies' world poses
+    R (n, bodies, 3, 3) and p (n, bodies, 3)."""
+    out = np.empty((len(body), 3))
+    for k in range(len(body)):
+        B, x = R[k, body[k]], frame_p[k]
+        for i in range(3):
+            out[k, i] = p[k, body[k], i] + (B[i, 0] * x[0] + B[i, 1] * x[1] + B[i, 2] * x[2])
+    return out
+
+
+@njit(cache=True)
+def frame_poses(R, p, body, frame_R, frame_p):
+    """World rotations (n, frames, 3, 3) and origins (n, frames, 3) of frames fixed on bodies (frame f on body[f] at
+    (frame_R[f], frame_p[f])), from the bodies' world poses R (n, bodies, 3, 3) and p (n, bodies, 3)."""
+    n, frames = R.shape[0], len(body)
+    rotations, origins = np.empty((n, frames, 3, 3)), np.empty((n, frames, 3))
+    for k in range(n):
+        for f in range(frames):
+            B, X, x = R[k, body[f]], frame_R[f], frame_p[f]
+            for i in range(3):
+                for j in range(3):
+                    rotations[k, f, i, j] = B[i, 0] * X[0, j] + B[i, 1] * X[1, j] + B[i, 2] * X[2, j]
+                origins[k, f, i] = p[k, body[f], i] + (B[i, 0] * x[0] + B[i, 1] * x[1] + B[i, 2] * x[2])
+    return rotations, origins
+
+
+@njit(cache=True)
 def lever_arms(R, p, axes, columns, centres, radius, chain, slide_frames, slide_axes, slide_columns, dim):
     """MotionBound.local's arrays at n configurations, from the poses R (n, frames, 3, 3) and p (n, frames, 3) of
     the revolute axes' frames (the first len(axes)), the robot rows' centres (frames `centres`) and the prismatic

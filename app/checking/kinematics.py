@@ -1,10 +1,12 @@
-"""Forward kinematics in numpy, many configurations at once, for a tree of revolute, prismatic and weld joints.
+"""Forward kinematics, many configurations at once, for a tree of revolute, prismatic and weld joints.
 
 A Drake context answers one configuration at a time through Python. Rejection sampling of workspace placements asks
 where a robot piece is for some hundred configurations per sample it keeps, and the certificate wants every robot
 geometry's pose at each configuration it bounds: here a batch of them costs a fraction of Drake's time per
 configuration (benchmark pages, "Tuning notes"). The joints' fixed frames are read from the plant once; a plant with
-a joint of any other kind (a floating base's quaternion) has no TreeKinematics and its callers ask Drake.
+a joint of any other kind (a floating base's quaternion) has no TreeKinematics and its callers ask Drake. The
+products along the chain are compiled (app.checking.kernels), in the order written, so that the poses do not depend
+on which BLAS kernel a machine's numpy picks for small matrices.
 """
 
 from __future__ import annotations
@@ -82,6 +84,15 @@ class TreeKinematics:
         self._columns = np.array(columns, int)
         self._multipliers, self._offsets = np.array(multipliers), np.array(offsets)
         self._revolute = np.array(revolute, bool)
+        # The same per body as arrays, for the compiled chain (kernels.body_poses): parent (-1: the world), moving
+        # row (-1: a weld, whose constant pose is welded[body]).
+        self._parent = np.array([-1 if body is None else body[0] for body in self._bodies], np.int64)
+        self._moving = np.array([-1 if body is None or body[1] is None else body[1] for body in self._bodies], np.int64)
+        self._welded_R = np.zeros((len(self._bodies), 3, 3))
+        self._welded_p = np.zeros((len(self._bodies), 3))
+        for j, body in enumerate(self._bodies):
+            if body is not None and body[1] is None:
+                self._welded_R[j], self._welded_p[j] = body[2]
 
     @classmethod
     def of(cls, plant, frames: list, position_map=None) -> TreeKinematics | None:
@@ -89,69 +100,36 @@ class TreeKinematics:
         kinds = {plant.get_joint(i).type_name() for i in plant.GetJointIndices()}
         return cls(plant, frames, position_map) if kinds <= set(_KINDS) else None
 
-    def _chain(self, Q: np.ndarray) -> tuple[list, list]:
-        """Every body's world rotation and position, in `_bodies` order: (n, 3, 3) and (n, 3), or (3, 3) and (3,)
-        for a body welded to the world (directly or through other welds: a cart, a mounting plate), which every
-        configuration shares, so that it is computed once and its children multiply by one matrix."""
-        x = Q[:, self._columns] * self._multipliers + self._offsets
-        coefficients = np.stack(
-            [np.ones_like(x), np.where(self._revolute, np.sin(x), x), np.where(self._revolute, 1.0 - np.cos(x), 0.0)],
-            axis=2,
-        )
-        local = np.einsum("nbk,bkm->bnm", coefficients, self._tables)  # (moving bodies, n, 12)
-        R, p = [], []
-        for body in self._bodies:
-            if body is None:  # the world
-                R.append(np.eye(3))
-                p.append(np.zeros(3))
-                continue
-            parent, moving, constants = body
-            if moving is None:
-                R_PC, p_PC = constants
-            else:
-                R_PC, p_PC = local[moving, :, :9].reshape(-1, 3, 3), local[moving, :, 9:]
-            R.append(R[parent] @ R_PC)
-            p.append(p[parent] + _apply(R[parent], p_PC))
-        return R, p
-
     def _body_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3)."""
-        R, p = self._chain(Q)
-        rotations, positions = np.empty((len(Q), len(R), 3, 3)), np.empty((len(Q), len(R), 3))
-        for j, (r, x) in enumerate(zip(R, p)):
-            rotations[:, j], positions[:, j] = r, x
-        return rotations, positions
+        """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3), in `_bodies` order. X_PC of a
+        moving body is [1, sin q, 1 - cos q] (revolute) or [1, q, 0] (prismatic) times its table (see __init__);
+        the sines and cosines are numpy's, the products compiled (kernels.body_poses)."""
+        from app.checking import kernels  # loads numba on first use (see there)
+
+        Q = np.atleast_2d(np.asarray(Q, float))
+        x = Q[:, self._columns] * self._multipliers + self._offsets
+        turn = np.where(self._revolute, np.sin(x), x)
+        bend = np.where(self._revolute, 1.0 - np.cos(x), 0.0)
+        return kernels.body_poses(turn, bend, self._tables, self._parent, self._moving, self._welded_R, self._welded_p)
 
     def poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each frame's world rotation (n, frames, 3, 3) and origin (n, frames, 3)."""
-        R, p = self._body_poses(np.atleast_2d(np.asarray(Q, float)))
-        R_B, p_B = R[:, self._frame_body], p[:, self._frame_body]
-        return R_B @ self._frame_R, p_B + _apply(R_B, self._frame_p)
+        from app.checking import kernels
+
+        R, p = self._body_poses(Q)
+        return kernels.frame_poses(R, p, self._frame_body, self._frame_R, self._frame_p)
 
     def frame_origins(self, Q: np.ndarray) -> np.ndarray:
-        """Each frame's world origin (n, frames, 3): the second half of `poses`, the same numbers, without the
-        frames' rotations and the copies of every body's pose, which cost half of it."""
-        Q = np.atleast_2d(np.asarray(Q, float))
-        R, p = self._chain(Q)
-        out = np.empty((len(Q), len(self._frame_body), 3))
-        for j in np.unique(self._frame_body).tolist():  # by body: its frames at once, its pose not copied out
-            frames = np.flatnonzero(self._frame_body == j)
-            R_j = np.broadcast_to(R[j], (len(Q), 3, 3)) if R[j].ndim == 2 else R[j]
-            p_j = np.broadcast_to(p[j], (len(Q), 3)) if p[j].ndim == 1 else p[j]
-            out[:, frames] = p_j[:, None, :] + _apply(R_j[:, None], self._frame_p[frames])
-        return out
+        """Each frame's world origin (n, frames, 3): the second half of `poses`."""
+        return self.poses(Q)[1]
 
     def origins(self, Q: np.ndarray, frames: np.ndarray) -> np.ndarray:
         """The world origin of frame frames[i] in configuration Q[i], (n, 3)."""
-        R, p = self._chain(np.atleast_2d(np.asarray(Q, float)))
-        body = self._frame_body[frames]
-        out = np.empty((len(frames), 3))
-        for j in np.unique(body).tolist():  # by body: the rows of the frames on it
-            rows = np.flatnonzero(body == j)
-            R_j = R[j] if R[j].ndim == 2 else R[j][rows]
-            p_j = p[j] if p[j].ndim == 1 else p[j][rows]
-            out[rows] = p_j + _apply(R_j, self._frame_p[frames[rows]])
-        return out
+        from app.checking import kernels
+
+        R, p = self._body_poses(Q)
+        frames = np.asarray(frames, np.int64)
+        return kernels.frame_origins_at(R, p, self._frame_body[frames], self._frame_p[frames])
 
 
 def _coordinate(joint, position_map) -> tuple:
@@ -169,11 +147,3 @@ def _coordinate(joint, position_map) -> tuple:
     if held is not None:  # a held joint: any column, times nothing, plus its position
         return (0, 0.0, held)
     return (int(np.flatnonzero(position_map.planned == start)[0]), None, None)
-
-
-def _apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """R @ v for broadcast stacks of rotations (..., 3, 3) and vectors (..., 3). Written out by column: numpy's
-    stacked 3 x 3 products cost several times their arithmetic, and one rotation for all is one matrix product."""
-    if R.ndim == 2:
-        return v @ R.T
-    return R[..., 0] * v[..., 0, None] + R[..., 1] * v[..., 1, None] + R[..., 2] * v[..., 2, None]
