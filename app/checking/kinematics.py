@@ -108,8 +108,8 @@ class TreeKinematics:
 
         Q = np.atleast_2d(np.asarray(Q, float))
         x = Q[:, self._columns] * self._multipliers + self._offsets
-        turn = np.where(self._revolute, np.sin(x), x)
-        bend = np.where(self._revolute, 1.0 - np.cos(x), 0.0)
+        turn = np.ascontiguousarray(np.where(self._revolute, np.sin(x), x))
+        bend = np.ascontiguousarray(np.where(self._revolute, 1.0 - np.cos(x), 0.0))
         return kernels.body_poses(turn, bend, self._tables, self._parent, self._moving, self._welded_R, self._welded_p)
 
     def poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

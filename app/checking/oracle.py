@@ -121,6 +121,11 @@ class CollisionOracle:
         )
         self.model = self.checker.model()
         self.plant = self.model.plant()
+        from app.checking import kernels  # numba: loaded with the scene, not on the command line's parser
+
+        # The compiled loops of the kinematics and the certificate, loaded (or on a machine's first run, compiled)
+        # with the scene, so that no query's time includes it.
+        kernels.load()
         robot_bodies = [
             self.plant.get_body(b) for inst in scene.robot_instances for b in self.plant.GetBodyIndices(inst)
         ]
