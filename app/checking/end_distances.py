@@ -134,9 +134,8 @@ class EndDistances:
 
     def _ends(self, todo: list, reach: float = 1.0) -> None:
         """Into the cache: the certificate's distances at each (key, q, limit, pair travel, robot poses or None) of
-        `todo` -- Drake's for
-        the pairs it computes exactly, our lower bound for the others (a pair left out is at least `limit` apart);
-        None where q is out of bounds or in contact. reach: see _distances."""
+        `todo` -- Drake's for the pairs it computes exactly, our lower bound for the others (a pair left out is at
+        least `limit` apart); None where q is out of bounds or in contact. reach: see _distances."""
         for key, *_ in todo:
             self._cache[key] = None
         inside = self.checker.space.within_bounds(np.array([q for _, q, *_ in todo]))
