@@ -1,14 +1,16 @@
-"""The certificate's inner loops, compiled with numba: the shape gaps' tiers (app.checking.shape_gaps) one row
-(configuration, pair) at a time, the motion bound's per-piece sums (app.checking.motion_bound) and the test of each
-piece (app.checking.certify) one piece at a time.
+"""The inner loops of the certificate and the forward kinematics, compiled with numba: the shape gaps' tiers
+(app.checking.shape_gaps) one row (configuration, pair) at a time, the motion bound's per-piece sums
+(app.checking.motion_bound) and the test of each piece (app.checking.certify) one piece at a time, and the products
+along a kinematic tree (app.checking.kinematics).
 
 A certificate round asks for a few ends and pieces, a few hundred rows past the bounding spheres: in numpy each step
 was dozens of calls on arrays that small, and the calls' overhead, not the arithmetic, was the round's time (on a
-mesh arm most of it: benchmark pages). In compiled loops the arithmetic is all that is left, done in the same order
-(no fast-math), so a seed's answers do not depend on the machine. numba compiles these on first use and caches the
-machine code beside this file (or in its user cache where that is not writable): only a first run pays for it (the
-benchmark pages say how much). The callers import this module when they first need it, so that importing the
-package (the command line's parser) does not load numba.
+mesh arm most of it: benchmark pages). In compiled loops the arithmetic is all that is left, done in the order
+written (no fast-math), so a seed's answers do not depend on the machine. numba compiles these on a machine's first
+run and caches the machine code beside this file (or in its user cache where that is not writable); the benchmark
+pages say what that costs. The oracle loads every kernel as it is made (`load`), so that no query's time includes
+it; the other callers import this module inside their functions, so that importing the package (the command line's
+parser) does not load numba.
 
 Shape gaps. `shapes` are the ShapeGaps tables (see there), as a tuple: per geometry a box core, a disc, a ball and a
 radius about its centre; special, and an ellipsoid's semi-axes; hull, and a hull's vertices about its centre, rows

@@ -40,23 +40,27 @@ class TreeKinematics:
         self._frame_body = np.array([add(body.index()) for body, _ in frames], int)
         self._frame_R = np.array([X.rotation().matrix() for _, X in frames]).reshape(-1, 3, 3)
         self._frame_p = np.array([X.translation() for _, X in frames]).reshape(-1, 3)
-        # Per body: (parent slot, its row among the moving bodies or None, a weld's constant (R_PC, p_PC)); the
-        # world: None. X_PC = X_PF X_FM(q) X_MC is written so that q enters only through scalars: a revolute joint
-        # turning by q about the unit axis k (K = [k]x) gives R_FM = I + sin q K + (1 - cos q) K^2 (Rodrigues), so
-        # R_PC = A0 + sin q A1 + (1 - cos q) A2 and p_PC = b0 + sin q b1 + (1 - cos q) b2; a prismatic one,
-        # R_PC = A0 and p_PC = b0 + q b1. So a moving body's X_PC, as 12 numbers (R_PC row-major, then p_PC), is
-        # [1, sin q, 1 - cos q] or [1, q, 0] times a (3, 12) table of constants: all moving bodies' in one product.
-        self._bodies, tables, columns, multipliers, offsets, revolute = [], [], [], [], [], []
-        for joint, parent in order:
-            if joint is None:
-                self._bodies.append(None)
+        # Per body (kernels.body_poses): its parent's slot (-1: the world), its row among the moving bodies (-1: the
+        # world or a weld), and a weld's constant pose in its parent (R_PC, p_PC; zeros otherwise). X_PC = X_PF
+        # X_FM(q) X_MC is written so that q enters only through scalars: a revolute joint turning by q about the
+        # unit axis k (K = [k]x) gives R_FM = I + sin q K + (1 - cos q) K^2 (Rodrigues), so R_PC = A0 + sin q A1 +
+        # (1 - cos q) A2 and p_PC = b0 + sin q b1 + (1 - cos q) b2; a prismatic one, R_PC = A0 and p_PC = b0 + q b1.
+        # So a moving body's X_PC, as 12 numbers (R_PC row-major, then p_PC), is [1, sin q, 1 - cos q] or [1, q, 0]
+        # times a (3, 12) table of constants.
+        self._parent = np.full(len(order), -1, np.int64)
+        self._moving = np.full(len(order), -1, np.int64)
+        self._welded_R, self._welded_p = np.zeros((len(order), 3, 3)), np.zeros((len(order), 3))
+        tables, columns, multipliers, offsets, revolute = [], [], [], [], []
+        for body, (joint, parent) in enumerate(order):
+            if joint is None:  # the world
                 continue
+            self._parent[body] = parent
             X_PF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
             X_MC = joint.frame_on_child().GetFixedPoseInBodyFrame().inverse()
             kind = joint.type_name()
             if kind == "weld":
                 X = X_PF.multiply(joint.X_FM()).multiply(X_MC)
-                self._bodies.append((parent, None, (X.rotation().matrix(), X.translation())))
+                self._welded_R[body], self._welded_p[body] = X.rotation().matrix(), X.translation()
                 continue
             R_PF, p_PF, R_MC, p_MC = (
                 X_PF.rotation().matrix(),
@@ -74,7 +78,7 @@ class TreeKinematics:
             else:
                 table[1, 9:] = R_PF @ joint.translation_axis()
             column, multiplier, offset = _coordinate(joint, position_map)
-            self._bodies.append((parent, len(tables), None))
+            self._moving[body] = len(tables)
             tables.append(table)
             columns.append(column)
             multipliers.append(1.0 if multiplier is None else multiplier)
@@ -84,15 +88,6 @@ class TreeKinematics:
         self._columns = np.array(columns, int)
         self._multipliers, self._offsets = np.array(multipliers), np.array(offsets)
         self._revolute = np.array(revolute, bool)
-        # The same per body as arrays, for the compiled chain (kernels.body_poses): parent (-1: the world), moving
-        # row (-1: a weld, whose constant pose is welded[body]).
-        self._parent = np.array([-1 if body is None else body[0] for body in self._bodies], np.int64)
-        self._moving = np.array([-1 if body is None or body[1] is None else body[1] for body in self._bodies], np.int64)
-        self._welded_R = np.zeros((len(self._bodies), 3, 3))
-        self._welded_p = np.zeros((len(self._bodies), 3))
-        for j, body in enumerate(self._bodies):
-            if body is not None and body[1] is None:
-                self._welded_R[j], self._welded_p[j] = body[2]
 
     @classmethod
     def of(cls, plant, frames: list, position_map=None) -> TreeKinematics | None:
@@ -101,7 +96,7 @@ class TreeKinematics:
         return cls(plant, frames, position_map) if kinds <= set(_KINDS) else None
 
     def _body_poses(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3), in `_bodies` order. X_PC of a
+        """Every body's world rotation (n, bodies, 3, 3) and position (n, bodies, 3), parents before children. X_PC of a
         moving body is [1, sin q, 1 - cos q] (revolute) or [1, q, 0] (prismatic) times its table (see __init__);
         the sines and cosines are numpy's, the products compiled (kernels.body_poses)."""
         from app.checking import kernels  # loads numba on first use (see there)
