@@ -17,7 +17,6 @@ it looked at. Configurations outside the bounds are rejected before Drake and no
 
 from __future__ import annotations
 
-import functools
 import time
 
 import numpy as np
@@ -135,46 +134,38 @@ class QueryContext:
         progress: per edge, how many of its points (in coarse-to-fine order) an earlier check found free: they are
         not checked again, and the array is updated with what this check found (a lazy roadmap keeps it per
         undecided edge)."""
-        space = self.space
-        Q1, Q2 = np.atleast_2d(np.asarray(Q1, float)), np.atleast_2d(np.asarray(Q2, float))
-        D = space.difference(Q1, Q2)
-        n = space.pieces(D, resolution)
-        # Every edge's points in coarse-to-fine order, and the order they are asked in: round by round (an edge's
-        # first point, then its next 2, 4, 8...), edge by edge within a round, so every edge is looked at coarsely
-        # before any is finished. Drake answers them in that order in one loop that skips the points of an edge
-        # already hit (a round trip per round cost more than its checks on short edges).
-        skip = 2 if ends_free else 0
-        ladders = [_ladder(k, skip) for k in n.tolist()]
-        if progress is not None:
-            ladders = [(t[done:], r[done:]) for (t, r), done in zip(ladders, progress.tolist())]
-        sizes = np.array([len(t) for t, _ in ladders], int)
-        owner = np.repeat(np.arange(len(Q1)), sizes)
-        free, decided = np.ones(len(Q1), bool), np.ones(len(Q1), bool)
+        from app.checking import kernels
+
+        Q1 = np.atleast_2d(np.ascontiguousarray(Q1, float))
+        Q2 = np.atleast_2d(np.ascontiguousarray(Q2, float))
+        # Every edge's points in coarse-to-fine order, in the order they are asked: round by round (an edge's first
+        # point, then its next 2, 4, 8...), edge by edge within a round, so every edge is looked at coarsely before
+        # any is finished. Drake answers them in that order in one loop that skips the points of an edge already
+        # hit (a round trip per round cost more than its checks on short edges). Made in one compiled call: in
+        # numpy, making them cost more than a short edge's checks.
+        done = np.zeros(len(Q1), np.int64) if progress is None else progress
+        points, owner, rounds, inside, last = kernels.edge_points(
+            Q1, Q2, resolution or self.space.resolution, 2 if ends_free else 0, done, *self.space.edge_table
+        )
+        free = np.ones(len(Q1), bool)
         if not len(owner):
-            return free, decided
-        if len(ladders) == 1:  # one edge (most calls): its ladder is in order already
-            t, rounds = ladders[0]
-        else:
-            t, rounds = np.concatenate([t for t, _ in ladders]), np.concatenate([r for _, r in ladders])
-            order = np.lexsort((owner, rounds))
-            owner, t, rounds = owner[order], t[order], rounds[order]
+            return free, free.copy()
         hit = [False] * len(Q1)
-        # Points are made a slice at a time, the first up to each edge's 7th point, then twice as many each time:
-        # a path's colliding edge usually shows in its first points, and the rest need not be made.
+        # Points are asked a slice at a time, the first up to each edge's 7th point, then twice as many each time,
+        # so that the stop is polled between slices.
         passed, end, size = 0, len(owner), max(int(np.searchsorted(rounds, 3)), 1)
         stop_at_hit = until_one_collides
         while passed < end:
             more = min(end - passed, size, _MAX_BATCH)
             allowed = stop.allow(more) if stop is not None else more
             part = slice(passed, passed + allowed)
-            points = space.wrap(Q1[owner[part]] + t[part, None] * D[owner[part]])
-            inside = space.within_bounds(points)
-            if not inside.all():  # out of bounds: collides, unasked (edges leave the bounds only where an end does)
-                for edge in owner[part][~inside].tolist():
+            # out of bounds: collides, unasked (edges leave the bounds only where an end does)
+            if not inside[part].all():
+                for edge in owner[part][~inside[part]].tolist():
                     hit[edge] = True
                 if until_one_collides:
                     break
-            reached, asked = self.oracle.first_hits(points, owner[part], hit, stop_at_hit)
+            reached, asked = self.oracle.first_hits(points[part], owner[part], hit, stop_at_hit)
             self.checks += asked
             passed += reached
             if stop_at_hit and any(hit):
@@ -192,11 +183,8 @@ class QueryContext:
         if progress is not None:  # an edge's points passed were found free, unless the edge was hit
             progress += np.bincount(owner[:passed], minlength=len(Q1))
         free[:] = np.logical_not(hit)
-        if passed < len(owner):  # an edge is decided when hit or when every point of it was passed
-            last = np.zeros(len(Q1), int)
-            np.maximum.at(last, owner, np.arange(len(owner)))
-            decided = ~free | (last < passed) | (sizes == 0)
-        return free, decided
+        # an edge is decided when hit or when every point of it was passed
+        return free, ~free | (last < passed)
 
     def edge_free(
         self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None, stop: Stop | None = None
@@ -245,37 +233,3 @@ class QueryContext:
             pace = (time.perf_counter() - clock) / len(batch)
             b, size = b + len(batch), int(np.clip(_POINT_SECONDS / max(pace, 1e-9), _POINT_BATCH, _MAX_BATCH))
         return gap
-
-
-@functools.lru_cache(maxsize=4096)
-def _ladder(k: int, skip: int) -> tuple[np.ndarray, np.ndarray]:
-    """An edge of k segments: its points' fractions in coarse-to-fine order, the first `skip` left out, and the round
-    each is asked in (0 for the first, 1 for the next 2, 2 for the next 4...)."""
-    fractions = _coarse_to_fine(k + 1)[skip:] / k
-    rounds = np.floor(np.log2(np.arange(1, len(fractions) + 1))).astype(int)
-    for array in (fractions, rounds):
-        array.flags.writeable = False  # shared by every caller through the cache
-    return fractions, rounds
-
-
-@functools.lru_cache(maxsize=4096)
-def _coarse_to_fine(n: int) -> np.ndarray:
-    """Indices 0..n-1 ordered endpoints first, then by bisection (van der Corput), so a collision shows up early.
-
-    Cached: edges at one resolution come in few lengths, and building the order in Python cost more than the
-    collision checks of a short edge."""
-    if n <= 2:
-        return np.arange(n)
-    order = [0, n - 1]
-    seen = {0, n - 1}
-    denominator = 2
-    while len(order) < n:
-        for k in range(1, denominator, 2):
-            i = int(round(k * (n - 1) / denominator))
-            if i not in seen:
-                seen.add(i)
-                order.append(i)
-        denominator *= 2
-    out = np.array(order)
-    out.flags.writeable = False  # shared by every caller through the cache
-    return out

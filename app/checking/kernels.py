@@ -411,6 +411,89 @@ def clear_pieces(pieces, end_a, end_b, first, counts, keys, distance, row_a, row
     return passed, short, slack
 
 
+@njit(cache=True)
+def _coarse_to_fine(n, out):
+    """Indices 0..n-1 into out[:n], endpoints first, then by bisection (van der Corput): a collision shows early."""
+    if n <= 2:
+        for i in range(n):
+            out[i] = i
+        return
+    seen = np.zeros(n, np.bool_)
+    out[0], out[1], seen[0], seen[n - 1] = 0, n - 1, True, True
+    count, denominator = 2, 2
+    while count < n:
+        for k in range(1, denominator, 2):
+            i = int(round(k * (n - 1) / denominator))  # round half to even, as Python's round
+            if not seen[i]:
+                seen[i] = True
+                out[count] = i
+                count += 1
+        denominator *= 2
+
+
+@njit(cache=True)
+def _wrap(x):
+    """An angle into [-pi, pi) as numpy's (x + pi) % (2 pi) - pi: the remainder is the identity on [0, 2 pi), so only
+    an angle past it pays for fmod."""
+    y = x + np.pi
+    return (y if 0.0 <= y < 2 * np.pi else y % (2 * np.pi)) - np.pi
+
+
+@njit(cache=True)
+def edge_points(Q1, Q2, resolution, skip, done, table, wrapped):
+    """The points of the straight edges Q1[e] -> Q2[e] (the short way round on the continuous angles `wrapped`) in
+    the order an edge check asks them (context.QueryContext.edges_status). table: the space's lower and upper bounds
+    as within_bounds compares, and its weights, as rows. An edge of length L (weighted) is cut into
+    n = max(1, ceil(L / resolution)) segments; its n + 1 points are ordered coarse to fine, the first `skip` and the
+    next done[e] left out, and asked round by round (round r: the points at positions 2^r - 1 .. 2^(r+1) - 2 of an
+    edge's order), edge by edge within a round. Returns the points (wrapped into [-pi, pi) on the continuous angles),
+    their edge, their round, whether each is within the bounds, and each edge's last point's index (-1: none)."""
+    m, dim = Q1.shape
+    D, n = np.empty((m, dim)), np.empty(m, np.int64)
+    for e in range(m):
+        for c in range(dim):
+            D[e, c] = Q2[e, c] - Q1[e, c]
+        for c in wrapped:
+            D[e, c] = _wrap(D[e, c])
+        squares = 0.0
+        for c in range(dim):
+            x = D[e, c] * table[2, c]
+            squares += x * x
+        n[e] = max(1, math.ceil(math.sqrt(squares) / resolution))
+    length = np.maximum(n + 1 - skip, 0)
+    total, top = 0, 0
+    for e in range(m):
+        if length[e] > done[e]:
+            total += length[e] - done[e]
+            top = max(top, length[e])
+    first = np.zeros(m + 1, np.int64)
+    for e in range(m):
+        first[e + 1] = first[e] + n[e] + 1
+    order = np.empty(first[m], np.int64)
+    for e in range(m):
+        if length[e] > done[e]:
+            _coarse_to_fine(n[e] + 1, order[first[e] :])
+    points, owner = np.empty((total, dim)), np.empty(total, np.int64)
+    rounds, inside, last = np.empty(total, np.int64), np.empty(total, np.bool_), np.full(m, -1, np.int64)
+    k, r = 0, 0
+    while (1 << r) <= top:
+        for e in range(m):
+            for j in range(max((1 << r) - 1, done[e]), min((1 << (r + 1)) - 1, length[e])):
+                t = order[first[e] + skip + j] / n[e]
+                point = points[k]
+                for c in range(dim):
+                    point[c] = Q1[e, c] + t * D[e, c]
+                for c in wrapped:
+                    point[c] = _wrap(point[c])
+                within = True
+                for c in range(dim):
+                    within &= table[0, c] <= point[c] <= table[1, c]
+                owner[k], rounds[k], inside[k], last[e] = e, r, within, k
+                k += 1
+        r += 1
+    return points, owner, rounds, inside, last
+
+
 def load() -> None:
     """Every kernel compiled (on a machine's first run) or loaded from the cache now, for the argument types its
     callers pass: the oracle calls this as it is made, so that no query's time includes it."""
@@ -444,3 +527,4 @@ def load() -> None:
         1.0,
     )
     clear_pieces(i(1), i(1), i(1), i(1), i(1), i(0), f(0), i(0), i(0), f(1), f((1, 2, 2)))
+    edge_points(f((1, 1)), f((1, 1)), 1.0, 2, i(1), f((3, 1)), i(0))

@@ -8,6 +8,7 @@ samplers, roadmap, path and timing agree on what "straight" and "how far" mean.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -78,6 +79,12 @@ class ConfigurationSpace:
         Q = np.atleast_2d(Q)
         return ((Q >= self._lo) & (Q <= self._hi)).all(axis=1)
 
+    @functools.cached_property
+    def edge_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """What a compiled edge check needs of the space (app.checking.kernels.edge_points): the bounds
+        `within_bounds` compares with, and the weights, as rows of one array; and the continuous angles' indices."""
+        return np.vstack([self._lo, self._hi, self.weights]), np.flatnonzero(self.continuous)
+
     def out_of_bounds(self, q: np.ndarray) -> list[str]:
         """Each coordinate of q outside its bounds, as 'name=value not in [lo, hi]'."""
         q = np.asarray(q, float)
@@ -129,8 +136,12 @@ class ConfigurationSpace:
     def pieces(self, D: np.ndarray, resolution: float | None = None) -> np.ndarray:
         """`segments` of edges given by their differences D (n, dim)."""
         d = D * self.weights
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
-        return np.maximum(1, np.ceil(length / (resolution or self.resolution))).astype(int)
+        # Squares summed coordinate by coordinate, as the compiled edge check sums them (app.checking.kernels): the
+        # same count of pieces there, and on any machine (einsum's SIMD order depends on the CPU).
+        squares = np.zeros(len(d))
+        for column in d.T:
+            squares += column * column
+        return np.maximum(1, np.ceil(np.sqrt(squares) / (resolution or self.resolution))).astype(int)
 
     def interpolate(self, q1: np.ndarray, q2: np.ndarray, resolution: float | None = None) -> np.ndarray:
         """Points from q1 to q2 (both included) no more than `resolution` apart in the weighted metric."""
