@@ -494,6 +494,23 @@ def edge_points(Q1, Q2, resolution, skip, done, table, wrapped):
     return points, owner, rounds, inside, last
 
 
+@njit(cache=True)
+def mark_subtree(root, first, kids, dead):
+    """Mark `root` and every node below it in a tree dead (a node's children: kids[first[v]:first[v + 1]]); a dead
+    node's subtree is dead already."""
+    if dead[root]:
+        return
+    stack = np.empty(len(dead), np.int64)
+    stack[0], size = root, 1
+    while size:
+        size -= 1
+        v = stack[size]
+        dead[v] = True
+        for k in range(first[v], first[v + 1]):
+            stack[size] = kids[k]
+            size += 1
+
+
 def load() -> None:
     """Every kernel compiled (on a machine's first run) or loaded from the cache now, for the argument types its
     callers pass: the oracle calls this as it is made, so that no query's time includes it."""
@@ -528,3 +545,4 @@ def load() -> None:
     )
     clear_pieces(i(1), i(1), i(1), i(1), i(1), i(0), f(0), i(0), i(0), f(1), f((1, 2, 2)))
     edge_points(f((1, 1)), f((1, 1)), 1.0, 2, i(1), f((3, 1)), i(0))
+    mark_subtree(0, i(2), i(1), b(1))

@@ -13,18 +13,12 @@ class SearchTree:
 
     def __init__(self, pred: np.ndarray):
         self.pred = pred
-        # Each node's ancestor 1, 2, 4... levels up (the root, and nodes off the tree, are their own), to the table
-        # where every node has reached its root: a cut marks the subtree below it in that many fancy-index steps.
-        up = np.where(pred >= 0, pred, np.arange(len(pred)))
-        self._ups = [up]
-        while True:
-            higher = up[up]
-            if np.array_equal(higher, up):
-                break
-            self._ups.append(higher)
-            up = higher
-        self._cut = np.zeros(len(pred), bool)  # the edge from a node to its parent is gone
-        self.dead = self._cut.copy()  # a node's tree path to the root has lost an edge
+        # Each node's children, kids[first[v]:first[v + 1]] (the root and nodes off the tree have parent n): a cut
+        # marks the subtree below it in one compiled walk.
+        parent = np.where(pred >= 0, pred, len(pred))
+        self._kids = np.argsort(parent, kind="stable")
+        self._first = np.searchsorted(parent, np.arange(len(pred) + 1), sorter=self._kids)
+        self.dead = np.zeros(len(pred), bool)  # a node's tree path to the root has lost an edge
 
     def path(self, m: int) -> list[int]:
         """Nodes from m up the tree to its root."""
@@ -35,15 +29,11 @@ class SearchTree:
 
     def cut(self, u: int, v: int) -> None:
         """The edge (u, v) is gone: if it is a tree edge, every node below it has lost its tree path."""
+        from app.checking import kernels
+
         child = v if self.pred[v] == u else u if self.pred[u] == v else None
-        if child is None:
-            return
-        self._cut[child] = True
-        # Pointer doubling: after the step with the 2^k-th ancestors a node has looked at the 2^(k+1) - 1 edges above.
-        dead = self._cut.copy()
-        for up in self._ups:
-            dead |= dead[up]
-        self.dead = dead
+        if child is not None:
+            kernels.mark_subtree(child, self._first, self._kids, self.dead)
 
 
 def pair_key(a, b):

@@ -490,18 +490,17 @@ class Roadmap:
             stop=stop,
         )
         self._progress[rows] = progress
-        self.edges_tried += int(decided.sum())
-        for row, (u, v), ok in zip(rows[decided], P[decided], free[decided]):
-            if ok:
-                self._checked[row] = True
-            else:
-                self._alive[row] = False
-                drop_entry(matrix, u, v)
-                drop_entry(matrix, v, u)
-                self._search_dead += 2
-                for tree in trees:
-                    tree.cut(int(u), int(v))
-        return bool(decided.all() and free.all())
+        self.edges_tried += int(np.count_nonzero(decided))
+        self._checked[rows[decided & free]] = True
+        gone = decided & ~free
+        self._alive[rows[gone]] = False
+        for u, v in P[gone].tolist():
+            drop_entry(matrix, u, v)
+            drop_entry(matrix, v, u)
+            self._search_dead += 2
+            for tree in trees:
+                tree.cut(u, v)
+        return not gone.any() and bool(decided.all())
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
