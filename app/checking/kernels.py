@@ -1,7 +1,8 @@
-"""The inner loops of the certificate and the forward kinematics, compiled with numba: the shape gaps' tiers
-(app.checking.shape_gaps) one row (configuration, pair) at a time, the motion bound's per-piece sums
-(app.checking.motion_bound) and the test of each piece (app.checking.certify) one piece at a time, and the products
-along a kinematic tree (app.checking.kinematics).
+"""The inner loops of the certificate, the forward kinematics and the edge checks, compiled with numba: the shape
+gaps' tiers (app.checking.shape_gaps) one row (configuration, pair) at a time, the motion bound's per-piece sums
+(app.checking.motion_bound) and the test of each piece (app.checking.certify) one piece at a time, the products
+along a kinematic tree (app.checking.kinematics), the points of a batch of edges in the order they are checked
+(app.checking.context), and the lazy search's cut of a shortest-path tree (app.planning.graph).
 
 A certificate round asks for a few ends and pieces, a few hundred rows past the bounding spheres: in numpy each step
 was dozens of calls on arrays that small, and the calls' overhead, not the arithmetic, was the round's time (on a
@@ -495,26 +496,106 @@ def edge_points(Q1, Q2, resolution, skip, done, table, wrapped):
 
 
 @njit(cache=True)
-def mark_subtree(root, first, kids, dead):
-    """Mark `root` and every node below it in a tree dead (a node's children: kids[first[v]:first[v + 1]]); a dead
-    node's subtree is dead already."""
-    if dead[root]:
-        return
+def kill_edges(rows, ends, alive, keys, lengths, synced):
+    """Edge rows found to collide (app.planning.roadmap.Roadmap._kill): not alive, and those merged into the search's
+    graph (rows below synced) out of it, their two entries' lengths infinite (an entry's key: from << 32 | to, in
+    sorted keys). Returns how many were merged."""
+    merged = 0
+    for r in rows:
+        alive[r] = False
+        if r < synced:
+            u, v = ends[r, 0], ends[r, 1]
+            lengths[np.searchsorted(keys, u << 32 | v)] = np.inf
+            lengths[np.searchsorted(keys, v << 32 | u)] = np.inf
+            merged += 1
+    return merged
+
+
+@njit(cache=True)
+def cut_tree(P, pred, first, kids, dead):
+    """Edges P (node index pairs) are gone from a shortest-path tree (predecessors pred; a node's children
+    kids[first[v]:first[v + 1]]): the child end of each that is a tree edge, and every node below it, dead (a dead
+    node's subtree is dead already)."""
     stack = np.empty(len(dead), np.int64)
-    stack[0], size = root, 1
-    while size:
-        size -= 1
-        v = stack[size]
-        dead[v] = True
-        for k in range(first[v], first[v + 1]):
-            stack[size] = kids[k]
-            size += 1
+    for i in range(len(P)):
+        u, v = P[i, 0], P[i, 1]
+        child = v if pred[v] == u else u if pred[u] == v else -1
+        if child < 0 or dead[child]:
+            continue
+        stack[0], size = child, 1
+        while size:
+            size -= 1
+            w = stack[size]
+            dead[w] = True
+            for k in range(first[w], first[w + 1]):
+                stack[size] = kids[k]
+                size += 1
+
+
+@njit(cache=True)
+def _entry(indptr, indices, u, v):
+    """Where the entry (u, v) of a CSR graph with sorted indices is."""
+    lo, hi = indptr[u], indptr[u + 1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if indices[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
+def next_candidate(order, at, taken, pred_a, pred_b, dead_a, dead_b, indptr, indices, rows_of, checked, nodes, rows):
+    """The lazy search's next candidate path (app.planning.roadmap.Roadmap.shortest_path): the first node m of
+    order[at:] that no candidate on these trees has taken, whose path up each shortest-path tree (predecessors pred_a,
+    pred_b) has lost no edge (dead_a, dead_b), and whose two tree paths do not cross. Its path -- the first tree's
+    root to m, then m to the second tree's root -- goes into nodes, each node marked taken, and the rows of its edges
+    not yet checked into rows (an edge's row: rows_of at its entry in the graph indptr, indices). Returns the
+    position after m, the path's node count and the unchecked rows' count; a position of -1 when no node is left."""
+    on_path = np.zeros(len(taken), np.bool_)
+    for i in range(at, len(order)):
+        m = order[i]
+        if taken[m] or dead_a[m] or dead_b[m]:
+            continue
+        count, v = 1, m
+        nodes[0] = m
+        while pred_a[v] >= 0:
+            v = pred_a[v]
+            nodes[count] = v
+            count += 1
+        nodes[:count] = nodes[:count][::-1].copy()
+        v = m
+        while pred_b[v] >= 0:
+            v = pred_b[v]
+            nodes[count] = v
+            count += 1
+        crossing, marked = False, 0
+        while marked < count and not crossing:
+            crossing = on_path[nodes[marked]]
+            on_path[nodes[marked]] = True
+            marked += 1
+        for j in range(marked):
+            on_path[nodes[j]] = False
+        if crossing:
+            continue
+        unchecked = 0
+        for j in range(count):
+            taken[nodes[j]] = True
+            if j:
+                row = rows_of[_entry(indptr, indices, nodes[j - 1], nodes[j])]
+                if not checked[row]:
+                    rows[unchecked] = row
+                    unchecked += 1
+        return i + 1, count, unchecked
+    return -1, 0, 0
 
 
 def load() -> None:
     """Every kernel compiled (on a machine's first run) or loaded from the cache now, for the argument types its
     callers pass: the oracle calls this as it is made, so that no query's time includes it."""
     f, i, b = np.zeros, (lambda *shape: np.zeros(shape, np.int64)), (lambda *shape: np.zeros(shape, np.bool_))
+    j = np.zeros(1, np.int32)  # scipy's predecessors and a CSR graph's index arrays
     vstart = i(3)
     shapes = (f((2, 3)), f(2), f(2), f(2), b(2), f((2, 3)), b(2), vstart, f((0, 3)))
     poses = (f((1, 2, 3)), f((2, 3, 3)), f((1, 1, 3, 3)), i(2))
@@ -545,4 +626,6 @@ def load() -> None:
     )
     clear_pieces(i(1), i(1), i(1), i(1), i(1), i(0), f(0), i(0), i(0), f(1), f((1, 2, 2)))
     edge_points(f((1, 1)), f((1, 1)), 1.0, 2, i(1), f((3, 1)), i(0))
-    mark_subtree(0, i(2), i(1), b(1))
+    next_candidate(i(1), 0, b(1), j - 1, j - 1, b(1), b(1), np.zeros(2, np.int32), j[:0], i(0), b(0), i(1), i(1))
+    cut_tree(i(1, 2), j - 1, i(2), i(1), b(1))
+    kill_edges(i(1), i(1, 2), b(1), i(2), f(2), 1)

@@ -27,13 +27,11 @@ class SearchTree:
             nodes.append(int(pred[nodes[-1]]))
         return nodes
 
-    def cut(self, u: int, v: int) -> None:
-        """The edge (u, v) is gone: if it is a tree edge, every node below it has lost its tree path."""
+    def cut(self, P: np.ndarray) -> None:
+        """The edges P (node index pairs) are gone: every node below one that is a tree edge has lost its tree path."""
         from app.checking import kernels
 
-        child = v if self.pred[v] == u else u if self.pred[u] == v else None
-        if child is not None:
-            kernels.mark_subtree(child, self._first, self._kids, self.dead)
+        kernels.cut_tree(P, self.pred, self._first, self._kids, self.dead)
 
 
 def pair_key(a, b):
@@ -42,13 +40,6 @@ def pair_key(a, b):
         return np.minimum(a, b).astype(np.int64) << 32 | np.maximum(a, b)
     a, b = int(a), int(b)
     return min(a, b) << 32 | max(a, b)
-
-
-def drop_entry(matrix: csr_matrix, u: int, v: int) -> None:
-    """Make the entry (u, v) of a sorted CSR graph unusable (an infinite length) without changing its structure."""
-    row = slice(matrix.indptr[u], matrix.indptr[u + 1])
-    k = row.start + np.searchsorted(matrix.indices[row], v)
-    matrix.data[k] = np.inf
 
 
 def labels_by_least(groups: np.ndarray) -> np.ndarray:

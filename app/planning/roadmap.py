@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 
 from app.checking.budget import Stop
 from app.checking.protocol import Checker
-from app.planning.graph import SearchTree, drop_entry, joined_labels, labels_by_least, pair_key
+from app.planning.graph import SearchTree, joined_labels, labels_by_least, pair_key
 
 START, GOAL, UNIFORM, NARROW, WORKSPACE = "start", "goal", "uniform", "narrow", "workspace"
 
@@ -105,10 +105,10 @@ class Roadmap:
         # The search's graph, kept from one search to the next so that a search only merges in the edges added
         # (sorting every edge again cost more than the search on large roadmaps): each edge in both directions,
         # ordered by (from, to) as a sorted CSR matrix wants them. Per entry: from << 32 | to (the order), `to` (the
-        # matrix's column) and the edge's length, infinite once the edge is known to collide (the search's
-        # matrix shares the lengths, so that what it finds colliding stays out); such entries are dropped when
-        # they are many.
-        self._search = (np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0))
+        # matrix's column), the edge's length, infinite once the edge is known to collide (the search's matrix
+        # shares the lengths, so that what it finds colliding stays out), and its row; entries of edges known to
+        # collide are dropped when they are many.
+        self._search = (np.empty(0, np.int64), np.empty(0, np.int32), np.empty(0), np.empty(0, np.int64))
         self._search_synced = 0  # edge rows merged in so far
         self._search_dead = 0  # entries of edges known to collide still in `_search`
         # A label per node such that nodes joined by edges not known to collide share it (`joined_labels`): different
@@ -273,11 +273,7 @@ class Roadmap:
         self._checked[ok] = True
         self._free = joined_labels(self._free, self._ends[ok])
         # (an edge not checked joined no components of `_free`: killing one leaves them as they are)
-        self._alive[bad] = False
-        merged = bad[bad < self._search_synced]  # in the search's graph: out of it too
-        U, V = self._ends[merged, 0].astype(np.int64), self._ends[merged, 1].astype(np.int64)
-        self._search[2][np.searchsorted(self._search[0], np.concatenate([U << 32 | V, V << 32 | U]))] = np.inf
-        self._search_dead += 2 * len(merged)
+        self._kill(bad)
 
     def known(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per pair of P (node index pairs): (whether this roadmap has decided that edge, whether it is free)."""
@@ -401,7 +397,10 @@ class Roadmap:
             return None
         if not (self._reach[targets] == self._reach[a]).any():
             return None
+        from app.checking import kernels
+
         matrix = self._search_graph()
+        nodes, rows = np.empty(len(self), np.int64), np.empty(len(self), np.int64)
         while True:
             dist_a, pred_a = dijkstra(matrix, indices=a, return_predecessors=True)
             reached = np.isfinite(dist_a)
@@ -415,23 +414,17 @@ class Roadmap:
             order = reachable[np.argsort(through[reachable], kind="stable")]
             trees = SearchTree(pred_a), SearchTree(pred_b)
             taken = np.zeros(len(self), bool)  # nodes of the candidate paths tried on these trees
-            candidates = 0
-            while candidates < CANDIDATES:
-                # The nodes still open, in order, found in C; only a change of `taken` or the trees (after a
-                # candidate is checked) makes the scan start again, from just past that candidate.
-                order = order[~(taken[order] | trees[0].dead[order] | trees[1].dead[order])]
-                for i, m in enumerate(order.tolist()):
-                    nodes = trees[0].path(m)[::-1] + trees[1].path(m)[1:]
-                    if len(set(nodes)) == len(nodes):  # else the two tree paths cross: a detour with a loop
-                        order = order[i + 1 :]
-                        break
-                else:
+            at = 0
+            for _ in range(CANDIDATES):
+                # The next candidate, found in a compiled scan of `order` from just past the last one.
+                at, count, unchecked = kernels.next_candidate(
+                    order, at, taken, pred_a, pred_b, trees[0].dead, trees[1].dead, matrix.indptr, matrix.indices,
+                    self._search[3], self._checked, nodes, rows,
+                )  # fmt: skip
+                if at < 0:
                     break  # no candidate left on these trees: grow them again
-                candidates += 1
-                taken[nodes] = True
-                rows = np.array([self._rows[pair_key(u, v)] for u, v in itertools.pairwise(nodes)], int)
-                if self._check_path(matrix, rows, trees, stop):
-                    return nodes
+                if self._check_path(rows[:unchecked].copy(), trees, stop):
+                    return nodes[:count].tolist()
 
     def _label_component(self, a: int, reached: np.ndarray) -> None:
         """Node a's component is exactly `reached` (a mask): it gets a label of its own, and the rest of its label's
@@ -443,10 +436,10 @@ class Roadmap:
             self._reach[rest] = np.argmax(rest)
 
     def _search_graph(self, compact: bool = False) -> csr_matrix:
-        """The edges not known to collide as a symmetric CSR matrix of their lengths, with sorted indices (`drop_entry`
-        looks entries up by bisection): the kept graph with the edges added since merged in, in C. Its lengths are
-        the kept ones: an edge the search drops stays dropped. compact: without entries of edges known to collide
-        (a structural count, such as components, needs that)."""
+        """The edges not known to collide as a symmetric CSR matrix of their lengths, with sorted indices (the search
+        looks an edge's row up by bisection): the kept graph with the edges added since merged in, in C. Its lengths
+        are the kept ones, shared: an edge the search drops (`_kill`) stays dropped. compact: without entries of
+        edges known to collide (a structural count, such as components, needs that)."""
         n, search = len(self), self._search
         if self._search_dead > (0 if compact else len(search[0]) // 8):
             search = tuple(column[np.isfinite(search[2])] for column in search)
@@ -458,7 +451,8 @@ class Roadmap:
             keys = np.concatenate([U << 32 | V, V << 32 | U])
             order = np.argsort(keys)
             keys = keys[order]
-            added = (keys, (keys & 0xFFFFFFFF).astype(np.int32), self._lengths[np.concatenate([fresh, fresh])[order]])
+            rows = np.concatenate([fresh, fresh])[order]
+            added = (keys, (keys & 0xFFFFFFFF).astype(np.int32), self._lengths[rows], rows)
             at = np.searchsorted(search[0], keys)
             search = tuple(np.insert(column, at, new) for column, new in zip(search, added))
         self._search, self._search_synced = search, len(self._ends)
@@ -467,10 +461,9 @@ class Roadmap:
         matrix.has_sorted_indices = True
         return matrix
 
-    def _check_path(self, matrix: csr_matrix, rows: np.ndarray, trees, stop: Stop | None) -> bool:
+    def _check_path(self, rows: np.ndarray, trees, stop: Stop | None) -> bool:
         """Check a candidate path's unchecked edges (rows) until one collides; whether all are free. A colliding
         edge leaves the graph, the search's matrix and the trees."""
-        rows = rows[~self._checked[rows]]
         if not len(rows):
             return True
         if self.free_elsewhere is not None:
@@ -493,25 +486,26 @@ class Roadmap:
         self.edges_tried += int(np.count_nonzero(decided))
         self._checked[rows[decided & free]] = True
         gone = decided & ~free
-        self._alive[rows[gone]] = False
-        for u, v in P[gone].tolist():
-            drop_entry(matrix, u, v)
-            drop_entry(matrix, v, u)
-            self._search_dead += 2
+        if gone.any():
+            self._kill(rows[gone])
             for tree in trees:
-                tree.cut(u, v)
-        return not gone.any() and bool(decided.all())
+                tree.cut(P[gone])
+            return False
+        return bool(decided.all())
+
+    def _kill(self, rows: np.ndarray) -> None:
+        """Edge rows found to collide: not alive, and out of the search's graph where merged into it (their lengths
+        infinite, in the arrays the search's matrix shares)."""
+        from app.checking import kernels
+
+        keys, lengths = self._search[0], self._search[2]
+        self._search_dead += 2 * kernels.kill_edges(rows, self._ends, self._alive, keys, lengths, self._search_synced)
 
     def remove_edge(self, a: int, b: int) -> None:
         """Drop an edge found bad later (e.g. by a finer check). Components are rebuilt from the graph."""
         row = self._rows.get(pair_key(a, b))
         if row is not None and self._alive[row]:
-            self._alive[row] = False
-            if row < self._search_synced:  # merged into the search's graph: out of it too
-                keys, lengths = self._search[0], self._search[2]
-                for key in (int(a) << 32 | int(b), int(b) << 32 | int(a)):
-                    lengths[np.searchsorted(keys, key)] = np.inf
-                self._search_dead += 2
+            self._kill(np.array([row]))
             self._recount_components()
 
     def truncate(self, n: int) -> None:
