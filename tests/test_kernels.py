@@ -38,9 +38,13 @@ def test_an_edge_check_asks_the_points_an_interpolation_gives_coarse_to_fine(ora
     rng = np.random.default_rng(3)
     Q1, Q2 = space.uniform(rng, 40), space.uniform(rng, 40)
     Q2 = Q1 + (Q2 - Q1) * rng.uniform(0, 1, (40, 1)) ** 3  # short and long edges
-    points, owner, rounds, inside, last = kernels.edge_points(Q1, Q2, space.resolution, 0, np.zeros(40, np.int64),
-                                                              *space.edge_table)  # fmt: skip
-    assert inside.all() and (np.diff(rounds) >= 0).all()
+    points, owner, inside, last, round_end, outside, opening = kernels.edge_points(
+        Q1, Q2, space.resolution, 0, np.zeros(40, np.int64), *space.edge_table
+    )
+    assert inside.all() and outside == len(points)
+    # rounds follow one another: each point's round ends after it; the opening rounds 0-2 hold up to 7 an edge
+    assert (np.diff(round_end) >= 0).all() and (round_end > np.arange(len(points))).all()
+    assert opening == round_end[opening - 1] and opening == sum(min(7, n) for n in np.bincount(owner))
     for e in range(40):
         expected = space.interpolate(Q1[e], Q2[e])
         mine = points[owner == e]

@@ -144,23 +144,19 @@ class QueryContext:
         # hit (a round trip per round cost more than its checks on short edges). Made in one compiled call: in
         # numpy, making them cost more than a short edge's checks.
         done = np.zeros(len(Q1), np.int64) if progress is None else progress
-        points, owner, rounds, inside, last = kernels.edge_points(
+        points, owner, inside, last, round_end, outside, opening = kernels.edge_points(
             Q1, Q2, resolution or self.space.resolution, 2 if ends_free else 0, done, *self.space.edge_table
         )
-        free = np.ones(len(Q1), bool)
-        if not len(owner):
-            return free, free.copy()
         hit = [False] * len(Q1)
-        # Points are asked a slice at a time, the first up to each edge's 7th point, then twice as many each time,
-        # so that the stop is polled between slices.
-        passed, end, size = 0, len(owner), max(int(np.searchsorted(rounds, 3)), 1)
+        # Points are asked a slice at a time, the first up to each edge's 7th point (rounds 0-2), then twice as many
+        # each time, so that the stop is polled between slices.
+        passed, end, size = 0, len(owner), opening
         stop_at_hit = until_one_collides
         while passed < end:
             more = min(end - passed, size, _MAX_BATCH)
             allowed = stop.allow(more) if stop is not None else more
             part = slice(passed, passed + allowed)
-            # out of bounds: collides, unasked (edges leave the bounds only where an end does)
-            if not inside[part].all():
+            if passed + allowed > outside:  # out of bounds: collides, unasked (edges leave the bounds only at an end)
                 for edge in owner[part][~inside[part]].tolist():
                     hit[edge] = True
                 if until_one_collides:
@@ -172,7 +168,7 @@ class QueryContext:
                 # The check ends with the round of this collision: the other edges' points in that round are still
                 # asked, so that whatever else of the path collides as early is found in the same call (deciding
                 # fewer edges per call made the search try many more candidate paths).
-                stop_at_hit, end = False, int(np.searchsorted(rounds, rounds[passed - 1], side="right"))
+                stop_at_hit, end = False, int(round_end[passed - 1])
                 size = end - passed
                 continue
             if allowed < more:
@@ -182,7 +178,7 @@ class QueryContext:
             size *= 2
         if progress is not None:  # an edge's points passed were found free, unless the edge was hit
             progress += np.bincount(owner[:passed], minlength=len(Q1))
-        free[:] = np.logical_not(hit)
+        free = np.logical_not(hit)
         # an edge is decided when hit or when every point of it was passed
         return free, ~free | (last < passed)
 

@@ -448,7 +448,9 @@ def edge_points(Q1, Q2, resolution, skip, done, table, wrapped):
     n = max(1, ceil(L / resolution)) segments; its n + 1 points are ordered coarse to fine, the first `skip` and the
     next done[e] left out, and asked round by round (round r: the points at positions 2^r - 1 .. 2^(r+1) - 2 of an
     edge's order), edge by edge within a round. Returns the points (wrapped into [-pi, pi) on the continuous angles),
-    their edge, their round, whether each is within the bounds, and each edge's last point's index (-1: none)."""
+    their edge, whether each is within the bounds, each edge's last point's index (-1: none), per point the index
+    past its round's last point, the first point out of bounds (the count: none), and how many points rounds 0-2
+    hold (at least 1: a check's opening slice)."""
     m, dim = Q1.shape
     D, n = np.empty((m, dim)), np.empty(m, np.int64)
     for e in range(m):
@@ -475,9 +477,10 @@ def edge_points(Q1, Q2, resolution, skip, done, table, wrapped):
         if length[e] > done[e]:
             _coarse_to_fine(n[e] + 1, order[first[e] :])
     points, owner = np.empty((total, dim)), np.empty(total, np.int64)
-    rounds, inside, last = np.empty(total, np.int64), np.empty(total, np.bool_), np.full(m, -1, np.int64)
-    k, r = 0, 0
+    inside, last, round_end = np.empty(total, np.bool_), np.full(m, -1, np.int64), np.empty(total, np.int64)
+    k, r, outside, opening = 0, 0, total, total
     while (1 << r) <= top:
+        start = k
         for e in range(m):
             for j in range(max((1 << r) - 1, done[e]), min((1 << (r + 1)) - 1, length[e])):
                 t = order[first[e] + skip + j] / n[e]
@@ -489,10 +492,15 @@ def edge_points(Q1, Q2, resolution, skip, done, table, wrapped):
                 within = True
                 for c in range(dim):
                     within &= table[0, c] <= point[c] <= table[1, c]
-                owner[k], rounds[k], inside[k], last[e] = e, r, within, k
+                if not within and outside == total:
+                    outside = k
+                owner[k], inside[k], last[e] = e, within, k
                 k += 1
+        round_end[start:k] = k
+        if r == 2:
+            opening = k
         r += 1
-    return points, owner, rounds, inside, last
+    return points, owner, inside, last, round_end, outside, max(opening, 1)
 
 
 @njit(cache=True)
