@@ -69,6 +69,8 @@ def test_a_cut_kills_exactly_the_nodes_below_it():
         tree.cut(P)
         gone |= {(int(u), int(v)) for u, v in P if pred[v] == u} | {(int(v), int(u)) for u, v in P if pred[u] == v}
         for v in range(n):
-            path = tree.path(v)
-            expected = any((path[i + 1], path[i]) in gone for i in range(len(path) - 1))
+            expected, w = False, v
+            while pred[w] >= 0:  # up the tree to its root
+                expected |= (int(pred[w]), w) in gone
+                w = int(pred[w])
             assert tree.dead[v] == expected, v

@@ -2,7 +2,8 @@
 gaps' tiers (app.checking.shape_gaps) one row (configuration, pair) at a time, the motion bound's per-piece sums
 (app.checking.motion_bound) and the test of each piece (app.checking.certify) one piece at a time, the products
 along a kinematic tree (app.checking.kinematics), the points of a batch of edges in the order they are checked
-(app.checking.context), and the lazy search's cut of a shortest-path tree (app.planning.graph).
+(app.checking.context), and the lazy search's steps around its checks: the next candidate path, and a colliding edge
+out of its graph and its shortest-path trees (app.planning.roadmap, app.planning.graph).
 
 A certificate round asks for a few ends and pieces, a few hundred rows past the bounding spheres: in numpy each step
 was dozens of calls on arrays that small, and the calls' overhead, not the arithmetic, was the round's time (on a

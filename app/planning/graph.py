@@ -20,13 +20,6 @@ class SearchTree:
         self._first = np.searchsorted(parent, np.arange(len(pred) + 1), sorter=self._kids)
         self.dead = np.zeros(len(pred), bool)  # a node's tree path to the root has lost an edge
 
-    def path(self, m: int) -> list[int]:
-        """Nodes from m up the tree to its root."""
-        nodes, pred = [m], self.pred
-        while pred[nodes[-1]] >= 0:
-            nodes.append(int(pred[nodes[-1]]))
-        return nodes
-
     def cut(self, P: np.ndarray) -> None:
         """The edges P (node index pairs) are gone: every node below one that is a tree edge has lost its tree path."""
         from app.checking import kernels
